@@ -1,0 +1,99 @@
+#!/usr/bin/env python3
+"""Set up uwgen's virtual environment and run its main jobs.
+
+    python3 run.py demo    # set up, then run the demo over an emulated acoustic link
+    python3 run.py test    # set up, then check generated/ and run the whole test suite
+
+Everything the project needs is installed here, from the package registry, into
+`.venv` (re-installed when pyproject.toml changes). Every ROS process started from
+here keeps its discovery on this machine and gets a ROS_DOMAIN_ID of its own.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = ROOT / ".venv"
+STAMP = VENV / ".uwgen-installed"
+PY = VENV / "bin" / "python"
+
+
+def log(msg: str) -> None:
+    print(f"[run.py] {msg}", flush=True)
+
+
+def find_python311() -> str:
+    if sys.version_info[:2] == (3, 11):
+        return sys.executable
+    found = shutil.which("python3.11")
+    if found:
+        return found
+    sys.exit("run.py: uwgen needs Python 3.11 (ROS 2 Jazzy's wheels are built for it); "
+             f"this is {sys.version.split()[0]} and no python3.11 is on PATH")
+
+
+def wanted_stamp() -> str:
+    return hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
+
+
+def ensure_venv() -> None:
+    want = wanted_stamp()
+    if PY.exists() and STAMP.exists() and STAMP.read_text().strip() == want:
+        return
+    if not PY.exists():
+        log(f"creating {VENV}")
+        subprocess.run([find_python311(), "-m", "venv", str(VENV)], check=True)
+    log("installing uwgen with ROS 2 Jazzy (rclpy, common_interfaces, test_msgs, Fast DDS) into .venv")
+    subprocess.run([str(PY), "-m", "pip", "install", "--quiet", "--upgrade", "pip"], check=True)
+    subprocess.run([str(PY), "-m", "pip", "install", "--quiet", "-e", f"{ROOT}[ros,dev]"], check=True)
+    STAMP.write_text(want + "\n")
+
+
+def ros_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    # A domain of our own so that parallel runs on one machine never cross-talk.
+    env.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    env["PATH"] = f"{VENV / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def run(cmd: list[str]) -> int:
+    log("$ " + " ".join(cmd))
+    return subprocess.run(cmd, cwd=ROOT, env=ros_env()).returncode
+
+
+def cmd_test(extra: list[str]) -> int:
+    rc = run([str(VENV / "bin" / "uwgen"), "build", "--check"])
+    if rc != 0:
+        log("generated/ is stale: run `.venv/bin/uwgen build` and commit the result")
+        return rc
+    rc = run([str(PY), "-m", "pytest", *extra])
+    if rc == 5:  # pytest: no tests collected; a suite that runs nothing must not pass
+        log("pytest collected no tests")
+        return 1
+    return rc
+
+
+def cmd_demo(extra: list[str]) -> int:
+    return run([str(VENV / "bin" / "uwgen"), "demo", *extra])
+
+
+def main(argv: list[str]) -> int:
+    jobs = {"test": cmd_test, "demo": cmd_demo}
+    if not argv or argv[0] not in jobs:
+        print(__doc__.strip())
+        return 2
+    ensure_venv()
+    return jobs[argv[0]](argv[1:])
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,1 @@
+"""The rclpy side of generated bridge nodes."""

@@ -1,0 +1,1 @@
+"""Codec IR and the jinja2 generator that writes generated/."""

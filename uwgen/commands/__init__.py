@@ -1,0 +1,1 @@
+"""One module per `uwgen` sub-command."""

@@ -1,0 +1,1 @@
+"""A faithful emulator of DESERT UW/APPLICATION sockets and the acoustic channel between them."""

@@ -1,0 +1,1 @@
+"""Parsing ROS 2 interface definitions into uwgen.idl.model objects."""

@@ -1,0 +1,1 @@
+"""rmw_desert interoperability: id table JSON and discovery beacons."""

@@ -1,0 +1,1 @@
+"""The network manifest: ids, types, sides and link policy of every topic and service."""

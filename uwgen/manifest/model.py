@@ -1,0 +1,107 @@
+"""The validated manifest: what `uwgen.manifest.loader` returns.
+
+Every key of the YAML is documented in `msg_samples/manifest-reference.yaml`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
+
+PROFILES = ("native", "rmw_desert")
+QUEUE_KINDS = ("latest", "fifo")
+RELIABILITY = ("reliable", "best_effort")
+DURABILITY = ("volatile", "transient_local")
+
+# Ids rmw_desert uses for its discovery topics; reserved while any profile is rmw_desert.
+RMW_DISCOVERY_ID = 1
+RMW_DISCOVERY_REQUEST_ID = 2
+
+
+@dataclass(frozen=True)
+class LinkPolicy:
+    """How one topic or service may use the acoustic link (enforced by the link scheduler)."""
+
+    rate: float | None = None   # most messages per second over the link; None: no limit
+    queue: str = "latest"       # "latest": keep only the newest; "fifo": keep `depth`, oldest first
+    depth: int = 1              # queue depth (always 1 for "latest")
+    ttl: float | None = None    # seconds; older messages are dropped, never sent stale
+    priority: int = 0           # higher is served first when the link is busy
+
+
+@dataclass(frozen=True)
+class Qos:
+    """QoS of the local ROS publisher/subscriber the bridge creates."""
+
+    reliability: str = "reliable"
+    durability: str = "volatile"
+    depth: int = 10
+
+
+@dataclass(frozen=True)
+class LinkConfig:
+    """What a side's DESERT node can carry; the connection paces writes to it."""
+
+    max_read_length: int = 64   # bytes per acoustic packet (DESERT's max_read_length)
+    period: float = 1.0         # seconds between packets (DESERT's period_)
+
+    @property
+    def bytes_per_second(self) -> float:
+        return self.max_read_length / self.period
+
+
+@dataclass(frozen=True)
+class Side:
+    name: str
+    host: str = "127.0.0.1"
+    port: int = 4000
+    link: LinkConfig = field(default_factory=LinkConfig)
+    where: SourceRef | None = None
+
+
+@dataclass(frozen=True)
+class Topic:
+    name: str                   # ROS name, e.g. /turtle1/cmd_vel
+    id: int                     # 1..255, unique across topics and services
+    type_name: str              # pkg/msg/Name
+    type: MessageDef
+    publisher: str              # the side whose local graph publishes it
+    policy: LinkPolicy = field(default_factory=LinkPolicy)
+    qos: Qos = field(default_factory=Qos)
+    profile: str = "native"
+    where: SourceRef | None = None
+
+
+@dataclass(frozen=True)
+class Service:
+    name: str                   # ROS name, e.g. /vehicle/set_pen
+    id: int
+    type_name: str              # pkg/srv/Name
+    type: ServiceDef
+    server: str                 # the side whose local graph serves it
+    timeout: float = 30.0       # seconds a bridged call waits for its response
+    policy: LinkPolicy = field(default_factory=lambda: LinkPolicy(queue="fifo", depth=4))
+    profile: str = "native"
+    where: SourceRef | None = None
+
+
+@dataclass
+class Manifest:
+    network: str
+    source: Path | None
+    profile: str = "native"                      # default profile of topics and services
+    package: str = ""                            # generated package name (default uwgen_<network>)
+    sides: dict[str, Side] = field(default_factory=dict)
+    topics: list[Topic] = field(default_factory=list)
+    services: list[Service] = field(default_factory=list)
+    fragment_id: int | None = None               # reserved id for fragments of payloads > 255 bytes
+
+    def entry(self, id: int) -> Topic | Service | None:
+        for item in (*self.topics, *self.services):
+            if item.id == id:
+                return item
+        return None
+
+    def uses_rmw_desert(self) -> bool:
+        return any(t.profile == "rmw_desert" for t in (*self.topics, *self.services))

@@ -1,0 +1,43 @@
+"""Clocks. Everything that waits or schedules takes one, so tests can drive time.
+
+`now()` is monotonic seconds. `ManualClock` only moves when told to.
+"""
+from __future__ import annotations
+
+import time
+from typing import Protocol
+
+
+class Clock(Protocol):
+    def now(self) -> float: ...
+
+
+class MonotonicClock:
+    """The real clock: time.monotonic()."""
+
+    def now(self) -> float:
+        return time.monotonic()
+
+
+class ManualClock:
+    """A clock for tests: starts at `start` and moves only by `advance()` or `set()`."""
+
+    def __init__(self, start: float = 0.0):
+        self._t = float(start)
+
+    def now(self) -> float:
+        return self._t
+
+    def advance(self, seconds: float) -> float:
+        if seconds < 0:
+            raise ValueError("a clock never goes back")
+        self._t += seconds
+        return self._t
+
+    def set(self, t: float) -> None:
+        if t < self._t:
+            raise ValueError("a clock never goes back")
+        self._t = float(t)
+
+
+SYSTEM_CLOCK = MonotonicClock()
