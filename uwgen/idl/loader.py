@@ -1,0 +1,304 @@
+"""The interface library: every `.msg`/`.srv` uwgen can see, parsed on demand.
+
+Interfaces come from two places:
+
+- folders given explicitly (e.g. `msg_samples/`), each either a parent of packages
+  (`<folder>/<package>/msg/*.msg`, `<folder>/<package>/srv/*.srv`) or a package folder
+  itself (one that has `msg/` or `srv/`);
+- installed ROS packages: `<prefix>/share/<package>/{msg,srv}/` for the environment's
+  own prefix (`sys.prefix`, where the ROS wheels install) and then every entry of
+  `AMENT_PREFIX_PATH`, in order. The first prefix that has a package provides it.
+
+A package found in a given folder hides the installed package of the same name entirely
+(a local copy replaces the installed one; mixing files of two versions of a package
+would be wrong). `action/` folders and `.idl` files are ignored: uwgen does not bridge
+actions yet.
+
+Building the index only lists folders; files are parsed the first time they are asked
+for and cached, so naming one type costs one parse plus its dependencies.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Sequence
+
+from uwgen.idl import names
+from uwgen.idl.model import DefinitionError, InterfaceDef, MessageDef, ServiceDef, SourceRef
+from uwgen.idl.parser import parse_file
+
+_KINDS = (("msg", ".msg"), ("srv", ".srv"))
+
+
+class UnknownInterface(DefinitionError, KeyError):
+    """`InterfaceLibrary.get` was asked for a name it does not know."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return DefinitionError.__str__(self)
+
+
+@dataclass(frozen=True)
+class _Entry:
+    full_name: str
+    package: str
+    path: Path
+    local: bool
+
+
+def default_prefixes() -> list[Path]:
+    """Install prefixes searched for `share/<package>/msg|srv`: sys.prefix, then AMENT_PREFIX_PATH."""
+    prefixes = [Path(sys.prefix)]
+    for item in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if item:
+            prefixes.append(Path(item))
+    return prefixes
+
+
+class InterfaceLibrary:
+    """Every interface known from the given folders and (optionally) installed packages."""
+
+    def __init__(
+        self,
+        folders: Iterable[Path | str] = (),
+        installed: bool = True,
+        prefixes: Sequence[Path | str] | None = None,
+    ):
+        self.folders = [Path(f) for f in folders]
+        self.prefixes = [Path(p) for p in (default_prefixes() if prefixes is None else prefixes)] if installed else []
+        self._index: dict[str, _Entry] = {}
+        self._parsed: dict[Path, InterfaceDef] = {}
+        self._checked: set[str] = set()
+        local_packages = self._index_folders()
+        self._index_installed(local_packages)
+
+    # -- index -----------------------------------------------------------------------
+
+    def _index_folders(self) -> set[str]:
+        seen_real: set[Path] = set()
+        packages: set[str] = set()
+        for folder in self.folders:
+            if not folder.is_dir():
+                raise DefinitionError(SourceRef(folder, 1, 1), "interface folder does not exist or is not a folder")
+            found = False
+            for package_dir in self._package_dirs(folder):
+                real = package_dir.resolve()
+                if real in seen_real:
+                    found = True
+                    continue
+                seen_real.add(real)
+                package = package_dir.name
+                if not names.is_package_name(package):
+                    raise DefinitionError(
+                        SourceRef(package_dir, 1, 1),
+                        f"'{package}' is not a valid ROS package name (lower case letters, digits, '_')",
+                    )
+                for entry in self._package_entries(package, package_dir, local=True):
+                    previous = self._index.get(entry.full_name)
+                    if previous is not None:
+                        raise DefinitionError(
+                            SourceRef(entry.path, 1, 1),
+                            f"{entry.full_name} is defined twice: also in {previous.path}",
+                        )
+                    self._index[entry.full_name] = entry
+                    found = True
+                packages.add(package)
+            if not found:
+                raise DefinitionError(
+                    SourceRef(folder, 1, 1),
+                    "no interfaces found: expected <package>/msg/*.msg or <package>/srv/*.srv "
+                    "(or a package folder with msg/ or srv/)",
+                )
+        return packages
+
+    @staticmethod
+    def _package_dirs(folder: Path) -> list[Path]:
+        if (folder / "msg").is_dir() or (folder / "srv").is_dir():
+            return [folder]
+        return sorted(
+            child
+            for child in folder.iterdir()
+            if child.is_dir() and ((child / "msg").is_dir() or (child / "srv").is_dir())
+        )
+
+    @staticmethod
+    def _package_entries(package: str, package_dir: Path, local: bool) -> list[_Entry]:
+        entries = []
+        for kind, suffix in _KINDS:
+            sub = package_dir / kind
+            if not sub.is_dir():
+                continue
+            for path in sorted(sub.iterdir()):
+                if path.suffix == suffix and path.is_file():
+                    entries.append(_Entry(f"{package}/{kind}/{path.stem}", package, path, local))
+        return entries
+
+    def _index_installed(self, hidden: set[str]) -> None:
+        provided: set[str] = set(hidden)
+        for prefix in self.prefixes:
+            share = prefix / "share"
+            try:
+                children = sorted(os.scandir(share), key=lambda e: e.name)
+            except OSError:
+                continue
+            for child in children:
+                if child.name in provided or not child.is_dir():
+                    continue
+                package_dir = Path(child.path)
+                entries = self._package_entries(child.name, package_dir, local=False)
+                if not entries:
+                    continue
+                provided.add(child.name)
+                for entry in entries:
+                    self._index[entry.full_name] = entry
+
+    # -- names -----------------------------------------------------------------------
+
+    def local_names(self) -> list[str]:
+        """Full names defined in the given folders (not installed ones), sorted."""
+        return sorted(n for n, e in self._index.items() if e.local)
+
+    def all_names(self) -> list[str]:
+        """Every interface known (folders and installed), sorted."""
+        return sorted(self._index)
+
+    def search_paths(self) -> list[Path]:
+        """Where interfaces are looked for, for error messages: the folders, then each prefix's share/."""
+        return [*self.folders, *(p / "share" for p in self.prefixes)]
+
+    def normalize(self, name: str) -> str | None:
+        """The full name (`pkg/msg/Name`, `pkg/srv/Name`, `pkg/srv/Name_Request`) for `name`, if known.
+
+        `pkg/Name` means the message if there is one, else the service.
+        """
+        parts = name.split("/")
+        if len(parts) == 2:
+            for kind in ("msg", "srv"):
+                full = f"{parts[0]}/{kind}/{parts[1]}"
+                if self._lookup(full) is not None:
+                    return full
+            return None
+        if len(parts) == 3 and self._lookup(name) is not None:
+            return name
+        return None
+
+    def _lookup(self, full: str) -> tuple[_Entry, str | None] | None:
+        """(entry, part) for a full name; part is 'request'/'response' for a service's message."""
+        entry = self._index.get(full)
+        if entry is not None:
+            return entry, None
+        pkg, _, rest = full.partition("/srv/")
+        if rest:
+            for suffix, part in (("_Request", "request"), ("_Response", "response")):
+                if rest.endswith(suffix):
+                    entry = self._index.get(f"{pkg}/srv/{rest[: -len(suffix)]}")
+                    if entry is not None:
+                        return entry, part
+        return None
+
+    def __contains__(self, name: str) -> bool:
+        return self.normalize(name) is not None
+
+    def source_of(self, name: str) -> Path | None:
+        """The file that defines `name`, if known."""
+        full = self.normalize(name)
+        return None if full is None else self._lookup(full)[0].path
+
+    # -- definitions -----------------------------------------------------------------
+
+    def find(self, name: str) -> InterfaceDef | None:
+        """The definition of `name` (any spelling `normalize` accepts), or None if unknown.
+
+        Raises DefinitionError if the file is broken or uses a type that does not exist.
+        """
+        full = self.normalize(name)
+        if full is None:
+            return None
+        entry, part = self._lookup(full)
+        definition = self._parse(entry)
+        self._check(definition)
+        if part is not None:
+            return getattr(definition, part)
+        return definition
+
+    def get(self, name: str) -> InterfaceDef:
+        """Like `find`, but an unknown name raises UnknownInterface (a DefinitionError and KeyError)."""
+        definition = self.find(name)
+        if definition is None:
+            raise UnknownInterface(None, self.describe_unknown(name))
+        return definition
+
+    def describe_unknown(self, name: str) -> str:
+        """Why `name` is unknown and where it was looked for (for error messages)."""
+        where = ", ".join(str(p) for p in self.search_paths()) or "nowhere (no folders, installed=False)"
+        if names.split_type_name(name) is None:
+            return f"'{name}' is not an interface name: expected pkg/msg/Name, pkg/srv/Name or pkg/Name"
+        return f"unknown interface '{name}' (looked in: {where})"
+
+    def _parse(self, entry: _Entry) -> InterfaceDef:
+        definition = self._parsed.get(entry.path)
+        if definition is None:
+            definition = parse_file(entry.path, entry.package)
+            self._parsed[entry.path] = definition
+        return definition
+
+    def _check(self, definition: InterfaceDef) -> None:
+        """Every nested type a definition names must exist and be a message."""
+        if definition.full_name in self._checked:
+            return
+        messages = [definition] if isinstance(definition, MessageDef) else [definition.request, definition.response]
+        for message in messages:
+            for f in message.fields:
+                if f.type.is_primitive:
+                    continue
+                base = f.type.base
+                entry = self._index.get(base)
+                if entry is None:
+                    raise DefinitionError(f.where, self._unresolved_message(base, message))
+        self._checked.add(definition.full_name)
+
+    def _unresolved_message(self, base: str, message: MessageDef) -> str:
+        pkg, _, name = base.split("/")
+        text = f"unknown type '{base}'"
+        if self.normalize(f"{pkg}/srv/{name}") is not None:
+            return f"'{pkg}/srv/{name}' is a service; a field needs a message type"
+        if name == "Header" and pkg != "std_msgs" and "std_msgs/msg/Header" in self._index:
+            text += " (ROS 2 does not resolve a bare 'Header' to std_msgs: write std_msgs/Header)"
+        where = ", ".join(str(p) for p in self.search_paths())
+        return f"{text} used by {message.full_name} (looked in: {where})"
+
+    def closure(self, names_: Iterable[str]) -> list[MessageDef]:
+        """The messages these interfaces use, dependencies first, each once.
+
+        Services contribute their request and response (and what those use); the named
+        messages themselves are included. A message that contains itself, directly or
+        through others, is a DefinitionError at the field that closes the loop.
+        """
+        order: list[MessageDef] = []
+        done: set[str] = set()
+        for name in names_:
+            definition = self.get(name)
+            if isinstance(definition, ServiceDef):
+                roots = [definition.request, definition.response]
+            else:
+                roots = [definition]
+            for root in roots:
+                self._visit(root, order, done, [])
+        return order
+
+    def _visit(self, message: MessageDef, order: list[MessageDef], done: set[str], stack: list[str]) -> None:
+        if message.full_name in done:
+            return
+        stack.append(message.full_name)
+        for f in message.fields:
+            if f.type.is_primitive:
+                continue
+            if f.type.base in stack:
+                loop = " -> ".join([*stack[stack.index(f.type.base):], f.type.base])
+                raise DefinitionError(f.where, f"recursive message type: {loop} (a message cannot contain itself)")
+            nested = self.get(f.type.base)
+            self._visit(nested, order, done, stack)
+        stack.pop()
+        done.add(message.full_name)
+        order.append(message)
