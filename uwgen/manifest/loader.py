@@ -1,0 +1,402 @@
+"""Load and validate a network manifest (`uwgen.yaml`) into `uwgen.manifest.model` objects.
+
+Every key is documented in `msg_samples/manifest-reference.yaml`. Every problem is a
+`ManifestError` at the manifest's `file:line:column`; a broken interface definition that
+the manifest names surfaces as the parser's own `DefinitionError` (located in the
+`.msg`/`.srv` file, which is where the fix belongs).
+"""
+from __future__ import annotations
+
+import ipaddress
+import keyword
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from uwgen.idl import names as idl_names
+from uwgen.idl.loader import InterfaceLibrary
+from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
+from uwgen.manifest.model import (
+    DURABILITY,
+    PROFILES,
+    QUEUE_KINDS,
+    RELIABILITY,
+    RMW_DISCOVERY_ID,
+    RMW_DISCOVERY_REQUEST_ID,
+    LinkConfig,
+    LinkPolicy,
+    Manifest,
+    Qos,
+    Service,
+    Side,
+    Topic,
+)
+from uwgen.manifest.nodes import ManifestError, Reader, compose
+
+__all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
+
+MANIFEST_NAME = "uwgen.yaml"
+FIFO_DEFAULT_DEPTH = 4   # queue depth of a fifo topic that does not say
+ID_RANGE = (1, 255)
+
+TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "defaults", "topics", "services")
+SIDE_KEYS = ("host", "port", "link")
+LINK_KEYS = ("max_read_length", "period")
+POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority")
+QOS_KEYS = ("reliability", "durability", "depth")
+DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile")
+SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile")
+
+NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
+SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+PYTHON_PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+HOSTNAME_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
+ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def find_manifest(folder: Path) -> Path | None:
+    """`<folder>/uwgen.yaml` if it exists (the convention), else None."""
+    candidate = Path(folder) / MANIFEST_NAME
+    return candidate if candidate.is_file() else None
+
+
+def load_manifest(path: Path, lib: InterfaceLibrary) -> Manifest:
+    """Read, validate and resolve the manifest at `path` against the interface library."""
+    path = Path(path)
+    root = compose(path)
+    return _ManifestBuilder(Reader(path), lib).build(root)
+
+
+def validate_ros_name(name: str) -> str | None:
+    """Why `name` is not a fully qualified ROS 2 topic/service name, or None if it is one.
+
+    The rules of rcl/rmw's full-name validation: leads with '/', tokens of letters, digits
+    and '_' that do not start with a digit, no '//', no trailing '/'. Relative names are
+    refused because a bridge node's namespace would silently change them.
+    """
+    if not name:
+        return "a ROS name must not be empty"
+    if not name.startswith("/"):
+        return f"'{name}' is not a fully qualified ROS name: it must start with '/'"
+    if name == "/":
+        return "'/' alone is not a topic or service name"
+    if name.endswith("/"):
+        return f"'{name}' must not end with '/'"
+    if "//" in name:
+        return f"'{name}' must not contain '//'"
+    for token in name[1:].split("/"):
+        if token[0].isdigit():
+            return f"'{name}': the part '{token}' must not start with a digit"
+        if not ROS_TOKEN.fullmatch(token) or not token.isascii():
+            return f"'{name}' may contain only letters, digits, '_' and '/'"
+    if len(name) > 255:
+        return f"'{name[:20]}...' is longer than 255 characters"
+    return None
+
+
+def _valid_host(host: str) -> bool:
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        pass
+    if len(host) > 253 or not host:
+        return False
+    labels = host.rstrip(".").split(".")
+    return all(HOSTNAME_LABEL.fullmatch(label) for label in labels) and not labels[-1].isdigit()
+
+
+@dataclass
+class _IdUse:
+    """Who holds an id, for duplicate and reservation messages."""
+
+    what: str
+    node: yaml.Node
+
+
+@dataclass
+class _Defaults:
+    """Policy keys from `defaults`, as nodes so errors stay located."""
+
+    entries: dict = field(default_factory=dict)
+
+
+class _ManifestBuilder:
+    def __init__(self, reader: Reader, lib: InterfaceLibrary):
+        self.r = reader
+        self.lib = lib
+        self.ids: dict[int, _IdUse] = {}
+
+    # -- top level -------------------------------------------------------------------
+
+    def build(self, root: yaml.Node | None) -> Manifest:
+        r = self.r
+        if root is None:
+            raise ManifestError(SourceRef(r.path, 1, 1), "empty manifest: expected a mapping with at least 'network' and 'sides'")
+        top = r.mapping(root, "the manifest", TOP_KEYS)
+
+        network_node = r.require(top, "network", root, "the manifest")
+        network = r.string(network_node, "network")
+        if not NETWORK_NAME.fullmatch(network):
+            raise r.error(network_node, f"network '{network}' must be lower case letters, digits and '_', starting with a letter")
+
+        package = f"uwgen_{network}"
+        if "package" in top:
+            node = top["package"][1]
+            package = r.string(node, "package")
+            if not PYTHON_PACKAGE.fullmatch(package) or keyword.iskeyword(package):
+                raise r.error(node, f"package '{package}' must be a valid Python package name")
+
+        profile = "native"
+        if "profile" in top:
+            profile = r.choice(top["profile"][1], "profile", PROFILES)
+
+        sides_node = r.require(top, "sides", root, "the manifest")
+        sides = self.sides(sides_node)
+
+        defaults = _Defaults()
+        if "defaults" in top:
+            defaults.entries = r.mapping(top["defaults"][1], "defaults", DEFAULTS_KEYS)
+            # Validate what defaults say even if no topic uses it.
+            self.policy(defaults.entries, _Defaults(), LinkPolicy(), "defaults", is_defaults=True)
+            if "qos" in defaults.entries:
+                self.qos(defaults.entries["qos"][1], Qos())
+
+        topics = []
+        if "topics" in top:
+            for node in r.sequence(top["topics"][1], "topics"):
+                topics.append(self.topic(node, sides, defaults, profile))
+        services = []
+        if "services" in top:
+            for node in r.sequence(top["services"][1], "services"):
+                services.append(self.service(node, sides, profile))
+        self.unique_names(topics, "topic")
+        self.unique_names(services, "service")
+
+        fragment_id = None
+        if "fragment_id" in top:
+            fragment_id = self.fragment_id(top["fragment_id"][1])
+
+        manifest = Manifest(
+            network=network,
+            source=r.path,
+            profile=profile,
+            package=package,
+            sides=sides,
+            topics=topics,
+            services=services,
+            fragment_id=fragment_id,
+        )
+        if manifest.uses_rmw_desert():
+            self.check_rmw_reserved(manifest, top)
+        return manifest
+
+    # -- sides -----------------------------------------------------------------------
+
+    def sides(self, node: yaml.Node) -> dict[str, Side]:
+        r = self.r
+        entries = r.open_mapping(node, "sides")
+        if not entries:
+            raise r.error(node, "sides must name at least one side, e.g. surface: {port: 4000}")
+        sides: dict[str, Side] = {}
+        endpoints: dict[tuple[str, int], str] = {}
+        for name, key_node, value_node in ((k, kn, vn) for k, (kn, vn) in entries.items()):
+            if not SIDE_NAME.fullmatch(name):
+                raise r.error(key_node, f"side name '{name}' must be letters, digits and '_', starting with a letter")
+            what = f"side '{name}'"
+            fields = r.mapping(value_node, what, SIDE_KEYS)
+            host = "127.0.0.1"
+            if "host" in fields:
+                host_node = fields["host"][1]
+                host = r.string(host_node, f"host of {what}")
+                if not _valid_host(host):
+                    raise r.error(host_node, f"host '{host}' of {what} is neither an IP address nor a host name")
+            port_node = r.require(fields, "port", value_node, what)
+            port = r.integer(port_node, f"port of {what}", 1, 65535)
+            if (host, port) in endpoints:
+                raise r.error(port_node, f"{what} uses {host}:{port}, already used by side '{endpoints[host, port]}' (DESERT serves one client per port)")
+            endpoints[host, port] = name
+            link = LinkConfig()
+            if "link" in fields:
+                link = self.link(fields["link"][1], what)
+            sides[name] = Side(name, host, port, link, r.where(value_node))
+        return sides
+
+    def link(self, node: yaml.Node, what: str) -> LinkConfig:
+        r = self.r
+        fields = r.mapping(node, f"link of {what}", LINK_KEYS)
+        base = LinkConfig()
+        max_read_length = base.max_read_length
+        period = base.period
+        if "max_read_length" in fields:
+            max_read_length = r.integer(fields["max_read_length"][1], f"max_read_length of {what}", 1, 4096)
+        if "period" in fields:
+            period = r.number(fields["period"][1], f"period of {what}")
+        return LinkConfig(max_read_length, period)
+
+    # -- topics and services ---------------------------------------------------------
+
+    def common(self, node: yaml.Node, kind: str, keys: tuple[str, ...]) -> tuple[dict, str, int, str, str]:
+        """Entries, name, id, type text and a label ('topic /x') shared by topics and services."""
+        r = self.r
+        entries = r.mapping(node, f"a {kind}", keys)
+        name_node = r.require(entries, "name", node, f"a {kind}")
+        name = r.string(name_node, f"{kind} name")
+        problem = validate_ros_name(name)
+        if problem:
+            raise r.error(name_node, f"invalid {kind} name: {problem}")
+        label = f"{kind} {name}"
+        id_node = r.require(entries, "id", node, label)
+        ident = r.integer(id_node, f"id of {label}", *ID_RANGE)
+        if ident in self.ids:
+            first = self.ids[ident]
+            raise r.error(id_node, f"id {ident} of {label} is already used by {first.what} (line {r.where(first.node).line}); ids are unique across topics and services")
+        self.ids[ident] = _IdUse(label, id_node)
+        type_node = r.require(entries, "type", node, label)
+        type_text = r.string(type_node, f"type of {label}")
+        return entries, name, ident, type_text, label
+
+    def resolve(self, type_node: yaml.Node, type_text: str, want: str, label: str):
+        """The MessageDef (want='msg') or ServiceDef (want='srv') named by `type_text`."""
+        r = self.r
+        split = idl_names.split_type_name(type_text)
+        if split is None:
+            raise r.error(type_node, f"type '{type_text}' of {label} is not a type name: expected pkg/{want}/Name or pkg/Name")
+        pkg, ns, name = split
+        other = "srv" if want == "msg" else "msg"
+        full = f"{pkg}/{want}/{name}"
+        if ns == other or (ns is None and full not in self.lib and f"{pkg}/{other}/{name}" in self.lib):
+            if f"{pkg}/{other}/{name}" in self.lib:
+                if want == "msg":
+                    raise r.error(type_node, f"type '{type_text}' is a service, but {label} needs a message type (pkg/msg/Name); declare it under services:")
+                raise r.error(type_node, f"type '{type_text}' is a message, but {label} needs a service type (pkg/srv/Name); declare it under topics:")
+            raise r.error(type_node, f"{label} needs a {'message' if want == 'msg' else 'service'} type pkg/{want}/Name, got '{type_text}'")
+        if full not in self.lib or self.lib.normalize(full) != full:
+            raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found (looked in: {self._looked()})")
+        definition = self.lib.get(full)
+        expected = MessageDef if want == "msg" else ServiceDef
+        if not isinstance(definition, expected):  # pragma: no cover - the library keeps msg and srv apart
+            raise r.error(type_node, f"type '{type_text}' of {label} is not a {want}")
+        return full, definition
+
+    def _looked(self) -> str:
+        paths = self.lib.search_paths()
+        return ", ".join(str(p) for p in paths) if paths else "no folders and no installed packages"
+
+    def side_ref(self, entries: dict, key: str, owner: yaml.Node, label: str, sides: dict[str, Side]) -> str:
+        r = self.r
+        node = r.require(entries, key, owner, label)
+        side = r.string(node, f"{key} of {label}")
+        if side not in sides:
+            declared = ", ".join(sides)
+            raise r.error(node, f"{key} '{side}' of {label} is not a declared side (sides: {declared})")
+        return side
+
+    def topic(self, node: yaml.Node, sides: dict[str, Side], defaults: _Defaults, profile: str) -> Topic:
+        r = self.r
+        entries, name, ident, type_text, label = self.common(node, "topic", TOPIC_KEYS)
+        type_name, definition = self.resolve(entries["type"][1], type_text, "msg", label)
+        publisher = self.side_ref(entries, "publisher", node, label, sides)
+        policy = self.policy(entries, defaults, LinkPolicy(), label)
+        qos = Qos()
+        if "qos" in defaults.entries:
+            qos = self.qos(defaults.entries["qos"][1], qos)
+        if "qos" in entries:
+            qos = self.qos(entries["qos"][1], qos)
+        topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
+        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node))
+
+    def service(self, node: yaml.Node, sides: dict[str, Side], profile: str) -> Service:
+        r = self.r
+        entries, name, ident, type_text, label = self.common(node, "service", SERVICE_KEYS)
+        type_name, definition = self.resolve(entries["type"][1], type_text, "srv", label)
+        server = self.side_ref(entries, "server", node, label, sides)
+        timeout = Service.__dataclass_fields__["timeout"].default
+        if "timeout" in entries:
+            timeout = r.number(entries["timeout"][1], f"timeout of {label}")
+        base = Service.__dataclass_fields__["policy"].default_factory()
+        policy = self.policy(entries, _Defaults(), base, label)
+        service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
+        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node))
+
+    def policy(self, entries: dict, defaults: _Defaults, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
+        """Link policy from `entries`, falling back to `defaults`, then to `base`."""
+        r = self.r
+
+        def pick(key: str):
+            if key in entries:
+                return entries[key][1], True
+            if key in defaults.entries:
+                return defaults.entries[key][1], False
+            return None, False
+
+        rate, ttl, priority, queue = base.rate, base.ttl, base.priority, base.queue
+        node, _ = pick("rate")
+        if node is not None:
+            rate = r.optional_number(node, f"rate of {label}")
+        node, _ = pick("ttl")
+        if node is not None:
+            ttl = r.optional_number(node, f"ttl of {label}")
+        node, _ = pick("priority")
+        if node is not None:
+            priority = r.integer(node, f"priority of {label}")
+        queue_node, _ = pick("queue")
+        if queue_node is not None:
+            queue = r.choice(queue_node, f"queue of {label}", QUEUE_KINDS)
+        depth_node, own = pick("depth")
+        if queue == "latest":
+            # A depth written next to a latest queue is a mistake; a depth in `defaults`
+            # without a queue there is meant for the fifo topics and ignored by the others.
+            if depth_node is not None and own and not (is_defaults and queue_node is None):
+                raise r.error(depth_node, f"depth of {label} only applies to queue: fifo (queue latest keeps just the newest message)")
+            depth = 1
+        else:
+            depth = base.depth if base.queue == "fifo" else FIFO_DEFAULT_DEPTH
+            if depth_node is not None:
+                depth = r.integer(depth_node, f"depth of {label}", 1)
+        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority)
+
+    def qos(self, node: yaml.Node, base: Qos) -> Qos:
+        r = self.r
+        fields = r.mapping(node, "qos", QOS_KEYS)
+        reliability, durability, depth = base.reliability, base.durability, base.depth
+        if "reliability" in fields:
+            reliability = r.choice(fields["reliability"][1], "qos reliability", RELIABILITY)
+        if "durability" in fields:
+            durability = r.choice(fields["durability"][1], "qos durability", DURABILITY)
+        if "depth" in fields:
+            depth = r.integer(fields["depth"][1], "qos depth", 1)
+        return Qos(reliability, durability, depth)
+
+    def unique_names(self, items: list, kind: str) -> None:
+        seen: dict[str, object] = {}
+        for item in items:
+            if item.name in seen:
+                first = seen[item.name]
+                raise ManifestError(item.where, f"{kind} {item.name} is declared twice (first at line {first.where.line})")
+            seen[item.name] = item
+
+    def fragment_id(self, node: yaml.Node) -> int | None:
+        r = self.r
+        if isinstance(node, yaml.ScalarNode) and r.value(node) is None:
+            return None
+        ident = r.integer(node, "fragment_id", *ID_RANGE)
+        if ident in self.ids:
+            user = self.ids[ident]
+            raise r.error(node, f"fragment_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
+        return ident
+
+    def check_rmw_reserved(self, manifest: Manifest, top: dict) -> None:
+        r = self.r
+        user = next(t for t in (*manifest.topics, *manifest.services) if t.profile == "rmw_desert")
+        reason = f"while any topic or service uses profile rmw_desert ({user.name} at line {user.where.line} does)"
+        reserved = {RMW_DISCOVERY_ID: "/discovery", RMW_DISCOVERY_REQUEST_ID: "/discovery_request"}
+        for ident, topic in reserved.items():
+            if ident in self.ids:
+                use = self.ids[ident]
+                raise r.error(use.node, f"id {ident} of {use.what} is reserved for rmw_desert's {topic} {reason}")
+        if manifest.fragment_id in reserved:
+            raise r.error(top["fragment_id"][1], f"fragment_id {manifest.fragment_id} is reserved for rmw_desert's {reserved[manifest.fragment_id]} {reason}")
