@@ -1,0 +1,469 @@
+"""The emulator's sans-IO core: DESERT nodes and the acoustic channel as a discrete-event model.
+
+No sockets and no clock: every input carries its time (`client_data(node, t, data)`,
+`client_attached(node, t)`, ...), `advance(t)` runs the model up to `t` and returns the
+packets delivered by then, and `next_event_time()` says when something happens next.
+The socket shell (`uwgen.emulator.server`) drives it with the real clock; tests and the
+PDR sweep drive it with explicit times, so timing, loss and collision statistics are
+exact, deterministic (seeded) and fast.
+
+What one node does (after DESERT's UW/APPLICATION in TCP mode, UW/CSMA_ALOHA or UW/TDMA,
+and UW/PHYSICAL):
+- bytes from its client are cut into packets of at most max_read_length bytes and queued;
+  the queue is unbounded, as in DESERT;
+- every `period` seconds (ticks on a fixed grid from the node's start) one queued packet
+  goes down to the MAC;
+- CSMA-ALOHA: the MAC waits until it hears no carrier, listens for `listen_time`, and
+  transmits unless a carrier appeared meanwhile (then it waits and listens again).
+  TDMA: it transmits only inside its own slot, and only if the packet ends before the
+  guard time;
+- a packet is on the air for (bytes + header) * 8 / bitrate seconds and reaches every other
+  node after distance / sound speed;
+- a receiver locks onto the first packet it can hear; a packet that arrives while it is
+  transmitting or already locked is lost, and a transmission starting during a reception
+  kills that reception (half duplex); the locked packet is lost if the interference of
+  overlapping packets pushes it under the threshold (an ALOHA channel: "collision");
+- with an SNR model, a packet whose faded SNR is under the acquisition threshold, or that
+  draws BPSK bit errors, is lost ("snr"); then the fixed packet error rate applies ("per");
+- an intact packet for this node is written to its client, or dropped ("no_client") when
+  none is connected.
+"""
+from __future__ import annotations
+
+import heapq
+import itertools
+import logging
+import math
+import random
+from collections import deque
+from dataclasses import dataclass, field
+
+from uwgen.emulator.physics import bpsk_per
+from uwgen.emulator.scenario import Scenario
+
+log = logging.getLogger(__name__)
+
+LOSS_CAUSES = ("per", "snr", "collision", "no_client")
+
+# Event kinds, in the order they run when they share a time: a reception that ends at the
+# instant another begins does not overlap it, and a node that stops sending at t can
+# receive from t.
+_RX_END, _TX_END, _RX_START, _TICK, _MAC, _LISTEN_END = range(6)
+
+_IDLE, _WAITING, _LISTENING, _SENDING = "idle", "waiting", "listening", "sending"
+
+
+@dataclass(frozen=True)
+class Delivery:
+    """Bytes that reached `node`'s client, and when (simulated seconds)."""
+
+    node: str
+    data: bytes
+    time: float          # the packet's last bit arrived
+    source: str
+    queued_at: float     # when its bytes were read from the source's client
+    sent_at: float       # when its transmission started
+
+
+@dataclass
+class _Packet:
+    uid: int
+    source: str
+    dest: str
+    data: bytes
+    queued_at: float
+    sent_at: float = 0.0
+
+
+@dataclass
+class _Arrival:
+    packet: _Packet
+    receiver: str
+    start: float
+    end: float
+    power: float                 # mean received power, linear (1.0 without SNR model)
+    snr_db: float                # faded SNR (inf without SNR model)
+    audible: bool                # does it raise the receiver's carrier sense?
+    interference: float = 0.0    # summed power of the packets that overlapped it
+    fail: str | None = None      # cause fixed at its start (not locked onto)
+
+
+@dataclass
+class _Node:
+    name: str
+    dest: str
+    period: float
+    max_read_length: int
+    origin: float                               # tick grid: origin + k * period
+    app_queue: deque = field(default_factory=deque)
+    mac_queue: deque = field(default_factory=deque)
+    queue_bytes: int = 0
+    tick_pending: bool = False
+    mac_state: str = _IDLE
+    listen_start: float = 0.0
+    tx_end: float = -math.inf
+    rx: list = field(default_factory=list)      # arrivals in progress
+    locked: _Arrival | None = None
+    last_carrier: float = -math.inf             # start of the latest audible arrival
+    client: bool = False
+    counters: dict = field(default_factory=dict)
+
+
+def _new_counters() -> dict[str, int]:
+    c = {
+        "bytes_in": 0,            # read from this node's client
+        "packets_queued": 0,      # packets cut from those bytes
+        "packets_sent": 0,        # transmissions started
+        "bytes_sent": 0,          # payload bytes of those
+        "queue_bytes": 0,         # bytes waiting inside the node now (not yet on the air)
+        "max_queue_bytes": 0,
+        "packets_delivered": 0,   # packets written to this node's client
+        "bytes_delivered": 0,
+        "dropped_restart": 0,     # this node's packets queued or in flight at a restart
+        "clients": 0,             # client connections served
+    }
+    for cause in LOSS_CAUSES:
+        c[f"lost_{cause}"] = 0    # packets addressed to this node and lost, by cause
+    return c
+
+
+class EmulatorCore:
+    """N DESERT nodes on one acoustic channel, advanced by explicit times (see module doc)."""
+
+    def __init__(self, scenario: Scenario, start: float = 0.0):
+        self.scenario = scenario
+        self.now = float(start)
+        self.restarts = 0
+        self._rng = random.Random(scenario.seed)
+        self._events: list = []
+        self._seq = itertools.count()
+        self._uids = itertools.count(1)
+        self._pending: list[Delivery] = []
+        s = scenario
+        self._nodes: dict[str, _Node] = {}
+        for spec in s.nodes:
+            self._nodes[spec.name] = _Node(
+                name=spec.name, dest=s.dest_of(spec.name), period=s.period_of(spec.name),
+                max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase,
+                counters=_new_counters())
+        self._order = list(self._nodes)
+        # Per ordered pair: propagation delay, mean received power and SNR.
+        self._delay: dict[tuple[str, str], float] = {}
+        self._power: dict[tuple[str, str], float] = {}
+        self._snr: dict[tuple[str, str], float] = {}
+        snr = s.snr
+        self._noise = 10 ** (snr.noise_db() / 10) if snr else 0.0
+        for a in self._order:
+            for b in self._order:
+                if a == b:
+                    continue
+                d = s.distance(a, b)
+                self._delay[a, b] = d / s.sound_speed
+                if snr:
+                    self._power[a, b] = 10 ** (snr.received_db(d) / 10)
+                    self._snr[a, b] = snr.snr_db(d)
+                else:
+                    self._power[a, b] = 1.0
+                    self._snr[a, b] = math.inf
+
+    # ------------------------------------------------------------------ inputs
+    def client_attached(self, node: str, t: float) -> None:
+        """A client connected to `node` (it receives what arrives from now on)."""
+        self._run_until(t)
+        n = self._node(node)
+        n.client = True
+        n.counters["clients"] += 1
+
+    def client_detached(self, node: str, t: float) -> None:
+        self._run_until(t)
+        self._node(node).client = False
+
+    def client_data(self, node: str, t: float, data: bytes) -> int:
+        """Bytes read from `node`'s client at `t`: cut and queued. Returns packets queued."""
+        self._run_until(t)
+        n = self._node(node)
+        if not data:
+            return 0
+        n.counters["bytes_in"] += len(data)
+        count = 0
+        for i in range(0, len(data), n.max_read_length):
+            chunk = bytes(data[i:i + n.max_read_length])
+            n.app_queue.append(_Packet(next(self._uids), n.name, n.dest, chunk, t))
+            n.queue_bytes += len(chunk)
+            count += 1
+        n.counters["packets_queued"] += count
+        self._note_queue(n)
+        if not n.tick_pending:
+            self._schedule_tick(n, t)
+        return count
+
+    def reset(self, t: float) -> None:
+        """A DESERT restart at `t`: queues and packets in flight are lost, clients are gone,
+        and every node's send ticks start again from `t`."""
+        self._run_until(t)
+        lost: set[int] = set()
+        for n in self._nodes.values():
+            for pkt in itertools.chain(n.app_queue, n.mac_queue):
+                self._nodes[pkt.source].counters["dropped_restart"] += 1
+        # Packets on their way to their destination: arriving, or still propagating.
+        in_flight = [arr for n in self._nodes.values() for arr in n.rx]
+        in_flight += [args for _, _, _, kind, args in self._events if kind == _RX_START]
+        for arr in in_flight:
+            if arr.receiver == arr.packet.dest and arr.packet.uid not in lost:
+                lost.add(arr.packet.uid)
+                self._nodes[arr.packet.source].counters["dropped_restart"] += 1
+        self._events.clear()
+        for spec in self.scenario.nodes:
+            n = self._nodes[spec.name]
+            n.app_queue.clear()
+            n.mac_queue.clear()
+            n.queue_bytes = 0
+            n.tick_pending = False
+            n.mac_state = _IDLE
+            n.tx_end = -math.inf
+            n.rx.clear()
+            n.locked = None
+            n.last_carrier = -math.inf
+            n.client = False
+            n.origin = t + spec.phase
+        self.restarts += 1
+
+    # ------------------------------------------------------------------ time
+    def advance(self, t: float) -> list[Delivery]:
+        """Run every event up to and including `t`; return the deliveries since the last call."""
+        self._run_until(t)
+        out, self._pending = self._pending, []
+        return out
+
+    def next_event_time(self) -> float | None:
+        return self._events[0][0] if self._events else None
+
+    def run_until_idle(self, limit: float = math.inf) -> list[Delivery]:
+        """Simulation helper: advance until nothing is left to happen (or `limit`)."""
+        while self._events and self._events[0][0] <= limit:
+            self._run_until(self._events[0][0])
+        return self.advance(self.now)
+
+    # ------------------------------------------------------------------ outputs
+    def counters(self, node: str) -> dict[str, int]:
+        n = self._node(node)
+        c = dict(n.counters)
+        c["queue_bytes"] = n.queue_bytes
+        c["client_connected"] = int(n.client)
+        return c
+
+    def all_counters(self) -> dict[str, dict[str, int]]:
+        return {name: self.counters(name) for name in self._order}
+
+    def client_connected(self, node: str) -> bool:
+        return self._node(node).client
+
+    # ------------------------------------------------------------------ engine
+    def _node(self, name: str) -> _Node:
+        try:
+            return self._nodes[name]
+        except KeyError:
+            raise KeyError(f"no node named {name!r} (nodes: {', '.join(self._order)})") from None
+
+    def _push(self, t: float, kind: int, args) -> None:
+        heapq.heappush(self._events, (t, kind, next(self._seq), kind, args))
+
+    def _run_until(self, t: float) -> None:
+        if t < self.now - 1e-9:
+            raise ValueError(f"time goes back: {t} < {self.now}")
+        events = self._events
+        while events and events[0][0] <= t:
+            when, _, _, kind, args = heapq.heappop(events)
+            self.now = max(self.now, when)
+            if kind == _RX_END:
+                self._rx_end(args, when)
+            elif kind == _TX_END:
+                self._tx_end(args, when)
+            elif kind == _RX_START:
+                self._rx_start(args, when)
+            elif kind == _TICK:
+                self._tick(args, when)
+            elif kind == _MAC:
+                args.mac_state = _IDLE
+                self._mac_try(args, when)
+            else:
+                self._listen_end(args, when)
+        self.now = max(self.now, t)
+
+    # -- application layer: the period tick ------------------------------------------
+    def _schedule_tick(self, n: _Node, after: float) -> None:
+        k = math.floor((after - n.origin) / n.period) + 1
+        when = n.origin + k * n.period
+        if when <= after + 1e-12:       # rounding put us on (or before) `after`
+            when += n.period
+        n.tick_pending = True
+        self._push(when, _TICK, n)
+
+    def _tick(self, n: _Node, t: float) -> None:
+        n.tick_pending = False
+        if not n.app_queue:
+            return
+        n.mac_queue.append(n.app_queue.popleft())
+        self._mac_try(n, t)
+        if n.app_queue:
+            self._schedule_tick(n, t)
+
+    # -- MAC -------------------------------------------------------------------------
+    def _mac_try(self, n: _Node, t: float) -> None:
+        if n.mac_state != _IDLE or not n.mac_queue:
+            return
+        s = self.scenario
+        if s.tdma is not None:
+            start = self._slot_start(n, t, s.tx_time(len(n.mac_queue[0].data)))
+            if start > t:
+                n.mac_state = _WAITING
+                self._push(start, _MAC, n)
+            else:
+                self._tx_start(n, t)
+            return
+        busy = self._busy_until(n, t)
+        if busy > t:
+            n.mac_state = _WAITING
+            self._push(busy, _MAC, n)
+            return
+        n.mac_state = _LISTENING
+        n.listen_start = t
+        listen = s.listen_time
+        if s.listen_jitter:
+            listen += s.listen_jitter * self._rng.random()
+        self._push(t + listen, _LISTEN_END, n)
+
+    def _listen_end(self, n: _Node, t: float) -> None:
+        if n.last_carrier >= n.listen_start or self._busy_until(n, t) > t:
+            n.mac_state = _IDLE          # carrier heard: wait for silence and listen again
+            self._mac_try(n, t)
+            return
+        self._tx_start(n, t)
+
+    def _busy_until(self, n: _Node, t: float) -> float:
+        until = max(t, n.tx_end)
+        for arr in n.rx:
+            if arr.audible:
+                until = max(until, arr.end)
+        return until
+
+    def _slot_start(self, n: _Node, t: float, duration: float) -> float:
+        """Earliest time >= t at which a `duration`-second packet fits in n's TDMA slot."""
+        tdma = self.scenario.tdma
+        assert tdma is not None
+        slot_len = tdma.frame / self.scenario.tdma_slots()
+        offset = self.scenario.slot_of(n.name) * slot_len
+        frame_index = math.floor((t - n.origin) / tdma.frame)
+        for k in (frame_index, frame_index + 1, frame_index + 2):
+            open_at = n.origin + k * tdma.frame + offset
+            close_at = open_at + slot_len - tdma.guard
+            start = max(t, open_at)
+            if start + duration <= close_at + 1e-12:
+                return start
+        raise AssertionError("scenario validation guarantees a packet fits its slot")
+
+    def _tx_start(self, n: _Node, t: float) -> None:
+        s = self.scenario
+        pkt = n.mac_queue.popleft()
+        n.queue_bytes -= len(pkt.data)
+        pkt.sent_at = t
+        duration = s.tx_time(len(pkt.data))
+        n.mac_state = _SENDING
+        n.tx_end = t + duration
+        n.counters["packets_sent"] += 1
+        n.counters["bytes_sent"] += len(pkt.data)
+        if n.locked is not None:          # half duplex: sending kills the reception
+            n.locked.fail = "collision"
+            n.locked = None
+        snr = s.snr
+        for r in self._order:
+            if r == n.name:
+                continue
+            start = t + self._delay[n.name, r]
+            mean_snr = self._snr[n.name, r]
+            if snr is not None:
+                faded = mean_snr + (self._rng.gauss(0.0, snr.fading_db) if snr.fading_db else 0.0)
+                audible = mean_snr >= snr.threshold_db
+            else:
+                faded, audible = math.inf, True
+            arr = _Arrival(pkt, r, start, start + duration, self._power[n.name, r], faded, audible)
+            self._push(start, _RX_START, arr)
+        self._push(n.tx_end, _TX_END, n)
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("%.3f %s: sends packet %d (%d B) to %s", t, n.name, pkt.uid,
+                      len(pkt.data), pkt.dest)
+
+    def _tx_end(self, n: _Node, t: float) -> None:
+        n.mac_state = _IDLE
+        self._mac_try(n, t)
+
+    # -- PHY: reception --------------------------------------------------------------
+    def _rx_start(self, arr: _Arrival, t: float) -> None:
+        r = self._nodes[arr.receiver]
+        for other in r.rx:
+            other.interference += arr.power
+            arr.interference += other.power
+        if arr.audible:
+            r.last_carrier = t
+        if r.mac_state == _SENDING:
+            arr.fail = "collision"          # half duplex: deaf while sending
+        elif r.locked is not None:
+            arr.fail = "collision"          # busy with another packet
+        elif arr.snr_db < self._threshold():
+            arr.fail = "snr"                # too weak to acquire
+        else:
+            r.locked = arr
+        r.rx.append(arr)
+        self._push(arr.end, _RX_END, arr)
+
+    def _rx_end(self, arr: _Arrival, t: float) -> None:
+        r = self._nodes[arr.receiver]
+        r.rx.remove(arr)
+        if r.locked is arr:
+            r.locked = None
+            cause = self._decide(arr)
+        else:
+            cause = arr.fail
+        pkt = arr.packet
+        if pkt.dest != r.name:
+            return                          # overheard: it only interfered
+        if cause is None and self.scenario.per > 0 and self._rng.random() < self.scenario.per:
+            cause = "per"
+        if cause is None and not r.client:
+            cause = "no_client"
+        if cause is not None:
+            r.counters[f"lost_{cause}"] += 1
+            if log.isEnabledFor(logging.DEBUG):
+                log.debug("%.3f %s: packet %d from %s lost (%s)", t, r.name, pkt.uid,
+                          pkt.source, cause)
+            return
+        r.counters["packets_delivered"] += 1
+        r.counters["bytes_delivered"] += len(pkt.data)
+        self._pending.append(Delivery(r.name, pkt.data, t, pkt.source, pkt.queued_at,
+                                      pkt.sent_at))
+
+    def _threshold(self) -> float:
+        snr = self.scenario.snr
+        return snr.threshold_db if snr is not None else -math.inf
+
+    def _decide(self, arr: _Arrival) -> str | None:
+        """Outcome of a packet the receiver stayed locked on to its end."""
+        snr = self.scenario.snr
+        if snr is None:
+            return "collision" if arr.interference > 0 else None
+        nbits = (len(arr.packet.data) + self.scenario.header_bytes) * 8
+        u = self._rng.random() if snr.bpsk_errors else 1.0
+        snr_lin = 10 ** (arr.snr_db / 10)
+        if snr.bpsk_errors and u < bpsk_per(snr_lin, nbits):
+            return "snr"
+        if arr.interference > 0:
+            signal = snr_lin * self._noise
+            sinr = signal / (self._noise + arr.interference)
+            if 10 * math.log10(sinr) < snr.threshold_db or (
+                    snr.bpsk_errors and u < bpsk_per(sinr, nbits)):
+                return "collision"
+        return None
+
+    def _note_queue(self, n: _Node) -> None:
+        if n.queue_bytes > n.counters["max_queue_bytes"]:
+            n.counters["max_queue_bytes"] = n.queue_bytes

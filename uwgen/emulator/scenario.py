@@ -1,0 +1,360 @@
+"""What an emulated DESERT network looks like: nodes, their sockets, the link and the channel.
+
+A `Scenario` is plain data, validated once when built (`Scenario(...)` raises
+`ScenarioError` on nonsense), so the simulation core and the socket shell never meet a
+bad value.  `load_scenario(path)` reads the YAML form (msg_samples/scenarios/*.yaml) and
+reports mistakes as `file:line:column: message`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from uwgen.emulator.physics import SnrModel
+
+MAX_READ_LENGTH_LIMIT = 4096  # DESERT crashes above this (measured on DESERT 4.0.0)
+
+
+class ScenarioError(ValueError):
+    """A scenario that DESERT would refuse or crash on; str() is `file:line:column: message`
+    when it comes from a file."""
+
+    def __init__(self, message: str, where: str | None = None):
+        self.message = message
+        self.where = where
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One DESERT node: its application socket, where it is, and where it sends.
+
+    period / max_read_length default to the scenario's.  slot is its TDMA slot (default:
+    its index among the nodes).  phase shifts its send ticks (DESERT nodes of one scenario
+    start together, so by default every node ticks at the same instants).
+    """
+
+    name: str
+    port: int = 0                                   # 0: an ephemeral port (see Emulator.port)
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)   # metres
+    dest: str | None = None                         # default: the next node (a ring)
+    period: float | None = None
+    max_read_length: int | None = None
+    slot: int | None = None
+    phase: float = 0.0
+
+
+@dataclass(frozen=True)
+class TdmaSpec:
+    """UW/TDMA: a frame of `slots` equal slots; each node sends only inside its own slot,
+    stopping `guard` seconds before the slot ends."""
+
+    frame: float = 1.0
+    guard: float = 0.05
+    slots: int | None = None      # default: the number of nodes
+
+
+@dataclass(frozen=True)
+class Scenario:
+    nodes: list[NodeSpec] = field(default_factory=list)
+    period: float = 0.2            # DESERT's period_: one packet per node per period
+    max_read_length: int = 64      # bytes per packet
+    bitrate: float = 4800.0        # bit/s on the acoustic channel
+    per: float = 0.0               # fixed packet error rate, on top of the channel model
+    seed: int = 1
+    sound_speed: float = 1500.0    # m/s
+    header_bytes: int = 4          # UDP + IP header bytes DESERT adds to each packet
+    listen_time: float = 0.01      # CSMA-ALOHA carrier listen before each transmission...
+    listen_jitter: float = 0.01    # ...plus uniform(0, listen_jitter) s (DESERT's random part)
+    snr: SnrModel | None = None    # None: no SNR losses (only `per` and collisions)
+    tdma: TdmaSpec | None = None   # None: CSMA-ALOHA
+    start_delay: float = 0.0       # seconds before the sockets listen (DESERT's start time)
+
+    def __post_init__(self) -> None:
+        _validate(self)
+
+    # -- derived values the core uses -------------------------------------------------
+    def node(self, name: str) -> NodeSpec:
+        for n in self.nodes:
+            if n.name == name:
+                return n
+        raise KeyError(f"no node named {name!r} (nodes: {', '.join(self.names())})")
+
+    def names(self) -> list[str]:
+        return [n.name for n in self.nodes]
+
+    def dest_of(self, name: str) -> str:
+        names = self.names()
+        spec = self.node(name)
+        if spec.dest is not None:
+            return spec.dest
+        return names[(names.index(name) + 1) % len(names)]
+
+    def period_of(self, name: str) -> float:
+        p = self.node(name).period
+        return self.period if p is None else p
+
+    def max_read_length_of(self, name: str) -> int:
+        m = self.node(name).max_read_length
+        return self.max_read_length if m is None else m
+
+    def slot_of(self, name: str) -> int:
+        s = self.node(name).slot
+        return self.names().index(name) if s is None else s
+
+    def tdma_slots(self) -> int:
+        assert self.tdma is not None
+        return self.tdma.slots if self.tdma.slots is not None else len(self.nodes)
+
+    def distance(self, a: str, b: str) -> float:
+        return math.dist(self.node(a).position, self.node(b).position)
+
+    def tx_time(self, payload_bytes: int) -> float:
+        """Seconds on the air for a packet carrying `payload_bytes` (plus DESERT's header)."""
+        return (payload_bytes + self.header_bytes) * 8.0 / self.bitrate
+
+    def with_changes(self, **changes: Any) -> "Scenario":
+        return replace(self, **changes)
+
+
+def _validate(s: Scenario) -> None:
+    def bad(msg: str) -> None:
+        raise ScenarioError(msg)
+
+    if len(s.nodes) < 2:
+        bad(f"a scenario needs at least 2 nodes, got {len(s.nodes)}")
+    names = [n.name for n in s.nodes]
+    for n in s.nodes:
+        if not isinstance(n.name, str) or not n.name:
+            bad(f"node name must be a non-empty string, got {n.name!r}")
+    dup = {x for x in names if names.count(x) > 1}
+    if dup:
+        bad(f"node names must be unique: {', '.join(sorted(dup))} repeated")
+    ports = [n.port for n in s.nodes if n.port]
+    dup_ports = {p for p in ports if ports.count(p) > 1}
+    if dup_ports:
+        bad(f"ports must be unique: {', '.join(map(str, sorted(dup_ports)))} repeated")
+    for value, what in ((s.period, "period"), (s.bitrate, "bitrate"),
+                        (s.sound_speed, "sound_speed")):
+        if not _finite(value) or value <= 0:
+            bad(f"{what} must be a positive number, got {value!r}")
+    _check_read_length(s.max_read_length, "max_read_length", bad)
+    if not _finite(s.per) or not 0.0 <= s.per <= 1.0:
+        bad(f"per must be in [0, 1], got {s.per!r}")
+    if not isinstance(s.header_bytes, int) or s.header_bytes < 0:
+        bad(f"header_bytes must be an integer >= 0, got {s.header_bytes!r}")
+    if not _finite(s.listen_time) or s.listen_time < 0:
+        bad(f"listen_time must be >= 0, got {s.listen_time!r}")
+    if not _finite(s.listen_jitter) or s.listen_jitter < 0:
+        bad(f"listen_jitter must be >= 0, got {s.listen_jitter!r}")
+    if not _finite(s.start_delay) or s.start_delay < 0:
+        bad(f"start_delay must be >= 0, got {s.start_delay!r}")
+    if not isinstance(s.seed, int):
+        bad(f"seed must be an integer, got {s.seed!r}")
+    for n in s.nodes:
+        where = f"node {n.name}"
+        if not isinstance(n.port, int) or not 0 <= n.port <= 65535:
+            bad(f"{where}: port must be 0..65535, got {n.port!r}")
+        if len(n.position) != 3 or not all(_finite(c) for c in n.position):
+            bad(f"{where}: position must be three numbers (x, y, z in metres), got {n.position!r}")
+        if n.dest is not None:
+            if n.dest not in names:
+                bad(f"{where}: dest {n.dest!r} is not a node (nodes: {', '.join(names)})")
+            if n.dest == n.name:
+                bad(f"{where}: dest must be another node, not itself")
+        if n.period is not None and (not _finite(n.period) or n.period <= 0):
+            bad(f"{where}: period must be a positive number, got {n.period!r}")
+        if n.max_read_length is not None:
+            _check_read_length(n.max_read_length, f"{where}: max_read_length", bad)
+        if not _finite(n.phase) or n.phase < 0:
+            bad(f"{where}: phase must be >= 0, got {n.phase!r}")
+    if s.tdma is not None:
+        t = s.tdma
+        if not _finite(t.frame) or t.frame <= 0:
+            bad(f"tdma.frame must be a positive number, got {t.frame!r}")
+        if not _finite(t.guard) or t.guard < 0:
+            bad(f"tdma.guard must be >= 0, got {t.guard!r}")
+        slots = s.tdma_slots()
+        if not isinstance(slots, int) or slots < 1:
+            bad(f"tdma.slots must be a positive integer, got {slots!r}")
+        slot_len = t.frame / slots
+        for n in s.nodes:
+            slot = s.slot_of(n.name)
+            if not isinstance(slot, int) or not 0 <= slot < slots:
+                bad(f"node {n.name}: tdma slot must be 0..{slots - 1}, got {slot!r}")
+            longest = s.tx_time(s.max_read_length_of(n.name))
+            if longest > slot_len - t.guard:
+                bad(f"node {n.name}: a {s.max_read_length_of(n.name)}-byte packet takes "
+                    f"{longest:.3f} s on the air, longer than the usable slot "
+                    f"({slot_len:.3f} s - guard {t.guard:.3f} s): it could never be sent")
+
+
+def _check_read_length(value: Any, what: str, bad) -> None:
+    if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+        bad(f"{what} must be a positive integer, got {value!r}")
+    if value > MAX_READ_LENGTH_LIMIT:
+        bad(f"{what} {value} is above {MAX_READ_LENGTH_LIMIT}: DESERT crashes with it")
+
+
+def _finite(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+# ---------------------------------------------------------------------------------------
+# YAML
+# ---------------------------------------------------------------------------------------
+
+_TOP_KEYS = {f.name for f in fields(Scenario)}
+_NODE_KEYS = {f.name for f in fields(NodeSpec)}
+_TDMA_KEYS = {f.name for f in fields(TdmaSpec)}
+_SNR_KEYS = {f.name for f in fields(SnrModel)}
+
+
+class _Doc:
+    """A YAML document as python values, remembering where each value came from."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.marks: dict[tuple, Any] = {}
+
+    def where(self, key_path: tuple) -> str:
+        # The closest recorded ancestor: a missing key is reported at its parent mapping.
+        while key_path not in self.marks and key_path:
+            key_path = key_path[:-1]
+        mark = self.marks.get(key_path)
+        if mark is None:
+            return str(self.path)
+        return f"{self.path}:{mark.line + 1}:{mark.column + 1}"
+
+    def build(self, node: yaml.Node, key_path: tuple = ()) -> Any:
+        self.marks[key_path] = node.start_mark
+        if isinstance(node, yaml.MappingNode):
+            out: dict[str, Any] = {}
+            for k, v in node.value:
+                if not isinstance(k, yaml.ScalarNode):
+                    raise ScenarioError("keys must be plain names", self._at(k.start_mark))
+                key = k.value
+                if key in out:
+                    raise ScenarioError(f"key {key!r} appears twice",
+                                        self._at(k.start_mark))
+                out[key] = self.build(v, key_path + (key,))
+                self.marks[key_path + (key, "<key>")] = k.start_mark
+            return out
+        if isinstance(node, yaml.SequenceNode):
+            return [self.build(v, key_path + (i,)) for i, v in enumerate(node.value)]
+        return yaml.safe_load(yaml.serialize(node))
+
+    def _at(self, mark) -> str:
+        return f"{self.path}:{mark.line + 1}:{mark.column + 1}"
+
+
+def load_scenario(path: Path | str) -> Scenario:
+    """Read a YAML scenario; raise ScenarioError (`file:line:column: message`) on any mistake."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(f"cannot read scenario: {exc.strerror or exc}", str(path)) from None
+    doc = _Doc(path)
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+        raise ScenarioError(f"not valid YAML: {getattr(exc, 'problem', exc)}", where) from None
+    if root is None:
+        raise ScenarioError("the scenario is empty", str(path))
+    data = doc.build(root)
+    return scenario_from_dict(data, doc)
+
+
+def scenario_from_dict(data: Any, doc: _Doc | None = None) -> Scenario:
+    """Build a Scenario from the YAML structure (a dict); errors name the offending key."""
+    def where(*key_path) -> str | None:
+        return doc.where(tuple(key_path)) if doc else None
+
+    def fail(msg: str, *key_path) -> ScenarioError:
+        return ScenarioError(msg, where(*key_path) or (".".join(map(str, key_path)) or None))
+
+    if not isinstance(data, dict):
+        raise fail("a scenario is a mapping of settings with a `nodes` list")
+    _reject_unknown(data, _TOP_KEYS, (), fail)
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        if key in ("nodes", "snr", "tdma"):
+            continue
+        kwargs[key] = value
+    nodes_raw = data.get("nodes")
+    if not isinstance(nodes_raw, list):
+        raise fail("`nodes` must be a list of nodes (each with at least a name)", "nodes")
+    nodes = []
+    for i, raw in enumerate(nodes_raw):
+        if not isinstance(raw, dict):
+            raise fail("each node is a mapping with at least `name`", "nodes", i)
+        _reject_unknown(raw, _NODE_KEYS, ("nodes", i), fail)
+        if "name" not in raw:
+            raise fail("node has no `name`", "nodes", i)
+        node_kwargs = dict(raw)
+        if "name" in node_kwargs:
+            node_kwargs["name"] = str(node_kwargs["name"])
+        if "dest" in node_kwargs and node_kwargs["dest"] is not None:
+            node_kwargs["dest"] = str(node_kwargs["dest"])
+        if "position" in node_kwargs:
+            pos = node_kwargs["position"]
+            if not isinstance(pos, list) or len(pos) not in (1, 2, 3):
+                raise fail("position is a list of up to three numbers [x, y, z] in metres",
+                           "nodes", i, "position")
+            node_kwargs["position"] = tuple(list(pos) + [0.0] * (3 - len(pos)))
+        try:
+            nodes.append(NodeSpec(**node_kwargs))
+        except TypeError as exc:
+            raise fail(str(exc), "nodes", i) from None
+    kwargs["nodes"] = nodes
+    for key, cls, known in (("snr", SnrModel, _SNR_KEYS), ("tdma", TdmaSpec, _TDMA_KEYS)):
+        if key not in data or data[key] is None:
+            continue
+        raw = data[key]
+        if raw is True or raw == {}:
+            raw = {}
+        if not isinstance(raw, dict):
+            raise fail(f"`{key}` must be a mapping of its settings", key)
+        _reject_unknown(raw, known, (key,), fail)
+        try:
+            kwargs[key] = cls(**raw)
+        except (TypeError, ValueError) as exc:
+            raise fail(f"{key}: {exc}", key) from None
+    try:
+        return Scenario(**kwargs)
+    except ScenarioError as exc:
+        # Point at the most specific key the message names, else at the top.
+        raise ScenarioError(exc.message, _locate(exc.message, data, where)) from None
+    except TypeError as exc:
+        raise fail(str(exc)) from None
+
+
+def _reject_unknown(raw: dict, known: set[str], key_path: tuple, fail) -> None:
+    for key in raw:
+        if key not in known:
+            raise fail(f"unknown setting {key!r} (known: {', '.join(sorted(known))})",
+                       *key_path, key, "<key>")
+
+
+def _locate(message: str, data: dict, where) -> str | None:
+    """Best-effort position for a validation message: the node or key it is about."""
+    nodes = data.get("nodes") or []
+    if message.startswith("node "):
+        name = message[5:].split(":", 1)[0]
+        for i, raw in enumerate(nodes):
+            if isinstance(raw, dict) and str(raw.get("name")) == name:
+                for key in raw:
+                    if f"{key} " in message or f" {key}" in message.split(":", 1)[-1][:20]:
+                        return where("nodes", i, key)
+                return where("nodes", i)
+    for key in data:
+        if message.startswith(f"{key} ") or message.startswith(f"{key}."):
+            return where(key)
+    return where()
