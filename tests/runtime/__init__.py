@@ -1,0 +1,1 @@
+"""Tests of the link layer: framing, fragments, scheduler, pacing, connection, link."""

@@ -1,0 +1,165 @@
+"""Frames on the DESERT byte stream: `0x99 0x99 LEN payload[LEN] 0x55` (wire format, section 2).
+
+DESERT cuts and glues the byte stream at arbitrary points and a lost acoustic packet removes an
+arbitrary slice of it, so the decoder is incremental (fed whatever `recv()` returned) and
+self-synchronising: it hunts for `0x99 0x99`, reads LEN, takes LEN bytes and requires `0x55` after
+them; on any mismatch it discards the first `0x99` and hunts again from the next byte. A lost slice
+therefore costs only the frames it touched.
+
+The decoder never holds more than one incomplete frame (at most 258 bytes) between calls, plus the
+chunk being processed during a call, and it counts every byte it throws away. It works with
+`bytes.find`, not a per-byte Python loop, because it runs for every byte received.
+
+Limits of the format (no checksum): a frame damaged by a lost slice can, by chance, be followed by a
+`0x55` exactly LEN bytes later and then be delivered with wrong content (swallowing the frames it
+overlaps). Only the payload decoder can catch that; see docs/wire-format.md, "Framing guarantees".
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+SYNC = b"\x99\x99"
+SYNC_BYTE = 0x99
+END_BYTE = 0x55
+MAX_PAYLOAD = 255
+OVERHEAD = 4                      # 0x99 0x99 LEN ... 0x55
+MAX_FRAME = MAX_PAYLOAD + OVERHEAD
+MAX_PENDING = MAX_FRAME - 1       # the most an incomplete frame can occupy in the buffer
+
+
+class FrameError(ValueError):
+    """A payload that cannot be put in one frame (empty, or longer than 255 bytes)."""
+
+
+def encode_frame(payload: bytes | bytearray | memoryview) -> bytes:
+    """Wrap one payload (1 to 255 bytes) in a frame.
+
+    Longer payloads must be fragmented (uwgen.runtime.fragment) before they get here; rmw_desert
+    wraps LEN modulo 256 instead, which is ambiguous, so we refuse.
+    """
+    n = len(payload)
+    if not 1 <= n <= MAX_PAYLOAD:
+        raise FrameError(
+            f"frame payload must be 1 to {MAX_PAYLOAD} bytes, got {n}"
+            + (" (fragment it or make it smaller)" if n > MAX_PAYLOAD else ""))
+    return b"".join((SYNC, bytes((n,)), payload, b"\x55"))
+
+
+@dataclass
+class DecoderStats:
+    """What the decoder has seen and thrown away (all counters only grow)."""
+
+    bytes_received: int = 0    # every byte fed
+    frames: int = 0            # frames delivered
+    bytes_discarded: int = 0   # bytes that were not part of a delivered frame
+    bad_length: int = 0        # a `0x99 0x99 0x00` start: LEN 0 is never valid
+    bad_terminator: int = 0    # a start whose byte after LEN payload bytes was not 0x55
+    stalled: int = 0           # incomplete frames given up by flush() (nothing more arrived)
+    reset: int = 0             # incomplete frames thrown away by reset() (connection lost)
+
+    def as_dict(self) -> dict[str, int]:
+        return asdict(self)
+
+
+class FrameDecoder:
+    """Incremental frame decoder: `feed(chunk)` returns the payloads completed by that chunk.
+
+    Following wire format section 2 exactly, it is a pure function of the byte stream: how the
+    stream is cut into chunks never changes what is delivered.
+    """
+
+    def __init__(self) -> None:
+        self._buf = bytearray()      # unprocessed tail: an incomplete frame or a lone trailing 0x99
+        self.stats = DecoderStats()
+
+    @property
+    def buffered(self) -> int:
+        """Bytes held between calls (never more than MAX_PENDING = 258)."""
+        return len(self._buf)
+
+    def feed(self, data: bytes | bytearray | memoryview) -> list[bytes]:
+        """Consume one chunk of the stream; return the payloads of the frames it completed, in order."""
+        st = self.stats
+        st.bytes_received += len(data)
+        if self._buf:
+            self._buf += data
+            src: bytes | bytearray = self._buf
+        else:
+            src = bytes(data)
+        out, pos = self._scan(src, 0)
+        self._keep(src, pos)
+        return out
+
+    def flush(self) -> list[bytes]:
+        """Give up the incomplete frame at the head of the buffer, then hunt through what is left.
+
+        Called when nothing has arrived for a while (see DesertConnection's stall timeout): a start
+        whose LEN promises bytes that never come would otherwise hold back the frames behind it
+        until enough unrelated bytes arrive. Giving up is the same move as a mismatch: discard the
+        first 0x99 and hunt again from the next byte.
+        """
+        out: list[bytes] = []
+        src = bytes(self._buf)
+        pos = 0
+        while src[pos:pos + 2] == SYNC:
+            # An incomplete start is at pos (after a scan the tail is that or at most one 0x99).
+            self.stats.stalled += 1
+            self.stats.bytes_discarded += 1
+            more, pos = self._scan(src, pos + 1)
+            out += more
+        self._keep(src, pos)
+        return out
+
+    def reset(self) -> None:
+        """Forget the buffered bytes: the stream was interrupted (disconnect), so they cannot continue."""
+        if self._buf:
+            self.stats.reset += 1
+            self.stats.bytes_discarded += len(self._buf)
+            self._buf = bytearray()
+
+    # -- internals -----------------------------------------------------------------------------
+
+    def _scan(self, src: bytes | bytearray, pos: int) -> tuple[list[bytes], int]:
+        """Deliver every complete frame in src[pos:]; return them and where the unprocessed tail starts."""
+        st = self.stats
+        out: list[bytes] = []
+        n = len(src)
+        find = src.find
+        discarded = 0
+        while True:
+            i = find(SYNC, pos)
+            if i < 0:
+                # Keep a trailing 0x99: it may be the first half of a start split across chunks.
+                end = n - 1 if n > pos and src[n - 1] == SYNC_BYTE else n
+                discarded += end - pos
+                pos = end
+                break
+            discarded += i - pos
+            pos = i
+            if n - pos < 3:
+                break                                  # LEN not here yet
+            length = src[pos + 2]
+            if length == 0:
+                st.bad_length += 1
+                discarded += 1
+                pos += 1
+                continue
+            end = pos + 3 + length                     # index of the terminator
+            if end >= n:
+                break                                  # frame not complete yet
+            if src[end] == END_BYTE:
+                out.append(bytes(src[pos + 3:end]))
+                pos = end + 1
+            else:
+                st.bad_terminator += 1
+                discarded += 1
+                pos += 1
+        st.bytes_discarded += discarded
+        st.frames += len(out)
+        return out, pos
+
+    def _keep(self, src: bytes | bytearray, pos: int) -> None:
+        if src is self._buf:
+            del self._buf[:pos]
+        else:
+            self._buf = bytearray(src[pos:])
