@@ -1,0 +1,333 @@
+"""Lower codec IR to straight-line Python statements.
+
+Each `CodecType` becomes one encoder `enc[_rmw]_<Name>(m, out)`, which appends the
+message's CBOR items to `out`, and one decoder `dec[_rmw]_<Name>(v, i, C)`, which reads
+items from list `v` at index `i` and returns `(message, next_i)`, building classes from
+namespace `C` (rclpy classes or the generated plain ones). Errors name the field path
+relative to the type; array loops prefix the element's index on the way out.
+
+Everything that can be decided here is: struct formats, field name tuples, ranges,
+bounds and the expression that builds the decoded message. The templates in
+`templates/` only place the lines this module returns.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from uwgen.codegen.ir import (
+    Absent, Bool, BoolArray, ByteScalar, CodecType, Filler, MessageArray, Node, Number,
+    NumberArray, Octets, Text, TextArray,
+)
+from uwgen.idl.model import ArrayKind
+
+F32_MAX = "3.4028234663852886e+38"
+
+
+@dataclass
+class Constants:
+    """Module-level constants the functions of one module share (structs, name tuples)."""
+    lines: list[str] = field(default_factory=list)
+    _names: dict[str, str] = field(default_factory=dict)
+
+    def struct(self, fmt: str) -> str:
+        return self._add(f"_struct.Struct({fmt!r})", "_S")
+
+    def names(self, names: tuple[str, ...]) -> str:
+        return self._add(repr(names), "_N")
+
+    def _add(self, expr: str, prefix: str) -> str:
+        name = self._names.get(expr)
+        if name is None:
+            name = f"{prefix}{len(self._names)}"
+            self._names[expr] = name
+            self.lines.append(f"{name} = {expr}")
+        return name
+
+
+@dataclass
+class Function:
+    name: str
+    args: str
+    doc: str
+    body: list[str]
+
+
+def func_name(kind: str, ct_key_name: str, suffix: str) -> str:
+    return f"{kind}{suffix}_{ct_key_name}"
+
+
+class Lowering:
+    """Lowers the codec types of one generated module."""
+
+    def __init__(self, module_package: str, consts: Constants):
+        self.package = module_package     # ROS package this module holds
+        self.consts = consts
+
+    def ref(self, kind: str, key: str, suffix: str) -> str:
+        """How code in this module names another type's encoder/decoder."""
+        pkg, name = key.split("__", 1)
+        fn = func_name(kind, name, suffix)
+        return fn if pkg == self.package else f"_{pkg}.{fn}"
+
+    # --- encoder ------------------------------------------------------------------
+
+    def encoder(self, ct: CodecType) -> Function:
+        body: list[str] = []
+        var_of = {"": "m"}
+        counter = [0]
+
+        def access(node_path: str, name: str) -> str:
+            parent = node_path.rsplit(".", 1)[0] if "." in node_path else ""
+            return f"{var_of[parent]}.{name}"
+
+        def declare(node: Node) -> None:
+            for child in node.children or ():
+                if child.children is not None:
+                    counter[0] += 1
+                    var = f"m{counter[0]}"
+                    var_of[child.path] = var
+                    body.append(f"{var} = {access(child.path, child.name)}")
+                    declare(child)
+
+        declare(ct.root)
+        run: list[Node] = []
+
+        def flush() -> None:
+            if not run:
+                return
+            fmt = "<" + "".join(n.encoding.code for n in run)
+            st = self.consts.struct(fmt)
+            names = self.consts.names(tuple(n.path for n in run))
+            values = ", ".join(access(n.path, n.name) for n in run)
+            body.append(f"out += _numbers({st}, ({values},), {names})")
+            run.clear()
+
+        for leaf in ct.root.leaves():
+            enc = leaf.encoding
+            if isinstance(enc, Number):
+                run.append(leaf)
+                continue
+            flush()
+            body.extend(self._encode_leaf(leaf, enc, access(leaf.path, leaf.name) if leaf.name else "", ct.suffix))
+        flush()
+        return Function(func_name("enc", ct.name, ct.suffix), "m, out",
+                        f"Append the CBOR items of a {ct.full_name} ({ct.profile} profile) to `out`.",
+                        body or ["pass"])
+
+    def _encode_leaf(self, leaf: Node, enc, expr: str, suffix: str) -> list[str]:
+        p = repr(leaf.path)
+        if isinstance(enc, Filler):
+            return ["out.append(0)  # a message with no fields is one unsigned 0"]
+        if isinstance(enc, Absent):
+            return [f"# {leaf.path}: not sent ({enc.why})"]
+        if isinstance(enc, Bool):
+            item = "x" if enc.cbor_bool else "1 if x else 0"
+            return [f"x = {expr}",
+                    f"if x is not True and x is not False: x = _as_bool(x, {p})",
+                    f"out.append({item})"]
+        if isinstance(enc, ByteScalar):
+            return [f"out.append(_byte_value({expr}, {p}))"]
+        if isinstance(enc, Text):
+            return [f"x = {expr}", *self._text_checks(enc, p), "out.append(x)"]
+        if isinstance(enc, Octets):
+            return [f"x = _octets({expr}, {p})", *self._length_check(enc.array, enc.size, p, count=False),
+                    "out.append(x)"]
+        lines = [f"x = _as_list({expr}, {p})"]
+        if isinstance(enc, NumberArray):
+            lines += self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED)
+            if enc.array is ArrayKind.FIXED:
+                st = self.consts.struct(f"<{enc.size}{enc.code}")
+                lines.append(f"out += _numbers({st}, x, (), {p})")
+            else:
+                lines.append(f"out += _numbers(_struct_for({enc.code!r}, len(x)), x, (), {p})")
+            return lines
+        if isinstance(enc, BoolArray):
+            lines += self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED)
+            lines.append(f"out += _bools(x, {p}, {enc.cbor_bool})")
+            return lines
+        if isinstance(enc, TextArray):
+            counted = enc.array is not ArrayKind.FIXED or enc.fixed_count
+            lines += self._length_check(enc.array, enc.size, p, count=counted)
+            t = enc.text
+            lines.append(f"out += _texts(x, {p}, {t.wide}, {t.bound}, {t.max_bytes})")
+            return lines
+        if isinstance(enc, MessageArray):
+            lines += self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED)
+            fn = self.ref("enc", enc.type_key, suffix)
+            lines += ["k = 0",
+                      "try:",
+                      "    for k, e in enumerate(x):",
+                      f"        {fn}(e, out)",
+                      "except (_CodecError, AttributeError, TypeError) as exc:",
+                      f"    raise _under(exc, {p}, k) from None"]
+            return lines
+        raise AssertionError(enc)
+
+    @staticmethod
+    def _text_checks(enc: Text, p: str) -> list[str]:
+        lines = []
+        if enc.wide:
+            lines.append(f"x = _wstring(x, {p})")
+        else:
+            lines.append(f"if type(x) is not str: raise _EncodeError({p}, 'expected str, got ' + type(x).__name__)")
+        if enc.bound is not None:
+            lines.append(f"if len(x) > {enc.bound}: raise _EncodeError({p}, "
+                         f"f'{{len(x)}} characters, over the bound of {enc.bound}')")
+        if enc.max_bytes is not None:
+            lines.append(f"if len(x) > {enc.max_bytes // 4} and len(x.encode('utf-8', 'surrogatepass')) > {enc.max_bytes}: "
+                         f"raise _EncodeError({p}, 'text over {enc.max_bytes} UTF-8 bytes: an rmw_desert receiver overflows')")
+        return lines
+
+    @staticmethod
+    def _length_check(array: ArrayKind, size: int | None, p: str, count: bool) -> list[str]:
+        if array is ArrayKind.FIXED:
+            lines = [f"if len(x) != {size}: raise _EncodeError({p}, f'{{len(x)}} elements in a fixed array of {size}')"]
+        elif array is ArrayKind.BOUNDED:
+            lines = [f"if len(x) > {size}: raise _EncodeError({p}, f'{{len(x)}} elements, over the bound of {size}')"]
+        else:
+            lines = []
+        if count:
+            lines.append("out.append(len(x))")
+        return lines
+
+    # --- decoder ------------------------------------------------------------------
+
+    def decoder(self, ct: CodecType) -> Function:
+        body: list[str] = []
+        counter = [0]
+        value_of: dict[str, str] = {}   # leaf path -> local variable or expression
+
+        def fresh() -> str:
+            counter[0] += 1
+            return f"x{counter[0]}"
+
+        run: list[Node] = []
+
+        def flush() -> None:
+            if not run:
+                return
+            names = [fresh() for _ in run]
+            k = len(run)
+            first = repr(run[0].path)
+            body.append(f"if len(v) - i < {k}: raise _short({first})")
+            if k == 1:
+                body.append(f"{names[0]} = v[i]")
+            else:
+                body.append(f"{', '.join(names)} = v[i:i + {k}]")
+            body.append(f"i += {k}")
+            f32 = []
+            for var, leaf in zip(names, run):
+                enc: Number = leaf.encoding
+                p = repr(leaf.path)
+                if enc.is_float:
+                    body.append(f"if type({var}) is not float: raise _bad_item({p}, 'a float', {var})")
+                    if enc.prim == "float32":
+                        f32.append((var, leaf.path))
+                else:
+                    lo, hi = enc.range
+                    body.append(f"if type({var}) is not int or not {lo} <= {var} <= {hi}: "
+                                f"raise _bad_item({p}, 'an {enc.prim}', {var})")
+                value_of[leaf.path] = var
+            for var, path in f32:
+                body.append(f"if abs({var}) > {F32_MAX} and abs({var}) != _INF: "
+                            f"raise _bad_item({path!r}, 'a float32', {var})")
+            run.clear()
+
+        for leaf in ct.root.leaves():
+            enc = leaf.encoding
+            if isinstance(enc, Number):
+                run.append(leaf)
+                continue
+            flush()
+            if isinstance(enc, Absent):
+                body.append(f"# {leaf.path}: not on the wire ({enc.why})")
+                continue
+            var = fresh()
+            body.extend(self._decode_leaf(leaf, enc, var, ct.suffix))
+            value_of[leaf.path] = self._ros_value(enc, var)
+        flush()
+        body.append(f"return {self._construct(ct.root, value_of)}, i")
+        return Function(func_name("dec", ct.name, ct.suffix), "v, i, C",
+                        f"Read a {ct.full_name} ({ct.profile} profile) from items `v` at `i`; "
+                        "return (message, next index).", body)
+
+    @staticmethod
+    def _ros_value(enc, var: str) -> str:
+        if isinstance(enc, ByteScalar):
+            return f"bytes(({var},))"
+        if isinstance(enc, Octets):
+            return f"C.octet_list({var})" if enc.elem == "byte" else f"C.uint8_list({var})"
+        return var
+
+    def _decode_leaf(self, leaf: Node, enc, var: str, suffix: str) -> list[str]:
+        p = repr(leaf.path)
+        take = [f"if i >= len(v): raise _short({p})", f"{var} = v[i]", "i += 1"]
+        if isinstance(enc, Filler):
+            return take + [f"if type({var}) is not int or {var} != 0: raise _bad_item({p}, 'the unsigned 0 of an empty message', {var})"]
+        if isinstance(enc, Bool):
+            return take + [f"if {var} is not True and {var} is not False: {var} = _item_bool({var}, {p})"]
+        if isinstance(enc, ByteScalar):
+            return take + [f"if type({var}) is not int or not 0 <= {var} <= 255: raise _bad_item({p}, 'a byte', {var})"]
+        if isinstance(enc, Text):
+            lines = take + [f"if type({var}) is not str: raise _bad_item({p}, 'a text string', {var})"]
+            if enc.bound is not None:
+                lines.append(f"if len({var}) > {enc.bound}: raise _DecodeError({p}, f'{{len({var})}} characters, over the bound of {enc.bound}')")
+            return lines
+        if isinstance(enc, Octets):
+            lines = take + [f"if type({var}) is not bytes: raise _bad_item({p}, 'a byte string', {var})"]
+            if enc.array is ArrayKind.FIXED:
+                lines.append(f"if len({var}) != {enc.size}: raise _DecodeError({p}, f'{{len({var})}} bytes in a fixed array of {enc.size}')")
+            elif enc.array is ArrayKind.BOUNDED:
+                lines.append(f"if len({var}) > {enc.size}: raise _DecodeError({p}, f'{{len({var})}} bytes, over the bound of {enc.size}')")
+            return lines
+        # Arrays of items: a count (or the fixed size), then the elements.
+        counted = enc.array is not ArrayKind.FIXED or getattr(enc, "fixed_count", False)
+        per_elem = max(enc.elem_min_items, 1) if isinstance(enc, MessageArray) else 1
+        lines = []
+        if counted:
+            bound = enc.size if enc.array is not ArrayKind.UNBOUNDED else None
+            lines.append(f"n = _count(v, i, {p}, {bound}, {per_elem})")
+            if enc.array is ArrayKind.FIXED:
+                lines.append(f"if n != {enc.size}: raise _DecodeError({p}, f'count {{n}} for a fixed array of {enc.size}')")
+            lines.append("i += 1")
+        else:
+            lines.append(f"n = {enc.size}")
+        if isinstance(enc, MessageArray):
+            fn = self.ref("dec", enc.type_key, suffix)
+            lines += [f"if (len(v) - i) < n * {per_elem}: raise _short({p})",
+                      f"{var} = []",
+                      "k = 0",
+                      "try:",
+                      "    for k in range(n):",
+                      f"        e, i = {fn}(v, i, C)",
+                      f"        {var}.append(e)",
+                      "except _DecodeError as exc:",
+                      f"    raise _under(exc, {p}, k) from None"]
+            return lines
+        lines += [f"if len(v) - i < n: raise _short({p})",
+                  f"{var} = v[i:i + n]",
+                  "i += n"]
+        if isinstance(enc, NumberArray):
+            if enc.elem_range is not None:
+                lo, hi = enc.elem_range
+                lines.append(f"if not _ints_in({var}, {lo}, {hi}): raise _bad_items({p}, 'an {enc.prim}', {var})")
+            else:
+                lines.append(f"if not _only({var}, float): raise _bad_items({p}, 'a float', {var})")
+                if enc.prim == "float32" or enc.code == "f":
+                    lines.append(f"if not _float32_ok({var}): raise _bad_items({p}, 'a float32', {var})")
+        elif isinstance(enc, BoolArray):
+            lines.append(f"{var} = _item_bools({var}, {p})")
+        elif isinstance(enc, TextArray):
+            lines.append(f"_check_texts({var}, {p}, {enc.text.bound})")
+        return lines
+
+    def _construct(self, node: Node, value_of: dict[str, str]) -> str:
+        args = []
+        for child in node.children:
+            if child.children is not None:
+                args.append(f"{child.name}={self._construct(child, value_of)}")
+            elif isinstance(child.encoding, (Absent, Filler)):
+                continue
+            else:
+                args.append(f"{child.name}={value_of[child.path]}")
+        return f"C.{node.class_key}({', '.join(args)})"

@@ -1,0 +1,350 @@
+"""The codec IR: how each message type is laid out on the wire under one profile.
+
+Built once from uwgen.idl.model definitions, it is the single representation between
+parsing and emitting (like pymavlink's mavparse). Every decision about the wire is
+made here, at generation time: which fields are flattened in place, which numbers are
+packed together, how each array travels, what a profile changes. The emitter only
+lowers these nodes to Python statements and the templates only lay them out.
+
+A codec tree mirrors the message: a `Node` per field; nested messages that are not in
+arrays are inlined (their fields are flattened in place on the wire); arrays of
+messages refer to the element type's own codec by name.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterator
+
+from uwgen.idl.model import (
+    INTEGER_RANGES, ArrayKind, FieldType, MessageDef,
+)
+
+NATIVE = "native"
+RMW_DESERT = "rmw_desert"
+PROFILES = (NATIVE, RMW_DESERT)
+
+# rmw_desert receiver limits (wire format section 6).
+RMW_MAX_ITEMS = 64
+RMW_MAX_TEXT_BYTES = 127
+MAX_PAYLOAD = 255
+
+STRUCT_CODES = {
+    "int8": "b", "uint8": "B", "char": "B", "int16": "h", "uint16": "H",
+    "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q",
+    "float32": "f", "float64": "d",
+}
+
+
+class ProfileError(Exception):
+    """A type that a profile can certainly not carry (refused at build time)."""
+
+
+# --- leaf encodings ------------------------------------------------------------------
+# Each says how one field (a scalar or a whole array) is written; `kind` selects the
+# lowering in uwgen.codegen.emit.
+
+@dataclass(frozen=True)
+class Number:
+    """An integer or float scalar. Consecutive numbers are packed through one struct."""
+    prim: str
+    code: str            # struct code; float64 narrowed to 'f' in rmw_desert
+    kind: str = "number"
+
+    @property
+    def is_float(self) -> bool:
+        return self.prim in ("float32", "float64")
+
+    @property
+    def range(self) -> tuple[int, int] | None:
+        return INTEGER_RANGES.get(self.prim)
+
+
+@dataclass(frozen=True)
+class Bool:
+    cbor_bool: bool      # True: F4/F5 (rmw_desert); False: unsigned 0/1 (native)
+    kind: str = "bool"
+
+
+@dataclass(frozen=True)
+class ByteScalar:
+    """A `byte` (octet) scalar: an unsigned item; rclpy holds it as 1-byte bytes."""
+    kind: str = "byte"
+
+
+@dataclass(frozen=True)
+class Text:
+    wide: bool                  # wstring: lone surrogates dropped
+    bound: int | None           # string<=N (characters)
+    max_bytes: int | None       # rmw_desert: the receiver overflows above 127 bytes
+    kind: str = "text"
+
+
+@dataclass(frozen=True)
+class Octets:
+    """A byte/char/uint8 array as one CBOR byte string (native profile)."""
+    array: ArrayKind
+    size: int | None
+    elem: str                   # byte, char or uint8: decides the rclpy container
+    kind: str = "octets"
+
+
+@dataclass(frozen=True)
+class NumberArray:
+    prim: str
+    code: str
+    array: ArrayKind
+    size: int | None
+    elem_range: tuple[int, int] | None
+    kind: str = "number_array"
+
+
+@dataclass(frozen=True)
+class BoolArray:
+    array: ArrayKind
+    size: int | None
+    cbor_bool: bool
+    kind: str = "bool_array"
+
+
+@dataclass(frozen=True)
+class TextArray:
+    array: ArrayKind
+    size: int | None
+    text: Text
+    fixed_count: bool           # rmw_desert writes a count even for fixed string arrays
+    kind: str = "text_array"
+
+
+@dataclass(frozen=True)
+class MessageArray:
+    array: ArrayKind
+    size: int | None
+    type_key: str               # CodecType.key of the element type
+    elem_min_items: int
+    elem_fixed_items: int | None
+    elem_min_bytes: int
+    kind: str = "message_array"
+
+
+@dataclass(frozen=True)
+class Absent:
+    """Not on the wire (rmw_desert drops byte fields); decoders leave the default."""
+    why: str
+    kind: str = "absent"
+
+
+@dataclass(frozen=True)
+class Filler:
+    """The single unsigned 0 that stands for a message with no fields."""
+    kind: str = "filler"
+
+
+Encoding = (Number | Bool | ByteScalar | Text | Octets | NumberArray | BoolArray | TextArray
+            | MessageArray | Absent | Filler)
+
+
+@dataclass
+class Node:
+    """One field of a codec tree. Exactly one of `encoding` and `children` is set."""
+    name: str                         # attribute name ('' for a Filler)
+    path: str                         # dotted path from the type's root: 'pose.position.x'
+    encoding: Encoding | None = None
+    children: list["Node"] | None = None
+    class_key: str | None = None      # for inlined nested messages: the CodecType.key
+
+    def leaves(self) -> Iterator["Node"]:
+        if self.children is None:
+            yield self
+        else:
+            for child in self.children:
+                yield from child.leaves()
+
+
+@dataclass
+class CodecType:
+    """The codec of one message type under one profile."""
+    key: str                    # 'geometry_msgs__Twist' (unique Python-safe name)
+    full_name: str              # 'geometry_msgs/msg/Twist'
+    package: str
+    name: str                   # 'Twist', 'SetBool_Request'
+    profile: str
+    root: Node                  # children: the fields (or one Filler)
+    min_items: int              # fewest CBOR items a value of this type takes
+    fixed_items: int | None     # item count when the type has no variable part
+    min_bytes: int              # fewest payload bytes (header excluded)
+    uses: list[str] = field(default_factory=list)   # keys of types referenced by arrays
+
+    @property
+    def suffix(self) -> str:
+        return "" if self.profile == NATIVE else "_rmw"
+
+
+def type_key(full_name: str) -> str:
+    pkg, _ns, name = full_name.split("/")
+    return f"{pkg}__{name}"
+
+
+# --- building ------------------------------------------------------------------------
+
+class IRBuilder:
+    """Builds CodecTypes for message definitions, resolving nested types by name."""
+
+    def __init__(self, lookup):
+        """`lookup(full_name) -> MessageDef` resolves nested message types."""
+        self._lookup = lookup
+        self._cache: dict[tuple[str, str], CodecType] = {}
+
+    def codec(self, msg: MessageDef, profile: str) -> CodecType:
+        key = (msg.full_name, profile)
+        hit = self._cache.get(key)
+        if hit is None:
+            hit = self._cache[key] = self._build(msg, profile)
+        return hit
+
+    def codecs_for(self, msg: MessageDef, profile: str) -> list[CodecType]:
+        """This type's codec and those of every type it uses, dependencies first."""
+        out: dict[str, CodecType] = {}
+
+        def visit(m: MessageDef) -> None:
+            ct = self.codec(m, profile)
+            if ct.key in out:
+                return
+            for f in m.fields:
+                if not f.type.is_primitive:
+                    visit(self._lookup(f.type.base))
+            out[ct.key] = ct
+
+        visit(msg)
+        return list(out.values())
+
+    # ---
+
+    def _build(self, msg: MessageDef, profile: str) -> CodecType:
+        uses: list[str] = []
+        root = Node(name="", path="", children=self._fields(msg, profile, "", uses),
+                    class_key=type_key(msg.full_name))
+        min_items, fixed = self._count(root)
+        return CodecType(
+            key=type_key(msg.full_name), full_name=msg.full_name, package=msg.package,
+            name=msg.name, profile=profile, root=root, min_items=min_items,
+            fixed_items=fixed, min_bytes=self._min_bytes(root), uses=uses)
+
+    def _fields(self, msg: MessageDef, profile: str, prefix: str, uses: list[str]) -> list[Node]:
+        if not msg.fields:
+            return [Node(name="", path=prefix or "(empty)", encoding=Filler())]
+        nodes = []
+        for f in msg.fields:
+            path = f"{prefix}.{f.name}" if prefix else f.name
+            nodes.append(self._field(f.name, f.type, profile, path, uses))
+        return nodes
+
+    def _field(self, name: str, ftype: FieldType, profile: str, path: str, uses: list[str]) -> Node:
+        rmw = profile == RMW_DESERT
+        if not ftype.is_primitive:
+            sub = self._lookup(ftype.base)
+            if ftype.is_array:
+                elem = self.codec(sub, profile)
+                if elem.key not in uses:
+                    uses.append(elem.key)
+                return Node(name, path, MessageArray(ftype.array, ftype.size, elem.key,
+                                                     elem.min_items, elem.fixed_items, elem.min_bytes))
+            return Node(name, path, children=self._fields(sub, profile, path, uses),
+                        class_key=type_key(sub.full_name))
+        base = ftype.base
+        if base == "byte" and rmw:
+            return Node(name, path, Absent("rmw_desert neither sends nor expects byte fields"))
+        if not ftype.is_array:
+            return Node(name, path, self._scalar(base, ftype.string_bound, rmw))
+        if base in ("byte", "char", "uint8") and not rmw:
+            return Node(name, path, Octets(ftype.array, ftype.size, base))
+        if base == "bool":
+            return Node(name, path, BoolArray(ftype.array, ftype.size, cbor_bool=rmw))
+        if base in ("string", "wstring"):
+            text = self._scalar(base, ftype.string_bound, rmw)
+            return Node(name, path, TextArray(ftype.array, ftype.size, text,
+                                              fixed_count=rmw and ftype.array is ArrayKind.FIXED))
+        code = "f" if rmw and base == "float64" else STRUCT_CODES[base]
+        return Node(name, path, NumberArray(base, code, ftype.array, ftype.size,
+                                            INTEGER_RANGES.get(base)))
+
+    @staticmethod
+    def _scalar(base: str, bound: int | None, rmw: bool) -> Encoding:
+        if base == "bool":
+            return Bool(cbor_bool=rmw)
+        if base == "byte":
+            return ByteScalar()
+        if base in ("string", "wstring"):
+            return Text(wide=base == "wstring", bound=bound,
+                        max_bytes=RMW_MAX_TEXT_BYTES if rmw else None)
+        code = "f" if rmw and base == "float64" else STRUCT_CODES[base]
+        return Number(base, code)
+
+    # --- sizes: the fewest items and bytes a value can take, for profile limits ---
+
+    def _count(self, node: Node) -> tuple[int, int | None]:
+        if node.children is not None:
+            total, fixed = 0, 0
+            for child in node.children:
+                n, f = self._count(child)
+                total += n
+                fixed = None if f is None or fixed is None else fixed + f
+            return total, fixed
+        enc = node.encoding
+        if isinstance(enc, Absent):
+            return 0, 0
+        if isinstance(enc, (Number, Bool, ByteScalar, Text, Filler)):
+            return 1, 1
+        if isinstance(enc, Octets):
+            return 1, (1 if enc.array is ArrayKind.FIXED else None)
+        if isinstance(enc, (NumberArray, BoolArray, TextArray)):
+            counted = enc.array is not ArrayKind.FIXED or getattr(enc, "fixed_count", False)
+            if enc.array is ArrayKind.FIXED:
+                n = enc.size + (1 if counted else 0)
+                return n, n
+            return 1, None
+        if isinstance(enc, MessageArray):
+            if enc.array is ArrayKind.FIXED:
+                fixed = None if enc.elem_fixed_items is None else enc.size * enc.elem_fixed_items
+                return enc.size * enc.elem_min_items, fixed
+            return 1, None
+        raise AssertionError(enc)
+
+    def _min_bytes(self, node: Node) -> int:
+        if node.children is not None:
+            return sum(self._min_bytes(c) for c in node.children)
+        enc = node.encoding
+        if isinstance(enc, Absent):
+            return 0
+        if isinstance(enc, Number):
+            return 3 if enc.is_float else 1
+        if isinstance(enc, (Bool, ByteScalar, Text, Filler)):
+            return 1
+        if isinstance(enc, Octets):
+            return 1 + (enc.size if enc.array is ArrayKind.FIXED else 0)
+        if isinstance(enc, (NumberArray, BoolArray, TextArray)):
+            per = 3 if isinstance(enc, NumberArray) and enc.prim.startswith("float") else 1
+            if enc.array is ArrayKind.FIXED:
+                return enc.size * per + (1 if getattr(enc, "fixed_count", False) else 0)
+            return 1
+        if isinstance(enc, MessageArray):
+            if enc.array is ArrayKind.FIXED:
+                return enc.size * enc.elem_min_bytes
+            return 1
+        raise AssertionError(enc)
+
+
+def check_profile_limits(ct: CodecType, header_items: int) -> None:
+    """Refuse, at build time, a type that an rmw_desert receiver can never take."""
+    if ct.profile != RMW_DESERT:
+        return
+    items = ct.min_items + header_items
+    if items > RMW_MAX_ITEMS:
+        raise ProfileError(
+            f"{ct.full_name}: every message takes at least {items} CBOR items, and an rmw_desert "
+            f"receiver keeps only {RMW_MAX_ITEMS}")
+    size = ct.min_bytes + header_items
+    if size > MAX_PAYLOAD:
+        raise ProfileError(
+            f"{ct.full_name}: every message takes at least {size} bytes, over the {MAX_PAYLOAD}-byte "
+            "payload an rmw_desert receiver can take (no fragmentation in this profile)")
+

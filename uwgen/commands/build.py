@@ -1,0 +1,151 @@
+"""`uwgen build`: generate the codec package (and bridges) from interfaces and a manifest."""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from uwgen.codegen.generator import plan_package, render_package, stale_files, write_package
+from uwgen.codegen.ir import PROFILES, ProfileError
+from uwgen.idl.loader import InterfaceLibrary
+from uwgen.idl.model import DefinitionError
+
+HELP = "generate CBOR codecs and bridge nodes from .msg/.srv folders and a manifest"
+EXIT_STALE = 1
+EXIT_INPUT = 2
+MANIFEST_NAME = "uwgen.yaml"
+
+log = logging.getLogger("uwgen.build")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("folders", nargs="*", type=Path, metavar="DIR",
+                   help="folders of interfaces (<package>/msg/*.msg, <package>/srv/*.srv); every "
+                        "interface in them is built. With none, the builds listed under "
+                        "[tool.uwgen] in ./pyproject.toml are run")
+    p.add_argument("-m", "--manifest", type=Path,
+                   help=f"the network manifest (default: DIR/{MANIFEST_NAME} of the first DIR, if present)")
+    p.add_argument("-o", "--out", type=Path,
+                   help="the package folder to write (default: generated/<package>)")
+    p.add_argument("--package", help="generated package name (default: the manifest's, or uwgen_<DIR name>)")
+    p.add_argument("--type", dest="types", action="append", default=[], metavar="TYPE",
+                   help="also build this installed type (pkg/msg/Name or pkg/srv/Name); repeatable")
+    p.add_argument("--all-installed", action="store_true",
+                   help="also build every interface installed in the environment")
+    p.add_argument("--profile", dest="profiles", action="append", choices=PROFILES,
+                   help="profiles to build the folders' interfaces in (default: native); repeatable")
+    p.add_argument("--no-installed", action="store_true",
+                   help="do not look for interfaces in installed ROS packages")
+    p.add_argument("--check", action="store_true",
+                   help="write nothing; exit 1 if the package on disk differs from what would be generated")
+
+
+@dataclass
+class BuildSpec:
+    folders: list[Path]
+    manifest: Path | None
+    out: Path | None
+    package: str | None
+    types: list[str]
+    all_installed: bool
+    profiles: tuple[str, ...]
+    installed: bool
+
+
+def specs_from_pyproject(start: Path) -> tuple[Path, list[BuildSpec]]:
+    for folder in [start, *start.parents]:
+        pyproject = folder / "pyproject.toml"
+        if pyproject.is_file():
+            data = tomllib.loads(pyproject.read_text(encoding="utf-8"))
+            builds = data.get("tool", {}).get("uwgen", {}).get("builds")
+            if not builds:
+                raise DefinitionError(pyproject, "no [tool.uwgen] builds listed; name a folder: uwgen build DIR")
+            specs = []
+            for b in builds:
+                specs.append(BuildSpec(
+                    folders=[folder / s for s in b.get("sources", [])],
+                    manifest=folder / b["manifest"] if "manifest" in b else None,
+                    out=folder / b["out"] if "out" in b else None,
+                    package=b.get("package"), types=list(b.get("types", [])),
+                    all_installed=bool(b.get("all_installed", False)),
+                    profiles=tuple(b.get("profiles", ["native"])), installed=True))
+            return folder, specs
+    raise DefinitionError(None, "no folder given and no pyproject.toml with [tool.uwgen] here; "
+                                "usage: uwgen build DIR [-m MANIFEST] [-o OUT]")
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        if args.folders:
+            specs = [BuildSpec(args.folders, args.manifest, args.out, args.package, args.types,
+                               args.all_installed, tuple(args.profiles or ("native",)),
+                               not args.no_installed)]
+            root = Path.cwd()
+        else:
+            root, specs = specs_from_pyproject(Path.cwd())
+        stale = []
+        for spec in specs:
+            stale += build(spec, root, check=args.check)
+    except (DefinitionError, ProfileError, ManifestErrors) as exc:
+        print(f"uwgen build: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    if args.check and stale:
+        print("uwgen build --check: generated code is stale:", file=sys.stderr)
+        for line in stale:
+            print(f"  {line}", file=sys.stderr)
+        print("run `uwgen build` and commit the result", file=sys.stderr)
+        return EXIT_STALE
+    return 0
+
+
+class ManifestErrors(Exception):
+    """Placeholder replaced at import time by the manifest loader's error class."""
+
+
+def _manifest_api():
+    global ManifestErrors
+    from uwgen.manifest.loader import ManifestError, find_manifest, load_manifest
+    ManifestErrors = ManifestError
+    return load_manifest, find_manifest
+
+
+def build(spec: BuildSpec, root: Path, check: bool = False) -> list[str]:
+    """Generate one package; returns what is stale (check) or what changed (write)."""
+    t0 = time.perf_counter()
+    load_manifest, find_manifest = _manifest_api()
+    lib = InterfaceLibrary(spec.folders, installed=spec.installed)
+    manifest_path = spec.manifest
+    if manifest_path is None and spec.folders:
+        manifest_path = find_manifest(spec.folders[0])
+    manifest = load_manifest(manifest_path, lib) if manifest_path else None
+    names = list(lib.local_names())
+    names += [lib.normalize(t) or t for t in spec.types]
+    if spec.all_installed:
+        names = lib.all_names()
+    package = spec.package or (manifest.package if manifest else None) \
+        or f"uwgen_{(spec.folders[0].resolve().name if spec.folders else 'interfaces')}"
+    out = spec.out or (root / "generated" / package)
+    label = _relative(manifest_path, root) if manifest_path else None
+    plan = plan_package(lib, sorted(set(names)), manifest, package, spec.profiles, label)
+    for reason in plan.skipped:
+        log.warning("left out: %s", reason)
+    files = render_package(plan)
+    if check:
+        return stale_files(files, out)
+    changed = write_package(files, out)
+    dt = time.perf_counter() - t0
+    ntypes = len(plan.codecs)
+    log.info("%s: %d codecs in %d modules -> %s (%d files changed) in %.2f s",
+             package, ntypes, len(plan.modules), _relative(out, root), len(changed), dt)
+    return changed
+
+
+def _relative(path: Path, root: Path) -> str:
+    try:
+        return str(Path(path).resolve().relative_to(root.resolve()))
+    except ValueError:
+        return str(path)
