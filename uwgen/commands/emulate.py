@@ -1,0 +1,214 @@
+"""`uwgen emulate`: run emulated DESERT nodes on 127.0.0.1, or print the PDR sweep.
+
+    uwgen emulate msg_samples/scenarios/two-nodes.yaml
+    uwgen emulate --nodes 2 --ports 4000 4001 --distance 1500 --period 0.2 --wind 5
+    uwgen emulate --pdr-sweep --wind 0 5 10 --plot docs/pdr-sweep.png
+
+Runs until Ctrl-C or SIGTERM (or --duration), then prints every node's counters.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from pathlib import Path
+
+HELP = "run emulated DESERT nodes (TCP sockets + acoustic channel), or print a PDR sweep"
+
+EXIT_USAGE = 2
+EXIT_FAILED = 1
+
+log = logging.getLogger("uwgen.emulator")
+
+COUNTER_COLUMNS = ("bytes_in", "packets_queued", "packets_sent", "packets_delivered",
+                   "lost_per", "lost_snr", "lost_collision", "lost_no_client",
+                   "queue_bytes", "max_queue_bytes", "dropped_restart", "clients")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scenario", nargs="?", type=Path,
+                        help="YAML scenario (msg_samples/scenarios/*.yaml); flags override it")
+    g = parser.add_argument_group("nodes (without a scenario file)")
+    g.add_argument("--nodes", type=int, default=None, metavar="N",
+                   help="number of nodes, on a line, each sending to the next (default 2)")
+    g.add_argument("--ports", type=int, nargs="+", default=None, metavar="PORT",
+                   help="one TCP port per node (default 4000, 4001, ...; 0 = any free port)")
+    g.add_argument("--distance", type=float, default=None, metavar="M",
+                   help="metres between neighbouring nodes (default 1000)")
+    link = parser.add_argument_group("link and channel")
+    link.add_argument("--period", type=float, default=None, metavar="S",
+                      help="seconds between packets of a node (DESERT period_, default 0.2)")
+    link.add_argument("--max-read-length", type=int, default=None, metavar="BYTES",
+                      help="bytes per packet (default 64, at most 4096)")
+    link.add_argument("--bitrate", type=float, default=None, metavar="BPS",
+                      help="acoustic bit rate (default 4800)")
+    link.add_argument("--per", type=float, default=None, help="fixed packet error rate 0..1")
+    link.add_argument("--seed", type=int, default=None, help="random seed (default 1)")
+    link.add_argument("--wind", type=float, nargs="+", default=None, metavar="M_S",
+                      help="wind speed: turns on the SNR channel model (several values "
+                           "with --pdr-sweep; default there 0 5 10)")
+    link.add_argument("--tdma", type=float, default=None, metavar="FRAME",
+                      help="use TDMA with this frame length in seconds (slot = frame / nodes)")
+    link.add_argument("--guard", type=float, default=None, metavar="S",
+                      help="TDMA guard time in seconds (default 0.05)")
+    run_g = parser.add_argument_group("running")
+    run_g.add_argument("--duration", type=float, default=None, metavar="S",
+                       help="stop after S seconds (default: until Ctrl-C / SIGTERM)")
+    sweep = parser.add_argument_group("PDR sweep (simulated, no sockets)")
+    sweep.add_argument("--pdr-sweep", action="store_true",
+                       help="print the delivery ratio against distance for each --wind")
+    sweep.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                       help="with --pdr-sweep: also save the plot here")
+    sweep.add_argument("--packets", type=int, default=400,
+                       help="with --pdr-sweep: packets per distance (default 400)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from uwgen.emulator.scenario import ScenarioError
+
+    if args.pdr_sweep:
+        return _sweep(args)
+    if args.plot is not None:
+        print("uwgen emulate: --plot needs --pdr-sweep", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        scenario = build_scenario(args)
+    except ScenarioError as exc:
+        print(f"uwgen emulate: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    return _serve(scenario, args.duration)
+
+
+def build_scenario(args: argparse.Namespace):
+    """The scenario from the YAML file (if any) with the command-line flags applied."""
+    from dataclasses import replace
+
+    from uwgen.emulator.physics import SnrModel
+    from uwgen.emulator.scenario import NodeSpec, Scenario, ScenarioError, TdmaSpec, \
+        load_scenario
+
+    if args.wind is not None and len(args.wind) != 1:
+        raise ScenarioError("--wind takes one value when running nodes "
+                            "(several only with --pdr-sweep)")
+    base = load_scenario(args.scenario) if args.scenario else None
+    changes: dict = {}
+    for flag, key in (("period", "period"), ("max_read_length", "max_read_length"),
+                      ("bitrate", "bitrate"), ("per", "per"), ("seed", "seed")):
+        value = getattr(args, flag)
+        if value is not None:
+            changes[key] = value
+    if args.wind is not None:
+        snr = base.snr if base is not None and base.snr is not None else SnrModel()
+        try:
+            changes["snr"] = replace(snr, wind=args.wind[0])
+        except ValueError as exc:
+            raise ScenarioError(f"--wind: {exc}") from None
+    if args.tdma is not None or args.guard is not None:
+        tdma = base.tdma if base is not None and base.tdma is not None else TdmaSpec()
+        if args.tdma is not None:
+            tdma = replace(tdma, frame=args.tdma)
+        if args.guard is not None:
+            tdma = replace(tdma, guard=args.guard)
+        changes["tdma"] = tdma
+    node_flags = args.nodes is not None or args.ports is not None or args.distance is not None
+    if base is None or node_flags:
+        count = args.nodes if args.nodes is not None else (
+            len(args.ports) if args.ports else (len(base.nodes) if base else 2))
+        if count < 2:
+            raise ScenarioError(f"--nodes must be at least 2, got {count}")
+        ports = args.ports if args.ports is not None else [4000 + i for i in range(count)]
+        if len(ports) != count:
+            raise ScenarioError(f"--ports gives {len(ports)} ports for {count} nodes")
+        spacing = args.distance if args.distance is not None else 1000.0
+        if base is not None and not (args.nodes or args.distance):
+            # Only --ports given: keep the file's nodes, move them to the new ports.
+            if len(ports) != len(base.nodes):
+                raise ScenarioError(f"--ports gives {len(ports)} ports for the "
+                                    f"{len(base.nodes)} nodes of {args.scenario}")
+            nodes = [replace(n, port=p) for n, p in zip(base.nodes, ports)]
+        else:
+            nodes = [NodeSpec(f"node{i + 1}", port=ports[i], position=(i * spacing, 0.0, 0.0))
+                     for i in range(count)]
+        changes["nodes"] = nodes
+    if base is None:
+        return Scenario(**changes)
+    return replace(base, **changes)
+
+
+def _serve(scenario, duration: float | None) -> int:
+    from uwgen.emulator.server import Emulator, EmulatorError
+
+    emu = Emulator(scenario)
+    try:
+        emu.start()
+    except EmulatorError as exc:
+        print(f"uwgen emulate: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    mode = "TDMA" if scenario.tdma else "CSMA-ALOHA"
+    channel = (f"SNR model (wind {scenario.snr.wind:g} m/s)" if scenario.snr else "no SNR losses")
+    log.info("emulating %d DESERT nodes: period %.3g s, max_read_length %d, %g bit/s, %s, "
+             "%s, per %.3g, seed %d", len(scenario.nodes), scenario.period,
+             scenario.max_read_length, scenario.bitrate, mode, channel, scenario.per,
+             scenario.seed)
+    for name, port in emu.ports().items():
+        print(f"{name} 127.0.0.1:{port}", flush=True)
+    stop = threading.Event()
+    previous = {}
+
+    def on_signal(signum, _frame) -> None:
+        log.info("emulator: %s received, stopping", signal.Signals(signum).name)
+        stop.set()
+
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, on_signal)
+    try:
+        stop.wait(duration)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        emu.stop()
+    print(format_counters(emu.all_counters()), flush=True)
+    return 0
+
+
+def format_counters(counters: dict[str, dict[str, int]]) -> str:
+    """Per-node counters as a table (one row per node)."""
+    names = list(counters)
+    width = max(len("node"), *(len(n) for n in names))
+    cols = [c for c in COUNTER_COLUMNS]
+    header = "node".ljust(width) + " " + " ".join(c.rjust(max(len(c), 6)) for c in cols)
+    lines = [header]
+    for name in names:
+        row = counters[name]
+        lines.append(name.ljust(width) + " " + " ".join(
+            str(row.get(c, 0)).rjust(max(len(c), 6)) for c in cols))
+    return "\n".join(lines)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from uwgen.emulator.physics import SnrModel
+    from uwgen.emulator.sweep import format_table, pdr_sweep, plot
+
+    winds = args.wind if args.wind is not None else [0.0, 5.0, 10.0]
+    if args.packets < 1:
+        print("uwgen emulate: --packets must be at least 1", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        for w in winds:
+            SnrModel(wind=w)
+    except ValueError as exc:
+        print(f"uwgen emulate: --wind: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    seed = args.seed if args.seed is not None else 1
+    result = pdr_sweep(winds=winds, packets=args.packets, seed=seed,
+                       payload=args.max_read_length or 64)
+    print(format_table(result), flush=True)
+    if args.plot is not None:
+        path = plot(result, args.plot)
+        log.info("PDR sweep plot saved to %s", path)
+    return 0
