@@ -25,31 +25,32 @@ from uwgen.runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCode
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
 
 from ._classes import PLAIN, ROS
-from . import builtin_interfaces
-from . import geometry_msgs
-from . import sensor_msgs
-from . import std_msgs
-from . import turtlesim
+from .builtin_interfaces import msg as _builtin_interfaces_msg
+from .geometry_msgs import msg as _geometry_msgs_msg
+from .sensor_msgs import msg as _sensor_msgs_msg
+from .std_msgs import msg as _std_msgs_msg
+from .turtlesim import msg as _turtlesim_msg
+from .turtlesim import srv as _turtlesim_srv
 
 CODECS = {
-    ("builtin_interfaces/msg/Time", "native"): TypeCodec("builtin_interfaces/msg/Time", "native", builtin_interfaces.enc_Time, builtin_interfaces.dec_Time, PLAIN, ROS, "builtin_interfaces__Time"),
-    ("geometry_msgs/msg/Twist", "native"): TypeCodec("geometry_msgs/msg/Twist", "native", geometry_msgs.enc_Twist, geometry_msgs.dec_Twist, PLAIN, ROS, "geometry_msgs__Twist"),
-    ("geometry_msgs/msg/Vector3", "native"): TypeCodec("geometry_msgs/msg/Vector3", "native", geometry_msgs.enc_Vector3, geometry_msgs.dec_Vector3, PLAIN, ROS, "geometry_msgs__Vector3"),
-    ("sensor_msgs/msg/BatteryState", "native"): TypeCodec("sensor_msgs/msg/BatteryState", "native", sensor_msgs.enc_BatteryState, sensor_msgs.dec_BatteryState, PLAIN, ROS, "sensor_msgs__BatteryState"),
-    ("std_msgs/msg/Header", "native"): TypeCodec("std_msgs/msg/Header", "native", std_msgs.enc_Header, std_msgs.dec_Header, PLAIN, ROS, "std_msgs__Header"),
-    ("std_msgs/msg/String", "native"): TypeCodec("std_msgs/msg/String", "native", std_msgs.enc_String, std_msgs.dec_String, PLAIN, ROS, "std_msgs__String"),
-    ("turtlesim/msg/Color", "native"): TypeCodec("turtlesim/msg/Color", "native", turtlesim.enc_Color, turtlesim.dec_Color, PLAIN, ROS, "turtlesim__Color"),
-    ("turtlesim/msg/Pose", "native"): TypeCodec("turtlesim/msg/Pose", "native", turtlesim.enc_Pose, turtlesim.dec_Pose, PLAIN, ROS, "turtlesim__Pose"),
-    ("turtlesim/srv/Kill_Request", "native"): TypeCodec("turtlesim/srv/Kill_Request", "native", turtlesim.enc_Kill_Request, turtlesim.dec_Kill_Request, PLAIN, ROS, "turtlesim__Kill_Request"),
-    ("turtlesim/srv/Kill_Response", "native"): TypeCodec("turtlesim/srv/Kill_Response", "native", turtlesim.enc_Kill_Response, turtlesim.dec_Kill_Response, PLAIN, ROS, "turtlesim__Kill_Response"),
-    ("turtlesim/srv/SetPen_Request", "native"): TypeCodec("turtlesim/srv/SetPen_Request", "native", turtlesim.enc_SetPen_Request, turtlesim.dec_SetPen_Request, PLAIN, ROS, "turtlesim__SetPen_Request"),
-    ("turtlesim/srv/SetPen_Response", "native"): TypeCodec("turtlesim/srv/SetPen_Response", "native", turtlesim.enc_SetPen_Response, turtlesim.dec_SetPen_Response, PLAIN, ROS, "turtlesim__SetPen_Response"),
-    ("turtlesim/srv/Spawn_Request", "native"): TypeCodec("turtlesim/srv/Spawn_Request", "native", turtlesim.enc_Spawn_Request, turtlesim.dec_Spawn_Request, PLAIN, ROS, "turtlesim__Spawn_Request"),
-    ("turtlesim/srv/Spawn_Response", "native"): TypeCodec("turtlesim/srv/Spawn_Response", "native", turtlesim.enc_Spawn_Response, turtlesim.dec_Spawn_Response, PLAIN, ROS, "turtlesim__Spawn_Response"),
-    ("turtlesim/srv/TeleportAbsolute_Request", "native"): TypeCodec("turtlesim/srv/TeleportAbsolute_Request", "native", turtlesim.enc_TeleportAbsolute_Request, turtlesim.dec_TeleportAbsolute_Request, PLAIN, ROS, "turtlesim__TeleportAbsolute_Request"),
-    ("turtlesim/srv/TeleportAbsolute_Response", "native"): TypeCodec("turtlesim/srv/TeleportAbsolute_Response", "native", turtlesim.enc_TeleportAbsolute_Response, turtlesim.dec_TeleportAbsolute_Response, PLAIN, ROS, "turtlesim__TeleportAbsolute_Response"),
-    ("turtlesim/srv/TeleportRelative_Request", "native"): TypeCodec("turtlesim/srv/TeleportRelative_Request", "native", turtlesim.enc_TeleportRelative_Request, turtlesim.dec_TeleportRelative_Request, PLAIN, ROS, "turtlesim__TeleportRelative_Request"),
-    ("turtlesim/srv/TeleportRelative_Response", "native"): TypeCodec("turtlesim/srv/TeleportRelative_Response", "native", turtlesim.enc_TeleportRelative_Response, turtlesim.dec_TeleportRelative_Response, PLAIN, ROS, "turtlesim__TeleportRelative_Response"),
+    ("builtin_interfaces/msg/Time", "native"): TypeCodec("builtin_interfaces/msg/Time", "native", _builtin_interfaces_msg.enc_Time, _builtin_interfaces_msg.dec_Time, PLAIN, ROS, "builtin_interfaces__Time"),
+    ("geometry_msgs/msg/Twist", "native"): TypeCodec("geometry_msgs/msg/Twist", "native", _geometry_msgs_msg.enc_Twist, _geometry_msgs_msg.dec_Twist, PLAIN, ROS, "geometry_msgs__Twist"),
+    ("geometry_msgs/msg/Vector3", "native"): TypeCodec("geometry_msgs/msg/Vector3", "native", _geometry_msgs_msg.enc_Vector3, _geometry_msgs_msg.dec_Vector3, PLAIN, ROS, "geometry_msgs__Vector3"),
+    ("sensor_msgs/msg/BatteryState", "native"): TypeCodec("sensor_msgs/msg/BatteryState", "native", _sensor_msgs_msg.enc_BatteryState, _sensor_msgs_msg.dec_BatteryState, PLAIN, ROS, "sensor_msgs__BatteryState"),
+    ("std_msgs/msg/Header", "native"): TypeCodec("std_msgs/msg/Header", "native", _std_msgs_msg.enc_Header, _std_msgs_msg.dec_Header, PLAIN, ROS, "std_msgs__Header"),
+    ("std_msgs/msg/String", "native"): TypeCodec("std_msgs/msg/String", "native", _std_msgs_msg.enc_String, _std_msgs_msg.dec_String, PLAIN, ROS, "std_msgs__String"),
+    ("turtlesim/msg/Color", "native"): TypeCodec("turtlesim/msg/Color", "native", _turtlesim_msg.enc_Color, _turtlesim_msg.dec_Color, PLAIN, ROS, "turtlesim__Color"),
+    ("turtlesim/msg/Pose", "native"): TypeCodec("turtlesim/msg/Pose", "native", _turtlesim_msg.enc_Pose, _turtlesim_msg.dec_Pose, PLAIN, ROS, "turtlesim__Pose"),
+    ("turtlesim/srv/Kill_Request", "native"): TypeCodec("turtlesim/srv/Kill_Request", "native", _turtlesim_srv.enc_Kill_Request, _turtlesim_srv.dec_Kill_Request, PLAIN, ROS, "turtlesim__Kill_Request"),
+    ("turtlesim/srv/Kill_Response", "native"): TypeCodec("turtlesim/srv/Kill_Response", "native", _turtlesim_srv.enc_Kill_Response, _turtlesim_srv.dec_Kill_Response, PLAIN, ROS, "turtlesim__Kill_Response"),
+    ("turtlesim/srv/SetPen_Request", "native"): TypeCodec("turtlesim/srv/SetPen_Request", "native", _turtlesim_srv.enc_SetPen_Request, _turtlesim_srv.dec_SetPen_Request, PLAIN, ROS, "turtlesim__SetPen_Request"),
+    ("turtlesim/srv/SetPen_Response", "native"): TypeCodec("turtlesim/srv/SetPen_Response", "native", _turtlesim_srv.enc_SetPen_Response, _turtlesim_srv.dec_SetPen_Response, PLAIN, ROS, "turtlesim__SetPen_Response"),
+    ("turtlesim/srv/Spawn_Request", "native"): TypeCodec("turtlesim/srv/Spawn_Request", "native", _turtlesim_srv.enc_Spawn_Request, _turtlesim_srv.dec_Spawn_Request, PLAIN, ROS, "turtlesim__Spawn_Request"),
+    ("turtlesim/srv/Spawn_Response", "native"): TypeCodec("turtlesim/srv/Spawn_Response", "native", _turtlesim_srv.enc_Spawn_Response, _turtlesim_srv.dec_Spawn_Response, PLAIN, ROS, "turtlesim__Spawn_Response"),
+    ("turtlesim/srv/TeleportAbsolute_Request", "native"): TypeCodec("turtlesim/srv/TeleportAbsolute_Request", "native", _turtlesim_srv.enc_TeleportAbsolute_Request, _turtlesim_srv.dec_TeleportAbsolute_Request, PLAIN, ROS, "turtlesim__TeleportAbsolute_Request"),
+    ("turtlesim/srv/TeleportAbsolute_Response", "native"): TypeCodec("turtlesim/srv/TeleportAbsolute_Response", "native", _turtlesim_srv.enc_TeleportAbsolute_Response, _turtlesim_srv.dec_TeleportAbsolute_Response, PLAIN, ROS, "turtlesim__TeleportAbsolute_Response"),
+    ("turtlesim/srv/TeleportRelative_Request", "native"): TypeCodec("turtlesim/srv/TeleportRelative_Request", "native", _turtlesim_srv.enc_TeleportRelative_Request, _turtlesim_srv.dec_TeleportRelative_Request, PLAIN, ROS, "turtlesim__TeleportRelative_Request"),
+    ("turtlesim/srv/TeleportRelative_Response", "native"): TypeCodec("turtlesim/srv/TeleportRelative_Response", "native", _turtlesim_srv.enc_TeleportRelative_Response, _turtlesim_srv.dec_TeleportRelative_Response, PLAIN, ROS, "turtlesim__TeleportRelative_Response"),
 }
 
 

@@ -18,31 +18,32 @@
 """The classes decoders build: the generated plain ones, or rclpy's (imported on first use)."""
 from uwgen.runtime.table import PlainClasses, RosClasses
 
-from . import builtin_interfaces as _builtin_interfaces
-from . import geometry_msgs as _geometry_msgs
-from . import sensor_msgs as _sensor_msgs
-from . import std_msgs as _std_msgs
-from . import turtlesim as _turtlesim
+from .builtin_interfaces import msg as _builtin_interfaces_msg
+from .geometry_msgs import msg as _geometry_msgs_msg
+from .sensor_msgs import msg as _sensor_msgs_msg
+from .std_msgs import msg as _std_msgs_msg
+from .turtlesim import msg as _turtlesim_msg
+from .turtlesim import srv as _turtlesim_srv
 
 PLAIN = PlainClasses({
-    "builtin_interfaces__Time": _builtin_interfaces.Time,
-    "geometry_msgs__Twist": _geometry_msgs.Twist,
-    "geometry_msgs__Vector3": _geometry_msgs.Vector3,
-    "sensor_msgs__BatteryState": _sensor_msgs.BatteryState,
-    "std_msgs__Header": _std_msgs.Header,
-    "std_msgs__String": _std_msgs.String,
-    "turtlesim__Color": _turtlesim.Color,
-    "turtlesim__Kill_Request": _turtlesim.Kill_Request,
-    "turtlesim__Kill_Response": _turtlesim.Kill_Response,
-    "turtlesim__Pose": _turtlesim.Pose,
-    "turtlesim__SetPen_Request": _turtlesim.SetPen_Request,
-    "turtlesim__SetPen_Response": _turtlesim.SetPen_Response,
-    "turtlesim__Spawn_Request": _turtlesim.Spawn_Request,
-    "turtlesim__Spawn_Response": _turtlesim.Spawn_Response,
-    "turtlesim__TeleportAbsolute_Request": _turtlesim.TeleportAbsolute_Request,
-    "turtlesim__TeleportAbsolute_Response": _turtlesim.TeleportAbsolute_Response,
-    "turtlesim__TeleportRelative_Request": _turtlesim.TeleportRelative_Request,
-    "turtlesim__TeleportRelative_Response": _turtlesim.TeleportRelative_Response,
+    "builtin_interfaces__Time": _builtin_interfaces_msg.Time,
+    "geometry_msgs__Twist": _geometry_msgs_msg.Twist,
+    "geometry_msgs__Vector3": _geometry_msgs_msg.Vector3,
+    "sensor_msgs__BatteryState": _sensor_msgs_msg.BatteryState,
+    "std_msgs__Header": _std_msgs_msg.Header,
+    "std_msgs__String": _std_msgs_msg.String,
+    "turtlesim__Color": _turtlesim_msg.Color,
+    "turtlesim__Kill_Request": _turtlesim_srv.Kill_Request,
+    "turtlesim__Kill_Response": _turtlesim_srv.Kill_Response,
+    "turtlesim__Pose": _turtlesim_msg.Pose,
+    "turtlesim__SetPen_Request": _turtlesim_srv.SetPen_Request,
+    "turtlesim__SetPen_Response": _turtlesim_srv.SetPen_Response,
+    "turtlesim__Spawn_Request": _turtlesim_srv.Spawn_Request,
+    "turtlesim__Spawn_Response": _turtlesim_srv.Spawn_Response,
+    "turtlesim__TeleportAbsolute_Request": _turtlesim_srv.TeleportAbsolute_Request,
+    "turtlesim__TeleportAbsolute_Response": _turtlesim_srv.TeleportAbsolute_Response,
+    "turtlesim__TeleportRelative_Request": _turtlesim_srv.TeleportRelative_Request,
+    "turtlesim__TeleportRelative_Response": _turtlesim_srv.TeleportRelative_Response,
 })
 
 ROS = RosClasses({

@@ -1,1 +1,50 @@
-"""Codec IR and the jinja2 generator that writes generated/."""
+"""Codec IR and the jinja2 generator that writes generated/.
+
+`generate()` is the programmatic `uwgen build`: tests and tools use it to build codecs
+for any set of interfaces into a folder of their choice and import the result.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Iterable
+
+
+def generate(out_dir: Path, package: str, names: Iterable[str] = (), folders: Iterable[Path] = (),
+             manifest: Path | None = None, profiles: tuple[str, ...] = ("native",),
+             installed: bool = True, all_installed: bool = False) -> ModuleType:
+    """Build `package` into `out_dir/package` and import it.
+
+    `names` are interfaces to build (pkg/msg/Name, pkg/srv/Name, pkg/Name) in every
+    profile of `profiles`; `folders` add interface folders (their own interfaces are
+    built too); `manifest` adds its topics and services; `all_installed` builds every
+    installed interface. Types a profile can never carry are left out of bulk builds
+    (see the plan's `skipped`). Raises DefinitionError, ManifestError or ProfileError.
+    """
+    from uwgen.codegen.generator import plan_package, render_package, write_package
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.manifest.loader import load_manifest
+
+    folders = [Path(f) for f in folders]
+    lib = InterfaceLibrary(folders, installed=installed)
+    wanted = lib.all_names() if all_installed else [*lib.local_names(), *names]
+    wanted = sorted({lib.normalize(n) or n for n in wanted})
+    loaded = load_manifest(Path(manifest), lib) if manifest else None
+    plan = plan_package(lib, wanted, loaded, package, tuple(profiles),
+                        str(manifest) if manifest else None)
+    target = Path(out_dir) / package
+    write_package(render_package(plan), target)
+    return import_package(Path(out_dir), package)
+
+
+def import_package(parent: Path, package: str) -> ModuleType:
+    """Import (or re-import) a generated package that lives in `parent/package`."""
+    parent = str(Path(parent).resolve())
+    if parent not in sys.path:
+        sys.path.insert(0, parent)
+    for name in [m for m in sys.modules if m == package or m.startswith(package + ".")]:
+        del sys.modules[name]
+    importlib.invalidate_caches()
+    return importlib.import_module(package)

@@ -52,6 +52,11 @@ class Function:
     body: list[str]
 
 
+def module_alias(module: str) -> str:
+    """How one generated module imports another: 'geometry_msgs.msg' -> '_geometry_msgs_msg'."""
+    return "_" + module.replace(".", "_")
+
+
 def func_name(kind: str, ct_key_name: str, suffix: str) -> str:
     return f"{kind}{suffix}_{ct_key_name}"
 
@@ -59,15 +64,16 @@ def func_name(kind: str, ct_key_name: str, suffix: str) -> str:
 class Lowering:
     """Lowers the codec types of one generated module."""
 
-    def __init__(self, module_package: str, consts: Constants):
-        self.package = module_package     # ROS package this module holds
+    def __init__(self, module: str, consts: Constants, module_of: dict[str, str]):
+        self.module = module              # the generated module written: 'geometry_msgs.msg'
         self.consts = consts
+        self.module_of = module_of        # codec type key -> its module
 
     def ref(self, kind: str, key: str, suffix: str) -> str:
         """How code in this module names another type's encoder/decoder."""
-        pkg, name = key.split("__", 1)
-        fn = func_name(kind, name, suffix)
-        return fn if pkg == self.package else f"_{pkg}.{fn}"
+        fn = func_name(kind, key.split("__", 1)[1], suffix)
+        other = self.module_of[key]
+        return fn if other == self.module else f"{module_alias(other)}.{fn}"
 
     # --- encoder ------------------------------------------------------------------
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import jinja2
 
-from uwgen.codegen.emit import Constants, Function, Lowering
+from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
 from uwgen.codegen.ir import NATIVE, CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import ArrayKind, Field, MessageDef, ServiceDef
@@ -51,12 +51,18 @@ class ServiceHolder:
 
 @dataclass
 class ModulePlan:
-    package: str
-    imports: list[str] = field(default_factory=list)          # other generated modules used
+    package: str                                              # ROS package
+    namespace: str                                            # msg or srv
+    imports: list[tuple[str, str, str]] = field(default_factory=list)  # (package, namespace, alias) used
     classes: list[PlainClass] = field(default_factory=list)
     services: list[ServiceHolder] = field(default_factory=list)
     functions: list[Function] = field(default_factory=list)
     constants: list[str] = field(default_factory=list)
+
+
+    @property
+    def name(self) -> str:
+        return f"{self.package}.{self.namespace}"
 
 
 @dataclass
@@ -64,7 +70,7 @@ class CodecEntry:
     type_name: str
     profile: str
     key: str
-    module: str
+    module: str       # alias of its module: '_geometry_msgs_msg'
     enc: str
     dec: str
 
@@ -151,32 +157,34 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     modules: dict[str, ModulePlan] = {}
     consts: dict[str, Constants] = {}
 
-    def module(pkg: str) -> ModulePlan:
-        if pkg not in modules:
-            modules[pkg] = ModulePlan(pkg)
-            consts[pkg] = Constants()
-        return modules[pkg]
+    def module(pkg: str, ns: str) -> ModulePlan:
+        name = f"{pkg}.{ns}"
+        if name not in modules:
+            modules[name] = ModulePlan(pkg, ns)
+            consts[name] = Constants()
+        return modules[name]
 
     for full_name in _dependency_order(definitions, lib):
         msg = definitions[full_name]
-        mod = module(msg.package)
+        mod = module(msg.package, msg.namespace)
         mod.classes.append(_plain_class(msg, mod))
     for full_name in sorted(services):
         srv = services[full_name]
-        module(srv.package).services.append(ServiceHolder(srv.name, srv.full_name))
+        module(srv.package, "srv").services.append(ServiceHolder(srv.name, srv.full_name))
 
+    module_of = {ct.key: ct.module for ct in codecs.values()}
     entries: list[CodecEntry] = []
     for (full_name, profile) in sorted(codecs, key=lambda k: (k[1] != NATIVE, k[1], k[0])):
         ct = codecs[(full_name, profile)]
-        mod = module(ct.package)
-        low = Lowering(ct.package, consts[ct.package])
+        mod = module(ct.package, ct.namespace)
+        low = Lowering(ct.module, consts[ct.module], module_of)
         enc, dec = low.encoder(ct), low.decoder(ct)
         mod.functions += [enc, dec]
         for used in ct.uses:
-            _need_import(mod, used.split("__", 1)[0])
-        entries.append(CodecEntry(full_name, profile, ct.key, ct.package, enc.name, dec.name))
-    for pkg, mod in modules.items():
-        mod.constants = consts[pkg].lines
+            _need_import(mod, module_of[used])
+        entries.append(CodecEntry(full_name, profile, ct.key, module_alias(ct.module), enc.name, dec.name))
+    for name, mod in modules.items():
+        mod.constants = consts[name].lines
         mod.imports.sort()
 
     sources = sorted({(source_label(lib.source_of(n), lib), _digest(lib.source_of(n)))
@@ -186,7 +194,7 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     sources = sorted(set(sources))
     ordered = [modules[p] for p in sorted(modules)]
     ros_imports = sorted((type_key(n), _ros_module(n), n.split("/")[2]) for n in definitions)
-    plain_keys = sorted((type_key(n), n.split("/")[0], n.split("/")[2]) for n in definitions)
+    plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
                        ros_imports, plain_keys, sorted(set(skipped)))
 
@@ -208,9 +216,10 @@ def _ros_module(full_name: str) -> str:
     return f"{pkg}.{ns}"
 
 
-def _need_import(mod: ModulePlan, pkg: str) -> None:
-    if pkg != mod.package and pkg not in mod.imports:
-        mod.imports.append(pkg)
+def _need_import(mod: ModulePlan, module: str) -> None:
+    entry = (*module.split("."), module_alias(module))
+    if module != mod.name and entry not in mod.imports:
+        mod.imports.append(entry)
 
 
 def _dependency_order(definitions: dict[str, MessageDef], lib: InterfaceLibrary) -> list[str]:
@@ -242,11 +251,12 @@ def _plain_class(msg: MessageDef, mod: ModulePlan) -> PlainClass:
 
 
 def _class_ref(full_name: str, package: str, mod: ModulePlan) -> str:
-    pkg, _ns, name = full_name.split("/")
-    if pkg == package:
+    pkg, ns, name = full_name.split("/")
+    other = f"{pkg}.{ns}"
+    if other == mod.name:
         return name
-    _need_import(mod, pkg)
-    return f"_{pkg}.{name}"
+    _need_import(mod, other)
+    return f"{module_alias(other)}.{name}"
 
 
 def _literal(value, prim: str) -> str:
@@ -299,9 +309,13 @@ def render_package(plan: PackagePlan) -> dict[str, str]:
     header = {"sources": plan.sources, "manifest": plan.manifest_label, "package": plan.package}
     files: dict[str, str] = {}
     for mod in plan.modules:
-        files[f"{mod.package}.py"] = env.get_template("types_module.py.j2").render(header=header, module=mod)
+        files[f"{mod.package}/{mod.namespace}.py"] = env.get_template("types_module.py.j2").render(
+            header=header, module=mod)
+    for pkg in sorted({m.package for m in plan.modules}):
+        files[f"{pkg}/__init__.py"] = env.get_template("ros_package_init.py.j2").render(
+            header=header, package=pkg, namespaces=sorted(m.namespace for m in plan.modules if m.package == pkg))
     files["_classes.py"] = env.get_template("classes.py.j2").render(
-        header=header, modules=[m.package for m in plan.modules],
+        header=header, modules=[(m.package, m.namespace, module_alias(m.name)) for m in plan.modules],
         plain_keys=plan.plain_keys, ros_imports=plan.ros_imports)
     files["__init__.py"] = env.get_template("package_init.py.j2").render(
         header=header, plan=plan, manifest=_manifest_view(plan.manifest))
@@ -350,8 +364,8 @@ def stale_files(files: dict[str, str], out_dir: Path) -> list[str]:
         elif path.read_text(encoding="utf-8") != text:
             out.append(f"changed: {path}")
     if out_dir.is_dir():
-        for path in sorted(out_dir.glob("*.py")):
-            if path.name not in files:
+        for path in sorted(out_dir.rglob("*.py")):
+            if path.relative_to(out_dir).as_posix() not in files:
                 out.append(f"extra: {path}")
     return out
 
@@ -364,10 +378,20 @@ def write_package(files: dict[str, str], out_dir: Path) -> list[str]:
     for rel, text in sorted(files.items()):
         path = out_dir / rel
         if not path.is_file() or path.read_text(encoding="utf-8") != text:
+            path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(text, encoding="utf-8")
             changed.append(rel)
-    for path in sorted(out_dir.glob("*.py")):
-        if path.name not in files and path.read_text(encoding="utf-8").startswith(MARKER):
+    for path in sorted(out_dir.rglob("*.py")):
+        rel = path.relative_to(out_dir).as_posix()
+        if rel not in files and path.read_text(encoding="utf-8").startswith(MARKER):
             path.unlink()
-            changed.append(path.name)
+            changed.append(rel)
+    for folder in sorted(out_dir.iterdir()):
+        if folder.is_dir() and not any(folder.glob("*.py")) and folder.name != "__pycache__":
+            for cache in folder.glob("__pycache__"):
+                for f in cache.iterdir():
+                    f.unlink()
+                cache.rmdir()
+            if not any(folder.iterdir()):
+                folder.rmdir()
     return changed

@@ -166,6 +166,7 @@ class CodecType:
     key: str                    # 'geometry_msgs__Twist' (unique Python-safe name)
     full_name: str              # 'geometry_msgs/msg/Twist'
     package: str
+    namespace: str              # 'msg', or 'srv' for a service's request/response
     name: str                   # 'Twist', 'SetBool_Request'
     profile: str
     root: Node                  # children: the fields (or one Filler)
@@ -173,6 +174,11 @@ class CodecType:
     fixed_items: int | None     # item count when the type has no variable part
     min_bytes: int              # fewest payload bytes (header excluded)
     uses: list[str] = field(default_factory=list)   # keys of types referenced by arrays
+
+    @property
+    def module(self) -> str:
+        """The generated module that holds it: 'geometry_msgs.msg'."""
+        return f"{self.package}.{self.namespace}"
 
     @property
     def suffix(self) -> str:
@@ -226,7 +232,7 @@ class IRBuilder:
         min_items, fixed = self._count(root)
         return CodecType(
             key=type_key(msg.full_name), full_name=msg.full_name, package=msg.package,
-            name=msg.name, profile=profile, root=root, min_items=min_items,
+            namespace=msg.namespace, name=msg.name, profile=profile, root=root, min_items=min_items,
             fixed_items=fixed, min_bytes=self._min_bytes(root), uses=uses)
 
     def _fields(self, msg: MessageDef, profile: str, prefix: str, uses: list[str]) -> list[Node]:

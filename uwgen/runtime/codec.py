@@ -334,7 +334,7 @@ def ints_in(values: list, lo: int, hi: int) -> bool:
 
 def float32_ok(values: Iterable) -> bool:
     """True when every float fits float32's range (inf and nan included)."""
-    return all(abs(v) <= F32_MAX or abs(v) == INF for v in values)
+    return all(not abs(v) > F32_MAX or abs(v) == INF for v in values)  # NaN passes
 
 
 F32_MAX = 3.4028234663852886e+38

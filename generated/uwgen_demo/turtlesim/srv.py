@@ -15,7 +15,7 @@
 #   share/sensor_msgs/msg/BatteryState.msg  ce13430f3c10
 #   share/std_msgs/msg/Header.msg  d2cea14630e3
 #   share/std_msgs/msg/String.msg  2022b3f1c32b
-"""turtlesim: plain classes and CBOR codecs (uwgen wire format v1)."""
+"""turtlesim/srv: plain classes and CBOR codecs (uwgen wire format v1)."""
 # ruff: noqa
 import struct as _struct
 
@@ -29,52 +29,12 @@ from uwgen.runtime.codec import (
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
 
-_S0 = _struct.Struct('<BBB')
-_N1 = ('r', 'g', 'b')
-_S2 = _struct.Struct('<fffff')
-_N3 = ('x', 'y', 'theta', 'linear_velocity', 'angular_velocity')
-_S4 = _struct.Struct('<BBBBB')
-_N5 = ('r', 'g', 'b', 'width', 'off')
-_S6 = _struct.Struct('<fff')
-_N7 = ('x', 'y', 'theta')
-_S8 = _struct.Struct('<ff')
-_N9 = ('linear', 'angular')
-
-
-class Color:
-    """turtlesim/msg/Color as a plain Python class (no rclpy needed)."""
-
-    __slots__ = ("r", "g", "b",)
-
-    def __init__(self, r=0, g=0, b=0):
-        self.r = r
-        self.g = g
-        self.b = b
-
-    def __eq__(self, other):
-        return type(other) is type(self) and self.r == other.r and self.g == other.g and self.b == other.b
-
-    def __repr__(self):
-        return f"turtlesim.msg.Color(r={self.r!r}, g={self.g!r}, b={self.b!r})"
-
-
-class Pose:
-    """turtlesim/msg/Pose as a plain Python class (no rclpy needed)."""
-
-    __slots__ = ("x", "y", "theta", "linear_velocity", "angular_velocity",)
-
-    def __init__(self, x=0.0, y=0.0, theta=0.0, linear_velocity=0.0, angular_velocity=0.0):
-        self.x = x
-        self.y = y
-        self.theta = theta
-        self.linear_velocity = linear_velocity
-        self.angular_velocity = angular_velocity
-
-    def __eq__(self, other):
-        return type(other) is type(self) and self.x == other.x and self.y == other.y and self.theta == other.theta and self.linear_velocity == other.linear_velocity and self.angular_velocity == other.angular_velocity
-
-    def __repr__(self):
-        return f"turtlesim.msg.Pose(x={self.x!r}, y={self.y!r}, theta={self.theta!r}, linear_velocity={self.linear_velocity!r}, angular_velocity={self.angular_velocity!r})"
+_S0 = _struct.Struct('<BBBBB')
+_N1 = ('r', 'g', 'b', 'width', 'off')
+_S2 = _struct.Struct('<fff')
+_N3 = ('x', 'y', 'theta')
+_S4 = _struct.Struct('<ff')
+_N5 = ('linear', 'angular')
 
 
 class Kill_Request:
@@ -272,45 +232,6 @@ class TeleportRelative:
     Response = TeleportRelative_Response
 
 
-def enc_Color(m, out):
-    """Append the CBOR items of a turtlesim/msg/Color (native profile) to `out`."""
-    out += _numbers(_S0, (m.r, m.g, m.b,), _N1)
-
-
-def dec_Color(v, i, C):
-    """Read a turtlesim/msg/Color (native profile) from items `v` at `i`; return (message, next index)."""
-    if len(v) - i < 3: raise _short('r')
-    x1, x2, x3 = v[i:i + 3]
-    i += 3
-    if type(x1) is not int or not 0 <= x1 <= 255: raise _bad_item('r', 'an uint8', x1)
-    if type(x2) is not int or not 0 <= x2 <= 255: raise _bad_item('g', 'an uint8', x2)
-    if type(x3) is not int or not 0 <= x3 <= 255: raise _bad_item('b', 'an uint8', x3)
-    return C.turtlesim__Color(r=x1, g=x2, b=x3), i
-
-
-def enc_Pose(m, out):
-    """Append the CBOR items of a turtlesim/msg/Pose (native profile) to `out`."""
-    out += _numbers(_S2, (m.x, m.y, m.theta, m.linear_velocity, m.angular_velocity,), _N3)
-
-
-def dec_Pose(v, i, C):
-    """Read a turtlesim/msg/Pose (native profile) from items `v` at `i`; return (message, next index)."""
-    if len(v) - i < 5: raise _short('x')
-    x1, x2, x3, x4, x5 = v[i:i + 5]
-    i += 5
-    if type(x1) is not float: raise _bad_item('x', 'a float', x1)
-    if type(x2) is not float: raise _bad_item('y', 'a float', x2)
-    if type(x3) is not float: raise _bad_item('theta', 'a float', x3)
-    if type(x4) is not float: raise _bad_item('linear_velocity', 'a float', x4)
-    if type(x5) is not float: raise _bad_item('angular_velocity', 'a float', x5)
-    if abs(x1) > 3.4028234663852886e+38 and abs(x1) != _INF: raise _bad_item('x', 'a float32', x1)
-    if abs(x2) > 3.4028234663852886e+38 and abs(x2) != _INF: raise _bad_item('y', 'a float32', x2)
-    if abs(x3) > 3.4028234663852886e+38 and abs(x3) != _INF: raise _bad_item('theta', 'a float32', x3)
-    if abs(x4) > 3.4028234663852886e+38 and abs(x4) != _INF: raise _bad_item('linear_velocity', 'a float32', x4)
-    if abs(x5) > 3.4028234663852886e+38 and abs(x5) != _INF: raise _bad_item('angular_velocity', 'a float32', x5)
-    return C.turtlesim__Pose(x=x1, y=x2, theta=x3, linear_velocity=x4, angular_velocity=x5), i
-
-
 def enc_Kill_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/Kill_Request (native profile) to `out`."""
     x = m.name
@@ -343,7 +264,7 @@ def dec_Kill_Response(v, i, C):
 
 def enc_SetPen_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/SetPen_Request (native profile) to `out`."""
-    out += _numbers(_S4, (m.r, m.g, m.b, m.width, m.off,), _N5)
+    out += _numbers(_S0, (m.r, m.g, m.b, m.width, m.off,), _N1)
 
 
 def dec_SetPen_Request(v, i, C):
@@ -375,7 +296,7 @@ def dec_SetPen_Response(v, i, C):
 
 def enc_Spawn_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/Spawn_Request (native profile) to `out`."""
-    out += _numbers(_S6, (m.x, m.y, m.theta,), _N7)
+    out += _numbers(_S2, (m.x, m.y, m.theta,), _N3)
     x = m.name
     if type(x) is not str: raise _EncodeError('name', 'expected str, got ' + type(x).__name__)
     out.append(x)
@@ -417,7 +338,7 @@ def dec_Spawn_Response(v, i, C):
 
 def enc_TeleportAbsolute_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/TeleportAbsolute_Request (native profile) to `out`."""
-    out += _numbers(_S6, (m.x, m.y, m.theta,), _N7)
+    out += _numbers(_S2, (m.x, m.y, m.theta,), _N3)
 
 
 def dec_TeleportAbsolute_Request(v, i, C):
@@ -450,7 +371,7 @@ def dec_TeleportAbsolute_Response(v, i, C):
 
 def enc_TeleportRelative_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/TeleportRelative_Request (native profile) to `out`."""
-    out += _numbers(_S8, (m.linear, m.angular,), _N9)
+    out += _numbers(_S4, (m.linear, m.angular,), _N5)
 
 
 def dec_TeleportRelative_Request(v, i, C):

@@ -15,7 +15,7 @@
 #   share/sensor_msgs/msg/BatteryState.msg  ce13430f3c10
 #   share/std_msgs/msg/Header.msg  d2cea14630e3
 #   share/std_msgs/msg/String.msg  2022b3f1c32b
-"""sensor_msgs: plain classes and CBOR codecs (uwgen wire format v1)."""
+"""sensor_msgs/msg: plain classes and CBOR codecs (uwgen wire format v1)."""
 # ruff: noqa
 import struct as _struct
 
@@ -28,7 +28,7 @@ from uwgen.runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
-from . import std_msgs as _std_msgs
+from ..std_msgs import msg as _std_msgs_msg
 
 _S0 = _struct.Struct('<iI')
 _N1 = ('header.stamp.sec', 'header.stamp.nanosec')
@@ -65,7 +65,7 @@ class BatteryState:
     POWER_SUPPLY_TECHNOLOGY_VRLA = 8
 
     def __init__(self, header=None, voltage=0.0, temperature=0.0, current=0.0, charge=0.0, capacity=0.0, design_capacity=0.0, percentage=0.0, power_supply_status=0, power_supply_health=0, power_supply_technology=0, present=False, cell_voltage=None, cell_temperature=None, location='', serial_number=''):
-        self.header = _std_msgs.Header() if header is None else header
+        self.header = _std_msgs_msg.Header() if header is None else header
         self.voltage = voltage
         self.temperature = temperature
         self.current = current

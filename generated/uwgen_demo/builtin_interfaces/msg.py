@@ -15,7 +15,7 @@
 #   share/sensor_msgs/msg/BatteryState.msg  ce13430f3c10
 #   share/std_msgs/msg/Header.msg  d2cea14630e3
 #   share/std_msgs/msg/String.msg  2022b3f1c32b
-"""builtin_interfaces: plain classes and CBOR codecs (uwgen wire format v1)."""
+"""builtin_interfaces/msg: plain classes and CBOR codecs (uwgen wire format v1)."""
 # ruff: noqa
 import struct as _struct
 

@@ -15,7 +15,7 @@
 #   share/sensor_msgs/msg/BatteryState.msg  ce13430f3c10
 #   share/std_msgs/msg/Header.msg  d2cea14630e3
 #   share/std_msgs/msg/String.msg  2022b3f1c32b
-"""std_msgs: plain classes and CBOR codecs (uwgen wire format v1)."""
+"""std_msgs/msg: plain classes and CBOR codecs (uwgen wire format v1)."""
 # ruff: noqa
 import struct as _struct
 
@@ -28,7 +28,7 @@ from uwgen.runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
-from . import builtin_interfaces as _builtin_interfaces
+from ..builtin_interfaces import msg as _builtin_interfaces_msg
 
 _S0 = _struct.Struct('<iI')
 _N1 = ('stamp.sec', 'stamp.nanosec')
@@ -40,7 +40,7 @@ class Header:
     __slots__ = ("stamp", "frame_id",)
 
     def __init__(self, stamp=None, frame_id=''):
-        self.stamp = _builtin_interfaces.Time() if stamp is None else stamp
+        self.stamp = _builtin_interfaces_msg.Time() if stamp is None else stamp
         self.frame_id = frame_id
 
     def __eq__(self, other):
