@@ -1,0 +1,206 @@
+"""Small fakes that follow notes/contracts.md: a codec table and a link pair.
+
+The fake codecs carry a message as its CDR bytes (rclpy's own serializer) inside the real
+payload header `[kind, id, (seq,) bytes]`, so bridge logic is tested without depending on
+generated code. The fake link delivers what one side offers to the other side's
+`on_payload`, from a thread of its own as the real link does, and can mute, delay or
+duplicate deliveries.
+"""
+from __future__ import annotations
+
+import itertools
+import os
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+from typing import Any
+
+from rclpy.serialization import deserialize_message, serialize_message
+
+from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
+from uwgen.runtime.codec import DecodeError, EncodeError, load_items, pack_items
+
+
+def _load(payload: bytes, kind: int, ident: int, with_seq: bool) -> list:
+    items = load_items(payload)
+    n = 3 if with_seq else 2
+    if len(items) != n + 1 or items[0] != kind or items[1] != ident or type(items[-1]) is not bytes:
+        raise DecodeError("", f"not a fake payload of kind {kind} id {ident}")
+    return items
+
+
+@dataclass
+class FakeTopicCodec:
+    id: int
+    name: str
+    cls: Any
+    publisher: str
+    policy: LinkPolicy = field(default_factory=LinkPolicy)
+    qos: Qos = field(default_factory=Qos)
+    profile: str = "native"
+    max_len: int | None = None   # encode refuses longer payloads (to test encode errors)
+
+    @property
+    def type_name(self) -> str:
+        if self.cls is None:
+            return "fake/msg/Missing"
+        return f"{self.cls.__module__.split('.')[0]}/msg/{self.cls.__name__}"
+
+    def ros_class(self):
+        if self.cls is None:
+            raise DecodeError("", "rclpy class fake.Missing is not importable here")
+        return self.cls
+
+    def encode(self, msg) -> bytes:
+        data = pack_items([0, self.id, serialize_message(msg)])
+        if self.max_len is not None and len(data) > self.max_len:
+            raise EncodeError("data", f"payload of {len(data)} bytes over {self.max_len}")
+        return data
+
+    def decode(self, payload: bytes, ros: bool = True):
+        try:
+            return deserialize_message(_load(payload, 0, self.id, False)[-1], self.cls)
+        except DecodeError:
+            raise
+        except Exception as exc:
+            raise DecodeError("", str(exc)) from None
+
+
+@dataclass
+class FakeServiceCodec:
+    id: int
+    name: str
+    cls: Any
+    server: str
+    timeout: float = 10.0
+    policy: LinkPolicy = field(default_factory=lambda: LinkPolicy(queue="fifo", depth=4))
+    profile: str = "native"
+
+    @property
+    def type_name(self) -> str:
+        return f"{self.cls.__module__.split('.')[0]}/srv/{self.cls.__name__}"
+
+    def ros_class(self):
+        return self.cls
+
+    def encode_request(self, seq: int, req) -> bytes:
+        return pack_items([2, self.id, seq, serialize_message(req)])
+
+    def encode_response(self, seq: int, resp) -> bytes:
+        return pack_items([3, self.id, seq, serialize_message(resp)])
+
+    def decode_request(self, payload: bytes, ros: bool = True):
+        items = _load(payload, 2, self.id, True)
+        return items[2], deserialize_message(items[3], self.cls.Request)
+
+    def decode_response(self, payload: bytes, ros: bool = True):
+        items = _load(payload, 3, self.id, True)
+        return items[2], deserialize_message(items[3], self.cls.Response)
+
+
+def fake_package(topics, services=(), network="fake", fragment_id=250,
+                 ports=(4000, 4001)) -> SimpleNamespace:
+    sides = {name: Side(name=name, port=port, link=LinkConfig(64, 0.2))
+             for name, port in zip(("surface", "vehicle"), ports)}
+    return SimpleNamespace(
+        MANIFEST=SimpleNamespace(network=network, sides=sides, fragment_id=fragment_id,
+                                 profile="native"),
+        TOPICS={t.id: t for t in topics}, SERVICES={s.id: s for s in services})
+
+
+class FakeLink:
+    """One side's link. `peer` receives what this side offers (if not muted)."""
+
+    def __init__(self, host, port, config, on_payload, fragment_id=None, clock=None, name=""):
+        self.host, self.port, self.config, self.name = host, port, config, name
+        self.on_payload = on_payload
+        self.fragment_id = fragment_id
+        self.channels: dict[int, LinkPolicy] = {}
+        self.offers: list[tuple[int, bytes]] = []
+        self.peer: FakeLink | None = None
+        self.accept = True
+        self.mute = False          # offered payloads are accepted but never delivered
+        self.delay = 0.0           # seconds before delivery
+        self.duplicate = False     # deliver every payload twice
+        self.started = self.stopped = False
+        self._q: queue.Queue = queue.Queue()
+        self._thread = threading.Thread(target=self._deliver_loop, name=f"fakelink-{name}",
+                                        daemon=True)
+
+    def add_channel(self, key: int, policy: LinkPolicy) -> None:
+        self.channels[key] = policy
+
+    def offer(self, key: int, payload: bytes) -> bool:
+        if key not in self.channels or not self.accept:
+            return False
+        self.offers.append((key, payload))
+        if self.peer is not None and not self.mute:
+            for _ in range(2 if self.duplicate else 1):
+                self.peer._q.put((time.monotonic() + self.delay, payload))
+        return True
+
+    def inject(self, payload: bytes) -> None:
+        """Deliver `payload` to this side's bridge as if it came over the link."""
+        self._q.put((0.0, payload))
+
+    def _deliver_loop(self) -> None:
+        while True:
+            item = self._q.get()
+            if item is None:
+                return
+            when, payload = item
+            wait = when - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+            self.on_payload(payload)
+
+    def start(self) -> None:
+        self.started = True
+        self._thread.start()
+
+    def stop(self) -> None:
+        self.stopped = True
+        self._q.put(None)
+
+    def stats(self) -> dict:
+        counts: dict[int, int] = {}
+        for key, _ in self.offers:
+            counts[key] = counts.get(key, 0) + 1
+        return {"connected": True,
+                "channels": {k: {"offered": counts.get(k, 0), "sent": counts.get(k, 0)}
+                             for k in self.channels}}
+
+
+class LinkPair:
+    """Factory for two fake links wired to each other, keyed by side name."""
+
+    def __init__(self):
+        self.links: dict[str, FakeLink] = {}
+
+    def factory(self, **kwargs) -> FakeLink:
+        link = FakeLink(**kwargs)
+        self.links[link.name] = link
+        others = [l for n, l in self.links.items() if n != link.name]
+        for other in others:
+            other.peer, link.peer = link, other
+        return link
+
+
+_domains = itertools.count()
+
+
+def next_domain() -> int:
+    """A ROS domain id of its own for every context a test creates (0..232 valid)."""
+    base = int(os.environ.get("ROS_DOMAIN_ID", "1"))
+    return 100 + (base * 7 + next(_domains)) % 130
+
+
+def wait_for(cond, timeout: float = 10.0, what: str = "condition") -> None:
+    """Poll `cond` until true or fail after `timeout` seconds (no fixed sleeps in tests)."""
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.01)

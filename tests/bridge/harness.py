@@ -1,0 +1,70 @@
+"""One ROS "machine" per test side: an rclpy context in its own domain, spun in a thread.
+
+Two sides of a bridge test live in one process but in different ROS domains, as a
+vehicle and a surface computer would, so their graphs never see each other.
+"""
+from __future__ import annotations
+
+import threading
+from contextlib import contextmanager
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+from .fakes import next_domain
+
+
+class RosSide:
+    def __init__(self, name: str, domain_id: int | None = None):
+        self.name = name
+        self.domain_id = next_domain() if domain_id is None else domain_id
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=self.domain_id,
+                   signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.nodes: list = []
+        self._thread = threading.Thread(target=self._spin, name=f"spin-{name}", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except (ExternalShutdownException, rclpy.executors.ShutdownException):
+            pass
+
+    def node(self, name: str):
+        node = rclpy.create_node(name, context=self.context)
+        self.add(node)
+        return node
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def close(self) -> None:
+        for node in reversed(self.nodes):
+            close = getattr(node, "close", None)
+            try:
+                self.executor.remove_node(node)
+                close() if close else node.destroy_node()
+            except Exception:
+                pass
+        self.executor.shutdown(timeout_sec=1.0)
+        if self.context.ok():
+            rclpy.shutdown(context=self.context)
+        self._thread.join(timeout=2.0)
+
+
+@contextmanager
+def ros_sides(*names: str, same_domain: bool = False):
+    sides = []
+    try:
+        shared = next_domain() if same_domain else None
+        for n in names:
+            sides.append(RosSide(n, shared))
+        yield sides
+    finally:
+        for s in reversed(sides):
+            s.close()

@@ -1,0 +1,86 @@
+"""What the bridge counts, and the once-per-change log lines about drops.
+
+Counters are plain ints, only ever increased, owned by the executor thread. The status
+snapshot is JSON-able; `DropReporter` turns increases of the drop counters between two
+snapshots into one log line per entry, so a burst of 500 drops is one line, not 500.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+
+@dataclass
+class TopicCounters:
+    # outgoing (this side publishes)
+    taken: int = 0            # local messages the bridge's subscription received
+    encode_errors: int = 0    # messages that could not be encoded (counted, logged, not sent)
+    offered: int = 0          # payloads the link accepted into its queue
+    refused: int = 0          # payloads the link refused (its stats say why)
+    # incoming (another side publishes)
+    received: int = 0         # payloads that came over the link for this topic
+    decode_errors: int = 0    # payloads that did not decode (dropped)
+    published: int = 0        # messages published locally
+    publish_errors: int = 0   # messages rclpy refused to publish
+
+
+@dataclass
+class ServiceCounters:
+    # calling side (stand-in service)
+    local_calls: int = 0      # calls made to the stand-in service
+    encode_errors: int = 0
+    refused: int = 0          # requests the link or the call table refused (no response sent)
+    responses: int = 0        # responses returned to local callers
+    timeouts: int = 0         # calls that got no response before the manifest timeout
+    decode_errors: int = 0    # responses (or requests) that did not decode
+    # serving side
+    requests: int = 0         # requests that came over the link
+    duplicate_requests: int = 0  # a request whose seq is already being served (dropped)
+    no_server: int = 0        # the real service was not available (no response sent)
+    server_timeouts: int = 0  # the real service did not answer within the manifest timeout
+    server_errors: int = 0    # the real service's call failed
+    replies: int = 0          # responses offered back to the link
+    reply_refused: int = 0    # responses the link refused
+
+
+@dataclass
+class BridgeCounters:
+    """Payloads that belong to no topic or service of this side."""
+
+    unknown_id: int = 0        # an id the manifest does not have
+    wrong_direction: int = 0   # e.g. a topic this side publishes arrived from the link
+    bad_header: int = 0        # not a CBOR header this bridge can read
+    bad_kind: int = 0          # a kind that does not fit the id (topic id with kind 2, ...)
+    inbox_overflow: int = 0    # payloads dropped because the executor fell behind
+
+
+DROP_FIELDS = {
+    "topic": ("encode_errors", "refused", "decode_errors", "publish_errors"),
+    "service": ("encode_errors", "refused", "timeouts", "decode_errors", "duplicate_requests",
+                "no_server", "server_timeouts", "server_errors", "reply_refused",
+                "late", "duplicate", "unknown"),
+    "bridge": tuple(f.name for f in fields(BridgeCounters)),
+    "link": ("superseded", "overflow", "expired", "rate_limited", "too_large"),
+}
+
+
+def as_dict(counters) -> dict[str, int]:
+    return asdict(counters)
+
+
+class DropReporter:
+    """Remembers the last drop counts it saw and says what increased since."""
+
+    def __init__(self) -> None:
+        self._seen: dict[tuple[str, str, str], int] = {}
+
+    def changes(self, section: str, name: str, counts: dict) -> list[str]:
+        parts = []
+        for key in DROP_FIELDS.get(section, ()):
+            value = counts.get(key, 0)
+            if not isinstance(value, int):
+                continue
+            old = self._seen.get((section, name, key), 0)
+            if value > old:
+                parts.append(f"{value - old} {key.replace('_', ' ')}")
+            self._seen[(section, name, key)] = value
+        return parts

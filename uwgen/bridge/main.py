@@ -1,0 +1,129 @@
+"""Start one side's bridge: shared by `uwgen bridge` and the generated `bridge_<side>` modules.
+
+Precedence of settings: `--ros-args -p name:=value` parameters, then these flags, then
+the manifest's side entry (host, port, max_read_length, period).
+
+Exit status: 0 after a clean stop (SIGINT/SIGTERM), 2 for bad input (unknown side,
+bad option, missing generated package).
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Any, Sequence
+
+from uwgen.bridge.plan import TIMEOUT_REPLIES, BridgePlan, PlanError, import_package
+
+EXIT_USAGE = 2
+log = logging.getLogger("uwgen.bridge")
+
+
+def add_link_arguments(parser: argparse.ArgumentParser) -> None:
+    """Flags common to `uwgen bridge` and the generated modules."""
+    parser.add_argument("--host", help="DESERT node host (default: the manifest's side entry)")
+    parser.add_argument("--port", type=int, help="DESERT node TCP port (default: the manifest's)")
+    parser.add_argument("--max-read-length", type=int, metavar="BYTES",
+                        help="bytes per acoustic packet (DESERT's max_read_length)")
+    parser.add_argument("--period", type=float, metavar="SECONDS",
+                        help="seconds between packets (DESERT's period_)")
+    parser.add_argument("--status-period", type=float, default=2.0, metavar="SECONDS",
+                        help="seconds between ~/status messages (default 2; 0: none)")
+    parser.add_argument("--timeout-reply", choices=TIMEOUT_REPLIES, default="none",
+                        help="what a stand-in service answers when its bridged call times out: "
+                             "none (no response; the caller's timeout detects it; default) or "
+                             "default (a default-constructed response)")
+    parser.add_argument("--stats-file", type=Path, metavar="PATH",
+                        help="also write the status JSON to this file (periodically and at exit)")
+
+
+def options_from_args(plan: BridgePlan, args: argparse.Namespace):
+    return plan.options(host=args.host, port=args.port, max_read_length=args.max_read_length,
+                        period=args.period, status_period=args.status_period,
+                        timeout_reply=args.timeout_reply, stats_file=args.stats_file)
+
+
+def run(package: ModuleType, side: str, args: argparse.Namespace,
+        ros_args: Sequence[str] | None = None, link_factory: Any = None) -> int:
+    """Run the bridge until SIGINT/SIGTERM. `ros_args` go to rclpy.init (e.g. --ros-args ...)."""
+    try:
+        plan = BridgePlan.from_package(package, side)
+        options = options_from_args(plan, args)
+    except PlanError as exc:
+        print(f"uwgen bridge: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    from uwgen.bridge.node import BridgeNode, default_link_factory
+
+    rclpy.init(args=["uwgen-bridge", *(ros_args or [])])
+    node = None
+    try:
+        node = BridgeNode(plan, options, link_factory=link_factory or default_link_factory)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        try:
+            executor.spin()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            executor.shutdown(timeout_sec=0.5)
+    except PlanError as exc:  # bad ROS parameter values
+        print(f"uwgen bridge: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    finally:
+        if node is not None:
+            status = node.close()
+            if status:
+                node_log = logging.getLogger(f"uwgen.bridge.{side}")
+                node_log.info("final status: %s", _summary(status))
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0
+
+
+def _summary(status: dict) -> str:
+    parts = []
+    for name, t in status.get("topics", {}).items():
+        if t["direction"] == "out":
+            parts.append(f"{name} taken {t['taken']} offered {t['offered']}")
+        else:
+            parts.append(f"{name} received {t['received']} published {t['published']}")
+    for name, s in status.get("services", {}).items():
+        if s["role"] == "client":
+            parts.append(f"{name} calls {s['local_calls']} ok {s['responses']} timeouts {s['timeouts']}")
+        else:
+            parts.append(f"{name} requests {s['requests']} replies {s['replies']}")
+    return "; ".join(parts)
+
+
+def main(package: str | ModuleType, side: str | None = None,
+         argv: Sequence[str] | None = None) -> int:
+    """Entry point of a generated `bridge_<side>` module."""
+    from rclpy.utilities import remove_ros_args
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    user_args = remove_ros_args(["prog", *argv])[1:]
+    ros_args = argv[len(user_args):] if user_args == argv[:len(user_args)] else \
+        [a for a in argv if a not in user_args]
+    name = package if isinstance(package, str) else package.__name__
+    parser = argparse.ArgumentParser(
+        prog=f"python -m {name}.bridge_{side}" if side else f"python -m {name}",
+        description=f"uwgen bridge node of {name}" + (f", side {side}" if side else ""))
+    if side is None:
+        parser.add_argument("--side", required=True)
+    add_link_arguments(parser)
+    parser.add_argument("-v", "--verbose", action="store_true")
+    args = parser.parse_args(user_args)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    try:
+        module = import_package(name) if isinstance(package, str) else package
+    except PlanError as exc:
+        print(f"uwgen bridge: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    return run(module, side or args.side, args, ros_args)

@@ -1,0 +1,133 @@
+"""What one side's bridge does, worked out from the generated package before any ROS starts.
+
+The direction of every manifest entry is decided here, once, from the manifest alone:
+a topic is *outgoing* on the side that publishes it (the bridge subscribes locally and
+sends) and *incoming* everywhere else (the bridge receives and publishes locally). A
+bridge therefore never has a subscription and a publisher on the same topic, so it can
+never take its own publication and send it back over the link. Services likewise: the
+serving side calls the real service, every other side offers a stand-in service.
+
+The generated package is duck-typed (see notes/contracts.md): `MANIFEST` with `network`,
+`sides` and `fragment_id`; `TOPICS` and `SERVICES` mapping id to codec objects.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from uwgen.manifest.model import LinkConfig, LinkPolicy
+
+# What a stand-in service does when its bridged call gets no response in time.
+TIMEOUT_REPLY_NONE = "none"        # send no response: the client's own timeout detects it
+TIMEOUT_REPLY_DEFAULT = "default"  # send a default-constructed response (and log the error)
+TIMEOUT_REPLIES = (TIMEOUT_REPLY_NONE, TIMEOUT_REPLY_DEFAULT)
+
+
+class PlanError(Exception):
+    """The bridge cannot be set up as asked (unknown side, bad option): exit status 2."""
+
+
+@dataclass(frozen=True)
+class BridgeOptions:
+    """Where this side's DESERT node is and what its link can carry."""
+
+    host: str = "127.0.0.1"
+    port: int = 4000
+    link: LinkConfig = field(default_factory=LinkConfig)
+    status_period: float = 2.0      # seconds between ~/status messages (0: none)
+    timeout_reply: str = TIMEOUT_REPLY_NONE
+    stats_file: Path | None = None  # also write the status JSON here (periodically and at exit)
+
+    def check(self) -> "BridgeOptions":
+        if not 0 < self.port < 65536:
+            raise PlanError(f"port {self.port} is not a TCP port (1..65535)")
+        if not 1 <= self.link.max_read_length <= 4096:
+            raise PlanError(f"max_read_length {self.link.max_read_length} must be 1..4096 "
+                            "(DESERT crashes above 4096)")
+        if not self.link.period > 0:
+            raise PlanError(f"period {self.link.period} must be > 0 seconds")
+        if self.timeout_reply not in TIMEOUT_REPLIES:
+            raise PlanError(f"timeout reply {self.timeout_reply!r} must be one of "
+                            f"{', '.join(TIMEOUT_REPLIES)}")
+        if self.status_period < 0:
+            raise PlanError("status period must be >= 0")
+        return self
+
+
+@dataclass
+class BridgePlan:
+    network: str
+    side: str
+    outgoing_topics: list[Any]    # TopicCodec: this side publishes; subscribe locally, send
+    incoming_topics: list[Any]    # TopicCodec: another side publishes; receive, publish locally
+    called_services: list[Any]    # ServiceCodec served elsewhere: offer a stand-in service here
+    served_services: list[Any]    # ServiceCodec served here: call the real local service
+    fragment_id: int | None
+    defaults: BridgeOptions
+
+    @classmethod
+    def from_package(cls, package: ModuleType | Any, side: str) -> "BridgePlan":
+        manifest = package.MANIFEST
+        sides = manifest.sides
+        if side not in sides:
+            raise PlanError(f"side {side!r} is not in manifest network {manifest.network!r} "
+                            f"(sides: {', '.join(sorted(sides)) or 'none'})")
+        entry = sides[side]
+        topics = sorted(package.TOPICS.values(), key=lambda t: t.id)
+        services = sorted(package.SERVICES.values(), key=lambda s: s.id)
+        return cls(
+            network=manifest.network,
+            side=side,
+            outgoing_topics=[t for t in topics if t.publisher == side],
+            incoming_topics=[t for t in topics if t.publisher != side],
+            called_services=[s for s in services if s.server != side],
+            served_services=[s for s in services if s.server == side],
+            fragment_id=getattr(manifest, "fragment_id", None),
+            defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
+        )
+
+    def channels(self) -> list[tuple[int, LinkPolicy]]:
+        """Link channels this side sends on: its outgoing topics, and every service it
+        takes part in (requests from the calling side, responses from the serving side)."""
+        chans = [(t.id, t.policy) for t in self.outgoing_topics]
+        chans += [(s.id, s.policy) for s in (*self.called_services, *self.served_services)]
+        return sorted(chans, key=lambda c: c[0])
+
+    def options(self, host: str | None = None, port: int | None = None,
+                max_read_length: int | None = None, period: float | None = None,
+                **extra: Any) -> BridgeOptions:
+        """The manifest's side entry, overridden by whatever is not None."""
+        d = self.defaults
+        link = LinkConfig(
+            max_read_length=d.link.max_read_length if max_read_length is None else int(max_read_length),
+            period=d.link.period if period is None else float(period))
+        opts = replace(d, host=d.host if host is None else host,
+                       port=d.port if port is None else int(port), link=link,
+                       **{k: v for k, v in extra.items() if v is not None})
+        return opts.check()
+
+    def describe(self) -> str:
+        def names(items):
+            return ", ".join(f"{i.name}#{i.id}" for i in items) or "-"
+        return (f"network {self.network} side {self.side}: sends {names(self.outgoing_topics)}; "
+                f"receives {names(self.incoming_topics)}; calls {names(self.called_services)}; "
+                f"serves {names(self.served_services)}")
+
+
+def import_package(name: str, package_dir: Path | None = None) -> ModuleType:
+    """Import a generated package by name, from `package_dir` if given (put first on sys.path)."""
+    if package_dir is not None:
+        folder = str(Path(package_dir).resolve())
+        if folder not in sys.path:
+            sys.path.insert(0, folder)
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        if exc.name != name:
+            raise
+        where = f" in {package_dir}" if package_dir else ""
+        raise PlanError(f"generated package {name!r} not found{where}: run `uwgen build` first") from None
