@@ -1,0 +1,42 @@
+"""Shared fixtures of the rmw_desert interop tests."""
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLES = ROOT / "msg_samples"
+RMW_SAMPLE = SAMPLES / "rmw_desert"
+PEER_PATH = ROOT / "tests" / "peers" / "rmw_desert_peer.py"
+
+
+def load_peer():
+    """The independent rmw_desert peer module (tests/peers/rmw_desert_peer.py)."""
+    name = "rmw_desert_peer"
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, PEER_PATH)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="session")
+def peer():
+    return load_peer()
+
+
+@pytest.fixture(scope="session")
+def lib():
+    from uwgen.idl.loader import InterfaceLibrary
+    return InterfaceLibrary(folders=[SAMPLES], installed=True)
+
+
+@pytest.fixture(scope="session")
+def rmw_manifest(lib):
+    from uwgen.manifest.loader import load_manifest
+    return load_manifest(RMW_SAMPLE / "uwgen.yaml", lib)
