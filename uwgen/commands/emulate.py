@@ -152,8 +152,6 @@ def _serve(scenario, duration: float | None) -> int:
              "%s, per %.3g, seed %d", len(scenario.nodes), scenario.period,
              scenario.max_read_length, scenario.bitrate, mode, channel, scenario.per,
              scenario.seed)
-    for name, port in emu.ports().items():
-        print(f"{name} 127.0.0.1:{port}", flush=True)
     stop = threading.Event()
     previous = {}
 
@@ -164,6 +162,10 @@ def _serve(scenario, duration: float | None) -> int:
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
             previous[sig] = signal.signal(sig, on_signal)
+    # Ports go to stdout (one line per node) once the signals are handled, so a script
+    # can read them and stop the emulator at any moment after.
+    for name, port in emu.ports().items():
+        print(f"{name} 127.0.0.1:{port}", flush=True)
     try:
         stop.wait(duration)
     except KeyboardInterrupt:

@@ -292,7 +292,8 @@ class EmulatorCore:
 
     # -- application layer: the period tick ------------------------------------------
     def _schedule_tick(self, n: _Node, after: float) -> None:
-        k = math.floor((after - n.origin) / n.period) + 1
+        # The first tick is one period after the node started, as DESERT's timer.
+        k = max(1, math.floor((after - n.origin) / n.period) + 1)
         when = n.origin + k * n.period
         if when <= after + 1e-12:       # rounding put us on (or before) `after`
             when += n.period

@@ -1,0 +1,1 @@
+"""Tests of the DESERT emulator: channel physics, timing, loss, MAC, scenarios, sockets, CLI."""

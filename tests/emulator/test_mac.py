@@ -1,0 +1,170 @@
+"""Medium access: ALOHA collisions, TDMA slots, and DESERT's unbounded send queue."""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from uwgen.emulator import EmulatorCore, NodeSpec, Scenario, TdmaSpec, load_scenario
+
+from .helpers import two_nodes
+
+SCENARIOS = Path(__file__).resolve().parents[2] / "msg_samples" / "scenarios"
+
+
+def bursts(scen: Scenario, packets: int, size: int, both: bool = True) -> EmulatorCore:
+    """`packets` writes of `size` bytes at the same moment on a (and on b if `both`)."""
+    core = EmulatorCore(scen)
+    core.client_attached("a", 0.0)
+    core.client_attached("b", 0.0)
+    for _ in range(packets):
+        core.client_data("a", 0.05, b"A" * size)
+        if both:
+            core.client_data("b", 0.05, b"B" * size)
+    core.run_until_idle()
+    return core
+
+
+def collision_ratio(core: EmulatorCore) -> float:
+    a, b = core.counters("a"), core.counters("b")
+    return (a["lost_collision"] + b["lost_collision"]) / (a["packets_sent"] + b["packets_sent"])
+
+
+def test_simultaneous_bursts_collide_about_as_measured_on_desert():
+    # wire-format.md section 1: both nodes sending bursts at the same moment lost ~30 % of
+    # the packets to collisions; one-way traffic at the same settings lost nothing.
+    ratios = []
+    for seed in range(1, 9):
+        scen = two_nodes(1500.0, period=0.5, bitrate=4800.0, listen_jitter=0.01, seed=seed)
+        ratios.append(collision_ratio(bursts(scen, packets=20, size=64)))
+    mean = sum(ratios) / len(ratios)
+    assert 0.15 <= mean <= 0.45, ratios
+    one_way = bursts(two_nodes(1500.0, period=0.5, bitrate=4800.0, listen_jitter=0.01),
+                     packets=20, size=64, both=False)
+    assert one_way.counters("b")["packets_delivered"] == 20
+    assert collision_ratio(one_way) == 0.0
+
+
+def test_half_duplex_nodes_sending_in_lockstep_lose_everything_at_short_range():
+    scen = two_nodes(15.0, period=0.2, bitrate=4800.0, listen_jitter=0.0)
+    core = bursts(scen, packets=10, size=64)
+    assert core.counters("a")["lost_collision"] == core.counters("b")["lost_collision"] == 10
+
+
+def test_carrier_sense_defers_instead_of_colliding_when_the_other_is_heard():
+    # b's ticks come 0.1 s after a's: a's packet (0.113 s on the air) is already arriving
+    # when b wants to send, so b waits for silence and nothing collides.
+    scen = Scenario(nodes=[NodeSpec("a", dest="b"), NodeSpec("b", position=(15, 0, 0), phase=0.1)],
+                    period=0.4, bitrate=4800.0, listen_jitter=0.0)
+    core = bursts(scen, packets=10, size=64)
+    assert collision_ratio(core) == 0.0
+    assert core.counters("a")["packets_delivered"] == core.counters("b")["packets_delivered"] == 10
+
+
+def test_an_overheard_packet_jams_a_third_node():
+    # c sends to b while a sends to b: b can hold only one reception at a time.
+    scen = Scenario(nodes=[NodeSpec("a", dest="b"), NodeSpec("b", position=(300, 0, 0), dest="a"),
+                           NodeSpec("c", position=(600, 0, 0), dest="b")],
+                    period=0.5, bitrate=4800.0, listen_jitter=0.0)
+    core = EmulatorCore(scen)
+    for n in ("a", "b", "c"):
+        core.client_attached(n, 0.0)
+    core.client_data("a", 0.05, bytes(64))
+    core.client_data("c", 0.05, bytes(64))
+    core.run_until_idle()
+    assert core.counters("b")["lost_collision"] == 2
+
+
+def test_aloha_collides_where_tdma_does_not():
+    tdma_scen = replace(load_scenario(SCENARIOS / "tdma.yaml"),
+                        nodes=[replace(n, port=0) for n in load_scenario(SCENARIOS / "tdma.yaml").nodes])
+    aloha_scen = replace(tdma_scen, tdma=None)
+
+    def run(scen):
+        core = EmulatorCore(scen)
+        for n in ("surface", "vehicle"):
+            core.client_attached(n, 0.0)
+        for _ in range(30):
+            core.client_data("surface", 0.05, bytes(64))
+            core.client_data("vehicle", 0.05, bytes(64))
+        return core, core.run_until_idle()
+
+    aloha, _ = run(aloha_scen)
+    lost = sum(aloha.counters(n)["lost_collision"] for n in ("surface", "vehicle"))
+    assert lost >= 10
+    tdma, out = run(tdma_scen)
+    assert sum(tdma.counters(n)["lost_collision"] for n in ("surface", "vehicle")) == 0
+    assert len(out) == 60
+    # Every transmission started and ended inside its node's slot, before the guard time.
+    frame, guard, slot_len = 1.0, 0.3, 0.5
+    duration = (64 + 4) * 8 / 4800
+    for d in out:
+        slot = 0 if d.source == "surface" else 1
+        into_frame = d.sent_at % frame
+        assert slot * slot_len - 1e-9 <= into_frame
+        assert into_frame + duration <= (slot + 1) * slot_len - guard + 1e-9
+
+
+def test_tdma_sends_back_to_back_inside_the_slot():
+    scen = Scenario(nodes=[NodeSpec("a", dest="b"), NodeSpec("b", position=(15, 0, 0))],
+                    period=0.01, bitrate=9600.0, tdma=TdmaSpec(frame=2.0, guard=0.1))
+    core = EmulatorCore(scen)
+    core.client_attached("b", 0.0)
+    core.client_data("a", 0.0, bytes(64 * 8))
+    out = core.run_until_idle()
+    duration = (64 + 4) * 8 / 9600
+    starts = [d.sent_at for d in out]
+    # Slot 0 is [0, 1) with 0.9 s usable: 15 packets would fit; 8 go out one after another.
+    assert len(out) == 8 and max(starts) < 0.9
+    gaps = [b - a for a, b in zip(starts, starts[1:])]
+    assert min(gaps) >= duration - 1e-9
+
+
+def test_tdma_slot_too_short_for_a_packet_is_refused():
+    with pytest.raises(ValueError, match="longer than the usable slot"):
+        two_nodes(100.0, bitrate=4800.0, tdma=TdmaSpec(frame=0.2, guard=0.05))
+
+
+def test_send_queue_is_unbounded_and_grows_under_a_fast_writer():
+    # Ten times what the link carries (64 B per 0.2 s): nothing is refused, the queue grows.
+    scen = two_nodes(300.0, period=0.2, bitrate=4800.0)
+    core = EmulatorCore(scen)
+    core.client_attached("b", 0.0)
+    t, sizes = 0.0, []
+    while t < 20.0:
+        core.client_data("a", t, bytes(64))
+        core.advance(t)
+        sizes.append(core.counters("a")["queue_bytes"])
+        t += 0.02
+    assert sizes[-1] > 10 * 64 * 9 * 0.9                     # ~90 % of 20 s worth waits
+    assert all(b >= a - 64 for a, b in zip(sizes, sizes[1:]))  # and it only grows
+    assert core.counters("a")["max_queue_bytes"] == max(sizes)
+    core.run_until_idle()
+    assert core.counters("b")["packets_delivered"] == len(sizes)   # all delivered, late
+
+
+def test_a_writer_paced_to_the_link_keeps_the_queue_within_one_period_of_data():
+    scen = two_nodes(300.0, period=0.2, bitrate=4800.0)
+    core = EmulatorCore(scen)
+    core.client_attached("b", 0.0)
+    for k in range(100):
+        core.client_data("a", 0.03 + 0.2 * k, bytes(64))    # 64 bytes per period
+    core.run_until_idle()
+    assert core.counters("a")["max_queue_bytes"] <= 64
+    assert core.counters("b")["packets_delivered"] == 100
+
+
+def test_a_slow_modem_backs_up_into_the_mac_queue_and_counts_it():
+    # 64-byte packets take 0.113 s at 4800 bit/s but the period is 0.05 s: the MAC cannot
+    # keep up, and the bytes waiting for it still count as waiting inside the node.
+    scen = two_nodes(30.0, period=0.05, bitrate=4800.0)
+    core = EmulatorCore(scen)
+    core.client_attached("b", 0.0)
+    core.client_data("a", 0.0, bytes(64 * 20))
+    core.advance(1.0)
+    c = core.counters("a")
+    assert c["packets_sent"] < 10
+    assert c["queue_bytes"] == 64 * (20 - c["packets_sent"])
+    core.run_until_idle()
+    assert core.counters("b")["packets_delivered"] == 20
