@@ -46,7 +46,7 @@ PLAIN = PlainClasses({
     "turtlesim__TeleportRelative_Response": _turtlesim_srv.TeleportRelative_Response,
 })
 
-ROS = RosClasses({
+ROS = RosClasses(fallback=PLAIN, imports={
     "builtin_interfaces__Time": ("builtin_interfaces.msg", "Time"),
     "geometry_msgs__Twist": ("geometry_msgs.msg", "Twist"),
     "geometry_msgs__Vector3": ("geometry_msgs.msg", "Vector3"),

@@ -13,6 +13,7 @@ the inputs: the same definitions and manifest give the same bytes.
 from __future__ import annotations
 
 import hashlib
+import keyword
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,7 +22,7 @@ import jinja2
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
 from uwgen.codegen.ir import NATIVE, CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
 from uwgen.idl.loader import InterfaceLibrary
-from uwgen.idl.model import ArrayKind, Field, MessageDef, ServiceDef
+from uwgen.idl.model import ArrayKind, DefinitionError, Field, MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import Manifest
 
 TEMPLATES = Path(__file__).resolve().parents[2] / "templates"
@@ -144,7 +145,7 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
 
     definitions: dict[str, MessageDef] = {}
     for (full_name, _profile) in codecs:
-        definitions[full_name] = _as_message(lib.get(full_name))
+        definitions[full_name] = _python_safe(_as_message(lib.get(full_name)))
     services: dict[str, ServiceDef] = {}
     for name in names:
         d = lib.get(name)
@@ -197,6 +198,17 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
                        ros_imports, plain_keys, sorted(set(skipped)))
+
+
+def _python_safe(msg: MessageDef) -> MessageDef:
+    """Generated (and rclpy) classes need Python identifiers: refuse keywords early."""
+    if keyword.iskeyword(msg.name):
+        raise DefinitionError(SourceRef(msg.source, 1, 1) if msg.source else None,
+                              f"message name '{msg.name}' is a Python keyword; no Python class can carry it")
+    for f in msg.fields:
+        if keyword.iskeyword(f.name) or f.name.startswith("_"):
+            raise DefinitionError(f.where, f"field name '{f.name}' cannot be a Python attribute")
+    return msg
 
 
 def _as_message(d) -> MessageDef:

@@ -8,6 +8,7 @@ first use, so a generated package imports without ROS) or the generated plain cl
 from __future__ import annotations
 
 import importlib
+import logging
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -18,6 +19,7 @@ from uwgen.runtime.codec import (
 )
 
 RMW_MAX_ITEMS = 64
+log = logging.getLogger("uwgen.codec")
 MAX_PAYLOAD = 255
 
 
@@ -37,10 +39,15 @@ class PlainClasses:
 
 
 class RosClasses:
-    """Namespace of rclpy classes, each imported the first time a decoder needs it."""
+    """Namespace of rclpy classes, each imported the first time a decoder needs it.
 
-    def __init__(self, imports: dict[str, tuple[str, str]]):
+    A type with no importable rclpy class (ROS not installed, or a package only uwgen
+    knows) falls back to its generated plain class, and says so once in the log.
+    """
+
+    def __init__(self, imports: dict[str, tuple[str, str]], fallback: PlainClasses):
         self._imports = imports
+        self._fallback = fallback
 
     def __getattr__(self, key: str):
         try:
@@ -50,8 +57,8 @@ class RosClasses:
         try:
             cls = getattr(importlib.import_module(module), name)
         except (ImportError, AttributeError) as exc:
-            raise DecodeError("", f"rclpy class {module}.{name} is not importable here: {exc}; "
-                                  "decode with ros=False for the generated plain class") from None
+            cls = getattr(self._fallback, key)
+            log.info("no rclpy class %s.%s (%s): decoding to the generated plain class", module, name, exc)
         setattr(self, key, cls)  # later look-ups are plain attribute reads
         return cls
 
