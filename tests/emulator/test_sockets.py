@@ -16,11 +16,15 @@ pytestmark = pytest.mark.timeout(30)
 
 def test_bytes_written_to_one_node_arrive_unchanged_at_the_other():
     data = os.urandom(1000)
-    with run_emulator(fast_link(max_read_length=64)) as emu:
+    with run_emulator(fast_link(max_read_length=64), record=True) as emu:
         a, b = connect(emu.port("a")), connect(emu.port("b"))
         assert wait_for(lambda: emu.counters("b")["client_connected"] == 1)
         a.sendall(data)
         assert recv_exactly(b, len(data)) == data
+        recorded = emu.deliveries("b")
+        assert b"".join(d.data for d in recorded) == data
+        assert [d.offset for d in recorded] == sorted(d.offset for d in recorded)
+        assert all(len(d.data) <= 64 and d.source == "a" for d in recorded)
         ca, cb = emu.counters("a"), emu.counters("b")
         assert ca["bytes_in"] == 1000 and ca["packets_queued"] >= 16
         assert cb["bytes_delivered"] == 1000 and cb["packets_delivered"] == ca["packets_sent"]
@@ -162,4 +166,6 @@ def test_stop_closes_everything_and_keeps_counters_readable():
     assert emu.counters("a")["bytes_in"] == 2
     with pytest.raises(EmulatorError):
         emu.restart()
+    with pytest.raises(EmulatorError, match="record=True"):
+        emu.deliveries()
     a.close()

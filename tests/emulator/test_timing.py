@@ -86,6 +86,7 @@ def test_202_bytes_with_max_read_length_64_arrive_as_64_64_64_10_one_per_period_
     data = bytes(i % 251 for i in range(202))
     core, out = deliver(scen, [(0.05, data)])
     assert [len(d.data) for d in out] == [64, 64, 64, 10]
+    assert [d.offset for d in out] == [0, 64, 128, 192]
     assert b"".join(d.data for d in out) == data
     sends = [d.sent_at for d in out]
     assert [b - a for a, b in zip(sends, sends[1:])] == pytest.approx([0.2, 0.2, 0.2])

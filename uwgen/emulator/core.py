@@ -63,6 +63,8 @@ class Delivery:
     source: str
     queued_at: float     # when its bytes were read from the source's client
     sent_at: float       # when its transmission started
+    offset: int = 0      # position of its first byte among all bytes the source's clients wrote
+    uid: int = 0         # the packet's number (unique in one emulator)
 
 
 @dataclass
@@ -72,6 +74,7 @@ class _Packet:
     dest: str
     data: bytes
     queued_at: float
+    offset: int = 0
     sent_at: float = 0.0
 
 
@@ -184,11 +187,12 @@ class EmulatorCore:
         n = self._node(node)
         if not data:
             return 0
+        base = n.counters["bytes_in"]
         n.counters["bytes_in"] += len(data)
         count = 0
         for i in range(0, len(data), n.max_read_length):
             chunk = bytes(data[i:i + n.max_read_length])
-            n.app_queue.append(_Packet(next(self._uids), n.name, n.dest, chunk, t))
+            n.app_queue.append(_Packet(next(self._uids), n.name, n.dest, chunk, t, base + i))
             n.queue_bytes += len(chunk)
             count += 1
         n.counters["packets_queued"] += count
@@ -441,7 +445,7 @@ class EmulatorCore:
         r.counters["packets_delivered"] += 1
         r.counters["bytes_delivered"] += len(pkt.data)
         self._pending.append(Delivery(r.name, pkt.data, t, pkt.source, pkt.queued_at,
-                                      pkt.sent_at))
+                                      pkt.sent_at, pkt.offset, pkt.uid))
 
     def _threshold(self) -> float:
         snr = self.scenario.snr

@@ -22,7 +22,7 @@ import threading
 from collections import deque
 from typing import Callable
 
-from uwgen.emulator.core import EmulatorCore
+from uwgen.emulator.core import Delivery, EmulatorCore
 from uwgen.emulator.scenario import Scenario
 
 log = logging.getLogger("uwgen.emulator")
@@ -73,9 +73,11 @@ class _NodeSocket:
 class Emulator:
     """N emulated DESERT nodes on 127.0.0.1, run by a background thread (see module doc)."""
 
-    def __init__(self, scenario: Scenario):
+    def __init__(self, scenario: Scenario, record: bool = False):
         self.scenario = scenario
         self._core = EmulatorCore(scenario)
+        self._record = record
+        self._delivered: list[Delivery] = []
         self._lock = threading.Lock()
         self._nodes = {n.name: _NodeSocket(n.name, n.port) for n in scenario.nodes}
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -142,6 +144,14 @@ class Emulator:
     def all_counters(self) -> dict[str, dict[str, int]]:
         with self._lock:
             return self._core.all_counters()
+
+    def deliveries(self, node: str | None = None) -> list[Delivery]:
+        """Every packet written to a client so far (to `node`'s, or to any), in order. Kept only
+        when the emulator was made with record=True (tests use it to know what was lost)."""
+        if not self._record:
+            raise EmulatorError("deliveries are kept only with Emulator(..., record=True)")
+        with self._lock:
+            return [d for d in self._delivered if node is None or d.node == node]
 
     @property
     def restarts(self) -> int:
@@ -303,6 +313,8 @@ class Emulator:
         with self._lock:
             deliveries = self._core.advance(self._now())
             nxt = self._core.next_event_time()
+            if self._record:
+                self._delivered.extend(deliveries)
         for d in deliveries:
             ns = self._nodes[d.node]
             if ns.active is not None and ns.active.transport is not None:
@@ -341,6 +353,6 @@ def _bind(name: str, port: int) -> socket.socket:
     return sock
 
 
-def run_emulator(scenario: Scenario) -> Emulator:
+def run_emulator(scenario: Scenario, record: bool = False) -> Emulator:
     """Start an emulator for `scenario`; use it as a context manager to stop it."""
-    return Emulator(scenario).start()
+    return Emulator(scenario, record=record).start()
