@@ -1,0 +1,330 @@
+"""The TCP client for one DESERT node's application socket (wire format section 1).
+
+DESERT starts listening only when its scenario starts, serves one client at a time and may be
+restarted, so the client connects, and reconnects with bounded exponential backoff (with jitter)
+whenever the port is not listening or the connection drops, without crashing and without SIGPIPE
+(writes use MSG_NOSIGNAL and every socket error is a disconnect, not an exception out of the thread).
+
+Writes are paced (uwgen.runtime.pacing): one write of at most `max_read_length` bytes per `period`,
+filled by *pulling* payloads from `source` only when a write is allowed, so what waits, waits in the
+scheduler's queues where policy can act, and DESERT's unbounded queue holds about one period of data.
+A frame cut by a disconnect is abandoned and counted (never re-sent: the remote's decoder resyncs,
+and re-sending could deliver it twice). Received bytes go through a FrameDecoder; complete payloads
+go to `on_frame`, on the connection's thread.
+
+The thread makes every decision with the injected clock; it waits with real timeouts (at most
+HOUSEKEEPING seconds), so a ManualClock moved by a test is noticed within that time.
+"""
+from __future__ import annotations
+
+import logging
+import random
+import select
+import socket
+import threading
+from collections.abc import Callable
+
+from uwgen.manifest.model import LinkConfig
+from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.framing import FrameDecoder, FrameError, encode_frame
+from uwgen.runtime.pacing import Outbox, Pacer
+from uwgen.runtime.stats import Counters, log_count
+
+log = logging.getLogger("uwgen.link")
+
+HOUSEKEEPING = 0.25       # longest wait between two looks at the clock, the stop flag and timers
+LOUD_RETRIES = 3          # connection failures logged one by one before going quiet
+RECV_SIZE = 65536
+
+
+class Backoff:
+    """Bounded exponential backoff with jitter: initial * factor**n, capped at maximum.
+
+    Each delay is scaled down by up to `jitter` (a random fraction from `rng`), so that several
+    clients do not retry in lockstep; a seeded rng makes the sequence repeatable.
+    """
+
+    def __init__(self, initial: float = 0.1, maximum: float = 5.0, factor: float = 2.0,
+                 jitter: float = 0.5, rng: random.Random | None = None):
+        if not 0 < initial <= maximum or factor < 1 or not 0 <= jitter < 1:
+            raise ValueError("Backoff needs 0 < initial <= maximum, factor >= 1, 0 <= jitter < 1")
+        self.initial, self.maximum, self.factor, self.jitter = initial, maximum, factor, jitter
+        self.rng = rng or random.Random()
+        self.attempts = 0
+
+    def next_delay(self) -> float:
+        base = min(self.maximum, self.initial * self.factor ** min(self.attempts, 64))
+        self.attempts += 1
+        return base * (1.0 - self.jitter * self.rng.random())
+
+    def reset(self) -> None:
+        self.attempts = 0
+
+
+CONNECTION_COUNTERS = (
+    "connects", "reconnects", "connect_failures", "disconnects",
+    "frames_received", "bytes_received",
+    "unframeable",        # payloads the source gave that cannot be framed (dropped)
+    "callback_errors",    # on_frame raised (the frame is lost; the link goes on)
+)
+
+
+class _Closed(OSError):
+    pass
+
+
+class DesertConnection:
+    """One DESERT node's socket: connect/reconnect, paced writes pulled from `source`, decoded reads.
+
+    `source(now)` returns the next payload to send (at most 255 bytes) or None; it is called only
+    when a write may happen. `next_ready(now)` (optional) says when source will next have something,
+    so the thread sleeps until then; without it the thread relies on `wake()` and polling.
+    `on_tick(now)` (optional) is called on every loop turn (e.g. to expire partial fragments).
+    """
+
+    def __init__(self, host: str, port: int, config: LinkConfig, *,
+                 source: Callable[[float], bytes | None],
+                 on_frame: Callable[[bytes], None],
+                 clock: Clock = SYSTEM_CLOCK, name: str = "desert",
+                 backoff: Backoff | None = None,
+                 stall_timeout: float | None = None,
+                 next_ready: Callable[[float], float | None] | None = None,
+                 on_tick: Callable[[float], None] | None = None,
+                 connect_timeout: float = 2.0, write_timeout: float = 5.0,
+                 stable_after: float = 1.0):
+        self.host, self.port, self.config, self.name = host, port, config, name
+        self.clock = clock
+        self._source, self._on_frame = source, on_frame
+        self._next_ready, self._on_tick = next_ready, on_tick
+        self.backoff = backoff or Backoff()
+        # A frame's chunks arrive about one period apart; far longer silence means its tail was lost.
+        self.stall_timeout = stall_timeout if stall_timeout is not None else 4 * config.period + 1.0
+        self.connect_timeout, self.write_timeout, self.stable_after = connect_timeout, write_timeout, stable_after
+
+        self.pacer = Pacer.for_link(config)
+        self.outbox = Outbox(self.pacer)
+        self.decoder = FrameDecoder()
+        self.counters = Counters(CONNECTION_COUNTERS)
+
+        self._sock: socket.socket | None = None
+        self._connected = False
+        self._connected_at = 0.0
+        self._last_rx = 0.0
+        self._failures_in_outage = 0
+        self._last_error = ""
+        self._maybe_more = False
+        self._stopping = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
+
+    # -- public --------------------------------------------------------------------------------
+
+    @property
+    def address(self) -> str:
+        return f"{self.host}:{self.port}"
+
+    @property
+    def connected(self) -> bool:
+        return self._connected
+
+    def start(self) -> None:
+        if self._thread is not None:
+            raise RuntimeError(f"[{self.name}] connection already started")
+        self._thread = threading.Thread(target=self._run, name=f"uwgen-link-{self.name}", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop the thread and close the socket (idempotent)."""
+        self._stopping.set()
+        self.wake()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout)
+        for s in (self._wake_r, self._wake_w):
+            try:
+                s.close()
+            except OSError:
+                pass
+
+    def wake(self) -> None:
+        """Something was offered: look at the source now instead of at the next timer."""
+        try:
+            self._wake_w.send(b"\0")
+        except OSError:          # full (already woken) or closed (stopping)
+            pass
+
+    def stats(self) -> dict:
+        d = self.decoder.stats
+        o = self.outbox.stats
+        c = self.counters
+        return {
+            "connected": self._connected,
+            "frames_sent": o.frames_sent,
+            "frames_received": c["frames_received"],
+            "frames_dropped": {
+                "abandoned": o.frames_abandoned,       # cut by a disconnect (sending side)
+                "unframeable": c["unframeable"],
+                "callback_errors": c["callback_errors"],
+                "bad_length": d.bad_length,            # rejected starts (receiving side)
+                "bad_terminator": d.bad_terminator,
+                "stalled": d.stalled,
+                "reset": d.reset,
+            },
+            "reconnects": c["reconnects"],
+            "connects": c["connects"],
+            "connect_failures": c["connect_failures"],
+            "disconnects": c["disconnects"],
+            "bytes_sent": o.bytes_sent,
+            "bytes_received": c["bytes_received"],
+            "bytes_discarded": d.bytes_discarded,
+            "writes": o.writes,
+        }
+
+    # -- the thread ----------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        try:
+            while not self._stopping.is_set():
+                if self._sock is None:
+                    if not self._connect():
+                        self._stopping.wait(self._retry_delay())
+                    continue
+                try:
+                    self._step()
+                except OSError as e:          # includes _Closed, resets, timeouts, broken pipes
+                    self._disconnect(str(e) or type(e).__name__)
+        except Exception:                     # a bug: say so loudly rather than die silently
+            log.exception("[%s] connection thread crashed", self.name)
+            raise
+        finally:
+            if self._sock is not None:
+                self._close_socket()
+                self._connected = False
+
+    def _step(self) -> None:
+        sock = self._sock
+        assert sock is not None
+        now = self.clock.now()
+        batch = self.outbox.take(now, self._pull)
+        if batch:
+            try:
+                sock.sendall(batch, socket.MSG_NOSIGNAL)
+            except OSError:
+                self.outbox.abandon()
+                raise
+            self.outbox.sent(now)
+            self._maybe_more = len(batch) == self.pacer.max_bytes
+        readable, _, _ = select.select([sock, self._wake_r], [], [], self._wait_time(self.clock.now()))
+        if self._wake_r in readable:
+            try:
+                while self._wake_r.recv(4096):
+                    pass
+            except OSError:
+                pass
+        now = self.clock.now()
+        if sock in readable:
+            data = sock.recv(RECV_SIZE)
+            if not data:
+                raise _Closed("closed by the DESERT side")
+            self._last_rx = now
+            self.counters.inc("bytes_received", len(data))
+            self._deliver(self.decoder.feed(data))
+        elif self.decoder.buffered and now - self._last_rx >= self.stall_timeout:
+            self._deliver(self.decoder.flush())
+        if self._on_tick is not None:
+            self._on_tick(now)
+
+    def _wait_time(self, now: float) -> float:
+        deadline = now + HOUSEKEEPING
+        write_at = self.pacer.next_write_at
+        if self.outbox.pending:
+            deadline = min(deadline, write_at)
+        elif self._next_ready is not None:
+            ready = self._next_ready(now)
+            if ready is not None:
+                deadline = min(deadline, max(ready, write_at))
+        elif self._maybe_more:
+            deadline = min(deadline, write_at)
+        if self.decoder.buffered:
+            deadline = min(deadline, self._last_rx + self.stall_timeout)
+        return max(0.0, deadline - now)
+
+    def _pull(self) -> bytes | None:
+        while True:
+            payload = self._source(self.clock.now())
+            if payload is None:
+                return None
+            try:
+                return encode_frame(payload)
+            except FrameError as e:
+                log_count(log, logging.ERROR, self.counters.inc("unframeable"),
+                          "[%s] dropped a payload that cannot be framed: %s", self.name, e)
+
+    def _deliver(self, payloads: list[bytes]) -> None:
+        for p in payloads:
+            self.counters.inc("frames_received")
+            try:
+                self._on_frame(p)
+            except Exception:
+                n = self.counters.inc("callback_errors")
+                if n == 1 or n % 100 == 0:
+                    log.exception("[%s] payload handler failed (%d so far); the link goes on", self.name, n)
+
+    # -- connection state ----------------------------------------------------------------------
+
+    def _connect(self) -> bool:
+        try:
+            sock = socket.create_connection((self.host, self.port), timeout=self.connect_timeout)
+        except OSError as e:
+            self.counters.inc("connect_failures")
+            self._failures_in_outage += 1
+            self._last_error = str(e) or type(e).__name__
+            return False
+        try:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            sock.settimeout(self.write_timeout)
+        except OSError:
+            pass
+        self._sock = sock
+        self._connected = True
+        now = self.clock.now()
+        self._connected_at = self._last_rx = now
+        if self.counters.inc("connects") > 1:
+            self.counters.inc("reconnects")
+        after = f" after {self._failures_in_outage} failed attempts" if self._failures_in_outage else ""
+        log.info("[%s] connected to DESERT at %s%s", self.name, self.address, after)
+        self._failures_in_outage = 0
+        return True
+
+    def _retry_delay(self) -> float:
+        delay = self.backoff.next_delay()
+        n = self._failures_in_outage
+        if n <= LOUD_RETRIES:
+            log.warning("[%s] cannot connect to DESERT at %s (%s); retrying in %.2f s",
+                        self.name, self.address, self._last_error, delay)
+        elif n == LOUD_RETRIES + 1:
+            log.warning("[%s] still cannot connect to DESERT at %s (%s); retrying every <= %.1f s "
+                        "without logging until connected", self.name, self.address, self._last_error,
+                        self.backoff.maximum)
+        return delay
+
+    def _disconnect(self, reason: str) -> None:
+        lost = self.outbox.abandon()
+        self.decoder.reset()
+        self._close_socket()
+        self._connected = False
+        self.counters.inc("disconnects")
+        if self.clock.now() - self._connected_at >= self.stable_after:
+            self.backoff.reset()
+        cut = f"; {lost} frame(s) cut" if lost else ""
+        log.warning("[%s] disconnected from DESERT at %s (%s)%s; reconnecting",
+                    self.name, self.address, reason, cut)
+
+    def _close_socket(self) -> None:
+        sock, self._sock = self._sock, None
+        if sock is not None:
+            try:
+                sock.close()
+            except OSError:
+                pass

@@ -1,0 +1,336 @@
+"""Fragments: payloads over 255 bytes carried as ordinary topic messages on a reserved id.
+
+A frame carries at most 255 payload bytes (wire format section 2). A longer payload is split into
+fragments, each an ordinary topic message (kind 0) on the manifest's `fragment_id`, so that it
+stays within the wire format: only kind 0 on the wire, and an id that an rmw_desert peer does not
+have in its table and therefore ignores. Layout (a CBOR sequence like every payload; see
+docs/wire-format.md, section 7):
+
+    0, fragment_id, transfer, index, count, chunk
+
+- `transfer` (unsigned, 0..255): names the fragmented message; the sender counts up from a random
+  start, modulo 256, so a restarted sender is unlikely to continue a number the receiver still holds;
+- `index` (0..count-1) and `count` (1..255): position of this fragment and how many there are;
+- `chunk` (byte string, at least 1 byte): chunks 0..count-2 have the same length, the last one is no
+  longer; the original payload (which starts with its own kind and id) is their concatenation.
+
+Every fragment payload is at most 255 bytes, so every fragment frame is at most 259 bytes.
+"""
+from __future__ import annotations
+
+import logging
+import random
+import zlib
+from collections import deque
+from dataclasses import dataclass, field
+
+from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.framing import MAX_PAYLOAD
+from uwgen.runtime.stats import Counters, log_count
+
+log = logging.getLogger("uwgen.link.fragment")
+
+FRAGMENT_KIND = 0
+MAX_TRANSFER = 255
+MAX_COUNT = 255
+
+
+class FragmentError(ValueError):
+    """A payload that is not a well-formed fragment, or a message too large to fragment."""
+
+
+# -- CBOR, just the two item types a fragment uses ---------------------------------------------
+
+def _uint(v: int, major: int = 0) -> bytes:
+    m = major << 5
+    if v < 24:
+        return bytes((m | v,))
+    if v < 0x100:
+        return bytes((m | 24, v))
+    if v < 0x10000:
+        return bytes((m | 25,)) + v.to_bytes(2, "big")
+    if v < 0x1_0000_0000:
+        return bytes((m | 26,)) + v.to_bytes(4, "big")
+    return bytes((m | 27,)) + v.to_bytes(8, "big")
+
+
+def _read_head(buf: bytes, pos: int, major: int, what: str) -> tuple[int, int]:
+    """Read one definite-length item head of the given major type; return (value, next pos)."""
+    if pos >= len(buf):
+        raise FragmentError(f"fragment: {what} missing")
+    b = buf[pos]
+    if b >> 5 != major:
+        raise FragmentError(f"fragment: {what} has CBOR major type {b >> 5}, expected {major}")
+    info = b & 0x1F
+    if info < 24:
+        return info, pos + 1
+    if info > 27:
+        raise FragmentError(f"fragment: {what} has unsupported CBOR additional info {info}")
+    size = 1 << (info - 24)
+    if pos + 1 + size > len(buf):
+        raise FragmentError(f"fragment: {what} truncated")
+    return int.from_bytes(buf[pos + 1:pos + 1 + size], "big"), pos + 1 + size
+
+
+@dataclass(frozen=True)
+class Fragment:
+    transfer: int
+    index: int
+    count: int
+    chunk: bytes
+
+
+def is_fragment(payload: bytes, fragment_id: int | None) -> bool:
+    """Cheap test of the header: is this payload `0, fragment_id, ...`?"""
+    if fragment_id is None or len(payload) < 2 or payload[0] != FRAGMENT_KIND:
+        return False
+    return payload[1:1 + len(_uint(fragment_id))] == _uint(fragment_id)
+
+
+def parse_fragment(payload: bytes, fragment_id: int) -> Fragment:
+    """Decode one fragment payload; raise FragmentError saying what is wrong."""
+    kind, pos = _read_head(payload, 0, 0, "kind")
+    if kind != FRAGMENT_KIND:
+        raise FragmentError(f"fragment: kind {kind}, expected {FRAGMENT_KIND}")
+    ident, pos = _read_head(payload, pos, 0, "id")
+    if ident != fragment_id:
+        raise FragmentError(f"fragment: id {ident}, expected {fragment_id}")
+    transfer, pos = _read_head(payload, pos, 0, "transfer")
+    index, pos = _read_head(payload, pos, 0, "index")
+    count, pos = _read_head(payload, pos, 0, "count")
+    size, pos = _read_head(payload, pos, 2, "chunk")
+    if transfer > MAX_TRANSFER:
+        raise FragmentError(f"fragment: transfer {transfer} out of range 0..{MAX_TRANSFER}")
+    if not 1 <= count <= MAX_COUNT:
+        raise FragmentError(f"fragment: count {count} out of range 1..{MAX_COUNT}")
+    if index >= count:
+        raise FragmentError(f"fragment: index {index} not below count {count}")
+    if size == 0:
+        raise FragmentError("fragment: empty chunk")
+    if pos + size != len(payload):
+        raise FragmentError(f"fragment: chunk of {size} bytes but {len(payload) - pos} bytes follow")
+    return Fragment(transfer, index, count, bytes(payload[pos:]))
+
+
+def encode_fragment(fragment_id: int, f: Fragment) -> bytes:
+    return b"".join((_uint(FRAGMENT_KIND), _uint(fragment_id), _uint(f.transfer), _uint(f.index),
+                     _uint(f.count), _uint(len(f.chunk), 2), f.chunk))
+
+
+# -- sender ------------------------------------------------------------------------------------
+
+class Fragmenter:
+    """Splits payloads over 255 bytes into fragment payloads of at most 255 bytes each."""
+
+    def __init__(self, fragment_id: int, *, rng: random.Random | None = None,
+                 max_fragments: int = MAX_COUNT):
+        if not 1 <= fragment_id <= 255:
+            raise ValueError(f"fragment_id must be 1..255, got {fragment_id}")
+        if not 2 <= max_fragments <= MAX_COUNT:
+            raise ValueError(f"max_fragments must be 2..{MAX_COUNT}, got {max_fragments}")
+        self.fragment_id = fragment_id
+        self.max_fragments = max_fragments
+        self._next_transfer = (rng or random.Random()).randrange(MAX_TRANSFER + 1)
+        self.max_message_size = self._chunk_size(max_fragments) * max_fragments
+
+    def _chunk_size(self, count: int) -> int:
+        """Largest chunk such that the fragment with the widest header still fits 255 bytes."""
+        head = (1 + len(_uint(self.fragment_id)) + len(_uint(MAX_TRANSFER))
+                + len(_uint(count - 1)) + len(_uint(count)))
+        size = MAX_PAYLOAD - head - 2            # byte string head: 2 bytes for 24..255
+        return size
+
+    def plan(self, size: int) -> tuple[int, int]:
+        """(count, chunk size) for a payload of `size` bytes; FragmentError if too large."""
+        count = 2
+        while True:
+            chunk = self._chunk_size(count)
+            need = -(-size // chunk)
+            if need <= count:
+                count = max(need, 1)
+                break
+            count = need
+            if count > self.max_fragments:
+                raise FragmentError(
+                    f"payload of {size} bytes needs more than {self.max_fragments} fragments "
+                    f"(at most {self.max_message_size} bytes can be fragmented)")
+        return count, chunk
+
+    def split(self, payload: bytes) -> list[bytes]:
+        """Fragment payloads for one message (a new transfer number each call)."""
+        if len(payload) == 0:
+            raise FragmentError("cannot fragment an empty payload")
+        count, chunk = self.plan(len(payload))
+        transfer = self._next_transfer
+        self._next_transfer = (transfer + 1) % (MAX_TRANSFER + 1)
+        out = [encode_fragment(self.fragment_id, Fragment(transfer, i, count, payload[i * chunk:(i + 1) * chunk]))
+               for i in range(count)]
+        assert all(len(p) <= MAX_PAYLOAD for p in out)
+        return out
+
+
+# -- receiver ----------------------------------------------------------------------------------
+
+@dataclass
+class _Partial:
+    count: int
+    chunks: dict[int, bytes] = field(default_factory=dict)
+    size: int = 0
+    last_seen: float = 0.0
+
+
+REASSEMBLER_COUNTERS = (
+    "fragments",      # fragment payloads received
+    "completed",      # messages reassembled and delivered
+    "malformed",      # not a well-formed fragment
+    "inconsistent",   # disagreed with the fragments already held for its transfer (partial dropped)
+    "duplicate",      # a fragment already held, or of a message already delivered
+    "timed_out",      # partial messages dropped because a fragment never came
+    "evicted",        # partial messages dropped to stay within the memory bounds
+    "oversized",      # messages that could never fit the memory bound
+)
+
+
+class Reassembler:
+    """Rebuilds fragmented payloads; bounded memory; drops (and counts) what cannot complete.
+
+    - at most `max_transfers` partial messages and `max_bytes` of chunks are held; making room
+      evicts the partial message that has waited longest since its last fragment;
+    - a partial message that received no fragment for `timeout` seconds is dropped (a fragment was
+      lost on the link);
+    - a fragment that contradicts the ones held for its transfer (other count, other bytes at the
+      same index, chunk sizes that cannot come from one message) drops the old partial message and
+      starts over with the new fragment: a restarted sender reusing the number wins;
+    - a message is delivered at most once: a repeat of a just-delivered message (same transfer,
+      count and content, within `timeout`) is dropped as duplicate.
+    """
+
+    def __init__(self, fragment_id: int, clock: Clock = SYSTEM_CLOCK, *, timeout: float = 30.0,
+                 max_transfers: int = 8, max_bytes: int = 256 * 1024, name: str = "link"):
+        if timeout <= 0 or max_transfers < 1 or max_bytes < MAX_PAYLOAD:
+            raise ValueError("Reassembler needs timeout > 0, max_transfers >= 1, max_bytes >= 255")
+        self.fragment_id = fragment_id
+        self.clock = clock
+        self.timeout = timeout
+        self.max_transfers = max_transfers
+        self.max_bytes = max_bytes
+        self.name = name
+        self.stats = Counters(REASSEMBLER_COUNTERS)
+        self._partial: dict[int, _Partial] = {}
+        self._bytes = 0
+        self._recent: deque[tuple[float, int, int, int]] = deque(maxlen=16)  # (time, transfer, count, crc)
+
+    @property
+    def pending(self) -> int:
+        """Partial messages held."""
+        return len(self._partial)
+
+    @property
+    def buffered_bytes(self) -> int:
+        return self._bytes
+
+    def feed(self, payload: bytes) -> bytes | None:
+        """Take one fragment payload; return the whole message when this fragment completes it."""
+        now = self.clock.now()
+        self.expire(now)
+        self.stats.inc("fragments")
+        try:
+            f = parse_fragment(payload, self.fragment_id)
+        except FragmentError as e:
+            log_count(log, logging.WARNING, self.stats.inc("malformed"), "[%s] dropped %s", self.name, e)
+            return None
+
+        p = self._partial.get(f.transfer)
+        if p is not None:
+            problem = self._conflict(p, f)
+            if problem == "duplicate":
+                self.stats.inc("duplicate")
+                p.last_seen = now
+                return None
+            if problem:
+                log_count(log, logging.WARNING, self.stats.inc("inconsistent"),
+                          "[%s] transfer %d: %s; dropped its %d fragments", self.name, f.transfer, problem,
+                          len(p.chunks))
+                self._drop(f.transfer)
+                p = None
+        if f.index < f.count - 1 and f.count * len(f.chunk) > self.max_bytes:
+            # Every chunk but the last has this length: the whole message can never be held.
+            log_count(log, logging.WARNING, self.stats.inc("oversized"),
+                      "[%s] transfer %d: %d fragments of %d bytes exceed the %d-byte reassembly bound",
+                      self.name, f.transfer, f.count, len(f.chunk), self.max_bytes)
+            if p is not None:
+                self._drop(f.transfer)
+            return None
+        if p is None:
+            p = _Partial(count=f.count)
+            self._make_room(len(f.chunk), new_transfer=True)
+            self._partial[f.transfer] = p
+        else:
+            self._make_room(len(f.chunk), new_transfer=False, keep=f.transfer)
+        p.chunks[f.index] = f.chunk
+        p.size += len(f.chunk)
+        p.last_seen = now
+        self._bytes += len(f.chunk)
+        if len(p.chunks) < p.count:
+            return None
+
+        self._drop(f.transfer)
+        message = b"".join(p.chunks[i] for i in range(p.count))
+        key = (f.transfer, p.count, zlib.crc32(message))
+        if any(r[1:] == key and now - r[0] <= self.timeout for r in self._recent):
+            self.stats.inc("duplicate")
+            return None
+        self._recent.append((now, *key))
+        self.stats.inc("completed")
+        return message
+
+    def expire(self, now: float | None = None) -> int:
+        """Drop partial messages that waited `timeout` since their last fragment; return how many."""
+        now = self.clock.now() if now is None else now
+        old = [t for t, p in self._partial.items() if now - p.last_seen >= self.timeout]
+        for t in old:
+            p = self._partial[t]
+            log_count(log, logging.WARNING, self.stats.inc("timed_out"),
+                      "[%s] transfer %d: %d of %d fragments after %.1f s; dropped (a fragment was lost)",
+                      self.name, t, len(p.chunks), p.count, self.timeout)
+            self._drop(t)
+        return len(old)
+
+    # -- internals -----------------------------------------------------------------------------
+
+    @staticmethod
+    def _conflict(p: _Partial, f: Fragment) -> str | None:
+        if f.count != p.count:
+            return f"count {f.count} after {p.count}"
+        held = p.chunks.get(f.index)
+        if held is not None:
+            return "duplicate" if held == f.chunk else f"other bytes for fragment {f.index}"
+        # Chunks 0..count-2 share one length; the last is no longer.
+        full = {len(c) for i, c in p.chunks.items() if i < p.count - 1}
+        last = p.chunks.get(p.count - 1)
+        if f.index < p.count - 1:
+            if full and len(f.chunk) not in full:
+                return f"chunk length {len(f.chunk)}, others {min(full)}"
+            if last is not None and len(last) > len(f.chunk):
+                return f"chunk length {len(f.chunk)} shorter than the last chunk"
+        elif full and len(f.chunk) > min(full):
+            return f"last chunk of {len(f.chunk)} bytes longer than the others"
+        return None
+
+    def _drop(self, transfer: int) -> None:
+        p = self._partial.pop(transfer)
+        self._bytes -= p.size
+
+    def _make_room(self, size: int, new_transfer: bool, keep: int | None = None) -> None:
+        while self._partial and (
+                self._bytes + size > self.max_bytes
+                or (new_transfer and len(self._partial) >= self.max_transfers)):
+            victims = [t for t in self._partial if t != keep]
+            if not victims:
+                break
+            oldest = min(victims, key=lambda t: self._partial[t].last_seen)
+            p = self._partial[oldest]
+            log_count(log, logging.WARNING, self.stats.inc("evicted"),
+                      "[%s] transfer %d: %d of %d fragments evicted to bound reassembly memory",
+                      self.name, oldest, len(p.chunks), p.count)
+            self._drop(oldest)

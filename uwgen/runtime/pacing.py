@@ -1,0 +1,139 @@
+"""Pacing writes to DESERT: never faster than the acoustic link can carry (sans-IO, clock-driven).
+
+DESERT reads its socket in chunks of at most `max_read_length` bytes, turns each chunk into one
+acoustic packet and sends one packet every `period`; its queue is unbounded. Two consequences:
+
+- anything written faster than `max_read_length / period` waits in DESERT, beyond the reach of our
+  policies, and latency grows without limit;
+- the cost of a write is a *packet*, whatever its size: ten 6-byte writes are ten packets, while
+  one 60-byte write is one.
+
+So the pacer allows one write of at most `max_read_length` bytes per `period` (never two writes
+less than a period apart), and the Outbox fills each write as full as it can by *pulling* frames
+from the scheduler at that moment. Several small frames share one packet; a frame longer than the
+room left is cut and its remainder starts the next write. DESERT's queue then holds about one
+packet, i.e. one period of data; everything else waits in the scheduler's queues.
+
+A write opportunity that finds nothing to send costs nothing: the next frame goes out as soon as
+it is offered (low latency when the link is idle).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+
+from uwgen.manifest.model import LinkConfig
+
+
+class Pacer:
+    """At most one write, of at most `max_bytes`, per `period` seconds."""
+
+    def __init__(self, max_bytes: int, period: float):
+        if max_bytes < 1:
+            raise ValueError(f"max_read_length must be at least 1, got {max_bytes}")
+        if period <= 0:
+            raise ValueError(f"period must be positive, got {period}")
+        self.max_bytes = max_bytes
+        self.period = period
+        self._next = float("-inf")
+
+    @classmethod
+    def for_link(cls, config: LinkConfig) -> Pacer:
+        return cls(config.max_read_length, config.period)
+
+    @property
+    def next_write_at(self) -> float:
+        """Earliest time of the next write (-inf before the first)."""
+        return self._next
+
+    def may_write(self, now: float) -> bool:
+        return now >= self._next
+
+    def wrote(self, now: float) -> None:
+        self._next = now + self.period
+
+
+@dataclass
+class OutboxStats:
+    frames_sent: int = 0        # frames whose last byte was written
+    frames_abandoned: int = 0   # frames cut (or lost in a failed write) by a disconnect
+    bytes_sent: int = 0
+    writes: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return asdict(self)
+
+
+class Outbox:
+    """Builds each paced write from frames pulled on demand; tracks which frames are complete.
+
+    Use: `batch = take(now, pull)`; if non-empty, write it, then `sent(now)` on success or
+    `abandon()` on failure. `abandon()` is also called when the connection is lost between writes,
+    which cuts the frame whose remainder was waiting.
+    """
+
+    def __init__(self, pacer: Pacer):
+        self.pacer = pacer
+        self.stats = OutboxStats()
+        self._rest = b""             # unwritten tail of the frame cut by the last write
+        self._batch_frames = 0       # frames the pending batch completes
+        self._batch_len = 0
+
+    @property
+    def pending(self) -> bool:
+        """A cut frame is waiting for the next write (it must go before anything else)."""
+        return bool(self._rest)
+
+    def take(self, now: float, pull: Callable[[], bytes | None]) -> bytes:
+        """The next write, or b"" if it is not time yet or there is nothing to send.
+
+        `pull()` returns the next whole frame, or None; it is called only while there is room.
+        """
+        if self._batch_len:
+            raise RuntimeError("take() before the previous batch was sent() or abandon()ed")
+        if not self.pacer.may_write(now):
+            return b""
+        room = self.pacer.max_bytes
+        parts: list[bytes] = []
+        frames = 0
+        rest = self._rest
+        if rest:
+            parts.append(rest[:room])
+            rest = rest[room:]
+            room -= len(parts[-1])
+            if not rest:
+                frames += 1
+        while room > 0 and not rest:
+            frame = pull()
+            if not frame:
+                break
+            parts.append(frame[:room])
+            rest = frame[room:]
+            room -= len(parts[-1])
+            if not rest:
+                frames += 1
+        self._rest = rest
+        batch = b"".join(parts)
+        self._batch_frames = frames
+        self._batch_len = len(batch)
+        return batch
+
+    def sent(self, now: float) -> None:
+        """The batch from take() was written."""
+        self.pacer.wrote(now)
+        self.stats.frames_sent += self._batch_frames
+        self.stats.bytes_sent += self._batch_len
+        self.stats.writes += 1
+        self._clear_batch()
+
+    def abandon(self) -> int:
+        """The connection failed: drop the pending batch and the cut frame; return frames dropped."""
+        lost = self._batch_frames + (1 if self._rest else 0)
+        self.stats.frames_abandoned += lost
+        self._rest = b""
+        self._clear_batch()
+        return lost
+
+    def _clear_batch(self) -> None:
+        self._batch_frames = 0
+        self._batch_len = 0

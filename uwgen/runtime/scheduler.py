@@ -1,0 +1,332 @@
+"""The link scheduler: owns the link budget and decides what goes out next.
+
+The acoustic link carries a few hundred bytes per second, so what cannot go out now must wait in
+*our* queues, where policy can act on it (DESERT's own queue is unbounded and policy-blind). Each
+channel (one topic or service id) has a LinkPolicy, turned into small policy objects:
+
+- a queue discipline: `latest` keeps only the newest message (a newer one supersedes the waiting
+  one), `fifo` keeps `depth` messages and drops the OLDEST on overflow;
+- a rate limit: at most `rate` messages per second leave the channel (a token bucket of depth 1);
+- a time-to-live: a message older than `ttl` when it would be sent is dropped, never sent stale;
+- a priority: the highest-priority ready channel is served first; equal priorities take turns.
+
+`next_payload(now)` is called by the connection only when it may write (pull, not push). Every
+message offered is accounted for exactly once:
+
+    offered == sent + superseded + overflow + expired + too_large + invalid + queued
+
+where `queued` counts waiting messages including one being sent in fragments. `rate_limited` is
+informational: messages that were held back at least once by the rate limit while the link was free.
+
+Payloads over 255 bytes are split by a splitter (uwgen.runtime.fragment.Fragmenter.split) when
+they start to go out; their fragments then leave one per `next_payload` call, so a higher-priority
+channel can still get in between. A message being sent in fragments is finished even if a newer
+one arrives (it is not superseded) or its ttl passes: abandoning it would waste what already went.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from uwgen.manifest.model import LinkPolicy
+from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.framing import MAX_PAYLOAD
+from uwgen.runtime.stats import Counters, log_count
+
+log = logging.getLogger("uwgen.link.scheduler")
+
+CHANNEL_COUNTERS = ("offered", "sent", "superseded", "overflow", "expired", "too_large", "invalid",
+                    "rate_limited", "fragments_sent")
+DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid")
+
+
+@dataclass
+class Message:
+    payload: bytes
+    offered_at: float
+    rate_held: bool = False
+
+
+# -- policy objects (one of each per channel; add new kinds here, not if-chains below) -----------
+
+class QueueDiscipline(Protocol):
+    def push(self, queue: deque[Message], msg: Message) -> list[tuple[Message, str]]:
+        """Add msg; return the messages this pushed out, each with its counter name."""
+
+
+class LatestQueue:
+    """Keep only the newest message: commands and poses, where an old value is worthless."""
+
+    def push(self, queue: deque[Message], msg: Message) -> list[tuple[Message, str]]:
+        dropped = [(m, "superseded") for m in queue]
+        queue.clear()
+        queue.append(msg)
+        return dropped
+
+
+class FifoQueue:
+    """Keep up to `depth` messages in order; on overflow the oldest goes (it is the stalest)."""
+
+    def __init__(self, depth: int):
+        if depth < 1:
+            raise ValueError(f"fifo depth must be at least 1, got {depth}")
+        self.depth = depth
+
+    def push(self, queue: deque[Message], msg: Message) -> list[tuple[Message, str]]:
+        queue.append(msg)
+        dropped = []
+        while len(queue) > self.depth:
+            dropped.append((queue.popleft(), "overflow"))
+        return dropped
+
+
+class RateLimit(Protocol):
+    def ready_at(self, now: float) -> float:
+        """Earliest time (>= now) a message may leave."""
+
+    def took(self, now: float) -> None:
+        """A message left at `now`."""
+
+
+class Unlimited:
+    def ready_at(self, now: float) -> float:
+        return now
+
+    def took(self, now: float) -> None:
+        pass
+
+
+class TokenBucket:
+    """At most `rate` messages per second, no bursts: a bucket of one token refilled at `rate`."""
+
+    def __init__(self, rate: float):
+        if rate <= 0:
+            raise ValueError(f"rate must be positive, got {rate}")
+        self.interval = 1.0 / rate
+        self._next = float("-inf")
+
+    def ready_at(self, now: float) -> float:
+        # Within a nanosecond counts as on time: 0.4 + 0.2 must not miss a poll at 0.6.
+        return now if now >= self._next - 1e-9 else self._next
+
+    def took(self, now: float) -> None:
+        self._next = now + self.interval
+
+
+class Expiry(Protocol):
+    def expired(self, msg: Message, now: float) -> bool: ...
+
+
+class NoExpiry:
+    def expired(self, msg: Message, now: float) -> bool:
+        return False
+
+
+class Ttl:
+    def __init__(self, ttl: float):
+        if ttl <= 0:
+            raise ValueError(f"ttl must be positive, got {ttl}")
+        self.ttl = ttl
+
+    def expired(self, msg: Message, now: float) -> bool:
+        return now - msg.offered_at > self.ttl
+
+
+def queue_for(policy: LinkPolicy) -> QueueDiscipline:
+    kinds: dict[str, Callable[[LinkPolicy], QueueDiscipline]] = {
+        "latest": lambda p: LatestQueue(),
+        "fifo": lambda p: FifoQueue(p.depth),
+    }
+    if policy.queue not in kinds:
+        raise ValueError(f"unknown queue kind {policy.queue!r} (known: {', '.join(kinds)})")
+    return kinds[policy.queue](policy)
+
+
+def rate_for(policy: LinkPolicy) -> RateLimit:
+    return Unlimited() if policy.rate is None else TokenBucket(policy.rate)
+
+
+def expiry_for(policy: LinkPolicy) -> Expiry:
+    return NoExpiry() if policy.ttl is None else Ttl(policy.ttl)
+
+
+# -- channels ----------------------------------------------------------------------------------
+
+@dataclass
+class Channel:
+    key: int
+    policy: LinkPolicy
+    name: str
+    queue_kind: QueueDiscipline
+    rate: RateLimit
+    expiry: Expiry
+    queue: deque[Message] = field(default_factory=deque)
+    in_progress: deque[bytes] | None = None      # remaining fragments of the message being sent
+    counters: Counters = field(default_factory=lambda: Counters(CHANNEL_COUNTERS))
+
+    @property
+    def priority(self) -> int:
+        return self.policy.priority
+
+    @property
+    def queued(self) -> int:
+        return len(self.queue) + (self.in_progress is not None)
+
+    def ready_at(self, now: float) -> float | None:
+        if self.in_progress is not None:
+            return now
+        if self.queue:
+            return self.rate.ready_at(now)
+        return None
+
+
+Splitter = Callable[[bytes], list[bytes]]
+
+
+class LinkScheduler:
+    """Channels with policies; `offer()` from any thread, `next_payload()` from the connection.
+
+    `splitter` (optional) fragments payloads over 255 bytes, and `max_message` is the largest it
+    accepts; without a splitter such payloads are refused (counted too_large, logged).
+    """
+
+    def __init__(self, clock: Clock = SYSTEM_CLOCK, *, splitter: Splitter | None = None,
+                 max_message: int = MAX_PAYLOAD, name: str = "link"):
+        self.clock = clock
+        self.splitter = splitter
+        self.max_message = max_message if splitter is not None else MAX_PAYLOAD
+        self.name = name
+        self._channels: dict[int, Channel] = {}
+        self._order: list[Channel] = []            # by priority (highest first), then key
+        self._last_served: dict[int, int] = {}     # priority -> key served last (round robin)
+        self._lock = threading.Lock()
+
+    # -- configuration -------------------------------------------------------------------------
+
+    def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None) -> None:
+        if key in self._channels:
+            raise ValueError(f"channel {key} already added")
+        ch = Channel(key=key, policy=policy, name=name or f"channel {key}", queue_kind=queue_for(policy),
+                     rate=rate_for(policy), expiry=expiry_for(policy))
+        with self._lock:
+            self._channels[key] = ch
+            self._order = sorted(self._channels.values(), key=lambda c: (-c.priority, c.key))
+
+    def channels(self) -> list[int]:
+        return [c.key for c in self._order]
+
+    # -- producer side -------------------------------------------------------------------------
+
+    def offer(self, key: int, payload: bytes) -> bool:
+        """Queue one unframed payload; False (and a counted drop) if it can never be sent."""
+        ch = self._channel(key)
+        now = self.clock.now()
+        with self._lock:
+            c = ch.counters
+            c.inc("offered")
+            n = len(payload)
+            if n == 0:
+                log_count(log, logging.ERROR, c.inc("invalid"), "[%s] %s: refused an empty payload",
+                          self.name, ch.name)
+                return False
+            if n > self.max_message:
+                why = ("set fragment_id in the manifest to fragment it" if self.splitter is None
+                       else f"the most that can be fragmented is {self.max_message} bytes")
+                log_count(log, logging.ERROR, c.inc("too_large"),
+                          "[%s] %s: refused a %d-byte payload: a frame holds at most %d bytes; %s",
+                          self.name, ch.name, n, MAX_PAYLOAD, why)
+                return False
+            for _, reason in ch.queue_kind.push(ch.queue, Message(bytes(payload), now)):
+                c.inc(reason)
+            return True
+
+    # -- consumer side (the connection, when it may write) -------------------------------------
+
+    def next_payload(self, now: float | None = None) -> tuple[int, bytes] | None:
+        """The payload (at most 255 bytes) to send now, with its channel key; None if none may go."""
+        now = self.clock.now() if now is None else now
+        with self._lock:
+            self._expire(now)
+            ch = self._pick(now)
+            if ch is None:
+                return None
+            return ch.key, self._take(ch, now)
+
+    def next_ready_time(self, now: float | None = None) -> float | None:
+        """When `next_payload` will next have something (>= now), or None if every queue is empty."""
+        now = self.clock.now() if now is None else now
+        with self._lock:
+            times = [t for ch in self._order if (t := ch.ready_at(now)) is not None]
+            return min(times) if times else None
+
+    # -- accounting ----------------------------------------------------------------------------
+
+    def expire(self, now: float | None = None) -> None:
+        """Drop expired messages now (they are also dropped whenever a payload is picked)."""
+        with self._lock:
+            self._expire(self.clock.now() if now is None else now)
+
+    def queued(self, key: int) -> int:
+        return self._channel(key).queued
+
+    def stats(self) -> dict[int, dict[str, int]]:
+        with self._lock:
+            return {ch.key: {**ch.counters.as_dict(), "queued": ch.queued} for ch in self._order}
+
+    # -- internals -----------------------------------------------------------------------------
+
+    def _channel(self, key: int) -> Channel:
+        try:
+            return self._channels[key]
+        except KeyError:
+            raise KeyError(f"[{self.name}] no channel {key}; add_channel() it first "
+                           f"(known: {sorted(self._channels)})") from None
+
+    def _expire(self, now: float) -> None:
+        for ch in self._order:
+            q = ch.queue
+            # Messages are queued in offer order, so the stale ones are at the head.
+            while q and ch.expiry.expired(q[0], now):
+                q.popleft()
+                ch.counters.inc("expired")
+
+    def _pick(self, now: float) -> Channel | None:
+        best: list[Channel] = []
+        for ch in self._order:
+            if best and ch.priority < best[0].priority:
+                break
+            t = ch.ready_at(now)
+            if t is None:
+                continue
+            if t <= now:
+                best.append(ch)
+            elif not ch.queue[0].rate_held:
+                ch.queue[0].rate_held = True
+                ch.counters.inc("rate_limited")
+        if not best:
+            return None
+        last = self._last_served.get(best[0].priority)
+        chosen = next((ch for ch in best if last is not None and ch.key > last), best[0])
+        self._last_served[chosen.priority] = chosen.key
+        return chosen
+
+    def _take(self, ch: Channel, now: float) -> bytes:
+        c = ch.counters
+        if ch.in_progress is None:
+            msg = ch.queue.popleft()
+            ch.rate.took(now)
+            if len(msg.payload) <= MAX_PAYLOAD:
+                c.inc("sent")
+                return msg.payload
+            assert self.splitter is not None
+            ch.in_progress = deque(self.splitter(msg.payload))
+        part = ch.in_progress.popleft()
+        c.inc("fragments_sent")
+        if not ch.in_progress:
+            ch.in_progress = None
+            c.inc("sent")
+        return part
