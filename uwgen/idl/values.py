@@ -154,6 +154,8 @@ def _split_string_items(inner: str) -> list[tuple[str, int]]:
     items: list[tuple[str, int]] = []
     pos = 0
     n = len(inner)
+    if inner and not inner.strip(" "):
+        raise ValueProblem("empty element: write [] for an empty array", 1)
     while True:
         while pos < n and inner[pos] == " ":
             pos += 1

@@ -1,0 +1,1 @@
+"""Tests of the .msg/.srv parser and the interface library."""
