@@ -251,8 +251,9 @@ class Emulator:
             ns.active = None
             ns.waiting.clear()
             for c in clients:
+                # Like a killed process: what was written is flushed, then the socket closes.
                 if c.transport is not None:
-                    c.transport.abort()
+                    c.transport.close()
         for ns in self._nodes.values():
             if ns.server is not None:
                 await ns.server.wait_closed()
