@@ -769,6 +769,7 @@ class Peer:
             self.received[ent.name] = self.received.get(ent.name, 0) + 1
             self.emit("message", topic=ent.name, data=to_plain(msg), payload=payload.hex())
         elif kind == KIND_REQUEST:
+            self.received[ent.name] = self.received.get(ent.name, 0) + 1
             self.emit("request", service=ent.name, seq=seq, data=to_plain(msg))
             response = from_plain(ent.cls.Response, ent.data)
             self.send(response_payload(ent.id, seq, response))
@@ -909,7 +910,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seq", type=int, help="fixed seq for calls (default: random 0..999)")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--expect", action="append", default=[], metavar="TOPIC=N",
-                   help="done only after N messages arrived on TOPIC")
+                   help="done only after N messages arrived on TOPIC (or N requests for a "
+                        "--serve SERVICE)")
     p.add_argument("--until-done", action="store_true",
                    help="exit as soon as publishing, calls and --expect are done")
     p.add_argument("--duration", type=float, default=10.0, help="run at most this long")
