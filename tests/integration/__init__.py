@@ -1,0 +1,1 @@
+"""Tests across packages: the runtime link against the emulated DESERT nodes."""
