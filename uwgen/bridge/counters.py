@@ -59,7 +59,7 @@ DROP_FIELDS = {
                 "no_server", "server_timeouts", "server_errors", "reply_refused",
                 "late", "duplicate", "unknown"),
     "bridge": tuple(f.name for f in fields(BridgeCounters)),
-    "link": ("superseded", "overflow", "expired", "rate_limited", "too_large"),
+    "link": ("superseded", "overflow", "expired", "too_large", "invalid"),
 }
 
 
