@@ -42,6 +42,7 @@ class _Client(asyncio.Protocol):
         self.node = node
         self.transport: asyncio.Transport | None = None
         self.peer = "?"
+        self.early: list[bytes] = []   # read before it was served (should not happen: paused)
 
     def connection_made(self, transport) -> None:  # type: ignore[override]
         self.transport = transport
@@ -281,11 +282,17 @@ class Emulator:
             self._core.client_attached(ns.name, self._now())
         client.transport.resume_reading()
         log.info("node %s: client %s connected", ns.name, client.peer)
+        early, client.early = client.early, []
+        for data in early:
+            self._on_data(client, data)
 
     def _on_data(self, client: _Client, data: bytes) -> None:
         ns = self._nodes[client.node]
         if ns.active is not client:
-            return  # a waiting client: not read (reading is paused; nothing to do)
+            # A waiting client's reading is paused; anything that slipped through is kept
+            # for when it is served, never dropped.
+            client.early.append(data)
+            return
         self._pump()
         with self._lock:
             self._core.client_data(ns.name, self._now(), data)
