@@ -242,7 +242,12 @@ class _ManifestBuilder:
     def common(self, node: yaml.Node, kind: str, keys: tuple[str, ...]) -> tuple[dict, str, int, str, str]:
         """Entries, name, id, type text and a label ('topic /x') shared by topics and services."""
         r = self.r
-        entries = r.mapping(node, f"a {kind}", keys)
+        entries = r.open_mapping(node, f"a {kind}")
+        label = f"a {kind}"
+        name_node = entries.get("name", (None, None))[1]
+        if name_node is not None and isinstance(r.value(name_node), str):
+            label = f"{kind} {r.value(name_node)}"   # names the entry in the unknown-key message
+        r.check_keys(entries, label, keys)
         name_node = r.require(entries, "name", node, f"a {kind}")
         name = r.string(name_node, f"{kind} name")
         problem = validate_ros_name(name)

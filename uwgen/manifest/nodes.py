@@ -77,8 +77,14 @@ class Reader:
         return entries
 
     def open_mapping(self, node: yaml.Node, what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
-        """A mapping whose keys are names chosen by the user (e.g. sides)."""
+        """A mapping whose keys are names chosen by the user (e.g. sides), or checked later."""
         return self.mapping(node, what, ())
+
+    def check_keys(self, entries: dict[str, tuple[yaml.Node, yaml.Node]], what: str, known: tuple[str, ...]) -> None:
+        """Refuse keys of an `open_mapping` that are not in `known`, in file order."""
+        for key, (key_node, _) in entries.items():
+            if key not in known:
+                raise self.error(key_node, self.unknown_key_message(key, what, known))
 
     def _key(self, key_node: yaml.Node, what: str) -> str:
         if not isinstance(key_node, yaml.ScalarNode):
