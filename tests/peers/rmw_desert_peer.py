@@ -807,6 +807,8 @@ class Peer:
                 if call is None:
                     if a.wait_for_service and ent.name not in self.remote_services:
                         continue
+                    if now < self.t0 + a.call_delay:
+                        continue
                     seq = a.seq if a.seq is not None else self.rng.randrange(0, 1000)
                     request = from_plain(ent.cls.Request, ent.data)
                     self.send(request_payload(ent.id, seq, request))
@@ -906,6 +908,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--wait-for-service", action="store_true",
                    help="call only after the service's beacon was heard (rmw_desert's "
                         "wait_for_service)")
+    p.add_argument("--call-delay", type=float, default=0.0,
+                   help="seconds after start before calling")
     p.add_argument("--call-timeout", type=float, default=5.0)
     p.add_argument("--seq", type=int, help="fixed seq for calls (default: random 0..999)")
     p.add_argument("--seed", type=int, default=None)

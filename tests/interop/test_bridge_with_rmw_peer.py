@@ -1,0 +1,210 @@
+"""End to end: a uwgen bridge in profile rmw_desert and an rmw_desert node share DESERT.
+
+The surface runs ROS nodes and the uwgen bridge of side `surface` (in this process, on
+rclpy); the vehicle is the independent rmw_desert peer (tests/peers/rmw_desert_peer.py)
+on the emulator's vehicle port. Messages and services cross in rmw_desert's format in
+both directions. The discovery test (rmw_desert's wait_for_service finding a service
+that the bridge stands in for) needs the bridge to run uwgen.interop.discovery.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+PEER = Path(__file__).resolve().parents[1] / "peers" / "rmw_desert_peer.py"
+
+MANIFEST = """\
+network: interop
+profile: rmw_desert
+sides:
+  surface: {port: 4000, link: {max_read_length: 64, period: 0.02}}
+  vehicle: {port: 4001, link: {max_read_length: 64, period: 0.02}}
+topics:
+  - {name: /cmd, id: 4, type: geometry_msgs/msg/Twist, publisher: surface, queue: fifo, depth: 8}
+  - {name: /state, id: 5, type: std_msgs/msg/String, publisher: vehicle}
+services:
+  - {name: /arm, id: 6, type: std_srvs/srv/SetBool, server: vehicle, timeout: 8}
+  - {name: /reset, id: 7, type: std_srvs/srv/Trigger, server: surface, timeout: 8}
+"""
+
+
+@pytest.fixture(scope="module")
+def package(tmp_path_factory):
+    from uwgen.codegen import generate
+    root = tmp_path_factory.mktemp("interop")
+    manifest = root / "uwgen.yaml"
+    manifest.write_text(MANIFEST)
+    conf = root / "ros_allowed_topics.conf"
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.interop.rmw_config import export_conf
+    from uwgen.manifest.loader import load_manifest
+    conf.write_text(export_conf(load_manifest(manifest, InterfaceLibrary())).text)
+    pkg = generate(root / "gen", "uwgen_interop", manifest=manifest,
+                   profiles=("native", "rmw_desert"))
+    return pkg, conf
+
+
+class Surface:
+    """The surface computer: an rclpy context with the bridge and the test's ROS nodes."""
+
+    def __init__(self, pkg, port: int):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import MultiThreadedExecutor
+
+        from uwgen.bridge.node import BridgeNode
+        from uwgen.bridge.plan import BridgePlan
+
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=int(os.environ["ROS_DOMAIN_ID"]),
+                   signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        plan = BridgePlan.from_package(pkg, "surface")
+        self.bridge = BridgeNode(plan, plan.options(port=port, status_period=0),
+                                 context=self.context)
+        self.node = rclpy.create_node("surface_test", context=self.context)
+        self.executor = MultiThreadedExecutor(num_threads=3, context=self.context)
+        self.executor.add_node(self.bridge)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        try:
+            self.executor.spin()
+        except Exception:
+            pass
+
+    def close(self):
+        import rclpy
+        for node in (self.node, self.bridge):
+            self.executor.remove_node(node)
+        try:
+            self.bridge.close()
+        except ValueError:
+            # BridgeNode's own `_subscriptions` list shadows rclpy Node's (reported); the
+            # link is stopped before destroy_node fails, which is all this test needs.
+            pass
+        self.node.destroy_node()
+        self.executor.shutdown(timeout_sec=1.0)
+        if self.context.ok():
+            rclpy.shutdown(context=self.context)
+        self.thread.join(timeout=2.0)
+
+
+def start_peer(port: int, conf: Path, *args: str) -> subprocess.Popen:
+    env = dict(os.environ, DESERT_PORT=str(port), ROS_ALLOWED_TOPICS_CONFIG=str(conf))
+    return subprocess.Popen([sys.executable, str(PEER), "--node", "vehicle_app", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+
+
+def peer_events(proc: subprocess.Popen, timeout: float = 30) -> list[dict]:
+    out, err = proc.communicate(timeout=timeout)
+    lines = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+    assert lines and lines[-1]["event"] == "summary", err[-2000:]
+    return lines
+
+
+def scenario():
+    from uwgen.emulator import NodeSpec, Scenario, TdmaSpec
+    return Scenario(nodes=[NodeSpec("surface", position=(0, 0, 0), dest="vehicle"),
+                           NodeSpec("vehicle", position=(15, 0, 0), dest="surface")],
+                    period=0.02, max_read_length=64, bitrate=48000, per=0.0, seed=5,
+                    tdma=TdmaSpec(frame=0.2, guard=0.03))
+
+
+def wait_for(cond, timeout=15.0, what="condition"):
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.02)
+
+
+def test_messages_and_calls_cross_between_bridge_and_rmw_desert_peer(package):
+    from geometry_msgs.msg import Twist
+    from std_msgs.msg import String
+    from std_srvs.srv import SetBool, Trigger
+
+    from uwgen.emulator import run_emulator
+
+    pkg, conf = package
+    with run_emulator(scenario()) as emu:
+        surface = Surface(pkg, emu.port("surface"))
+        try:
+            got: list[str] = []
+            surface.node.create_subscription(String, "/state", lambda m: got.append(m.data), 10)
+            surface.node.create_service(
+                Trigger, "/reset", lambda req, resp: (setattr(resp, "success", True),
+                                                      setattr(resp, "message", "reset done"),
+                                                      resp)[-1])
+            wait_for(lambda: surface.bridge.link.stats().get("connected"), what="bridge link")
+            peer = start_peer(
+                emu.port("vehicle"), conf,
+                "--sub", "/cmd=geometry_msgs/msg/Twist", "--expect", "/cmd=2",
+                "--pub", "/state=std_msgs/msg/String", "--data", '/state={"data": "docked"}',
+                "--count", "3", "--rate", "5", "--pub-delay", "0.5",
+                "--serve", "/arm=std_srvs/srv/SetBool",
+                "--data", '/arm={"success": true, "message": "armed"}', "--expect", "/arm=1",
+                "--call", "/reset=std_srvs/srv/Trigger", "--call-delay", "0.5",
+                "--until-done", "--duration", "20")
+            pub = surface.node.create_publisher(Twist, "/cmd", 10)
+            client = surface.node.create_client(SetBool, "/arm")
+            assert client.wait_for_service(timeout_sec=10)
+            time.sleep(0.5)  # the peer connects (DESERT drops bytes for a node without client)
+            for x in (1.5, -2.25):
+                msg = Twist()
+                msg.linear.x = x
+                msg.angular.z = 1.8
+                pub.publish(msg)
+            future = client.call_async(SetBool.Request(data=True))
+            wait_for(future.done, what="the /arm response")
+            assert (future.result().success, future.result().message) == (True, "armed")
+            wait_for(lambda: len(got) >= 3, what="/state messages")
+            events = peer_events(peer)
+        finally:
+            surface.close()
+
+    assert got[:3] == ["docked"] * 3
+    summary = events[-1]
+    assert summary["ok"], summary
+    cmds = [e["data"] for e in events if e["event"] == "message"]
+    assert [(c["linear"]["x"], round(c["angular"]["z"], 5)) for c in cmds] == [(1.5, 1.8), (-2.25, 1.8)]
+    request = next(e for e in events if e["event"] == "request")
+    assert request["data"] == {"data": True}
+    response = next(e for e in events if e["event"] == "response")
+    assert response["data"] == {"success": True, "message": "reset done"}
+
+
+@pytest.mark.xfail(strict=True, reason="the bridge does not run uwgen.interop.discovery yet "
+                   "(issue 5 item 3): no beacons, so rmw_desert's wait_for_service never "
+                   "returns; remove this marker once it does")
+def test_rmw_desert_wait_for_service_finds_the_bridge(package):
+    from std_srvs.srv import Trigger
+
+    from uwgen.emulator import run_emulator
+
+    pkg, conf = package
+    with run_emulator(scenario()) as emu:
+        surface = Surface(pkg, emu.port("surface"))
+        try:
+            surface.node.create_service(
+                Trigger, "/reset", lambda req, resp: (setattr(resp, "success", True), resp)[-1])
+            time.sleep(0.5)
+            peer = start_peer(emu.port("vehicle"), conf, "--call", "/reset=std_srvs/srv/Trigger",
+                              "--wait-for-service", "--sub", "/cmd=geometry_msgs/msg/Twist",
+                              "--until-done", "--duration", "5")
+            events = peer_events(peer)
+        finally:
+            surface.close()
+    beacons = {(e["entity"], e["topic"], e["type"]) for e in events if e["event"] == "beacon"}
+    assert ("service", "/reset", "std_srvs__srv/Trigger_Response") in beacons
+    assert ("publisher", "/cmd", "geometry_msgs__msg/Twist") in beacons
+    assert ("client", "/arm", "std_srvs__srv/SetBool_Request") in beacons
+    assert ("subscriber", "/state", "std_msgs__msg/String") in beacons
+    assert events[-1]["ok"] and events[-1]["calls"] == {"/reset": True}
