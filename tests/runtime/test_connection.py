@@ -265,3 +265,39 @@ def test_backoff_jitter_is_bounded_and_repeatable_with_a_seed():
 def test_backoff_refuses_nonsense(kw):
     with pytest.raises(ValueError):
         Backoff(**kw)
+
+
+def test_server_that_accepts_and_closes_at_once_causes_no_spin_and_no_log_flood(caplog):
+    import socket
+
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(8)
+    listener.settimeout(0.05)
+    running = True
+
+    def slam():
+        while running:
+            try:
+                c, _ = listener.accept()
+            except OSError:
+                continue
+            c.close()
+
+    t = threading.Thread(target=slam, daemon=True)
+    t.start()
+    conn = make(listener.getsockname()[1], backoff=Backoff(initial=0.01, maximum=0.05, rng=random.Random(3)))
+    try:
+        with caplog.at_level(logging.INFO, logger="uwgen.link"):
+            conn.start()
+            time.sleep(1.0)
+            conn.stop()
+    finally:
+        running = False
+        t.join(2)
+        listener.close()
+    connects = conn.stats()["connects"]
+    assert 5 <= connects <= 1.0 / 0.025 + 5        # backed off between attempts: no tight loop
+    lines = [r.getMessage() for r in caplog.records if r.name == "uwgen.link"]
+    assert len(lines) <= 2 * LOUD_RETRIES + 3
+    assert "keeps dropping" in lines[-1]

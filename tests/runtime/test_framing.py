@@ -131,6 +131,13 @@ def test_decoder_flush_gives_up_incomplete_start_and_frees_frames_behind_it():
     assert d.stats.bytes_discarded == 5
 
 
+def test_decoder_flush_empties_the_buffer_even_of_a_lone_sync_byte():
+    d = FrameDecoder()
+    d.feed(encode_frame(b"a") + H("99"))
+    assert d.buffered == 1
+    assert d.flush() == [] and d.buffered == 0 and d.stats.bytes_discarded == 1
+
+
 def test_decoder_flush_leaves_nothing_to_give_up_when_idle():
     d = FrameDecoder()
     d.feed(encode_frame(b"a"))

@@ -119,29 +119,33 @@ class FakeDesert:
         self.delivered = bytearray()
         self.max_queued = 0
 
-    def write(self, data: bytes) -> None:
+        self.waits: list[float] = []        # how long each packet waited in DESERT
+
+    def write(self, data: bytes, now: float) -> None:
         m = self.config.max_read_length
-        self.queue.extend(data[i:i + m] for i in range(0, len(data), m))
+        self.queue.extend((data[i:i + m], now) for i in range(0, len(data), m))
         self.max_queued = max(self.max_queued, self.queued_bytes)
 
     @property
     def queued_bytes(self) -> int:
-        return sum(map(len, self.queue))
+        return sum(len(d) for d, _ in self.queue)
 
     def advance(self, now: float) -> list[bytes]:
         sent = []
         while now >= self.next_tick:
             if self.queue:
-                sent.append(self.queue.popleft())
+                data, t = self.queue.popleft()
+                sent.append(data)
+                self.waits.append(self.next_tick - t)
             self.next_tick += self.config.period
         return sent
 
 
-def run_link(config, writer, seconds, step=0.005, phase=0.137):
+def run_link(config, writer, seconds, step=0.005, phase=0.137, margin=None):
     """Writer -> scheduler -> outbox -> FakeDesert, on a ManualClock; yields DESERT's packets."""
     clock = ManualClock()
     sched = LinkScheduler(clock)
-    box = Outbox(Pacer.for_link(config))
+    box = Outbox(Pacer.for_link(config) if margin is None else Pacer.for_link(config, margin))
     desert = FakeDesert(config, phase)
     decoder = FrameDecoder()
     arrivals = []
@@ -157,7 +161,7 @@ def run_link(config, writer, seconds, step=0.005, phase=0.137):
         writer.tick(sched, clock.now())
         batch = box.take(clock.now(), pull)
         if batch:
-            desert.write(batch)
+            desert.write(batch, clock.now())
             box.sent(clock.now())
         for packet in desert.advance(clock.now()):
             desert.delivered += packet
@@ -236,3 +240,26 @@ def test_command_latency_stays_bounded_under_overload():
     # Time in our queue (< one rate interval) + pacer wait + DESERT's tick: about two periods.
     assert max(latencies) <= 2 * config.period + 0.05
     assert desert.max_queued <= config.max_read_length
+
+
+def test_pace_margin_keeps_writes_from_sticking_just_after_desert_ticks():
+    # DESERT ticks 1 ms before each of our writes would land: without a margin every packet waits
+    # a whole period in DESERT; a 5 % slower pace slides through DESERT's phase (half a period on
+    # average).
+    # (Binary fractions keep the simulated times exact, so "no margin" really has a fixed phase.)
+    config = LinkConfig(max_read_length=64, period=0.25)
+    step = 1 / 256
+    *_, stuck, _ = run_link(config, Flood(), seconds=30, step=step, phase=0.25 - step, margin=0.0)
+    *_, sliding, _ = run_link(config, Flood(), seconds=30, step=step, phase=0.25 - step, margin=0.05)
+    mean = lambda xs: sum(xs) / len(xs)
+    assert mean(stuck.waits) > 0.24
+    assert 0.09 < mean(sliding.waits) < 0.16
+    assert stuck.max_queued <= 64 and sliding.max_queued <= 64
+
+
+def test_pacer_margin_stretches_the_interval():
+    p = Pacer(64, 0.2, margin=0.05)
+    p.wrote(1.0)
+    assert not p.may_write(1.2) and p.may_write(1.21)
+    with pytest.raises(ValueError):
+        Pacer(64, 0.2, margin=-0.1)

@@ -27,7 +27,7 @@ from collections.abc import Callable
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.framing import FrameDecoder, FrameError, encode_frame
-from uwgen.runtime.pacing import Outbox, Pacer
+from uwgen.runtime.pacing import DEFAULT_MARGIN, Outbox, Pacer
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link")
@@ -91,7 +91,7 @@ class DesertConnection:
                  next_ready: Callable[[float], float | None] | None = None,
                  on_tick: Callable[[float], None] | None = None,
                  connect_timeout: float = 2.0, write_timeout: float = 5.0,
-                 stable_after: float = 1.0):
+                 stable_after: float = 1.0, pace_margin: float = DEFAULT_MARGIN):
         self.host, self.port, self.config, self.name = host, port, config, name
         self.clock = clock
         self._source, self._on_frame = source, on_frame
@@ -101,7 +101,7 @@ class DesertConnection:
         self.stall_timeout = stall_timeout if stall_timeout is not None else 4 * config.period + 1.0
         self.connect_timeout, self.write_timeout, self.stable_after = connect_timeout, write_timeout, stable_after
 
-        self.pacer = Pacer.for_link(config)
+        self.pacer = Pacer.for_link(config, pace_margin)
         self.outbox = Outbox(self.pacer)
         self.decoder = FrameDecoder()
         self.counters = Counters(CONNECTION_COUNTERS)
@@ -112,6 +112,9 @@ class DesertConnection:
         self._last_rx = 0.0
         self._failures_in_outage = 0
         self._last_error = ""
+        self._hold_off = False        # wait a backoff delay before the next connect attempt
+        self._flaps = 0               # connections in a row that dropped before `stable_after`
+        self._quiet = False           # connect/disconnect logging suspended while flapping
         self._maybe_more = False
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
@@ -187,6 +190,12 @@ class DesertConnection:
         try:
             while not self._stopping.is_set():
                 if self._sock is None:
+                    if self._hold_off:
+                        # The last connection dropped soon after it was made: back off before
+                        # trying again, or a server that accepts and closes would make us spin.
+                        self._hold_off = False
+                        self._stopping.wait(self.backoff.next_delay())
+                        continue
                     if not self._connect():
                         self._stopping.wait(self._retry_delay())
                     continue
@@ -223,6 +232,11 @@ class DesertConnection:
             except OSError:
                 pass
         now = self.clock.now()
+        if self._flaps and now - self._connected_at >= self.stable_after:
+            if self._quiet:
+                log.info("[%s] connection to DESERT at %s stable again after %d quick drops",
+                         self.name, self.address, self._flaps)
+            self._flaps, self._quiet = 0, False
         if sock in readable:
             data = sock.recv(RECV_SIZE)
             if not data:
@@ -293,7 +307,8 @@ class DesertConnection:
         if self.counters.inc("connects") > 1:
             self.counters.inc("reconnects")
         after = f" after {self._failures_in_outage} failed attempts" if self._failures_in_outage else ""
-        log.info("[%s] connected to DESERT at %s%s", self.name, self.address, after)
+        if not self._quiet:
+            log.info("[%s] connected to DESERT at %s%s", self.name, self.address, after)
         self._failures_in_outage = 0
         return True
 
@@ -315,9 +330,21 @@ class DesertConnection:
         self._close_socket()
         self._connected = False
         self.counters.inc("disconnects")
-        if self.clock.now() - self._connected_at >= self.stable_after:
-            self.backoff.reset()
         cut = f"; {lost} frame(s) cut" if lost else ""
+        if self.clock.now() - self._connected_at >= self.stable_after:
+            self.backoff.reset()             # it worked for a while: try again at once
+            self._flaps, self._quiet = 0, False
+        else:
+            self._hold_off = True
+            self._flaps += 1
+        if self._quiet:
+            return
+        if self._flaps > LOUD_RETRIES:
+            self._quiet = True
+            log.warning("[%s] connection to DESERT at %s keeps dropping (%s)%s; retrying with backoff "
+                        "without logging until it holds for %.1f s", self.name, self.address, reason, cut,
+                        self.stable_after)
+            return
         log.warning("[%s] disconnected from DESERT at %s (%s)%s; reconnecting",
                     self.name, self.address, reason, cut)
 

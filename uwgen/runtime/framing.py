@@ -12,7 +12,10 @@ chunk being processed during a call, and it counts every byte it throws away. It
 
 Limits of the format (no checksum): a frame damaged by a lost slice can, by chance, be followed by a
 `0x55` exactly LEN bytes later and then be delivered with wrong content (swallowing the frames it
-overlaps). Only the payload decoder can catch that; see docs/wire-format.md, "Framing guarantees".
+overlaps), and a lost slice can hide the frame right after it. Only the payload decoder can catch a
+false frame. tests/runtime/test_framing.py states what provably survives damage: for instance, when
+payloads hold no 0x99 byte, every intact frame preceded by 258 undamaged bytes is delivered exactly
+once and in order, whatever garbage or loss came before.
 """
 from __future__ import annotations
 
@@ -91,7 +94,7 @@ class FrameDecoder:
         return out
 
     def flush(self) -> list[bytes]:
-        """Give up the incomplete frame at the head of the buffer, then hunt through what is left.
+        """Give up the incomplete frame at the head of the buffer, hunt through what is left, empty it.
 
         Called when nothing has arrived for a while (see DesertConnection's stall timeout): a start
         whose LEN promises bytes that never come would otherwise hold back the frames behind it
@@ -107,7 +110,10 @@ class FrameDecoder:
             self.stats.bytes_discarded += 1
             more, pos = self._scan(src, pos + 1)
             out += more
-        self._keep(src, pos)
+        # What is left is at most a lone 0x99 whose partner never came: stale too. Emptying the
+        # buffer also tells the caller there is nothing left to wait for.
+        self.stats.bytes_discarded += len(src) - pos
+        self._buf = bytearray()
         return out
 
     def reset(self) -> None:

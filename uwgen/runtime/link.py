@@ -22,6 +22,7 @@ from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.connection import Backoff, DesertConnection
 from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, is_fragment
+from uwgen.runtime.pacing import DEFAULT_MARGIN
 from uwgen.runtime.scheduler import LinkScheduler
 from uwgen.runtime.stats import Counters
 
@@ -40,7 +41,8 @@ class Link:
                  fragment_timeout: float | None = None,
                  max_partial_transfers: int = 8,
                  max_partial_bytes: int = 256 * 1024,
-                 max_fragments: int = MAX_COUNT):
+                 max_fragments: int = MAX_COUNT,
+                 pace_margin: float = DEFAULT_MARGIN):
         self.config = config or LinkConfig()
         self.name = name
         self.clock = clock
@@ -66,7 +68,7 @@ class Link:
         self.connection = DesertConnection(
             host, port, self.config, source=self._source, on_frame=self._on_frame, clock=clock,
             name=name, backoff=backoff or Backoff(rng=rng), stall_timeout=stall_timeout,
-            next_ready=self.scheduler.next_ready_time, on_tick=self._tick)
+            next_ready=self.scheduler.next_ready_time, on_tick=self._tick, pace_margin=pace_margin)
 
     # -- contract API --------------------------------------------------------------------------
 

@@ -16,6 +16,15 @@ packet, i.e. one period of data; everything else waits in the scheduler's queues
 
 A write opportunity that finds nothing to send costs nothing: the next frame goes out as soon as
 it is offered (low latency when the link is idle).
+
+Writes are spaced a little more than a period apart (`margin`, 5 % by default). Without it our
+writes keep a fixed phase against DESERT's send ticks: if that phase happens to be just after a
+tick, every packet waits almost a whole period in DESERT, and jitter in when DESERT reads the
+socket occasionally lets two writes share one tick interval, so a second packet queues and stays
+(another period of latency). A slightly slower pace slides our phase through DESERT's, so those
+states do not last, and it also absorbs clock drift between us and DESERT. Measured against the
+emulator (64 B / 0.2 s, 300 m, a 10 Hz command stream plus a flood): command latency median
+0.60 s and p95 0.80 s without the margin, 0.50 s and 0.62-0.70 s with 5 %, for 5 % less throughput.
 """
 from __future__ import annotations
 
@@ -25,21 +34,27 @@ from dataclasses import asdict, dataclass
 from uwgen.manifest.model import LinkConfig
 
 
-class Pacer:
-    """At most one write, of at most `max_bytes`, per `period` seconds."""
+DEFAULT_MARGIN = 0.05
 
-    def __init__(self, max_bytes: int, period: float):
+
+class Pacer:
+    """At most one write, of at most `max_bytes`, per `period * (1 + margin)` seconds."""
+
+    def __init__(self, max_bytes: int, period: float, margin: float = 0.0):
         if max_bytes < 1:
             raise ValueError(f"max_read_length must be at least 1, got {max_bytes}")
         if period <= 0:
             raise ValueError(f"period must be positive, got {period}")
+        if not 0 <= margin < 1:
+            raise ValueError(f"pace margin must be in [0, 1), got {margin}")
         self.max_bytes = max_bytes
         self.period = period
+        self.interval = period * (1.0 + margin)
         self._next = float("-inf")
 
     @classmethod
-    def for_link(cls, config: LinkConfig) -> Pacer:
-        return cls(config.max_read_length, config.period)
+    def for_link(cls, config: LinkConfig, margin: float = DEFAULT_MARGIN) -> Pacer:
+        return cls(config.max_read_length, config.period, margin)
 
     @property
     def next_write_at(self) -> float:
@@ -50,7 +65,7 @@ class Pacer:
         return now >= self._next
 
     def wrote(self, now: float) -> None:
-        self._next = now + self.period
+        self._next = now + self.interval
 
 
 @dataclass
