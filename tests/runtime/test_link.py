@@ -155,3 +155,9 @@ def test_messages_wait_in_our_queue_while_disconnected_and_policy_applies():
     finally:
         link.stop()
     assert link.stats()["channels"][4]["superseded"] == 4
+
+
+def test_fragment_id_cannot_be_a_channel():
+    link = Link(port=1, config=FAST, on_payload=lambda p: None, fragment_id=250)
+    with pytest.raises(ValueError, match="reserved fragment_id"):
+        link.add_channel(250, LinkPolicy())

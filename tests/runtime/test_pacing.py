@@ -263,3 +263,12 @@ def test_pacer_margin_stretches_the_interval():
     assert not p.may_write(1.2) and p.may_write(1.21)
     with pytest.raises(ValueError):
         Pacer(64, 0.2, margin=-0.1)
+
+
+def test_bitrate_stretches_the_interval_to_the_packets_air_time():
+    # 64 + 4 header bytes at 4800 bit/s take 0.113 s on the air: more than a 0.05 s period.
+    p = Pacer(64, 0.05, bitrate=4800)
+    p.wrote(0.0, 64)
+    assert p.next_write_at == pytest.approx(68 * 8 / 4800)
+    p.wrote(1.0, 2)                         # a short packet: the period is the limit again
+    assert p.next_write_at == pytest.approx(1.05)

@@ -91,7 +91,8 @@ class DesertConnection:
                  next_ready: Callable[[float], float | None] | None = None,
                  on_tick: Callable[[float], None] | None = None,
                  connect_timeout: float = 2.0, write_timeout: float = 5.0,
-                 stable_after: float = 1.0, pace_margin: float = DEFAULT_MARGIN):
+                 stable_after: float = 1.0, pace_margin: float = DEFAULT_MARGIN,
+                 bitrate: float | None = None):
         self.host, self.port, self.config, self.name = host, port, config, name
         self.clock = clock
         self._source, self._on_frame = source, on_frame
@@ -101,7 +102,7 @@ class DesertConnection:
         self.stall_timeout = stall_timeout if stall_timeout is not None else 4 * config.period + 1.0
         self.connect_timeout, self.write_timeout, self.stable_after = connect_timeout, write_timeout, stable_after
 
-        self.pacer = Pacer.for_link(config, pace_margin)
+        self.pacer = Pacer.for_link(config, pace_margin, bitrate)
         self.outbox = Outbox(self.pacer)
         self.decoder = FrameDecoder()
         self.counters = Counters(CONNECTION_COUNTERS)

@@ -42,7 +42,8 @@ class Link:
                  max_partial_transfers: int = 8,
                  max_partial_bytes: int = 256 * 1024,
                  max_fragments: int = MAX_COUNT,
-                 pace_margin: float = DEFAULT_MARGIN):
+                 pace_margin: float = DEFAULT_MARGIN,
+                 bitrate: float | None = None):
         self.config = config or LinkConfig()
         self.name = name
         self.clock = clock
@@ -68,12 +69,15 @@ class Link:
         self.connection = DesertConnection(
             host, port, self.config, source=self._source, on_frame=self._on_frame, clock=clock,
             name=name, backoff=backoff or Backoff(rng=rng), stall_timeout=stall_timeout,
-            next_ready=self.scheduler.next_ready_time, on_tick=self._tick, pace_margin=pace_margin)
+            next_ready=self.scheduler.next_ready_time, on_tick=self._tick, pace_margin=pace_margin,
+            bitrate=bitrate)
 
     # -- contract API --------------------------------------------------------------------------
 
     def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None) -> None:
         """One channel per topic/service id; `name` (e.g. the topic) only makes logs clearer."""
+        if key == self.fragment_id:
+            raise ValueError(f"[{self.name}] channel {key} is the reserved fragment_id")
         self.scheduler.add_channel(key, policy, name=f"channel {key} ({name})" if name else None)
 
     def offer(self, key: int, payload: bytes) -> bool:

@@ -35,26 +35,35 @@ from uwgen.manifest.model import LinkConfig
 
 
 DEFAULT_MARGIN = 0.05
+PACKET_HEADER = 4        # bytes DESERT adds to each packet on the air (UDP and IP headers)
 
 
 class Pacer:
-    """At most one write, of at most `max_bytes`, per `period * (1 + margin)` seconds."""
+    """At most one write, of at most `max_bytes`, per `period * (1 + margin)` seconds.
 
-    def __init__(self, max_bytes: int, period: float, margin: float = 0.0):
+    With `bitrate` (bit/s) the interval after a write is also at least that packet's time on the
+    air, for links whose modem cannot send a full packet within one period.
+    """
+
+    def __init__(self, max_bytes: int, period: float, margin: float = 0.0, bitrate: float | None = None):
         if max_bytes < 1:
             raise ValueError(f"max_read_length must be at least 1, got {max_bytes}")
         if period <= 0:
             raise ValueError(f"period must be positive, got {period}")
         if not 0 <= margin < 1:
             raise ValueError(f"pace margin must be in [0, 1), got {margin}")
+        if bitrate is not None and bitrate <= 0:
+            raise ValueError(f"bitrate must be positive, got {bitrate}")
         self.max_bytes = max_bytes
         self.period = period
+        self.margin = margin
+        self.bitrate = bitrate
         self.interval = period * (1.0 + margin)
         self._next = float("-inf")
 
     @classmethod
-    def for_link(cls, config: LinkConfig, margin: float = DEFAULT_MARGIN) -> Pacer:
-        return cls(config.max_read_length, config.period, margin)
+    def for_link(cls, config: LinkConfig, margin: float = DEFAULT_MARGIN, bitrate: float | None = None) -> Pacer:
+        return cls(config.max_read_length, config.period, margin, bitrate)
 
     @property
     def next_write_at(self) -> float:
@@ -64,8 +73,11 @@ class Pacer:
     def may_write(self, now: float) -> bool:
         return now >= self._next
 
-    def wrote(self, now: float) -> None:
-        self._next = now + self.interval
+    def wrote(self, now: float, nbytes: int = 0) -> None:
+        interval = self.period
+        if self.bitrate is not None:
+            interval = max(interval, (nbytes + PACKET_HEADER) * 8 / self.bitrate)
+        self._next = now + interval * (1.0 + self.margin)
 
 
 @dataclass
@@ -135,7 +147,7 @@ class Outbox:
 
     def sent(self, now: float) -> None:
         """The batch from take() was written."""
-        self.pacer.wrote(now)
+        self.pacer.wrote(now, self._batch_len)
         self.stats.frames_sent += self._batch_frames
         self.stats.bytes_sent += self._batch_len
         self.stats.writes += 1
