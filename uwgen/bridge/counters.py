@@ -59,7 +59,9 @@ DROP_FIELDS = {
                 "no_server", "server_timeouts", "server_errors", "reply_refused",
                 "late", "duplicate", "unknown"),
     "bridge": tuple(f.name for f in fields(BridgeCounters)),
-    "link": ("superseded", "overflow", "expired", "too_large", "invalid"),
+    # "superseded" is what a `latest` queue is for (a newer message replaced an older one):
+    # it is counted in ~/status and said once, not warned about every report.
+    "link": ("overflow", "expired", "too_large", "invalid"),
 }
 
 

@@ -55,22 +55,35 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE
 
+    import signal
+    import threading
+
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
     from uwgen.bridge.node import BridgeNode, default_link_factory
 
-    rclpy.init(args=["uwgen-bridge", *(ros_args or [])])
+    # Our own SIGINT/SIGTERM handling: stop spinning, then close the node (final status, link
+    # stopped) while the ROS context is still valid, then shut ROS down.
+    stop = threading.Event()
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous[sig] = signal.signal(sig, lambda *_: stop.set())
+    rclpy.init(args=["uwgen-bridge", *(ros_args or [])],
+               signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = BridgeNode(plan, options, link_factory=link_factory or default_link_factory)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         try:
-            executor.spin()
+            while not stop.is_set() and rclpy.ok():
+                executor.spin_once(timeout_sec=0.2)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         finally:
+            executor.remove_node(node)
             executor.shutdown(timeout_sec=0.5)
     except PlanError as exc:  # bad ROS parameter values
         print(f"uwgen bridge: {exc}", file=sys.stderr)
@@ -83,6 +96,8 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
                 node_log.info("final status: %s", _summary(status))
         if rclpy.ok():
             rclpy.shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return 0
 
 

@@ -496,6 +496,10 @@ class BridgeNode(Node):
 
     def _report_drops(self, status: dict) -> None:
         for name, entry in status["topics"].items():
+            if entry.get("link", {}).get("superseded") and f"sup{name}" not in self._said:
+                self._said.add(f"sup{name}")
+                self._log.info(f"{name}: published faster than its link policy sends; older "
+                               "messages are superseded by newer ones (counted in ~/status)")
             parts = self._drops.changes("topic", name, entry)
             parts += self._drops.changes("link", name, entry.get("link", {}))
             if entry.get("echo_guard"):
@@ -544,7 +548,10 @@ class BridgeNode(Node):
         self.inbox.close()
         status = self.status()
         self._write_stats(json.dumps(status, sort_keys=True, default=str))
-        self.destroy_node()
+        try:
+            self.destroy_node()
+        except Exception as exc:  # rclpy after its context was shut down
+            self._log.debug(f"destroy_node: {exc}")
         return status
 
 

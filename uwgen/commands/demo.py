@@ -1,0 +1,197 @@
+"""`uwgen demo`: a surface operator drives a simulated vehicle over an emulated acoustic link.
+
+What runs (each ROS process on its own, the vehicle's and the surface's in two different
+ROS domains, as on two computers; discovery stays on this machine):
+
+    emulated DESERT network (in this process): surface node ----300 m---- vehicle node
+    surface domain: scripted operator  <->  bridge_surface  <-> DESERT node "surface"
+    vehicle domain: vehicle simulator  <->  bridge_vehicle  <-> DESERT node "vehicle"
+
+The operator sets the pen and teleports the turtle (services), then drives a square with
+10 Hz cmd_vel; the vehicle reports its pose, battery and log lines. At the end a table
+per topic and service and a plot of the commanded and reported path are produced.
+Everything is written to --out (default demo_output/); --docs also writes the plot to
+docs/demo-path.png. See docs/demo.md.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
+
+ROOT = Path(__file__).resolve().parents[2]
+GENERATED = ROOT / "generated"
+PACKAGE = "uwgen_demo"
+EXIT_FAILED = 1
+
+log = logging.getLogger("uwgen.demo")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, default=ROOT / "demo_output",
+                        help="folder for logs, records, stats and the plot (default demo_output/)")
+    parser.add_argument("--docs", action="store_true",
+                        help="also write the plot to docs/demo-path.png")
+    parser.add_argument("--distance", type=float, default=300.0, help="metres between the nodes")
+    parser.add_argument("--per", type=float, default=0.05,
+                        help="packet error rate on top of collisions (default 0.05)")
+    parser.add_argument("--seed", type=int, default=1, help="emulator random seed")
+    parser.add_argument("--side", type=float, default=4.0, help="square side in metres")
+    parser.add_argument("--laps", type=int, default=1, help="laps of the square")
+    parser.add_argument("--timeout", type=float, default=180.0,
+                        help="give up if the operator has not finished after this many seconds")
+    parser.add_argument("--quiet", action="store_true", help="do not relay the nodes' logs")
+
+
+def domains() -> tuple[int, int]:
+    """(vehicle, surface) ROS domain ids: two different ones, derived from ROS_DOMAIN_ID."""
+    base = int(os.environ.get("ROS_DOMAIN_ID") or (1 + os.getpid() % 100))
+    base = base % 200
+    return base, base + 1
+
+
+class Proc:
+    """A child process whose merged output goes to a log file and (filtered) to the console."""
+
+    def __init__(self, name: str, cmd: list[str], env: dict, out_dir: Path, relay: bool):
+        self.name = name
+        self.logfile = out_dir / f"{name}.log"
+        self._fh = self.logfile.open("w", encoding="utf-8")
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, text=True, bufsize=1)
+        self._relay = relay
+        self._thread = threading.Thread(target=self._pump, name=f"log-{name}", daemon=True)
+        self._thread.start()
+
+    def _pump(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self._fh.write(line)
+            self._fh.flush()
+            if self._relay and self._interesting(line):
+                print(f"  [{self.name}] {_strip(line)}", flush=True)
+
+    def _interesting(self, line: str) -> bool:
+        if self.name == "operator":
+            return "[operator]" in line or "ERROR" in line or "WARN" in line
+        return "ERROR" in line or "WARN" in line or "Traceback" in line or "Error" in line
+
+    def stop(self, timeout: float = 10.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+        self._thread.join(timeout=2)
+        self._fh.close()
+        return self.proc.returncode
+
+
+def _strip(line: str) -> str:
+    line = line.rstrip()
+    # "[INFO] [1700000000.123] [operator]: text" -> "text" (rclpy's console format)
+    if line.startswith("[") and "]: " in line:
+        level = line[1:line.index("]")]
+        text = line.split("]: ", 1)[1]
+        return text if level == "INFO" else f"{level}: {text}"
+    return line
+
+
+def _env(domain: int, extra_paths: list[str], iface_env) -> dict:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    env["PYTHONUNBUFFERED"] = "1"
+    env["RCUTILS_COLORIZED_OUTPUT"] = "0"
+    env["PYTHONPATH"] = os.pathsep.join([*extra_paths, env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return iface_env.child_env(env)
+
+
+def run(args: argparse.Namespace) -> int:
+    from uwgen.demo.interfaces import BuildError, ensure_interfaces
+    from uwgen.demo.report import build_report, format_report, plot_paths
+    from uwgen.emulator import NodeSpec, Scenario, run_emulator
+
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    for old in out.glob("*.json*"):
+        old.unlink()
+    if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
+        print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
+        return EXIT_FAILED
+    print("uwgen demo: a surface operator drives a simulated vehicle over an emulated acoustic link")
+    try:
+        iface = ensure_interfaces(ROOT / "msg_samples" / "turtlesim")
+    except BuildError as exc:
+        print(f"uwgen demo: turtlesim's interfaces are not available to rclpy: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+
+    scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle"),
+                           NodeSpec("vehicle", port=0, position=(args.distance, 0.0, 0.0), dest="surface")],
+                    period=0.2, max_read_length=64, bitrate=4800.0, per=args.per, seed=args.seed)
+    vdom, sdom = domains()
+    py = sys.executable
+    procs: list[Proc] = []
+    t0 = time.monotonic()
+    with run_emulator(scen) as emu:
+        ports = {n: emu.port(n) for n in ("surface", "vehicle")}
+        print(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
+              f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, 64 B every 0.2 s at "
+              f"4800 bit/s, packet error rate {args.per:g} plus collisions")
+        print(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
+        venv = _env(vdom, [str(GENERATED)], iface)
+        senv = _env(sdom, [str(GENERATED)], iface)
+        try:
+            for side, env in (("vehicle", venv), ("surface", senv)):
+                procs.append(Proc(f"bridge_{side}", [
+                    py, "-m", f"{PACKAGE}.bridge_{side}", "--port", str(ports[side]),
+                    "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5"],
+                    env, out, not args.quiet))
+            procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
+                                          str(out / "vehicle.jsonl")], venv, out, not args.quiet))
+            operator = Proc("operator", [py, "-m", "uwgen.demo.operator", "--record",
+                                         str(out / "operator.jsonl"), "--side", str(args.side),
+                                         "--laps", str(args.laps)], senv, out, not args.quiet)
+            procs.append(operator)
+            try:
+                operator.proc.wait(args.timeout)
+            except subprocess.TimeoutExpired:
+                print(f"uwgen demo: the operator did not finish in {args.timeout:g} s; stopping",
+                      file=sys.stderr)
+        finally:
+            codes = {p.name: p.stop() for p in reversed(procs)}
+            counters = emu.all_counters()
+    (out / "emulator.json").write_text(json.dumps({"nodes": counters, "ports": ports}, indent=1))
+    elapsed = time.monotonic() - t0
+    crashed = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
+    report = build_report(out)
+    print()
+    print(format_report(report))
+    plot = plot_paths(report, out / "demo-path.png",
+                      f"uwgen demo: {args.distance:g} m acoustic link, 64 B / 0.2 s, PER {args.per:g}")
+    if args.docs:
+        plot_paths(report, ROOT / "docs" / "demo-path.png",
+                   f"uwgen demo: {args.distance:g} m acoustic link, 64 B / 0.2 s, PER {args.per:g}")
+        print("plot: docs/demo-path.png")
+    print(f"plot: {plot}\nrun took {elapsed:.0f} s; logs in {out}")
+    if crashed:
+        print(f"uwgen demo: processes ended badly: {crashed} (see their logs)", file=sys.stderr)
+        return EXIT_FAILED
+    cmd = report.topics[0]
+    ok = cmd.delivered > 0 and report.topics[1].delivered > 0 and all(s.ok == s.calls > 0 for s in report.services)
+    if not ok:
+        print("uwgen demo: the vehicle did not follow (see the table and logs)", file=sys.stderr)
+        return EXIT_FAILED
+    return 0

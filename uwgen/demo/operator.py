@@ -1,0 +1,199 @@
+"""The scripted surface operator: sets the pen, teleports the turtle, drives a square.
+
+It publishes `geometry_msgs/Twist` on /turtle1/cmd_vel at 10 Hz (twice the rate the
+manifest lets over the link, so the link policy has work to do), calls
+/vehicle/set_pen and /turtle1/teleport_absolute through the bridge, and listens to
+/turtle1/pose, /vehicle/battery and /vehicle/log. Each command carries its sequence
+number in `linear.z` for the latency report. It exits when the script is done.
+
+    python -m uwgen.demo.operator [--record FILE] [--side 3.0] [--speed 0.5] [--turn 0.6]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from uwgen.demo.records import Recorder, f32
+
+RATE = 10.0                  # Hz of cmd_vel
+START = (2.0, 2.0, 0.0)      # where the square starts (teleport target)
+CALL_TIMEOUT = 12.0          # s the operator waits for a bridged call (the manifest's 10 s + margin)
+CALL_TRIES = 3               # a request or response lost on the link fails the call: try again
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Drive `lin`/`ang` for `duration` seconds."""
+    lin: float
+    ang: float
+    duration: float
+
+
+def square(side: float, speed: float, turn: float, laps: int = 1, rate: float = RATE) -> list[Segment]:
+    """Legs and corners, each a whole number of command periods long (speeds adjusted to
+    match), so the commands sent at `rate` add up to exactly `side` and 90 degrees."""
+    def seg(amount: float, speed_: float, lin: bool) -> Segment:
+        n = max(1, round(amount / speed_ * rate))
+        v = amount / (n / rate)
+        return Segment(v, 0.0, n / rate) if lin else Segment(0.0, v, n / rate)
+    leg, corner = seg(side, speed, True), seg(math.pi / 2, turn, False)
+    return [s for _ in range(4 * laps) for s in (leg, corner)]
+
+
+def command_at(plan: list[Segment], elapsed: float) -> tuple[float, float] | None:
+    """The command `elapsed` seconds into the plan, or None once it is over."""
+    t = 0.0
+    for seg in plan:
+        if elapsed < t + seg.duration:
+            return seg.lin, seg.ang
+        t += seg.duration
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m uwgen.demo.operator", description=__doc__.split("\n")[0])
+    parser.add_argument("--record", type=Path, help="write events as JSON lines here")
+    parser.add_argument("--side", type=float, default=4.0, help="square side in metres")
+    parser.add_argument("--speed", type=float, default=0.4, help="m/s along the sides")
+    parser.add_argument("--turn", type=float, default=0.6, help="rad/s in the corners")
+    parser.add_argument("--laps", type=int, default=1)
+    parser.add_argument("--service-wait", type=float, default=30.0,
+                        help="seconds to wait for the bridged services to appear")
+    args, ros_args = parser.parse_known_args(argv)
+
+    import rclpy
+    from geometry_msgs.msg import Twist
+    from rclpy.executors import ExternalShutdownException
+    from sensor_msgs.msg import BatteryState
+    from std_msgs.msg import String
+    from turtlesim.msg import Pose
+    from turtlesim.srv import SetPen, TeleportAbsolute
+
+    record = Recorder(args.record)
+    rclpy.init(args=["operator", *ros_args])
+    node = rclpy.create_node("operator")
+    log = node.get_logger()
+    plan = square(args.side, args.speed, args.turn, args.laps)
+    cmd_pub = node.create_publisher(Twist, "/turtle1/cmd_vel", 10)
+    pen = node.create_client(SetPen, "/vehicle/set_pen")
+    teleport = node.create_client(TeleportAbsolute, "/turtle1/teleport_absolute")
+    seen = {"pose": 0, "battery": 0, "log": 0}
+
+    def on_pose(p: Pose) -> None:
+        seen["pose"] += 1
+        record("pose_rx", x=f32(p.x), y=f32(p.y), theta=f32(p.theta),
+               v=f32(p.linear_velocity), w=f32(p.angular_velocity))
+        if seen["pose"] == 1:
+            log.info(f"first pose from the vehicle: x={p.x:.2f} y={p.y:.2f}")
+
+    def on_battery(b: BatteryState) -> None:
+        seen["battery"] += 1
+        record("battery_rx", stamp=b.header.stamp.sec + b.header.stamp.nanosec * 1e-9,
+               pct=b.percentage)
+
+    def on_log(s: String) -> None:
+        seen["log"] += 1
+        seq = int(s.data[1:s.data.index("]")]) if s.data.startswith("[") and "]" in s.data else -1
+        record("log_rx", seq=seq, size=len(s.data))
+        log.info(f"vehicle says ({len(s.data)} B): {s.data[:100]}{'...' if len(s.data) > 100 else ''}")
+
+    node.create_subscription(Pose, "/turtle1/pose", on_pose, 10)
+    node.create_subscription(BatteryState, "/vehicle/battery", on_battery, 10)
+    node.create_subscription(String, "/vehicle/log", on_log, 10)
+
+    def spin_for(seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
+
+    def call(client, request, what: str) -> bool:
+        for attempt in range(1, CALL_TRIES + 1):
+            if call_once(client, request, what if attempt == 1 else f"{what}, try {attempt}"):
+                return True
+        return False
+
+    def call_once(client, request, what: str) -> bool:
+        t0 = time.time()
+        future = client.call_async(request)
+        deadline = time.monotonic() + CALL_TIMEOUT
+        while not future.done() and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        rtt = time.time() - t0
+        ok = future.done() and future.result() is not None
+        if not ok:
+            client.remove_pending_request(future)
+        record("call", name=client.srv_name, ok=ok, rtt=rtt, t0=t0)
+        if ok:
+            log.info(f"{what}: done in {rtt:.2f} s")
+        else:
+            log.error(f"{what}: no response within {CALL_TIMEOUT:.0f} s (lost on the link?)")
+        return ok
+
+    def drive(lin: float, ang: float, k: int) -> None:
+        msg = Twist()
+        msg.linear.x, msg.angular.z, msg.linear.z = float(lin), float(ang), float(k)
+        cmd_pub.publish(msg)
+        record("cmd", k=k, lin=lin, ang=ang)
+
+    try:
+        log.info("waiting for the bridged services")
+        end = time.monotonic() + args.service_wait
+        while not (pen.service_is_ready() and teleport.service_is_ready()) and time.monotonic() < end:
+            spin_for(0.1)
+        spin_for(2.0)  # let the bridges connect and the first poses arrive
+        call(pen, SetPen.Request(r=255, g=120, b=0, width=3, off=0), "set_pen (orange, on)")
+        x0, y0, th0 = START
+        call(teleport, TeleportAbsolute.Request(x=x0, y=y0, theta=th0),
+             f"teleport_absolute to ({x0}, {y0})")
+        record("start", x=x0, y=y0, theta=th0)
+        log.info(f"driving a {args.side:g} m square at {args.speed:g} m/s, commands at {RATE:g} Hz")
+        k, t_start, leg = 0, time.monotonic(), -1
+        while True:
+            elapsed = time.monotonic() - t_start
+            cmd = command_at(plan, elapsed)
+            if cmd is None:
+                break
+            seg_index = _segment_index(plan, elapsed)
+            if seg_index // 2 != leg:
+                leg = seg_index // 2
+                log.info(f"leg {leg + 1}/{len(plan) // 2}")
+            k += 1
+            drive(*cmd, k)
+            next_t = t_start + k / RATE  # a fixed schedule: no drift from loop overhead
+            while time.monotonic() < next_t:
+                rclpy.spin_once(node, timeout_sec=max(0.0, next_t - time.monotonic()))
+        for _ in range(int(RATE)):        # stop, and say so for a second
+            k += 1
+            drive(0.0, 0.0, k)
+            spin_for(1.0 / RATE)
+        record("stop")
+        call(pen, SetPen.Request(r=0, g=0, b=0, width=1, off=1), "set_pen (off)")
+        spin_for(3.0)                     # the last poses and log lines
+        log.info(f"done: received {seen['pose']} poses, {seen['battery']} battery states, "
+                 f"{seen['log']} log lines")
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        record("end")
+        record.close()
+        node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0
+
+
+def _segment_index(plan: list[Segment], elapsed: float) -> int:
+    t = 0.0
+    for i, seg in enumerate(plan):
+        t += seg.duration
+        if elapsed < t:
+            return i
+    return len(plan) - 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

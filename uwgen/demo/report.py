@@ -1,0 +1,285 @@
+"""The demo's closing report: a table per topic and service, and the path plot.
+
+Inputs are the demo's output folder: `operator.jsonl` and `vehicle.jsonl` (event records
+of the two applications, see records.py), `bridge_<side>.json` (each bridge's final
+status) and `emulator.json` (the emulated DESERT nodes' counters).
+
+Columns, per topic (from the publishing side to the other):
+  published  messages the application published
+  taken      messages the sending bridge received from its local graph
+  on link    messages the sending link put on the wire (whole or in fragments)
+  policy     messages the link policy dropped (superseded, overflow, expired, too large)
+  lost       messages put on the wire that the far bridge never received (packet loss)
+  delivered  messages the far application received
+  latency    from publication to delivery (median and 95th percentile), matched per message
+So `taken = on link + policy + still queued`, and `on link = received by the far bridge + lost`.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from statistics import median
+from typing import Iterable
+
+from uwgen.demo.records import read_records
+
+DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid")
+
+
+def percentile(values: list[float], q: float) -> float | None:
+    """Linear-interpolated percentile (q in 0..100), None for no values."""
+    if not values:
+        return None
+    s = sorted(values)
+    pos = (len(s) - 1) * q / 100.0
+    lo, hi = math.floor(pos), math.ceil(pos)
+    return s[lo] + (s[hi] - s[lo]) * (pos - lo)
+
+
+@dataclass
+class Row:
+    name: str
+    direction: str
+    published: int = 0
+    taken: int = 0
+    on_link: int = 0
+    policy: int = 0
+    queued: int = 0
+    lost: int = 0
+    delivered: int = 0
+    latencies: list[float] = field(default_factory=list)
+
+    @property
+    def p50(self) -> float | None:
+        return median(self.latencies) if self.latencies else None
+
+    @property
+    def p95(self) -> float | None:
+        return percentile(self.latencies, 95)
+
+
+@dataclass
+class ServiceRow:
+    name: str
+    calls: int = 0
+    ok: int = 0
+    failed: int = 0
+    policy: int = 0
+    rtts: list[float] = field(default_factory=list)
+
+
+@dataclass
+class Report:
+    topics: list[Row]
+    services: list[ServiceRow]
+    commanded: list[tuple[float, float]]
+    reported: list[tuple[float, float]]
+    truth: list[tuple[float, float]]
+    deviation_mean: float | None
+    deviation_max: float | None
+    end_error: float | None
+    emulator: dict
+
+
+def _load_json(path: Path) -> dict:
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return {}
+
+
+def _latencies_by_key(sent: Iterable[tuple[object, float]], received: Iterable[tuple[object, float]]) -> list[float]:
+    """For each received (key, t), the delay since the send of the same key. Keys sent more
+    than once (a vehicle standing still publishes the same pose again and again) are
+    ambiguous and left out rather than guessed."""
+    by_key: dict[object, list[float]] = {}
+    for key, t in sent:
+        by_key.setdefault(key, []).append(t)
+    out = []
+    for key, t in received:
+        times = by_key.get(key, ())
+        if len(times) == 1 and times[0] <= t:
+            out.append(t - times[0])
+    return out
+
+
+def _topic_row(name: str, direction: str, sender: dict, receiver: dict) -> Row:
+    row = Row(name, direction)
+    out = sender.get("topics", {}).get(name, {})
+    inc = receiver.get("topics", {}).get(name, {})
+    link = out.get("link", {}) or {}
+    row.taken = out.get("taken", 0)
+    row.policy = sum(int(link.get(r, 0)) for r in DROP_REASONS)
+    row.queued = int(link.get("queued", 0))
+    row.on_link = max(0, int(link.get("offered", 0)) - row.policy - row.queued)
+    row.lost = max(0, row.on_link - inc.get("received", 0))
+    return row
+
+
+def build_report(out_dir: Path) -> Report:
+    out_dir = Path(out_dir)
+    op = list(read_records(out_dir / "operator.jsonl"))
+    veh = list(read_records(out_dir / "vehicle.jsonl"))
+    surface = _load_json(out_dir / "bridge_surface.json")
+    vehicle = _load_json(out_dir / "bridge_vehicle.json")
+    emulator = _load_json(out_dir / "emulator.json")
+
+    def ev(records, name):
+        return [r for r in records if r.get("ev") == name]
+
+    rows = []
+    cmd = _topic_row("/turtle1/cmd_vel", "surface → vehicle", surface, vehicle)
+    cmd.published = len(ev(op, "cmd"))
+    cmd.delivered = len(ev(veh, "cmd"))
+    cmd.latencies = _latencies_by_key(((r["k"], r["t"]) for r in ev(op, "cmd")),
+                                      ((r["k"], r["t"]) for r in ev(veh, "cmd")))
+    rows.append(cmd)
+
+    def pose_key(r):
+        return (r["x"], r["y"], r["theta"], r["v"], r["w"])
+    pose = _topic_row("/turtle1/pose", "vehicle → surface", vehicle, surface)
+    pose.published = len(ev(veh, "pose"))
+    pose.delivered = len(ev(op, "pose_rx"))
+    pose.latencies = _latencies_by_key(((pose_key(r), r["t"]) for r in ev(veh, "pose")),
+                                       ((pose_key(r), r["t"]) for r in ev(op, "pose_rx")))
+    rows.append(pose)
+
+    bat = _topic_row("/vehicle/battery", "vehicle → surface", vehicle, surface)
+    bat.published = len(ev(veh, "battery"))
+    bat.delivered = len(ev(op, "battery_rx"))
+    bat.latencies = [r["t"] - r["stamp"] for r in ev(op, "battery_rx")]
+    rows.append(bat)
+
+    logrow = _topic_row("/vehicle/log", "vehicle → surface", vehicle, surface)
+    logrow.published = len(ev(veh, "log"))
+    logrow.delivered = len(ev(op, "log_rx"))
+    logrow.latencies = _latencies_by_key(((r["seq"], r["t"]) for r in ev(veh, "log")),
+                                         ((r["seq"], r["t"]) for r in ev(op, "log_rx")))
+    rows.append(logrow)
+
+    services = []
+    for name in ("/vehicle/set_pen", "/turtle1/teleport_absolute"):
+        srow = ServiceRow(name)
+        calls = [r for r in ev(op, "call") if r.get("name") == name]
+        srow.calls = len(calls)
+        srow.ok = sum(1 for r in calls if r["ok"])
+        srow.failed = srow.calls - srow.ok
+        srow.rtts = [r["rtt"] for r in calls if r["ok"]]
+        for side in (surface, vehicle):
+            link = side.get("services", {}).get(name, {}).get("link", {}) or {}
+            srow.policy += sum(int(link.get(r, 0)) for r in DROP_REASONS)
+        services.append(srow)
+
+    commanded, reported, truth = paths(op, veh)
+    dev = deviations(commanded, reported)
+    end_error = None
+    if commanded and truth:
+        end_error = math.dist(commanded[-1], truth[-1])
+    return Report(rows, services, commanded, reported, truth,
+                  (sum(dev) / len(dev)) if dev else None, max(dev) if dev else None,
+                  end_error, emulator)
+
+
+def paths(op: list[dict], veh: list[dict]):
+    """Commanded path (the operator's commands integrated from the start pose), the poses
+    the surface received, and the vehicle's own poses, all after the teleport."""
+    start = next((r for r in op if r.get("ev") == "start"), None)
+    if start is None:
+        return [], [], []
+    x, y, th = start["x"], start["y"], start["theta"]
+    cmds = [r for r in op if r.get("ev") == "cmd" and r["t"] >= start["t"]]
+    commanded = [(x, y)]
+    for a, b in zip(cmds, cmds[1:]):
+        dt = b["t"] - a["t"]
+        th += a["ang"] * dt
+        x += a["lin"] * math.cos(th) * dt
+        y += a["lin"] * math.sin(th) * dt
+        commanded.append((x, y))
+    teleported = next((r["t"] for r in veh if r.get("ev") == "teleport"), start["t"])
+    reported = [(r["x"], r["y"]) for r in op if r.get("ev") == "pose_rx" and r["t"] >= start["t"]]
+    truth = [(r["x"], r["y"]) for r in veh if r.get("ev") == "pose" and r["t"] >= teleported]
+    return commanded, reported, truth
+
+
+def deviations(commanded: list[tuple[float, float]], reported: list[tuple[float, float]]) -> list[float]:
+    """Distance from each reported point to the commanded polyline."""
+    if len(commanded) < 2:
+        return []
+    out = []
+    for p in reported:
+        out.append(min(_segment_distance(p, a, b) for a, b in zip(commanded, commanded[1:])))
+    return out
+
+
+def _segment_distance(p, a, b) -> float:
+    ax, ay = a
+    dx, dy = b[0] - ax, b[1] - ay
+    n = dx * dx + dy * dy
+    t = 0.0 if n == 0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / n))
+    return math.dist(p, (ax + t * dx, ay + t * dy))
+
+
+def _ms(x: float | None) -> str:
+    return "-" if x is None else f"{x * 1000:.0f} ms"
+
+
+def format_report(report: Report) -> str:
+    lines = []
+    head = (f"{'topic':<20} {'direction':<18} {'published':>9} {'taken':>6} {'on link':>7} "
+            f"{'policy':>6} {'lost':>5} {'delivered':>9} {'latency p50':>11} {'p95':>8}")
+    lines += [head, "-" * len(head)]
+    for r in report.topics:
+        lines.append(f"{r.name:<20} {r.direction:<18} {r.published:>9} {r.taken:>6} {r.on_link:>7} "
+                     f"{r.policy:>6} {r.lost:>5} {r.delivered:>9} {_ms(r.p50):>11} {_ms(r.p95):>8}")
+    lines.append("")
+    shead = (f"{'service':<28} {'calls':>5} {'ok':>4} {'failed':>6} {'policy':>6} "
+             f"{'round trip p50':>14} {'p95':>8}")
+    lines += [shead, "-" * len(shead)]
+    for s in report.services:
+        lines.append(f"{s.name:<28} {s.calls:>5} {s.ok:>4} {s.failed:>6} {s.policy:>6} "
+                     f"{_ms(median(s.rtts) if s.rtts else None):>14} {_ms(percentile(s.rtts, 95)):>8}")
+    lines.append("")
+    if report.deviation_mean is not None:
+        lines.append(f"path: the poses the surface received stay within {report.deviation_max:.2f} m "
+                     f"of the commanded square (mean {report.deviation_mean:.2f} m); "
+                     + (f"the vehicle ended {report.end_error:.2f} m from the commanded end point"
+                        if report.end_error is not None else ""))
+    emu = report.emulator.get("nodes", {})
+    for name, c in sorted(emu.items()):
+        lost = {k: v for k, v in c.items() if k.startswith("lost_") and v}
+        lines.append(f"DESERT node {name}: sent {c.get('packets_sent', 0)} packets, received "
+                     f"{c.get('packets_delivered', 0)}"
+                     + (f"; lost on the way to it: {', '.join(f'{k[5:]} {v}' for k, v in sorted(lost.items()))}"
+                        if lost else ""))
+    return "\n".join(lines)
+
+
+def plot_paths(report: Report, path: Path, title: str = "") -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 6.0), dpi=110)
+    if report.commanded:
+        xs, ys = zip(*report.commanded)
+        ax.plot(xs, ys, "--", color="tab:blue", lw=2, label="commanded (operator's cmd_vel)")
+    if report.truth:
+        xs, ys = zip(*report.truth)
+        ax.plot(xs, ys, "-", color="0.6", lw=1, label="vehicle (simulator, local)")
+    if report.reported:
+        xs, ys = zip(*report.reported)
+        ax.plot(xs, ys, "o", color="tab:orange", ms=3.5, label="reported (poses received at surface)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(title or "uwgen demo: commanded vs reported path", fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
