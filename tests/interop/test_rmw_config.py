@@ -159,3 +159,17 @@ def test_table_without_discovery_gets_a_warning_comment(tmp_path, lib):
                                  {"/chatter": "vehicle"})
     assert "has no /discovery" in text
     assert [(t.name, t.id, t.publisher) for t in back.topics] == [("/chatter", 4, "vehicle")]
+
+
+def test_imported_manifest_builds_codecs_with_the_table_ids(tmp_path, lib, rmw_manifest):
+    from uwgen.codegen import generate
+    side_of = {t.name: t.publisher for t in rmw_manifest.topics}
+    side_of.update({s.name: s.server for s in rmw_manifest.services})
+    conf = export_conf(rmw_manifest).text
+    import_manifest(tmp_path, conf, lib, side_of)
+    pkg = generate(tmp_path / "gen", "uwgen_imported", manifest=tmp_path / "uwgen.yaml",
+                   folders=[SAMPLES], profiles=("native", "rmw_desert"))
+    built = {c.name: c.id for c in (*pkg.TOPICS.values(), *pkg.SERVICES.values())}
+    table = json.loads(conf)["topics"]
+    assert built == {n: i for n, i in table.items() if n not in ("/discovery", "/discovery_request")}
+    assert {c.profile for c in pkg.TOPICS.values()} == {"rmw_desert"}
