@@ -118,3 +118,13 @@ print(payload.hex())
                             env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=60)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "0004f94000f90000f90000f90000f90000fb3ffccccccccccccd"
+
+
+def test_a_profile_only_build_leaves_out_services_whose_part_it_cannot_carry(tmp_path):
+    from uwgen.codegen import generate
+    pkg = generate(tmp_path, "uwgen_rmw_only", names=["nav_msgs/srv/SetMap", "std_srvs/srv/SetBool"],
+                   profiles=("rmw_desert",))
+    assert ("std_srvs/srv/SetBool_Request", "rmw_desert") in pkg.CODECS
+    assert ("nav_msgs/srv/SetMap_Request", "rmw_desert") not in pkg.CODECS   # an OccupancyGrid: > 64 items
+    import importlib
+    assert not hasattr(importlib.import_module("uwgen_rmw_only.nav_msgs.srv"), "SetMap")

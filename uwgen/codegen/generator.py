@@ -171,7 +171,8 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
         mod.classes.append(_plain_class(msg, mod))
     for full_name in sorted(services):
         srv = services[full_name]
-        module(srv.package, "srv").services.append(ServiceHolder(srv.name, srv.full_name))
+        if srv.request.full_name in definitions and srv.response.full_name in definitions:
+            module(srv.package, "srv").services.append(ServiceHolder(srv.name, srv.full_name))
 
     module_of = {ct.key: ct.module for ct in codecs.values()}
     entries: list[CodecEntry] = []
