@@ -129,7 +129,7 @@ class FakeLink:
         self._thread = threading.Thread(target=self._deliver_loop, name=f"fakelink-{name}",
                                         daemon=True)
 
-    def add_channel(self, key: int, policy: LinkPolicy) -> None:
+    def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None) -> None:
         self.channels[key] = policy
 
     def offer(self, key: int, payload: bytes) -> bool:

@@ -123,8 +123,8 @@ class BridgeNode(Node):
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
                                  clock=clock, name=plan.side)
-        for key, policy in plan.channels():
-            self.link.add_channel(key, policy)
+        for key, policy, name in plan.channels():
+            self.link.add_channel(key, policy, name)
 
         self._status_pub = self.create_publisher(_string_class(), "~/status", 10)
         self.create_timer(EXPIRY_TICK, self._expire, callback_group=self._main_group)

@@ -90,11 +90,12 @@ class BridgePlan:
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
         )
 
-    def channels(self) -> list[tuple[int, LinkPolicy]]:
-        """Link channels this side sends on: its outgoing topics, and every service it
-        takes part in (requests from the calling side, responses from the serving side)."""
-        chans = [(t.id, t.policy) for t in self.outgoing_topics]
-        chans += [(s.id, s.policy) for s in (*self.called_services, *self.served_services)]
+    def channels(self) -> list[tuple[int, LinkPolicy, str]]:
+        """Link channels this side sends on, as (id, policy, name): its outgoing topics, and
+        every service it takes part in (requests from the calling side, responses from the
+        serving side)."""
+        chans = [(t.id, t.policy, t.name) for t in self.outgoing_topics]
+        chans += [(s.id, s.policy, s.name) for s in (*self.called_services, *self.served_services)]
         return sorted(chans, key=lambda c: c[0])
 
     def options(self, host: str | None = None, port: int | None = None,

@@ -1,0 +1,109 @@
+"""End-to-end set-up: a generated package of installed types, the emulator, two ROS sides.
+
+The package is generated at test time by `uwgen build` from a small manifest of installed
+types (Twist, String, SetBool), so these tests do not depend on turtlesim's interfaces.
+Each test gets its own emulator and two ROS domains of its own (vehicle and surface).
+"""
+from __future__ import annotations
+
+import random
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from uwgen.bridge.node import BridgeNode
+from uwgen.bridge.plan import BridgePlan, import_package
+from uwgen.emulator import NodeSpec, Scenario, run_emulator
+
+from bridge.harness import ros_sides
+
+MANIFEST = """\
+network: e2e
+package: uwgen_e2e
+fragment_id: 250
+sides:
+  surface:
+    port: 4000
+    link: {max_read_length: 64, period: 0.05}
+  vehicle:
+    port: 4001
+    link: {max_read_length: 64, period: 0.05}
+topics:
+  - name: /cmd_vel
+    id: 4
+    type: geometry_msgs/msg/Twist
+    publisher: surface
+    queue: latest
+    rate: 5
+    ttl: 1.0
+    priority: 10
+  - name: /log
+    id: 7
+    type: std_msgs/msg/String
+    publisher: vehicle
+    queue: fifo
+    depth: 8
+    ttl: 60
+    priority: 0
+services:
+  - name: /enable
+    id: 20
+    type: std_srvs/srv/SetBool
+    server: vehicle
+    timeout: 1.5
+"""
+
+
+@pytest.fixture(scope="session")
+def e2e_package(tmp_path_factory):
+    from uwgen.cli import main as uwgen_main
+
+    root = tmp_path_factory.mktemp("e2e")
+    # `uwgen build` wants a folder of interfaces; the manifest itself uses installed types.
+    (root / "interfaces" / "e2e_msgs" / "msg").mkdir(parents=True)
+    (root / "interfaces" / "e2e_msgs" / "msg" / "Note.msg").write_text("string text\n")
+    manifest = root / "interfaces" / "uwgen.yaml"
+    manifest.write_text(MANIFEST)
+    out = root / "generated" / "uwgen_e2e"
+    rc = uwgen_main(["build", str(root / "interfaces"), "-m", str(manifest), "-o", str(out)])
+    assert rc == 0, "uwgen build of the e2e manifest failed"
+    return import_package("uwgen_e2e", root / "generated")
+
+
+class Net:
+    """The emulator, both ROS sides and (once started) both bridges of one test."""
+
+    def __init__(self, package, emu, sides, period, mrl):
+        self.package, self.emu = package, emu
+        self.surface, self.vehicle = sides
+        self.period, self.mrl = period, mrl
+        self.bridges: dict[str, BridgeNode] = {}
+
+    def start_bridge(self, side: str, **opts) -> BridgeNode:
+        ros = self.surface if side == "surface" else self.vehicle
+        plan = BridgePlan.from_package(self.package, side)
+        options = plan.options(port=self.emu.port(side), max_read_length=self.mrl,
+                               period=self.period, status_period=0, **opts)
+        node = BridgeNode(plan, options, context=ros.context, rng=random.Random(7))
+        self.bridges[side] = ros.add(node)
+        return node
+
+
+@contextmanager
+def network(package, *, period=0.05, mrl=64, distance=30.0, bitrate=48000.0, per=0.0,
+            bridges=("surface", "vehicle")):
+    scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle"),
+                           NodeSpec("vehicle", port=0, position=(distance, 0.0, 0.0), dest="surface")],
+                    period=period, max_read_length=mrl, bitrate=bitrate, per=per, seed=5)
+    with run_emulator(scen) as emu, ros_sides("surface", "vehicle") as sides:
+        net = Net(package, emu, sides, period, mrl)
+        for side in bridges:
+            net.start_bridge(side)
+        yield net
+
+
+@pytest.fixture
+def net(e2e_package):
+    with network(e2e_package) as n:
+        yield n
