@@ -95,8 +95,9 @@ def test_reconnects_when_desert_restarts_and_delivers_nothing_twice(server):
     conn.start()
     try:
         assert wait_until(lambda: len(serials(server.received)) >= 20)
-        before = bytes(server.received)
-        server.received.clear()
+        with server._lock:
+            before = bytes(server.received)
+            server.received.clear()
         server.restart(down_for=0.1)
         assert wait_until(lambda: conn.stats()["reconnects"] == 1)
         assert wait_until(lambda: len(serials(server.received)) >= 20)
@@ -117,7 +118,7 @@ def test_reconnects_when_desert_closes_the_connection(server):
     conn = make(server.port)
     conn.start()
     try:
-        assert wait_until(lambda: conn.connected)
+        assert wait_until(lambda: conn.connected and server.has_client)
         server.kick()
         assert wait_until(lambda: conn.stats()["reconnects"] == 1)
         assert wait_until(lambda: conn.connected)
@@ -222,8 +223,7 @@ def test_state_changes_are_logged_once(caplog, server):
     with caplog.at_level(logging.INFO, logger="uwgen.link"):
         conn.start()
         try:
-            assert wait_until(lambda: conn.connected)
-            time.sleep(0.1)
+            assert wait_until(lambda: conn.connected and server.has_client)
             server.kick()
             assert wait_until(lambda: conn.stats()["reconnects"] == 1)
         finally:
