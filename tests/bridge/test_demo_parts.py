@@ -1,0 +1,105 @@
+"""The demo's pieces that need no ROS: kinematics, the square plan, the report."""
+import json
+import math
+
+import pytest
+
+from uwgen.demo.operator import RATE, command_at, square
+from uwgen.demo.records import Recorder, f32, read_records
+from uwgen.demo.report import build_report, deviations, format_report, percentile, plot_paths
+from uwgen.demo.vehicle import CMD_TIMEOUT, VehicleSim
+
+
+def test_square_plan_adds_up_to_four_sides_and_four_right_angles():
+    plan = square(4.0, 0.4, 0.6)
+    assert len(plan) == 8
+    assert sum(s.lin * s.duration for s in plan) == pytest.approx(16.0)
+    assert sum(s.ang * s.duration for s in plan) == pytest.approx(2 * math.pi)
+    for s in plan:  # whole command periods, so 10 Hz commands integrate exactly
+        assert s.duration * RATE == pytest.approx(round(s.duration * RATE))
+
+
+def test_command_at_follows_the_plan_then_ends():
+    plan = square(1.0, 0.5, 1.0)
+    assert command_at(plan, 0.0) == (0.5, 0.0)
+    assert command_at(plan, plan[0].duration + 0.01)[1] > 0
+    assert command_at(plan, sum(s.duration for s in plan) + 0.01) is None
+
+
+def test_vehicle_integrates_commands_and_stops_when_they_go_stale():
+    sim = VehicleSim(0.0, 0.0, 0.0)
+    sim.command(1.0, 0.0, now=0.0)
+    for i in range(50):
+        sim.step(i * 0.02, 0.02)
+    assert (sim.x, sim.y) == (pytest.approx(1.0), pytest.approx(0.0))
+    x = sim.x
+    for i in range(100):  # no new command: after CMD_TIMEOUT the vehicle stops
+        sim.step(1.0 + CMD_TIMEOUT + i * 0.02, 0.02)
+    assert sim.x == pytest.approx(x + 0.0, abs=0.03) and sim.lin == 0.0
+
+
+def test_vehicle_turns_by_the_commanded_angle():
+    sim = VehicleSim(0.0, 0.0, 0.0)
+    sim.command(0.0, math.pi / 2, now=0.0)
+    for i in range(50):
+        sim.step(i * 0.02, 0.02)
+    assert sim.theta == pytest.approx(math.pi / 2)
+
+
+def test_percentile_interpolates():
+    assert percentile([], 95) is None
+    assert percentile([1.0, 2.0, 3.0, 4.0, 5.0], 50) == 3.0
+    assert percentile([0.0, 10.0], 95) == pytest.approx(9.5)
+
+
+def test_deviation_is_distance_to_the_commanded_polyline():
+    commanded = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)]
+    assert deviations(commanded, [(0.5, 0.2), (1.3, 0.5)]) == [pytest.approx(0.2), pytest.approx(0.3)]
+
+
+def write(path, records):
+    path.write_text("\n".join(json.dumps(r) for r in records) + "\n")
+
+
+def test_report_matches_messages_and_accounts_for_drops(tmp_path):
+    t = 1000.0
+    op = [{"t": t, "ev": "start", "x": 0.0, "y": 0.0, "theta": 0.0}]
+    veh = [{"t": t, "ev": "teleport", "x": 0.0, "y": 0.0, "theta": 0.0}]
+    for k in range(1, 11):
+        op.append({"t": t + k * 0.1, "ev": "cmd", "k": k, "lin": 1.0, "ang": 0.0})
+        if k % 2 == 0:  # half of them arrive, 0.4 s later
+            veh.append({"t": t + k * 0.1 + 0.4, "ev": "cmd", "k": k, "lin": 1.0, "ang": 0.0})
+    for i in range(5):
+        pose = {"x": f32(i * 0.2), "y": 0.0, "theta": 0.0, "v": 1.0, "w": 0.0}
+        veh.append({"t": t + i * 0.2, "ev": "pose", **pose})
+        op.append({"t": t + i * 0.2 + 0.5, "ev": "pose_rx", **pose})
+    op.append({"t": t + 2, "ev": "call", "name": "/vehicle/set_pen", "ok": True, "rtt": 0.8})
+    op.append({"t": t + 3, "ev": "call", "name": "/vehicle/set_pen", "ok": False, "rtt": 12.0})
+    write(tmp_path / "operator.jsonl", op)
+    write(tmp_path / "vehicle.jsonl", veh)
+    (tmp_path / "bridge_surface.json").write_text(json.dumps({"topics": {"/turtle1/cmd_vel": {
+        "taken": 10, "link": {"offered": 10, "sent": 6, "superseded": 4, "queued": 0}}}}))
+    (tmp_path / "bridge_vehicle.json").write_text(json.dumps({"topics": {"/turtle1/cmd_vel": {
+        "received": 5}}}))
+    report = build_report(tmp_path)
+    cmd = report.topics[0]
+    assert (cmd.published, cmd.taken, cmd.on_link, cmd.policy, cmd.lost, cmd.delivered) == (10, 10, 6, 4, 1, 5)
+    assert cmd.p50 == pytest.approx(0.4)
+    pose = report.topics[1]
+    assert pose.delivered == 5 and pose.p95 == pytest.approx(0.5)
+    pen = report.services[0]
+    assert (pen.calls, pen.ok, pen.failed) == (2, 1, 1)
+    text = format_report(report)
+    assert "/turtle1/cmd_vel" in text and "400 ms" in text
+    png = plot_paths(report, tmp_path / "p.png")
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_recorder_writes_lines_and_reader_skips_a_torn_tail(tmp_path):
+    rec = Recorder(tmp_path / "r.jsonl")
+    rec("a", k=1)
+    rec("b", k=2)
+    rec.close()
+    with (tmp_path / "r.jsonl").open("a") as fh:
+        fh.write('{"t": 1, "ev": "tor')
+    assert [r["k"] for r in read_records(tmp_path / "r.jsonl")] == [1, 2]
