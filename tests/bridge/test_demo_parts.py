@@ -1,29 +1,56 @@
 """The demo's pieces that need no ROS: kinematics, the square plan, the report."""
 import json
 import math
+import random
 
 import pytest
 
-from uwgen.demo.operator import RATE, command_at, square
+from uwgen.demo.operator import Pilot, square_waypoints
 from uwgen.demo.records import Recorder, f32, read_records
 from uwgen.demo.report import build_report, deviations, format_report, percentile, plot_paths
 from uwgen.demo.vehicle import CMD_TIMEOUT, VehicleSim
 
 
-def test_square_plan_adds_up_to_four_sides_and_four_right_angles():
-    plan = square(4.0, 0.4, 0.6)
-    assert len(plan) == 8
-    assert sum(s.lin * s.duration for s in plan) == pytest.approx(16.0)
-    assert sum(s.ang * s.duration for s in plan) == pytest.approx(2 * math.pi)
-    for s in plan:  # whole command periods, so 10 Hz commands integrate exactly
-        assert s.duration * RATE == pytest.approx(round(s.duration * RATE))
+def test_square_waypoints_close_the_square():
+    wps = square_waypoints((2.0, 2.0), 4.0)
+    assert wps == [(6.0, 2.0), (6.0, 6.0), (2.0, 6.0), (2.0, 2.0)]
 
 
-def test_command_at_follows_the_plan_then_ends():
-    plan = square(1.0, 0.5, 1.0)
-    assert command_at(plan, 0.0) == (0.5, 0.0)
-    assert command_at(plan, plan[0].duration + 0.01)[1] > 0
-    assert command_at(plan, sum(s.duration for s in plan) + 0.01) is None
+def fly(pilot, sim, seed, cmd_delay=0.45, pose_delay=0.5, loss=0.25, until=150.0):
+    """The pilot and the vehicle joined by a lossy, late link (5 Hz latest for commands,
+    2 Hz for poses, as the demo manifest allows). Returns the vehicle's path."""
+    rng = random.Random(seed)
+    cmds, poses, path = [], [], []
+    t, step = 0.0, 0.02
+    while t < until and not pilot.done:
+        k = round(t / step)
+        if k % 5 == 0:                                    # 10 Hz operator
+            cmd = pilot.command(t)
+            if cmd is None:
+                break
+            if k % 10 == 0 and rng.random() > loss:       # link rate 5/s, some lost
+                cmds.append((t + cmd_delay, cmd))
+        if k % 25 == 0 and rng.random() > loss:           # pose at 2 Hz, some lost
+            poses.append((t + pose_delay, (sim.x, sim.y, sim.theta)))
+        while cmds and cmds[0][0] <= t:
+            sim.command(*cmds.pop(0)[1], now=t)
+        while poses and poses[0][0] <= t:
+            pilot.observe(*poses.pop(0)[1], t)
+        sim.step(t, step)
+        path.append((sim.x, sim.y))
+        t += step
+    return path
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_pilot_drives_the_square_through_a_late_lossy_link(seed):
+    wps = square_waypoints((2.0, 2.0), 4.0)
+    sim = VehicleSim(2.0, 2.0, 0.0)
+    pilot = Pilot(wps)
+    path = fly(pilot, sim, seed)
+    assert pilot.done, f"stuck at waypoint {pilot.index}"
+    dev = deviations([(2.0, 2.0), *wps], path)
+    assert max(dev) < 0.3, max(dev)
 
 
 def test_vehicle_integrates_commands_and_stops_when_they_go_stale():

@@ -32,6 +32,7 @@ ROOT = Path(__file__).resolve().parents[2]
 GENERATED = ROOT / "generated"
 PACKAGE = "uwgen_demo"
 EXIT_FAILED = 1
+FOLLOW_TOLERANCE = 0.5   # metres between the reported path and the commanded square
 
 log = logging.getLogger("uwgen.demo")
 
@@ -189,9 +190,17 @@ def run(args: argparse.Namespace) -> int:
     if crashed:
         print(f"uwgen demo: processes ended badly: {crashed} (see their logs)", file=sys.stderr)
         return EXIT_FAILED
-    cmd = report.topics[0]
-    ok = cmd.delivered > 0 and report.topics[1].delivered > 0 and all(s.ok == s.calls > 0 for s in report.services)
-    if not ok:
-        print("uwgen demo: the vehicle did not follow (see the table and logs)", file=sys.stderr)
+    problems = []
+    if not report.topics[0].delivered:
+        problems.append("no command reached the vehicle")
+    if not report.topics[1].delivered:
+        problems.append("no pose reached the surface")
+    problems += [f"every call of {s.name} failed" for s in report.services if not s.ok]
+    if report.deviation_max is None or report.deviation_max > FOLLOW_TOLERANCE:
+        problems.append(f"the reported path is not within {FOLLOW_TOLERANCE} m of the square")
+    if problems:
+        print(f"uwgen demo: the vehicle did not follow: {'; '.join(problems)}", file=sys.stderr)
         return EXIT_FAILED
+    print(f"the vehicle followed the commands: reported path within {report.deviation_max:.2f} m "
+          "of the commanded square")
     return 0

@@ -3,8 +3,10 @@
 It publishes `geometry_msgs/Twist` on /turtle1/cmd_vel at 10 Hz (twice the rate the
 manifest lets over the link, so the link policy has work to do), calls
 /vehicle/set_pen and /turtle1/teleport_absolute through the bridge, and listens to
-/turtle1/pose, /vehicle/battery and /vehicle/log. Each command carries its sequence
-number in `linear.z` for the latency report. It exits when the script is done.
+/turtle1/pose, /vehicle/battery and /vehicle/log. It steers to the square's corners by
+the poses it receives (a `Pilot`), as a person at the surface would: open-loop commands
+alone drift, because every lost command shifts a turn. Each command carries its
+sequence number in `linear.z` for the latency report. It exits when the script is done.
 
     python -m uwgen.demo.operator [--record FILE] [--side 3.0] [--speed 0.5] [--turn 0.6]
 """
@@ -25,33 +27,82 @@ CALL_TIMEOUT = 12.0          # s the operator waits for a bridged call (the mani
 CALL_TRIES = 3               # a request or response lost on the link fails the call: try again
 
 
-@dataclass(frozen=True)
-class Segment:
-    """Drive `lin`/`ang` for `duration` seconds."""
-    lin: float
-    ang: float
-    duration: float
+def square_waypoints(start: tuple[float, float], side: float, laps: int = 1) -> list[tuple[float, float]]:
+    """Corners of a counter-clockwise square from `start`, back to `start`."""
+    x, y = start
+    corners = [(x + side, y), (x + side, y + side), (x, y + side), (x, y)]
+    return [c for _ in range(laps) for c in corners]
 
 
-def square(side: float, speed: float, turn: float, laps: int = 1, rate: float = RATE) -> list[Segment]:
-    """Legs and corners, each a whole number of command periods long (speeds adjusted to
-    match), so the commands sent at `rate` add up to exactly `side` and 90 degrees."""
-    def seg(amount: float, speed_: float, lin: bool) -> Segment:
-        n = max(1, round(amount / speed_ * rate))
-        v = amount / (n / rate)
-        return Segment(v, 0.0, n / rate) if lin else Segment(0.0, v, n / rate)
-    leg, corner = seg(side, speed, True), seg(math.pi / 2, turn, False)
-    return [s for _ in range(4 * laps) for s in (leg, corner)]
+def _wrap(a: float) -> float:
+    return math.atan2(math.sin(a), math.cos(a))
 
 
-def command_at(plan: list[Segment], elapsed: float) -> tuple[float, float] | None:
-    """The command `elapsed` seconds into the plan, or None once it is over."""
-    t = 0.0
-    for seg in plan:
-        if elapsed < t + seg.duration:
-            return seg.lin, seg.ang
-        t += seg.duration
-    return None
+def _clamp(v: float, lim: float) -> float:
+    return max(-lim, min(lim, v))
+
+
+class Pilot:
+    """Steers to waypoints with poses that arrive late, as a pilot on the surface would.
+
+    A pose received over the link shows the vehicle as it was about one link delay ago,
+    and a command sent now acts one link delay later. The pilot therefore predicts where
+    the vehicle will be when its next command lands: the last pose, moved on by the
+    commands it sent during the last `lag` seconds (which that pose cannot show yet).
+    Pure logic with explicit times, so it is tested without ROS.
+    """
+
+    def __init__(self, waypoints: list[tuple[float, float]], speed: float = 0.4,
+                 turn: float = 0.6, lag: float = 1.0, reach: float = 0.15, rate: float = RATE):
+        self.waypoints = list(waypoints)
+        self.speed, self.turn, self.lag, self.reach = speed, turn, lag, reach
+        self.dt = 1.0 / rate
+        self.index = 0
+        self.pose: tuple[float, float, float, float] | None = None   # x, y, theta, t received
+        self.sent: list[tuple[float, float, float]] = []              # (t, lin, ang)
+
+    @property
+    def done(self) -> bool:
+        return self.index >= len(self.waypoints)
+
+    def observe(self, x: float, y: float, theta: float, t: float) -> None:
+        self.pose = (x, y, theta, t)
+
+    def estimate(self, t: float) -> tuple[float, float, float] | None:
+        if self.pose is None:
+            return None
+        x, y, th, t_rx = self.pose
+        since = t_rx - self.lag
+        self.sent = [c for c in self.sent if c[0] > t - 3 * self.lag]
+        for ts, lin, ang in self.sent:
+            if ts > since:
+                th += ang * self.dt
+                x += lin * math.cos(th) * self.dt
+                y += lin * math.sin(th) * self.dt
+        return x, y, th
+
+    def command(self, t: float) -> tuple[float, float] | None:
+        """The command to send at time t: (lin, ang); None when the last waypoint is reached."""
+        est = self.estimate(t)
+        if est is None:
+            return 0.0, 0.0
+        x, y, th = est
+        while not self.done:
+            tx, ty = self.waypoints[self.index]
+            if math.hypot(tx - x, ty - y) > self.reach:
+                break
+            self.index += 1
+        if self.done:
+            return None
+        tx, ty = self.waypoints[self.index]
+        dist = math.hypot(tx - x, ty - y)
+        err = _wrap(math.atan2(ty - y, tx - x) - th)
+        if abs(err) > 0.15:                       # turn on the spot first
+            lin, ang = 0.0, _clamp(1.5 * err, self.turn)
+        else:                                     # then drive, correcting the heading
+            lin, ang = min(self.speed, 1.0 * dist + 0.05), _clamp(1.5 * err, self.turn / 2)
+        self.sent.append((t, lin, ang))
+        return lin, ang
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -61,6 +112,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--speed", type=float, default=0.4, help="m/s along the sides")
     parser.add_argument("--turn", type=float, default=0.6, help="rad/s in the corners")
     parser.add_argument("--laps", type=int, default=1)
+    parser.add_argument("--max-drive", type=float, default=120.0,
+                        help="seconds after which the square is abandoned")
     parser.add_argument("--service-wait", type=float, default=30.0,
                         help="seconds to wait for the bridged services to appear")
     args, ros_args = parser.parse_known_args(argv)
@@ -77,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init(args=["operator", *ros_args])
     node = rclpy.create_node("operator")
     log = node.get_logger()
-    plan = square(args.side, args.speed, args.turn, args.laps)
+    waypoints = square_waypoints(START[:2], args.side, args.laps)
+    pilot = Pilot(waypoints, speed=args.speed, turn=args.turn)
     cmd_pub = node.create_publisher(Twist, "/turtle1/cmd_vel", 10)
     pen = node.create_client(SetPen, "/vehicle/set_pen")
     teleport = node.create_client(TeleportAbsolute, "/turtle1/teleport_absolute")
@@ -87,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
         seen["pose"] += 1
         record("pose_rx", x=f32(p.x), y=f32(p.y), theta=f32(p.theta),
                v=f32(p.linear_velocity), w=f32(p.angular_velocity))
+        pilot.observe(p.x, p.y, p.theta, time.monotonic())
         if seen["pose"] == 1:
             log.info(f"first pose from the vehicle: x={p.x:.2f} y={p.y:.2f}")
 
@@ -149,23 +204,25 @@ def main(argv: list[str] | None = None) -> int:
         x0, y0, th0 = START
         call(teleport, TeleportAbsolute.Request(x=x0, y=y0, theta=th0),
              f"teleport_absolute to ({x0}, {y0})")
-        record("start", x=x0, y=y0, theta=th0)
-        log.info(f"driving a {args.side:g} m square at {args.speed:g} m/s, commands at {RATE:g} Hz")
-        k, t_start, leg = 0, time.monotonic(), -1
-        while True:
-            elapsed = time.monotonic() - t_start
-            cmd = command_at(plan, elapsed)
+        record("start", x=x0, y=y0, theta=th0, waypoints=waypoints)
+        spin_for(1.5)  # a pose from after the teleport
+        log.info(f"driving a {args.side:g} m square ({len(waypoints)} waypoints) at up to "
+                 f"{args.speed:g} m/s, commands at {RATE:g} Hz, steering by the reported pose")
+        k, t_start, target = 0, time.monotonic(), -1
+        while time.monotonic() - t_start < args.max_drive:
+            cmd = pilot.command(time.monotonic())
             if cmd is None:
                 break
-            seg_index = _segment_index(plan, elapsed)
-            if seg_index // 2 != leg:
-                leg = seg_index // 2
-                log.info(f"leg {leg + 1}/{len(plan) // 2}")
+            if pilot.index != target:
+                target = pilot.index
+                log.info(f"heading for waypoint {target + 1}/{len(waypoints)} {waypoints[target]}")
             k += 1
             drive(*cmd, k)
             next_t = t_start + k / RATE  # a fixed schedule: no drift from loop overhead
             while time.monotonic() < next_t:
                 rclpy.spin_once(node, timeout_sec=max(0.0, next_t - time.monotonic()))
+        if not pilot.done:
+            log.error(f"gave up after {args.max_drive:g} s at waypoint {pilot.index + 1}")
         for _ in range(int(RATE)):        # stop, and say so for a second
             k += 1
             drive(0.0, 0.0, k)
@@ -184,15 +241,6 @@ def main(argv: list[str] | None = None) -> int:
         if rclpy.ok():
             rclpy.shutdown()
     return 0
-
-
-def _segment_index(plan: list[Segment], elapsed: float) -> int:
-    t = 0.0
-    for i, seg in enumerate(plan):
-        t += seg.duration
-        if elapsed < t:
-            return i
-    return len(plan) - 1
 
 
 if __name__ == "__main__":

@@ -183,14 +183,18 @@ def build_report(out_dir: Path) -> Report:
 
 
 def paths(op: list[dict], veh: list[dict]):
-    """Commanded path (the operator's commands integrated from the start pose), the poses
-    the surface received, and the vehicle's own poses, all after the teleport."""
+    """Commanded path (the operator's waypoints from the start pose; without waypoints, its
+    commands integrated from the start pose), the poses the surface received, and the
+    vehicle's own poses, all after the teleport."""
     start = next((r for r in op if r.get("ev") == "start"), None)
     if start is None:
         return [], [], []
     x, y, th = start["x"], start["y"], start["theta"]
     cmds = [r for r in op if r.get("ev") == "cmd" and r["t"] >= start["t"]]
     commanded = [(x, y)]
+    if start.get("waypoints"):
+        commanded += [tuple(w) for w in start["waypoints"]]
+        cmds = []
     for a, b in zip(cmds, cmds[1:]):
         dt = b["t"] - a["t"]
         th += a["ang"] * dt
@@ -243,8 +247,8 @@ def format_report(report: Report) -> str:
     lines.append("")
     if report.deviation_mean is not None:
         lines.append(f"path: the poses the surface received stay within {report.deviation_max:.2f} m "
-                     f"of the commanded square (mean {report.deviation_mean:.2f} m); "
-                     + (f"the vehicle ended {report.end_error:.2f} m from the commanded end point"
+                     f"of the commanded square (mean {report.deviation_mean:.2f} m)"
+                     + (f"; the vehicle ended {report.end_error:.2f} m from the commanded end point"
                         if report.end_error is not None else ""))
     emu = report.emulator.get("nodes", {})
     for name, c in sorted(emu.items()):
@@ -264,7 +268,7 @@ def plot_paths(report: Report, path: Path, title: str = "") -> Path:
     fig, ax = plt.subplots(figsize=(6.4, 6.0), dpi=110)
     if report.commanded:
         xs, ys = zip(*report.commanded)
-        ax.plot(xs, ys, "--", color="tab:blue", lw=2, label="commanded (operator's cmd_vel)")
+        ax.plot(xs, ys, "--", color="tab:blue", lw=2, label="commanded square (operator's waypoints)")
     if report.truth:
         xs, ys = zip(*report.truth)
         ax.plot(xs, ys, "-", color="0.6", lw=1, label="vehicle (simulator, local)")
