@@ -257,14 +257,20 @@ def test_refused_offer_is_counted():
         wait_for(lambda: bridges["surface"].topic_counters[4].refused == 1, what="refusal counted")
 
 
+class PlainPose:
+    """What a generated package hands out when rclpy has no class for the type."""
+
+
 def test_type_without_rclpy_class_is_reported_not_bridged():
     missing = FakeTopicCodec(9, "/pose", None, "vehicle")
-    package = fake_package([CMD, missing])
+    plain = FakeTopicCodec(10, "/plain", PlainPose, "surface")
+    package = fake_package([CMD, missing, plain])
     links = LinkPair()
     with ros_sides("surface", "vehicle") as (surface, vehicle):
         bridges = start_bridges((surface, vehicle), package, links)
         status = bridges["surface"].status()
         assert "not importable" in status["topics"]["/pose"]["unavailable"]
+        assert "_TYPE_SUPPORT" in status["topics"]["/plain"]["unavailable"]
         assert "unavailable" not in status["topics"]["/cmd"]
 
 

@@ -58,6 +58,11 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
     import signal
     import threading
 
+    from uwgen.demo.interfaces import activate_built
+    built = activate_built()  # interfaces `uwgen demo` built (turtlesim), if any
+    if built:
+        log.info("using interfaces built in build/ros-interfaces: %s", ", ".join(built))
+
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions

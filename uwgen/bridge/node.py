@@ -30,17 +30,14 @@ responses, hence not the default).
 from __future__ import annotations
 
 import json
-import logging
 import os
 import random
 import time
 from pathlib import Path
 from typing import Any, Callable
 
-import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
@@ -156,17 +153,21 @@ class BridgeNode(Node):
                                  timeout_reply=get("service_timeout_reply"),
                                  stats_file=opts.stats_file)
 
-    def _ros_class(self, codec: Any) -> Any | None:
+    def _ros_class(self, codec: Any, service: bool = False) -> Any | None:
+        """The rclpy class of an entry, or None (logged, reported) when rclpy has no type
+        support for it here (e.g. the codec fell back to its generated plain class)."""
+        from rclpy.type_support import check_for_type_support
         try:
             cls = codec.ros_class()
-        except Exception as exc:  # ImportError, AttributeError: type not installed for rclpy
-            cls, why = None, f"{type(exc).__name__}: {exc}"
-        else:
-            why = "no rclpy class"
-        if cls is None:
+            check_for_type_support(cls)
+            if service and not hasattr(cls, "Request"):
+                raise TypeError(f"{cls!r} is not a service type")
+        except Exception as exc:  # ImportError, AttributeError, NoTypeSupportImportedException
+            why = f"{type(exc).__name__}: {exc}".split(" This might be a ROS 1")[0]
             self.unavailable[codec.name] = why
-            self._log.error(f"{codec.name} ({codec.type_name}) is not bridged: its ROS type is "
-                            f"not available to rclpy here ({why})")
+            self._log.error(f"{codec.name} ({codec.type_name}) is not bridged: rclpy has no type "
+                            f"support for it here ({why})")
+            return None
         return cls
 
     def _setup_topics(self) -> None:
@@ -190,7 +191,7 @@ class BridgeNode(Node):
     def _setup_services(self) -> None:
         for codec in self.plan.called_services:
             self.service_counters[codec.id] = ServiceCounters()
-            cls = self._ros_class(codec)
+            cls = self._ros_class(codec, service=True)
             if cls is None:
                 continue
             srv = self.create_service(cls, codec.name, self._standin(codec),
@@ -200,7 +201,7 @@ class BridgeNode(Node):
             self._called[codec.id] = codec
         for codec in self.plan.served_services:
             self.service_counters[codec.id] = ServiceCounters()
-            cls = self._ros_class(codec)
+            cls = self._ros_class(codec, service=True)
             if cls is None:
                 continue
             client = self.create_client(cls, codec.name, callback_group=self._main_group)
@@ -589,5 +590,3 @@ def _string_class() -> Any:
     from std_msgs.msg import String
     return String
 
-
-_log = logging.getLogger(__name__)

@@ -31,8 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="folder holding the generated package (default ./generated, "
                              "else the project's generated/)")
     add_link_arguments(parser)
-    parser.add_argument("ros_args", nargs=argparse.REMAINDER,
-                        help="--ros-args ... passed to rclpy (e.g. -p desert_port:=4001)")
+    parser.add_argument("--ros-args", nargs=argparse.REMAINDER, dest="ros_args", metavar="ARG",
+                        help="everything after it goes to rclpy (e.g. --ros-args -p period:=0.5); "
+                             "must come last")
 
 
 def package_name(manifest: Path) -> str:
@@ -69,5 +70,5 @@ def run(args: argparse.Namespace) -> int:
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    ros_args = [a for a in (args.ros_args or []) if a != "--"]
+    ros_args = ["--ros-args", *args.ros_args] if args.ros_args else []
     return run_bridge(package, args.side, args, ros_args)

