@@ -6,7 +6,7 @@ the interfaces of a folder like `msg_samples/turtlesim` with ROS's own generator
 `rosidl_generate_interfaces`, the C compiler) into `build/ros-interfaces/<package>/install`
 once, and reuses that build while the .msg/.srv files are unchanged (a stamp holds their
 hash). The CMake-only ROS packages the build needs are installed with pip into
-`build/ros-interfaces/tools` the first time (no compiled code; about 1 MB).
+`build/ros-interfaces/tools` the first time (no compiled code; about 11 MB).
 
     env = ensure_interfaces(Path("msg_samples/turtlesim"))   # InterfaceEnv, or raises BuildError
     env.activate()           # this process can now import turtlesim.msg
