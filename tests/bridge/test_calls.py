@@ -192,3 +192,71 @@ def test_every_response_is_delivered_once_or_counted(ops, seed):
     assert s.completed == delivered
     assert s.completed + s.late + s.duplicate + s.unknown == responses
     assert table.outstanding(7) == len(live)
+
+
+# -- per-service seq ranges (rmw_desert: 1..999) ------------------------------------------
+
+def test_a_service_can_be_given_its_own_seq_range():
+    table = make()
+    table.set_seq_range(20, 1, 999)
+    seqs = [table.begin(20, 10.0).seq for _ in range(30)]
+    assert all(1 <= s <= 999 for s in seqs)
+    assert table.seq_range(20) == (1, 999)
+    assert table.seq_range(21) == (0, 65535)  # other services keep the default
+
+
+def test_seq_range_wraps_from_last_to_first_and_never_gives_zero():
+    table = make(max_outstanding=4, seed=7)
+    table.set_seq_range(20, 1, 5)
+    seqs = []
+    for _ in range(12):
+        call = table.begin(20, 10.0)
+        seqs.append(call.seq)
+        table.complete(20, call.seq)
+    assert set(seqs) == {1, 2, 3, 4, 5}
+    assert all(b == (a % 5) + 1 for a, b in zip(seqs, seqs[1:]))
+
+
+def test_seq_range_must_hold_more_seqs_than_can_be_outstanding():
+    table = make(max_outstanding=4)
+    with pytest.raises(ValueError, match="more than 4 seqs"):
+        table.set_seq_range(20, 1, 4)
+    with pytest.raises(ValueError, match="empty"):
+        table.set_seq_range(20, 9, 3)
+    table.set_seq_range(20, 1, 5)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2000), st.integers(5, 1200), st.integers(0, 2**32),
+       st.lists(st.booleans(), max_size=60))
+def test_seqs_stay_in_their_range_and_unique_among_outstanding(first, size, seed, completes):
+    table = CallTable(ManualClock(), rng=random.Random(seed), max_outstanding=4)
+    last = first + size - 1
+    table.set_seq_range(3, first, last)
+    live: list[int] = []
+    for complete in completes:
+        if complete and live:
+            assert table.complete(3, live.pop(0)) is not None
+        elif len(live) < 4:
+            seq = table.begin(3, 10.0).seq
+            assert first <= seq <= last and seq not in live
+            live.append(seq)
+
+
+def test_server_answering_only_the_latest_call_times_the_older_ones_out():
+    """An rmw_desert server may keep only the newest request: the newest call completes,
+    the older ones time out at their deadlines and count as timeouts, and an answer that
+    still comes for one of them later counts as late."""
+    clock = ManualClock()
+    table = make(clock)
+    table.set_seq_range(20, 1, 999)
+    calls = [table.begin(20, 2.0, token=i) for i in range(3)]
+    clock.advance(0.5)
+    assert table.complete(20, calls[-1].seq) is calls[-1]
+    clock.advance(1.0)
+    assert table.expire() == []              # not before their deadline
+    clock.advance(0.5)
+    assert table.expire() == calls[:2]
+    assert table.complete(20, calls[0].seq) is None
+    stats = table.stats()[20]
+    assert (stats["completed"], stats["timeouts"], stats["late"], stats["outstanding"]) == (1, 2, 1, 0)

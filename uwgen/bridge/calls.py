@@ -9,10 +9,13 @@ silently dropped and never delivered to the wrong caller.
 It is pure bookkeeping with an injectable clock: no ROS, no threads (the bridge calls it
 from its executor thread only).
 
-Sequence numbers are per service id. Each id starts at a random value so that responses
-meant for a previous run of the bridge (still in flight over a slow link) do not match a
-new call; they then count up modulo `seq_modulus` (default 2**16, so a seq costs at most
-3 bytes on the wire), skipping any seq still outstanding.
+Sequence numbers are per service id, drawn from that service's range (`first..last`,
+both included). Each id starts at a random value in its range so that responses meant for
+a previous run of the bridge (still in flight over a slow link) do not match a new call;
+they then count up, wrapping from `last` to `first`, skipping any seq still outstanding.
+The default range is 0..seq_modulus-1 (2**16 values, so a seq costs at most 3 bytes on the
+wire); `set_seq_range()` narrows it for one service, e.g. to 1..999 toward rmw_desert
+servers (RMW_DESERT_SEQ_RANGE), whose own clients pick seqs 0..999.
 """
 from __future__ import annotations
 
@@ -24,6 +27,7 @@ from typing import Any
 from uwgen.runtime.clock import Clock, SYSTEM_CLOCK
 
 DEFAULT_SEQ_MODULUS = 1 << 16
+RMW_DESERT_SEQ_RANGE = (1, 999)   # what a call toward an rmw_desert-profile service uses
 DEFAULT_MAX_OUTSTANDING = 32
 DEFAULT_MEMORY = 256
 
@@ -88,9 +92,32 @@ class CallTable:
         self._memory = memory
         self._keep_latencies = keep_latencies
         self._next: dict[int, int] = {}
+        self._ranges: dict[int, tuple[int, int]] = {}
         self._pending: dict[int, dict[int, PendingCall]] = {}
         self._finished: dict[int, OrderedDict[int, str]] = {}
         self._stats: dict[int, CallStats] = {}
+
+    # -- configuration -----------------------------------------------------------------
+
+    def set_seq_range(self, service_id: int, first: int, last: int) -> None:
+        """Give calls of `service_id` seqs in first..last (both included).
+
+        The range must hold more seqs than can be outstanding at once, so that allocation
+        always finds a free one. Calls already outstanding keep their seqs; the next call
+        starts at a random value in the new range.
+        """
+        if not 0 <= first <= last:
+            raise ValueError(f"service id {service_id}: seq range {first}..{last} is empty "
+                             "or negative")
+        if last - first + 1 <= self._max_outstanding:
+            raise ValueError(f"service id {service_id}: seq range {first}..{last} must hold "
+                             f"more than {self._max_outstanding} seqs (the outstanding limit)")
+        self._ranges[service_id] = (first, last)
+        self._next.pop(service_id, None)
+
+    def seq_range(self, service_id: int) -> tuple[int, int]:
+        """The seqs calls of `service_id` get, as (first, last), both included."""
+        return self._ranges.get(service_id, (0, self._modulus - 1))
 
     # -- calls -------------------------------------------------------------------------
 
@@ -113,12 +140,14 @@ class CallTable:
         return call
 
     def _allocate(self, service_id: int, pending: dict[int, PendingCall]) -> int:
+        first, last = self.seq_range(service_id)
+        size = last - first + 1
         seq = self._next.get(service_id)
-        if seq is None:
-            seq = self._rng.randrange(self._modulus)
-        while seq in pending:  # terminates: fewer than seq_modulus calls are outstanding
-            seq = (seq + 1) % self._modulus
-        self._next[service_id] = (seq + 1) % self._modulus
+        if seq is None or not first <= seq <= last:
+            seq = first + self._rng.randrange(size)
+        while seq in pending:  # terminates: the range holds more seqs than max_outstanding
+            seq = first + (seq - first + 1) % size
+        self._next[service_id] = first + (seq - first + 1) % size
         return seq
 
     def complete(self, service_id: int, seq: int) -> PendingCall | None:
