@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import re
 import threading
-from typing import Callable
+from typing import Any, Callable, Iterable
 
 from uwgen.interop.beacons import (
     DISCOVERY_ID, DISCOVERY_REQUEST_ID, Beacon, BeaconError, Entity, decode_beacon,
@@ -53,21 +53,35 @@ def bridge_beacons(manifest: Manifest, side: str, node_name: str | None = None,
     if side not in manifest.sides:
         raise KeyError(f"side {side!r} is not in manifest {manifest.network!r} "
                        f"(sides: {', '.join(manifest.sides) or 'none'})")
+    return beacons_for(manifest.network, side, manifest.topics, manifest.services,
+                       node_name=node_name, namespace=namespace)
+
+
+def beacons_for(network: str, side: str, topics: Iterable[Any], services: Iterable[Any],
+                node_name: str | None = None, namespace: str = "/") -> list[Beacon]:
+    """The beacons of `side` for these topics and services, in the order given.
+
+    Entries are duck-typed so that both the manifest (`Topic`, `Service`) and a generated
+    package's codecs (`TopicCodec`, `ServiceCodec`, which is all a running bridge has)
+    can be announced: topics need `name`, `type_name`, `publisher`, `profile`; services
+    `name`, `type_name`, `server`, `profile`. Raises BeaconError when a beacon would not
+    fit what rmw_desert receives (names too long).
+    """
     node = node_name or default_node_name(side)
     beacons: list[Beacon] = []
 
     def add(entity: Entity, name: str, type_name: str) -> None:
-        beacon = Beacon(node, namespace, entity, derive_gid(manifest.network, side, entity, name),
+        beacon = Beacon(node, namespace, entity, derive_gid(network, side, entity, name),
                         name, rmw_type_name(type_name, entity), False)
         encode_beacon(beacon)  # refuse now, not at the first discovery request
         beacons.append(beacon)
 
-    for topic in manifest.topics:
-        if topic.profile == PROFILE:
+    for topic in topics:
+        if getattr(topic, "profile", None) == PROFILE:
             add(Entity.PUBLISHER if topic.publisher == side else Entity.SUBSCRIBER,
                 topic.name, topic.type_name)
-    for service in manifest.services:
-        if service.profile == PROFILE:
+    for service in services:
+        if getattr(service, "profile", None) == PROFILE:
             add(Entity.SERVICE if service.server == side else Entity.CLIENT,
                 service.name, service.type_name)
     return beacons
@@ -117,7 +131,11 @@ class DiscoveryAgent:
         """Send all beacons (and first a discovery request when `request`).
 
         Also for a bridge whose link reconnected: the far side may have restarted.
+        Does nothing after `stop()`: announcing then would bring back entities that the
+        disconnect beacons just withdrew.
         """
+        if self._stopped:
+            return
         if request:
             self._offer(DISCOVERY_REQUEST_ID, encode_discovery_request(), "requests_sent")
         for payload in self._payloads:
