@@ -125,6 +125,8 @@ class FakeLink:
         self.delay = 0.0           # seconds before delivery
         self.duplicate = False     # deliver every payload twice
         self.started = self.stopped = False
+        self.connects = 1          # what stats() reports as the connection's connect count
+        self.offered_after_stop = 0
         self._q: queue.Queue = queue.Queue()
         self._thread = threading.Thread(target=self._deliver_loop, name=f"fakelink-{name}",
                                         daemon=True)
@@ -135,6 +137,8 @@ class FakeLink:
     def offer(self, key: int, payload: bytes) -> bool:
         if key not in self.channels or not self.accept:
             return False
+        if self.stopped:
+            self.offered_after_stop += 1
         self.offers.append((key, payload))
         if self.peer is not None and not self.mute:
             for _ in range(2 if self.duplicate else 1):
@@ -168,9 +172,13 @@ class FakeLink:
         counts: dict[int, int] = {}
         for key, _ in self.offers:
             counts[key] = counts.get(key, 0) + 1
-        return {"connected": True,
+        return {"connected": True, "connection": {"connects": self.connects},
                 "channels": {k: {"offered": counts.get(k, 0), "sent": counts.get(k, 0)}
                              for k in self.channels}}
+
+    def offered(self, key: int) -> list[bytes]:
+        """Payloads offered on channel `key`, in order."""
+        return [p for k, p in list(self.offers) if k == key]
 
 
 class LinkPair:

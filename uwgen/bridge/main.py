@@ -118,6 +118,12 @@ def _summary(status: dict) -> str:
             parts.append(f"{name} calls {s['local_calls']} ok {s['responses']} timeouts {s['timeouts']}")
         else:
             parts.append(f"{name} requests {s['requests']} replies {s['replies']}")
+    discovery = status.get("discovery")
+    if discovery:
+        remote = discovery.get("remote", [])
+        nodes = sorted({e["node"] for e in remote})
+        parts.append(f"rmw_desert remote graph: {len(remote)} entities"
+                     + (f" of {', '.join(nodes)}" if nodes else ""))
     return "; ".join(parts)
 
 

@@ -16,6 +16,16 @@ back over the link. The bridge watches its outgoing topics for publishers that b
 another uwgen bridge node and, while one exists, drops (and counts as `echo_guard`) what
 it takes on that topic, with one error in the log. Run each side in its own domain.
 
+rmw_desert peers (wire-format.md 6 and 6.1). When any manifest entry is in profile
+`rmw_desert`, the bridge also runs `uwgen.interop.discovery.DiscoveryAgent` on link keys
+1 and 2: it asks for remote beacons and announces its own at start and again whenever its
+link reconnects (the far side may have restarted), answers every discovery request with
+all its beacons, keeps what it hears in a RemoteGraph (in ~/status under `discovery`; the
+graph logs one line per change) and withdraws its entities with disconnect beacons at
+close, before the link stops. Calls toward an rmw_desert-profile service use seqs 1..999;
+an rmw_desert server may answer only the latest of several outstanding requests, and the
+older calls then time out at their deadline like any unanswered call (counted).
+
 Failed bridged calls (see docs/demo.md, "Service calls"). ROS 2 services have no error
 reply and rclpy cannot hand an exception to a remote client's future. When a bridged call
 gets no response within the manifest timeout, or its request cannot be queued, the
@@ -32,6 +42,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import threading
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -41,11 +52,12 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
-from uwgen.bridge.calls import CallTable, CallTableFull
+from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
 from uwgen.bridge.counters import (BridgeCounters, DropReporter, ServiceCounters, TopicCounters,
                                    as_dict)
 from uwgen.bridge.inbox import Inbox
-from uwgen.bridge.plan import TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan
+from uwgen.bridge.plan import (TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan, PlanError,
+                               is_rmw_desert)
 from uwgen.manifest.model import Qos
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 
@@ -54,6 +66,8 @@ BRIDGE_NODE_PREFIX = "uwgen_bridge_"
 EXPIRY_TICK = 0.05       # seconds between checks of call deadlines
 GRAPH_TICK = 1.0         # seconds between checks for other bridges in this ROS graph
 DRAIN_BATCH = 256        # payloads handled per guard-condition callback
+LINK_TICK = 0.25         # seconds between checks for a reconnected link (discovery only)
+FLUSH_POLL = 0.01        # seconds between looks at the link while disconnect beacons leave
 
 LinkFactory = Callable[..., Any]
 
@@ -83,7 +97,8 @@ class BridgeNode(Node):
     def __init__(self, plan: BridgePlan, options: BridgeOptions | None = None, *,
                  link_factory: LinkFactory = default_link_factory, clock: Clock = SYSTEM_CLOCK,
                  context: Any = None, node_name: str | None = None,
-                 rng: random.Random | None = None, start_link: bool = True):
+                 rng: random.Random | None = None, start_link: bool = True,
+                 flush_timeout: float | None = None):
         super().__init__(node_name or node_name_for(plan), context=context)
         self.plan = plan
         self.options = self._declare_parameters(options or plan.defaults)
@@ -103,6 +118,9 @@ class BridgeNode(Node):
         self._calls = CallTable(clock, rng=rng)
         self._serving: dict[int, dict[int, tuple[Future, float]]] = {}
         self._closed = False
+        self.discovery: Any = None          # DiscoveryAgent when any entry is rmw_desert
+        self._link_connects = 0
+        self._flush_timeout = 0.0
 
         self._wake = self.create_guard_condition(self._drain_inbox, callback_group=self._main_group)
         self.inbox = Inbox(self._wake.trigger)
@@ -111,7 +129,8 @@ class BridgeNode(Node):
         self._outgoing: dict[int, Any] = {}               # id -> codec
         self._called: dict[int, Any] = {}                 # id -> codec (stand-in service here)
         self._served: dict[int, tuple[Any, Any]] = {}     # id -> (codec, client)
-        self._subscriptions: list[Any] = []
+        # Not `_subscriptions`: that is rclpy Node's own list, which destroy_node() empties.
+        self._bridge_subscriptions: list[Any] = []
         self._standins: list[Any] = []
         self._setup_topics()
         self._setup_services()
@@ -122,6 +141,7 @@ class BridgeNode(Node):
                                  clock=clock, name=plan.side)
         for key, policy, name in plan.channels():
             self.link.add_channel(key, policy, name)
+        self.discovery = self._setup_discovery(flush_timeout)
 
         self._status_pub = self.create_publisher(_string_class(), "~/status", 10)
         self.create_timer(EXPIRY_TICK, self._expire, callback_group=self._main_group)
@@ -132,7 +152,14 @@ class BridgeNode(Node):
         self._log.info(f"{plan.describe()}; DESERT {self.options.host}:{self.options.port}, "
                        f"{link_cfg.max_read_length} B every {link_cfg.period} s")
         if start_link:
-            self.link.start()
+            self.start()
+
+    def start(self) -> None:
+        """Start the link (and discovery: request and beacons wait in the link's queues
+        until it connects). Called by the constructor unless `start_link=False`."""
+        if self.discovery is not None:
+            self.discovery.start()
+        self.link.start()
 
     # -- set-up --------------------------------------------------------------------------
 
@@ -177,7 +204,7 @@ class BridgeNode(Node):
             if cls is None:
                 continue
             self._outgoing[codec.id] = codec
-            self._subscriptions.append(self.create_subscription(
+            self._bridge_subscriptions.append(self.create_subscription(
                 cls, codec.name, self._taker(codec), qos_profile(codec.qos),
                 callback_group=self._main_group))
         for codec in self.plan.incoming_topics:
@@ -199,6 +226,8 @@ class BridgeNode(Node):
             _allow_no_response(srv)
             self._standins.append(srv)
             self._called[codec.id] = codec
+            if is_rmw_desert(codec):
+                self._calls.set_seq_range(codec.id, *RMW_DESERT_SEQ_RANGE)
         for codec in self.plan.served_services:
             self.service_counters[codec.id] = ServiceCounters()
             cls = self._ros_class(codec, service=True)
@@ -207,6 +236,67 @@ class BridgeNode(Node):
             client = self.create_client(cls, codec.name, callback_group=self._main_group)
             self._served[codec.id] = (codec, client)
             self._serving[codec.id] = {}
+
+    def _setup_discovery(self, flush_timeout: float | None) -> Any:
+        """The DiscoveryAgent on link keys 1 and 2, or None when no entry is rmw_desert."""
+        if not self.plan.uses_rmw_desert:
+            return None
+        from uwgen.interop.beacons import DISCOVERY_TOPIC, DISCOVERY_REQUEST_TOPIC, BeaconError
+        from uwgen.interop.discovery import DiscoveryAgent, beacons_for, discovery_policies
+        plan = self.plan
+        taken = sorted({e.id for e in (*plan.topics, *plan.services)} & {1, 2})
+        if taken:
+            raise PlanError(f"ids {taken} are rmw_desert's discovery topics but the manifest "
+                            f"gives them to its own entries")
+        # Entries rclpy cannot carry here are not bridged, so not announced either: an
+        # rmw_desert client would otherwise wait for a server that never answers.
+        bridged = lambda entries: [e for e in entries if e.name not in self.unavailable]  # noqa: E731
+        try:
+            beacons = beacons_for(plan.network, plan.side, bridged(plan.topics),
+                                  bridged(plan.services))
+        except BeaconError as exc:
+            raise PlanError(f"cannot announce this side to rmw_desert nodes: {exc}") from None
+        names = {1: DISCOVERY_TOPIC, 2: DISCOVERY_REQUEST_TOPIC}
+        for key, policy in discovery_policies(len(beacons)).items():
+            self.link.add_channel(key, policy, names.get(key))
+        agent = DiscoveryAgent(beacons, send=self.link.offer, clock=self._uwclock)
+        self._link_connects = 0
+        self._flush_timeout = (self._default_flush_timeout(beacons)
+                               if flush_timeout is None else float(flush_timeout))
+        self.create_timer(LINK_TICK, self._check_link, callback_group=self._main_group)
+        self._log.info(f"rmw_desert discovery on: announcing {len(beacons)} entities as node "
+                       f"{beacons[0].node_name if beacons else '-'} (link keys 1 and 2)")
+        return agent
+
+    def _default_flush_timeout(self, beacons: list[Any]) -> float:
+        """Wall-clock bound on waiting for the disconnect beacons to leave at close: the
+        link's time for what the discovery queue can hold then (two rounds of beacons,
+        then the disconnect beacons; 4 bytes of framing each), plus two periods; at most
+        10 s. Only a bound: close() goes on as soon as the queue is empty."""
+        from uwgen.interop.beacons import encode_beacon
+        cfg = self.options.link
+        size = sum(2 * (len(encode_beacon(b)) + 4) + len(encode_beacon(b.gone())) + 4
+                   for b in beacons)
+        writes = -(-size // max(1, cfg.max_read_length))
+        return min(10.0, (writes + 2) * cfg.period * 1.1)
+
+    def _check_link(self) -> None:
+        """Announce again (with a request) when the link has reconnected since last look.
+
+        The first connection only carries what start() queued; any later one may face a
+        restarted far side that has forgotten us, as rmw_desert nodes ask only at start-up.
+        """
+        try:
+            connects = _connects(self.link.stats())
+        except Exception:  # the link is shutting down
+            return
+        if connects is None:
+            return
+        if connects > max(self._link_connects, 1) and self.discovery is not None:
+            self._log.info("link reconnected: asking remote nodes for their beacons and "
+                           "announcing ours again")
+            self.discovery.announce(request=True)
+        self._link_connects = max(self._link_connects, connects)
 
     # -- outgoing topics -------------------------------------------------------------------
 
@@ -251,6 +341,8 @@ class BridgeNode(Node):
     def dispatch(self, payload: bytes) -> None:
         """Route one complete payload from the link (executor thread)."""
         from uwgen.runtime.codec import DecodeError, peek_header
+        if self.discovery is not None and self.discovery.handle(payload):
+            return  # kind 0 on id 1 or 2: a beacon (to the graph) or a discovery request
         try:
             kind, ident = peek_header(payload)
         except DecodeError:
@@ -476,12 +568,26 @@ class BridgeNode(Node):
             services[codec.name] = entry
         self.counters.inbox_overflow = self.inbox.overflow
         return {"network": self.plan.network, "side": self.plan.side, "time": time.time(),
+                "discovery": self.discovery_status(),
                 "desert": {"host": self.options.host, "port": self.options.port,
                            "max_read_length": self.options.link.max_read_length,
                            "period": self.options.link.period},
                 "topics": topics, "services": services,
                 "bridge": as_dict(self.counters), "echo_hazards": dict(self.echo_hazards),
                 "link": link_stats}
+
+    def discovery_status(self) -> dict | None:
+        """What this bridge announces to rmw_desert nodes and the remote graph it heard
+        (None when no entry is in profile rmw_desert)."""
+        agent = self.discovery
+        if agent is None:
+            return None
+        return {
+            "announced": [{"node": b.node_name, "entity": b.entity.name.lower(),
+                           "topic": b.topic, "type": b.type_name} for b in agent.beacons],
+            "counters": agent.stats(),
+            "remote": agent.graph.as_dict()["entities"],
+        }
 
     def publish_status(self) -> dict:
         status = self.status()
@@ -542,6 +648,12 @@ class BridgeNode(Node):
         if self._closed:
             return {}
         self._closed = True
+        if self.discovery is not None:
+            self.discovery.stop()          # disconnect beacons, while the link still runs
+            if not self._flush_discovery():
+                self._log.warning(f"disconnect beacons not all sent within "
+                                  f"{self._flush_timeout:g} s; remote rmw_desert nodes may "
+                                  "keep listing this bridge's entities")
         try:
             self.link.stop()
         except Exception as exc:
@@ -549,11 +661,42 @@ class BridgeNode(Node):
         self.inbox.close()
         status = self.status()
         self._write_stats(json.dumps(status, sort_keys=True, default=str))
-        try:
-            self.destroy_node()
-        except Exception as exc:  # rclpy after its context was shut down
-            self._log.debug(f"destroy_node: {exc}")
+        if self.context.ok():
+            self.destroy_node()   # raises only on a bug: let it be seen
+        else:
+            try:
+                self.destroy_node()
+            except Exception as exc:  # rclpy after its context was shut down
+                self._log.debug(f"destroy_node after shutdown: {exc}")
         return status
+
+    def _flush_discovery(self) -> bool:
+        """Wait (wall clock, bounded by flush_timeout) until the link has written every
+        queued beacon; True when it has, or when it is not connected (nothing can leave).
+
+        Wall clock on purpose: shutdown must end whatever an injected clock does."""
+        deadline = time.monotonic() + self._flush_timeout
+        waiter = threading.Event()
+        while True:
+            try:
+                stats = self.link.stats()
+            except Exception:
+                return False
+            if not stats.get("connected"):
+                return True
+            queued = _channel_stats(stats).get(1, {}).get("queued", 0)
+            connection = getattr(self.link, "connection", None)
+            cut = bool(getattr(getattr(connection, "outbox", None), "pending", False))
+            if not queued and not cut:
+                if connection is not None:
+                    # The last write is in the socket; give DESERT one period to read it
+                    # before the socket closes.
+                    waiter.wait(min(self.options.link.period,
+                                    max(0.0, deadline - time.monotonic())))
+                return True
+            if time.monotonic() >= deadline:
+                return False
+            waiter.wait(FLUSH_POLL)
 
 
 def _allow_no_response(srv: Any) -> None:
@@ -569,6 +712,14 @@ def _allow_no_response(srv: Any) -> None:
         if response is not None:
             original(response, header)
     srv.send_response = send_response
+
+
+def _connects(link_stats: Any) -> int | None:
+    """How many times the link has connected (None when its stats do not say)."""
+    if not isinstance(link_stats, dict):
+        return None
+    value = (link_stats.get("connection") or {}).get("connects")
+    return value if isinstance(value, int) else None
 
 
 def _channel_stats(link_stats: Any) -> dict[int, dict]:

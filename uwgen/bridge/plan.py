@@ -26,6 +26,8 @@ TIMEOUT_REPLY_NONE = "none"        # send no response: the client's own timeout 
 TIMEOUT_REPLY_DEFAULT = "default"  # send a default-constructed response (and log the error)
 TIMEOUT_REPLIES = (TIMEOUT_REPLY_NONE, TIMEOUT_REPLY_DEFAULT)
 
+RMW_DESERT = "rmw_desert"   # the profile whose entries need discovery and seqs 1..999
+
 
 class PlanError(Exception):
     """The bridge cannot be set up as asked (unknown side, bad option): exit status 2."""
@@ -98,6 +100,21 @@ class BridgePlan:
         chans += [(s.id, s.policy, s.name) for s in (*self.called_services, *self.served_services)]
         return sorted(chans, key=lambda c: c[0])
 
+    @property
+    def topics(self) -> list[Any]:
+        """Every topic of the manifest, by id."""
+        return sorted((*self.outgoing_topics, *self.incoming_topics), key=lambda t: t.id)
+
+    @property
+    def services(self) -> list[Any]:
+        """Every service of the manifest, by id."""
+        return sorted((*self.called_services, *self.served_services), key=lambda s: s.id)
+
+    @property
+    def uses_rmw_desert(self) -> bool:
+        """True when some entry is in profile rmw_desert: the bridge then runs discovery."""
+        return any(is_rmw_desert(e) for e in (*self.topics, *self.services))
+
     def options(self, host: str | None = None, port: int | None = None,
                 max_read_length: int | None = None, period: float | None = None,
                 **extra: Any) -> BridgeOptions:
@@ -117,6 +134,11 @@ class BridgePlan:
         return (f"network {self.network} side {self.side}: sends {names(self.outgoing_topics)}; "
                 f"receives {names(self.incoming_topics)}; calls {names(self.called_services)}; "
                 f"serves {names(self.served_services)}")
+
+
+def is_rmw_desert(entry: Any) -> bool:
+    """Whether a codec is in profile rmw_desert (codecs without `profile` are native)."""
+    return getattr(entry, "profile", "native") == RMW_DESERT
 
 
 def import_package(name: str, package_dir: Path | None = None) -> ModuleType:
