@@ -3,8 +3,10 @@
 The surface runs ROS nodes and the uwgen bridge of side `surface` (in this process, on
 rclpy); the vehicle is the independent rmw_desert peer (tests/peers/rmw_desert_peer.py)
 on the emulator's vehicle port. Messages and services cross in rmw_desert's format in
-both directions. The discovery test (rmw_desert's wait_for_service finding a service
-that the bridge stands in for) needs the bridge to run uwgen.interop.discovery.
+both directions, and discovery works both ways: rmw_desert's wait_for_service finds a
+service the bridge stands in for, the bridge's ~/status lists what the peer announced,
+and the bridge withdraws its entities when it closes and announces them again when its
+link reconnects.
 """
 from __future__ import annotations
 
@@ -85,12 +87,7 @@ class Surface:
         import rclpy
         for node in (self.node, self.bridge):
             self.executor.remove_node(node)
-        try:
-            self.bridge.close()
-        except ValueError:
-            # BridgeNode's own `_subscriptions` list shadows rclpy Node's (reported); the
-            # link is stopped before destroy_node fails, which is all this test needs.
-            pass
+        self.bridge.close()
         self.node.destroy_node()
         self.executor.shutdown(timeout_sec=1.0)
         if self.context.ok():
@@ -177,13 +174,11 @@ def test_messages_and_calls_cross_between_bridge_and_rmw_desert_peer(package):
     assert [(c["linear"]["x"], round(c["angular"]["z"], 5)) for c in cmds] == [(1.5, 1.8), (-2.25, 1.8)]
     request = next(e for e in events if e["event"] == "request")
     assert request["data"] == {"data": True}
+    assert 1 <= request["seq"] <= 999      # the bridge as a client of an rmw_desert server
     response = next(e for e in events if e["event"] == "response")
     assert response["data"] == {"success": True, "message": "reset done"}
 
 
-@pytest.mark.xfail(strict=True, reason="the bridge does not run uwgen.interop.discovery yet "
-                   "(issue 5 item 3): no beacons, so rmw_desert's wait_for_service never "
-                   "returns; remove this marker once it does")
 def test_rmw_desert_wait_for_service_finds_the_bridge(package):
     from std_srvs.srv import Trigger
 
@@ -195,11 +190,18 @@ def test_rmw_desert_wait_for_service_finds_the_bridge(package):
         try:
             surface.node.create_service(
                 Trigger, "/reset", lambda req, resp: (setattr(resp, "success", True), resp)[-1])
-            time.sleep(0.5)
+            wait_for(lambda: surface.bridge.link.stats().get("connected"), what="bridge link")
+            # seq 0: rmw_desert clients pick 0..999, and the bridge must echo even 0.
             peer = start_peer(emu.port("vehicle"), conf, "--call", "/reset=std_srvs/srv/Trigger",
                               "--wait-for-service", "--sub", "/cmd=geometry_msgs/msg/Twist",
-                              "--until-done", "--duration", "5")
+                              "--seq", "0", "--until-done", "--duration", "5")
             events = peer_events(peer)
+            # The peer's beacons, then its disconnect beacons at exit, reached the bridge.
+            heard = surface.bridge.discovery.stats()
+            assert heard["graph"]["added"] == 2 and heard["requests_heard"] >= 1
+            wait_for(lambda: surface.bridge.status()["discovery"]["remote"] == [],
+                     what="the peer's entities withdrawn")
+            assert surface.bridge.discovery.stats()["graph"]["removed"] == 2
         finally:
             surface.close()
     beacons = {(e["entity"], e["topic"], e["type"]) for e in events if e["event"] == "beacon"}
@@ -208,3 +210,57 @@ def test_rmw_desert_wait_for_service_finds_the_bridge(package):
     assert ("client", "/arm", "std_srvs__srv/SetBool_Request") in beacons
     assert ("subscriber", "/state", "std_msgs__msg/String") in beacons
     assert events[-1]["ok"] and events[-1]["calls"] == {"/reset": True}
+    called = next(e for e in events if e["event"] == "called")
+    response = next(e for e in events if e["event"] == "response")
+    assert called["seq"] == response["seq"] == 0
+
+
+def test_bridge_status_lists_the_peer_and_its_close_withdraws_the_bridge(package):
+    from uwgen.interop.discovery import default_node_name
+
+    from uwgen.emulator import run_emulator
+
+    pkg, conf = package
+    with run_emulator(scenario()) as emu:
+        surface = Surface(pkg, emu.port("surface"))
+        closed = False
+        try:
+            wait_for(lambda: surface.bridge.link.stats().get("connected"), what="bridge link")
+            peer = start_peer(emu.port("vehicle"), conf, "--sub", "/cmd=geometry_msgs/msg/Twist",
+                              "--serve", "/arm=std_srvs/srv/SetBool", "--duration", "3")
+            remote = lambda: {(e["node"], e["entity"], e["topic"])  # noqa: E731
+                              for e in surface.bridge.status()["discovery"]["remote"]}
+            wait_for(lambda: len(remote()) == 2, what="the peer's entities in ~/status")
+            assert remote() == {("/vehicle_app", "subscriber", "/cmd"),
+                                ("/vehicle_app", "service", "/arm")}
+            surface.close()
+            closed = True
+            events = peer_events(peer)
+        finally:
+            if not closed:
+                surface.close()
+    node = default_node_name("surface")
+    announced = {e["gid"]: e for e in events
+                 if e["event"] == "beacon" and not e["disconnect"] and e["node"] == node}
+    withdrawn = {e["gid"] for e in events
+                 if e["event"] == "beacon" and e["disconnect"] and e["node"] == node}
+    assert len(announced) == 4 and withdrawn == set(announced)
+
+
+def test_bridge_asks_again_and_announces_again_after_its_link_reconnects(package):
+    from uwgen.emulator import run_emulator
+
+    pkg, _ = package
+    with run_emulator(scenario()) as emu:
+        surface = Surface(pkg, emu.port("surface"))
+        try:
+            chans = lambda: surface.bridge.link.stats()["channels"]  # noqa: E731
+            wait_for(lambda: chans()[2]["sent"] >= 1 and chans()[1]["sent"] >= 4,
+                     what="start-up request and beacons sent")
+            emu.restart()
+            wait_for(lambda: surface.bridge.link.stats()["connection"]["reconnects"] >= 1,
+                     what="the reconnect")
+            wait_for(lambda: chans()[2]["sent"] >= 2 and chans()[1]["sent"] >= 8,
+                     what="request and beacons sent again")
+        finally:
+            surface.close()
