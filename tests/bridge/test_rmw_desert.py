@@ -310,3 +310,27 @@ def test_final_summary_names_the_remote_graph():
     assert _summary({"discovery": {"remote": remote}}).endswith(
         "rmw_desert remote graph: 2 entities of /vehicle_app")
     assert "remote graph" not in _summary({"discovery": None})
+
+
+def test_close_waits_for_a_stuck_link_only_up_to_its_flush_timeout():
+    """A link that never drains its discovery queue does not hold shutdown hostage."""
+    from .fakes import FakeLink
+
+    class StuckLink(FakeLink):
+        def stats(self):
+            stats = super().stats()
+            stats["channels"][1]["queued"] = 3
+            return stats
+
+    stuck = []
+
+    def factory(**kw):
+        stuck.append(StuckLink(**kw))
+        return stuck[-1]
+    with ros_sides("surface") as (surface,):
+        plan = BridgePlan.from_package(fake_package([CMD]), "surface")
+        bridge = surface.add(BridgeNode(plan, plan.options(status_period=0), link_factory=factory,
+                                        context=surface.context, flush_timeout=0.05))
+        surface.executor.remove_node(bridge)
+        bridge.close()
+        assert stuck[0].stopped and not bridge._flush_discovery()  # gave up, did not hang
