@@ -129,6 +129,7 @@ def test_messages_and_calls_cross_between_bridge_and_rmw_desert_peer(package):
     from std_srvs.srv import SetBool, Trigger
 
     from uwgen.emulator import run_emulator
+    from uwgen.interop.beacons import Entity
 
     pkg, conf = package
     with run_emulator(scenario()) as emu:
@@ -153,7 +154,10 @@ def test_messages_and_calls_cross_between_bridge_and_rmw_desert_peer(package):
             pub = surface.node.create_publisher(Twist, "/cmd", 10)
             client = surface.node.create_client(SetBool, "/arm")
             assert client.wait_for_service(timeout_sec=10)
-            time.sleep(0.5)  # the peer connects (DESERT drops bytes for a node without client)
+            # The peer is connected once its beacons arrived (DESERT drops bytes for a node
+            # without client, so publishing earlier could lose the commands).
+            graph = surface.bridge.discovery.graph
+            wait_for(lambda: graph.has(Entity.SERVICE, "/arm"), what="the peer's /arm beacon")
             for x in (1.5, -2.25):
                 msg = Twist()
                 msg.linear.x = x
@@ -216,9 +220,8 @@ def test_rmw_desert_wait_for_service_finds_the_bridge(package):
 
 
 def test_bridge_status_lists_the_peer_and_its_close_withdraws_the_bridge(package):
-    from uwgen.interop.discovery import default_node_name
-
     from uwgen.emulator import run_emulator
+    from uwgen.interop.discovery import default_node_name
 
     pkg, conf = package
     with run_emulator(scenario()) as emu:
@@ -227,7 +230,7 @@ def test_bridge_status_lists_the_peer_and_its_close_withdraws_the_bridge(package
         try:
             wait_for(lambda: surface.bridge.link.stats().get("connected"), what="bridge link")
             peer = start_peer(emu.port("vehicle"), conf, "--sub", "/cmd=geometry_msgs/msg/Twist",
-                              "--serve", "/arm=std_srvs/srv/SetBool", "--duration", "3")
+                              "--serve", "/arm=std_srvs/srv/SetBool", "--duration", "2")
             remote = lambda: {(e["node"], e["entity"], e["topic"])  # noqa: E731
                               for e in surface.bridge.status()["discovery"]["remote"]}
             wait_for(lambda: len(remote()) == 2, what="the peer's entities in ~/status")
