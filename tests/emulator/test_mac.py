@@ -168,3 +168,18 @@ def test_a_slow_modem_backs_up_into_the_mac_queue_and_counts_it():
     assert c["queue_bytes"] == 64 * (20 - c["packets_sent"])
     core.run_until_idle()
     assert core.counters("b")["packets_delivered"] == 20
+
+
+@pytest.mark.parametrize("distance", [15.0, 123.456, 777.7, 1499.99, 2345.678])
+@pytest.mark.parametrize("bitrate", [4800.0, 9600.0, 1234.5])
+def test_back_to_back_packets_of_one_sender_never_collide_by_rounding(distance, bitrate):
+    """A packet sent the instant the previous one ends must not overlap it at the receiver
+    (arrival ends and starts were once computed by sums that rounded differently)."""
+    scen = Scenario(nodes=[NodeSpec("a", dest="b"), NodeSpec("b", position=(distance, 0, 0))],
+                    period=0.001, bitrate=bitrate, tdma=TdmaSpec(frame=200.0, guard=0.1))
+    core = EmulatorCore(scen)
+    core.client_attached("b", 0.0)
+    core.client_data("a", 0.0, bytes(64 * 200))
+    out = core.run_until_idle()
+    assert core.counters("b")["lost_collision"] == 0
+    assert len(out) == 200

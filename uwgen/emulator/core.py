@@ -391,7 +391,11 @@ class EmulatorCore:
                 audible = mean_snr >= snr.threshold_db
             else:
                 faded, audible = math.inf, True
-            arr = _Arrival(pkt, r, start, start + duration, self._power[n.name, r], faded, audible)
+            # The end is the sender's tx_end plus the delay: the same expression as the start
+            # of a packet it sends right after, so back-to-back packets never overlap by a
+            # rounding error.
+            end = n.tx_end + self._delay[n.name, r]
+            arr = _Arrival(pkt, r, start, end, self._power[n.name, r], faded, audible)
             self._push(start, _RX_START, arr)
         self._push(n.tx_end, _TX_END, n)
         if log.isEnabledFor(logging.DEBUG):
