@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from uwgen.codegen.ir import (
     Absent, Bool, BoolArray, ByteScalar, CodecType, Filler, MessageArray, Node, Number,
-    NumberArray, Octets, Text, TextArray,
+    NumberArray, NumberRun, Octets, Text, TextArray, segments,
 )
 from uwgen.idl.model import ArrayKind
 
@@ -96,26 +96,15 @@ class Lowering:
                     declare(child)
 
         declare(ct.root)
-        run: list[Node] = []
-
-        def flush() -> None:
-            if not run:
-                return
-            fmt = "<" + "".join(n.encoding.code for n in run)
-            st = self.consts.struct(fmt)
-            names = self.consts.names(tuple(n.path for n in run))
-            values = ", ".join(access(n.path, n.name) for n in run)
-            body.append(f"out += _numbers({st}, ({values},), {names})")
-            run.clear()
-
-        for leaf in ct.root.leaves():
-            enc = leaf.encoding
-            if isinstance(enc, Number):
-                run.append(leaf)
-                continue
-            flush()
-            body.extend(self._encode_leaf(leaf, enc, access(leaf.path, leaf.name) if leaf.name else "", ct.suffix))
-        flush()
+        for seg in segments(ct.root):
+            if isinstance(seg, NumberRun):
+                st = self.consts.struct("<" + "".join(n.encoding.code for n in seg.leaves))
+                names = self.consts.names(tuple(n.path for n in seg.leaves))
+                values = ", ".join(access(n.path, n.name) for n in seg.leaves)
+                body.append(f"out += _numbers({st}, ({values},), {names})")
+            else:
+                expr = access(seg.path, seg.name) if seg.name else ""
+                body.extend(self._encode_leaf(seg, seg.encoding, expr, ct.suffix))
         return Function(func_name("enc", ct.name, ct.suffix), "m, out",
                         f"Append the CBOR items of a {ct.full_name} ({ct.profile} profile) to `out`.",
                         body or ["pass"])
@@ -207,11 +196,7 @@ class Lowering:
             counter[0] += 1
             return f"x{counter[0]}"
 
-        run: list[Node] = []
-
-        def flush() -> None:
-            if not run:
-                return
+        def number_run(run: tuple[Node, ...]) -> None:
             names = [fresh() for _ in run]
             k = len(run)
             first = repr(run[0].path)
@@ -237,21 +222,18 @@ class Lowering:
             for var, path in f32:
                 body.append(f"if abs({var}) > {F32_MAX} and abs({var}) != _INF: "
                             f"raise _bad_item({path!r}, 'a float32', {var})")
-            run.clear()
 
-        for leaf in ct.root.leaves():
-            enc = leaf.encoding
-            if isinstance(enc, Number):
-                run.append(leaf)
+        for leaf in segments(ct.root):
+            if isinstance(leaf, NumberRun):
+                number_run(leaf.leaves)
                 continue
-            flush()
+            enc = leaf.encoding
             if isinstance(enc, Absent):
                 body.append(f"# {leaf.path}: not on the wire ({enc.why})")
                 continue
             var = fresh()
             body.extend(self._decode_leaf(leaf, enc, var, ct.suffix))
             value_of[leaf.path] = self._ros_value(enc, var)
-        flush()
         body.append(f"return {self._construct(ct.root, value_of)}, i")
         return Function(func_name("dec", ct.name, ct.suffix), "v, i, C",
                         f"Read a {ct.full_name} ({ct.profile} profile) from items `v` at `i`; "

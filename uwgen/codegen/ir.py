@@ -185,6 +185,29 @@ class CodecType:
         return "" if self.profile == NATIVE else "_rmw"
 
 
+@dataclass(frozen=True)
+class NumberRun:
+    """Consecutive Number leaves: encoded through one struct, decoded with one slice."""
+    leaves: tuple[Node, ...]
+
+
+def segments(root: Node) -> list[NumberRun | Node]:
+    """The leaves of a codec tree in wire order, consecutive numbers grouped into runs."""
+    out: list[NumberRun | Node] = []
+    run: list[Node] = []
+    for leaf in root.leaves():
+        if isinstance(leaf.encoding, Number):
+            run.append(leaf)
+            continue
+        if run:
+            out.append(NumberRun(tuple(run)))
+            run = []
+        out.append(leaf)
+    if run:
+        out.append(NumberRun(tuple(run)))
+    return out
+
+
 def type_key(full_name: str) -> str:
     pkg, _ns, name = full_name.split("/")
     return f"{pkg}__{name}"
