@@ -58,10 +58,12 @@ from uwgen.bridge.counters import (BridgeCounters, DropReporter, ServiceCounters
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import (TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan, PlanError,
                                is_rmw_desert)
+from uwgen.interop.beacons import (DISCOVERY_ID, DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC,
+                                   DISCOVERY_TOPIC, BeaconError)
 from uwgen.manifest.model import Qos
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, DecodeError, peek_header
 
-KIND_TOPIC, KIND_REQUEST, KIND_RESPONSE = 0, 2, 3
 BRIDGE_NODE_PREFIX = "uwgen_bridge_"
 EXPIRY_TICK = 0.05       # seconds between checks of call deadlines
 GRAPH_TICK = 1.0         # seconds between checks for other bridges in this ROS graph
@@ -241,10 +243,10 @@ class BridgeNode(Node):
         """The DiscoveryAgent on link keys 1 and 2, or None when no entry is rmw_desert."""
         if not self.plan.uses_rmw_desert:
             return None
-        from uwgen.interop.beacons import DISCOVERY_TOPIC, DISCOVERY_REQUEST_TOPIC, BeaconError
         from uwgen.interop.discovery import DiscoveryAgent, beacons_for, discovery_policies
         plan = self.plan
-        taken = sorted({e.id for e in (*plan.topics, *plan.services)} & {1, 2})
+        names = {DISCOVERY_ID: DISCOVERY_TOPIC, DISCOVERY_REQUEST_ID: DISCOVERY_REQUEST_TOPIC}
+        taken = sorted({e.id for e in (*plan.topics, *plan.services)} & names.keys())
         if taken:
             raise PlanError(f"ids {taken} are rmw_desert's discovery topics but the manifest "
                             f"gives them to its own entries")
@@ -256,7 +258,6 @@ class BridgeNode(Node):
                                   bridged(plan.services))
         except BeaconError as exc:
             raise PlanError(f"cannot announce this side to rmw_desert nodes: {exc}") from None
-        names = {1: DISCOVERY_TOPIC, 2: DISCOVERY_REQUEST_TOPIC}
         for key, policy in discovery_policies(len(beacons)).items():
             self.link.add_channel(key, policy, names.get(key))
         agent = DiscoveryAgent(beacons, send=self.link.offer, clock=self._uwclock)
@@ -340,7 +341,6 @@ class BridgeNode(Node):
 
     def dispatch(self, payload: bytes) -> None:
         """Route one complete payload from the link (executor thread)."""
-        from uwgen.runtime.codec import DecodeError, peek_header
         if self.discovery is not None and self.discovery.handle(payload):
             return  # kind 0 on id 1 or 2: a beacon (to the graph) or a discovery request
         try:
@@ -684,7 +684,7 @@ class BridgeNode(Node):
                 return False
             if not stats.get("connected"):
                 return True
-            queued = _channel_stats(stats).get(1, {}).get("queued", 0)
+            queued = _channel_stats(stats).get(DISCOVERY_ID, {}).get("queued", 0)
             connection = getattr(self.link, "connection", None)
             cut = bool(getattr(getattr(connection, "outbox", None), "pending", False))
             if not queued and not cut:
