@@ -298,11 +298,11 @@ class Lowering:
         if isinstance(enc, NumberArray):
             if enc.elem_range is not None:
                 lo, hi = enc.elem_range
-                lines.append(f"if not _ints_in({var}, {lo}, {hi}): raise _bad_items({p}, 'an {enc.prim}', {var})")
+                lines.append(f"if not _ints_in({var}, {lo}, {hi}): raise _bad_items({p}, {enc.prim!r}, {var})")
             else:
-                lines.append(f"if not _only({var}, float): raise _bad_items({p}, 'a float', {var})")
+                lines.append(f"if not _only({var}, float): raise _bad_items({p}, {enc.prim!r}, {var})")
                 if enc.prim == "float32" or enc.code == "f":
-                    lines.append(f"if not _float32_ok({var}): raise _bad_items({p}, 'a float32', {var})")
+                    lines.append(f"if not _float32_ok({var}): raise _bad_items({p}, 'float32', {var})")
         elif isinstance(enc, BoolArray):
             lines.append(f"{var} = _item_bools({var}, {p})")
         elif isinstance(enc, TextArray):

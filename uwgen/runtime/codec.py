@@ -26,6 +26,8 @@ KIND_RESPONSE = 3
 KINDS = (KIND_TOPIC, KIND_REQUEST, KIND_RESPONSE)
 MAX_ID = 255
 MAX_SEQ = 0xFFFFFFFFFFFFFFFF
+F32_MAX = 3.4028234663852886e+38
+INF = float("inf")
 
 
 class CodecError(ValueError):
@@ -270,13 +272,14 @@ def bad_item(path: str, expected: str, value: Any) -> DecodeError:
     return DecodeError(path, f"expected {expected}, got {got}")
 
 
-def bad_items(path: str, expected: str, values: list) -> DecodeError:
+def bad_items(path: str, prim: str, values: list) -> DecodeError:
+    """The error for an array whose elements are not all `prim` values: name the first."""
+    kind = float if prim in ("float32", "float64") else int
+    expected = f"a {prim}" if kind is float else f"an {prim}"
     for k, value in enumerate(values):
-        if expected == "a float" and type(value) is not float:
+        if type(value) is not kind:
             return bad_item(f"{path}[{k}]", expected, value)
-        if expected != "a float" and type(value) is not (float if expected == "a float32" else int):
-            return bad_item(f"{path}[{k}]", expected, value)
-    return DecodeError(path, f"an element out of range for {expected[2:] if expected.startswith('a') else expected}")
+    return DecodeError(path, f"an element out of range for {prim}")
 
 
 def _cbor_kind(value: Any) -> str:
@@ -337,12 +340,7 @@ def float32_ok(values: Iterable) -> bool:
     return all(not abs(v) > F32_MAX or abs(v) == INF for v in values)  # NaN passes
 
 
-F32_MAX = 3.4028234663852886e+38
-INF = float("inf")
-def wrap_decode_error(type_name: str, exc: Exception) -> DecodeError:
-    """Turn any unexpected failure inside a decoder into its one error."""
-    if isinstance(exc, DecodeError):
-        return exc
-    if isinstance(exc, (ValueError, IndexError)) and "unpack" in str(exc) or isinstance(exc, IndexError):
-        return DecodeError("", f"payload ended inside {type_name}")
+def unexpected(type_name: str, exc: Exception) -> DecodeError:
+    """The decode error for a failure the generated checks did not foresee (the decoder
+    stays total: it never raises anything else)."""
     return DecodeError("", f"cannot decode {type_name}: {type(exc).__name__}: {exc}")

@@ -15,7 +15,7 @@ from typing import Any, Callable
 from uwgen.manifest.model import LinkPolicy, Qos, Side
 from uwgen.runtime.codec import (
     KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, CodecError, DecodeError, EncodeError,
-    load_items, pack_items, wrap_decode_error,
+    load_items, pack_items, unexpected,
 )
 
 RMW_MAX_ITEMS = 64
@@ -131,7 +131,7 @@ class TypeCodec:
         except DecodeError:
             raise
         except Exception as exc:  # the decoder is total: nothing else escapes
-            raise wrap_decode_error(self.type_name, exc) from None
+            raise unexpected(self.type_name, exc) from None
         if i != len(v):
             raise DecodeError("", f"{len(v) - i} items left over after the last field of {self.type_name}")
         return msg, v[:n]

@@ -155,15 +155,15 @@ def dec_BatteryState(v, i, C):
     if len(v) - i < n: raise _short('cell_voltage')
     x15 = v[i:i + n]
     i += n
-    if not _only(x15, float): raise _bad_items('cell_voltage', 'a float', x15)
-    if not _float32_ok(x15): raise _bad_items('cell_voltage', 'a float32', x15)
+    if not _only(x15, float): raise _bad_items('cell_voltage', 'float32', x15)
+    if not _float32_ok(x15): raise _bad_items('cell_voltage', 'float32', x15)
     n = _count(v, i, 'cell_temperature', None, 1)
     i += 1
     if len(v) - i < n: raise _short('cell_temperature')
     x16 = v[i:i + n]
     i += n
-    if not _only(x16, float): raise _bad_items('cell_temperature', 'a float', x16)
-    if not _float32_ok(x16): raise _bad_items('cell_temperature', 'a float32', x16)
+    if not _only(x16, float): raise _bad_items('cell_temperature', 'float32', x16)
+    if not _float32_ok(x16): raise _bad_items('cell_temperature', 'float32', x16)
     if i >= len(v): raise _short('location')
     x17 = v[i]
     i += 1
