@@ -13,12 +13,13 @@ Payloads here are unframed (no `99 99 LEN ... 55`): framing belongs to the link.
 from __future__ import annotations
 
 import hashlib
-import io
 import re
 from dataclasses import dataclass
 from enum import IntEnum
 
 import cbor2
+
+from uwgen.runtime.codec import DecodeError, load_items
 
 DISCOVERY_ID = 1            # `/discovery`: beacons
 DISCOVERY_REQUEST_ID = 2    # `/discovery_request`: "send me your beacons again"
@@ -135,24 +136,13 @@ def _items(payload: bytes) -> list:
     """The CBOR sequence `payload` as a list, or BeaconError; never anything else."""
     if not isinstance(payload, (bytes, bytearray, memoryview)):
         raise BeaconError(f"payload: expected bytes, got {type(payload).__name__}")
-    payload = bytes(payload)
-    if not payload:
-        raise BeaconError("empty payload")
     if len(payload) > MAX_PAYLOAD:
         raise BeaconError(f"payload of {len(payload)} bytes is longer than one frame "
                           f"({MAX_PAYLOAD})")
-    wrapped = b"\x9f" + payload + b"\xff"
-    stream = io.BytesIO(wrapped)
     try:
-        items = cbor2.CBORDecoder(stream).decode()
-    except Exception as exc:  # cbor2 raises several types; all mean "not CBOR we take"
+        return load_items(bytes(payload))
+    except DecodeError as exc:
         raise BeaconError(f"not a CBOR sequence: {exc}") from None
-    if stream.tell() != len(wrapped):
-        # A 0xFF inside the payload closed the wrapper early.
-        raise BeaconError(f"stray break byte (0xFF) at offset {stream.tell() - 2}")
-    if not isinstance(items, list):  # pragma: no cover - the wrapper is an array
-        raise BeaconError("not a CBOR sequence")
-    return items
 
 
 def _is_uint(value) -> bool:
