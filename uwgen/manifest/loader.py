@@ -203,7 +203,7 @@ class _ManifestBuilder:
             raise r.error(node, "sides must name at least one side, e.g. surface: {port: 4000}")
         sides: dict[str, Side] = {}
         endpoints: dict[tuple[str, int], str] = {}
-        for name, key_node, value_node in ((k, kn, vn) for k, (kn, vn) in entries.items()):
+        for name, (key_node, value_node) in entries.items():
             if not SIDE_NAME.fullmatch(name):
                 raise r.error(key_node, f"side name '{name}' must be letters, digits and '_', starting with a letter")
             what = f"side '{name}'"

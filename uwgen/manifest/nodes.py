@@ -9,7 +9,6 @@ from __future__ import annotations
 import difflib
 import math
 from pathlib import Path
-from typing import Iterator
 
 import yaml
 from yaml.constructor import ConstructorError, SafeConstructor
@@ -176,8 +175,3 @@ class Reader:
             shown = node.value if isinstance(node, yaml.ScalarNode) else self.describe(node)
             raise self.error(node, f"{what} must be one of {', '.join(options)}; got {shown!r}")
         return value
-
-
-def items(entries: dict[str, tuple[yaml.Node, yaml.Node]]) -> Iterator[tuple[str, yaml.Node, yaml.Node]]:
-    for key, (key_node, value_node) in entries.items():
-        yield key, key_node, value_node
