@@ -10,7 +10,7 @@ from __future__ import annotations
 import ipaddress
 import keyword
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
@@ -117,13 +117,6 @@ class _IdUse:
     node: yaml.Node
 
 
-@dataclass
-class _Defaults:
-    """Policy keys from `defaults`, as nodes so errors stay located."""
-
-    entries: dict = field(default_factory=dict)
-
-
 class _ManifestBuilder:
     def __init__(self, reader: Reader, lib: InterfaceLibrary):
         self.r = reader
@@ -157,18 +150,20 @@ class _ManifestBuilder:
         sides_node = r.require(top, "sides", root, "the manifest")
         sides = self.sides(sides_node)
 
-        defaults = _Defaults()
+        # Policy keys from `defaults` stay nodes (merged per key into each topic, errors
+        # located); validated here even if no topic uses them. Their qos is read once.
+        defaults: dict = {}
+        default_qos = Qos()
         if "defaults" in top:
-            defaults.entries = r.mapping(top["defaults"][1], "defaults", DEFAULTS_KEYS)
-            # Validate what defaults say even if no topic uses it.
-            self.policy(defaults.entries, _Defaults(), LinkPolicy(), "defaults", is_defaults=True)
-            if "qos" in defaults.entries:
-                self.qos(defaults.entries["qos"][1], Qos())
+            defaults = r.mapping(top["defaults"][1], "defaults", DEFAULTS_KEYS)
+            self.policy(defaults, {}, LinkPolicy(), "defaults", is_defaults=True)
+            if "qos" in defaults:
+                default_qos = self.qos(defaults["qos"][1], default_qos)
 
         topics = []
         if "topics" in top:
             for node in r.sequence(top["topics"][1], "topics"):
-                topics.append(self.topic(node, sides, defaults, profile))
+                topics.append(self.topic(node, sides, defaults, default_qos, profile))
         services = []
         if "services" in top:
             for node in r.sequence(top["services"][1], "services"):
@@ -300,17 +295,13 @@ class _ManifestBuilder:
             raise r.error(node, f"{key} '{side}' of {label} is not a declared side (sides: {declared})")
         return side
 
-    def topic(self, node: yaml.Node, sides: dict[str, Side], defaults: _Defaults, profile: str) -> Topic:
+    def topic(self, node: yaml.Node, sides: dict[str, Side], defaults: dict, default_qos: Qos, profile: str) -> Topic:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "topic", TOPIC_KEYS)
         type_name, definition = self.resolve(entries["type"][1], type_text, "msg", label)
         publisher = self.side_ref(entries, "publisher", node, label, sides)
         policy = self.policy(entries, defaults, LinkPolicy(), label)
-        qos = Qos()
-        if "qos" in defaults.entries:
-            qos = self.qos(defaults.entries["qos"][1], qos)
-        if "qos" in entries:
-            qos = self.qos(entries["qos"][1], qos)
+        qos = self.qos(entries["qos"][1], default_qos) if "qos" in entries else default_qos
         topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
         return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node))
 
@@ -323,19 +314,19 @@ class _ManifestBuilder:
         if "timeout" in entries:
             timeout = r.number(entries["timeout"][1], f"timeout of {label}")
         base = Service.__dataclass_fields__["policy"].default_factory()
-        policy = self.policy(entries, _Defaults(), base, label)
+        policy = self.policy(entries, {}, base, label)
         service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
         return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node))
 
-    def policy(self, entries: dict, defaults: _Defaults, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
+    def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""
         r = self.r
 
         def pick(key: str):
             if key in entries:
                 return entries[key][1], True
-            if key in defaults.entries:
-                return defaults.entries[key][1], False
+            if key in defaults:
+                return defaults[key][1], False
             return None, False
 
         rate, ttl, priority, queue = base.rate, base.ttl, base.priority, base.queue
