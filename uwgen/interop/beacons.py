@@ -19,17 +19,18 @@ from enum import IntEnum
 
 import cbor2
 
-from uwgen.runtime.codec import DecodeError, load_items
+from uwgen.manifest.model import RMW_DISCOVERY_ID, RMW_DISCOVERY_REQUEST_ID
+from uwgen.runtime.codec import KIND_TOPIC, DecodeError, load_items
+from uwgen.runtime.framing import MAX_PAYLOAD    # one frame; rmw_desert wraps LEN above 255
 
-DISCOVERY_ID = 1            # `/discovery`: beacons
-DISCOVERY_REQUEST_ID = 2    # `/discovery_request`: "send me your beacons again"
+PROFILE = "rmw_desert"      # the profile whose entries speak this format and discovery
+DISCOVERY_ID = RMW_DISCOVERY_ID                  # `/discovery`: beacons
+DISCOVERY_REQUEST_ID = RMW_DISCOVERY_REQUEST_ID  # `/discovery_request`: "send me your beacons again"
 DISCOVERY_TOPIC = "/discovery"
 DISCOVERY_REQUEST_TOPIC = "/discovery_request"
 
 GID_SIZE = 16               # rmw's RMW_GID_STORAGE_SIZE in Jazzy
 MAX_TEXT_BYTES = 127        # rmw_desert's receiver overflows on longer text
-MAX_PAYLOAD = 255           # one frame; rmw_desert wraps LEN above 255
-KIND_TOPIC = 0
 
 # The whole request payload: kind 0 (topic message), id 2, no fields.
 DISCOVERY_REQUEST_PAYLOAD = bytes([KIND_TOPIC, DISCOVERY_REQUEST_ID])

@@ -23,7 +23,7 @@ import threading
 from typing import Any, Callable, Iterable
 
 from uwgen.interop.beacons import (
-    DISCOVERY_ID, DISCOVERY_REQUEST_ID, Beacon, BeaconError, Entity, decode_beacon,
+    DISCOVERY_ID, DISCOVERY_REQUEST_ID, PROFILE, Beacon, BeaconError, Entity, decode_beacon,
     derive_gid, encode_beacon, encode_discovery_request, is_discovery_request,
     rmw_type_name)
 from uwgen.interop.graph import RemoteGraph
@@ -32,7 +32,6 @@ from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 
 log = logging.getLogger(__name__)
 
-PROFILE = "rmw_desert"
 Send = Callable[[int, bytes], bool]
 
 

@@ -23,12 +23,11 @@ from uwgen.idl import names as idl_names
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import SourceRef
 from uwgen.interop.beacons import (
-    DISCOVERY_ID, DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC, DISCOVERY_TOPIC)
+    DISCOVERY_ID, DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC, DISCOVERY_TOPIC, PROFILE)
 from uwgen.interop.hints import KNOWN_TYPES
 from uwgen.manifest.loader import validate_ros_name
 from uwgen.manifest.model import Manifest
 
-PROFILE = "rmw_desert"
 RESERVED = {DISCOVERY_TOPIC: DISCOVERY_ID, DISCOVERY_REQUEST_TOPIC: DISCOVERY_REQUEST_ID}
 
 
