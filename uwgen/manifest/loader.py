@@ -268,17 +268,18 @@ class _ManifestBuilder:
         pkg, ns, name = split
         other = "srv" if want == "msg" else "msg"
         full = f"{pkg}/{want}/{name}"
-        if ns == other or (ns is None and full not in self.lib and f"{pkg}/{other}/{name}" in self.lib):
-            if f"{pkg}/{other}/{name}" in self.lib:
-                if want == "msg":
-                    raise r.error(type_node, f"type '{type_text}' is a service, but {label} needs a message type (pkg/msg/Name); declare it under services:")
-                raise r.error(type_node, f"type '{type_text}' is a message, but {label} needs a service type (pkg/srv/Name); declare it under topics:")
+        known = full in self.lib
+        if (ns == other or (ns is None and not known)) and f"{pkg}/{other}/{name}" in self.lib:
+            if want == "msg":
+                raise r.error(type_node, f"type '{type_text}' is a service, but {label} needs a message type (pkg/msg/Name); declare it under services:")
+            raise r.error(type_node, f"type '{type_text}' is a message, but {label} needs a service type (pkg/srv/Name); declare it under topics:")
+        if ns == other:
             raise r.error(type_node, f"{label} needs a {'message' if want == 'msg' else 'service'} type pkg/{want}/Name, got '{type_text}'")
-        if full not in self.lib or self.lib.normalize(full) != full:
+        if not known:
             raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found (looked in: {self._looked()})")
         definition = self.lib.get(full)
         expected = MessageDef if want == "msg" else ServiceDef
-        if not isinstance(definition, expected):  # pragma: no cover - the library keeps msg and srv apart
+        if not isinstance(definition, expected):  # a service's part, e.g. pkg/srv/Name_Request as a service
             raise r.error(type_node, f"type '{type_text}' of {label} is not a {want}")
         return full, definition
 
