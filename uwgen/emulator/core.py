@@ -40,10 +40,25 @@ from dataclasses import dataclass, field
 
 from uwgen.emulator.physics import bpsk_per
 from uwgen.emulator.scenario import Scenario
+from uwgen.runtime.stats import Counters
 
 log = logging.getLogger(__name__)
 
 LOSS_CAUSES = ("per", "snr", "collision", "no_client")
+
+# Counters that only grow; `counters()` adds the node's current state (queue_bytes,
+# max_queue_bytes, client_connected).
+NODE_COUNTERS = (
+    "bytes_in",            # read from this node's client
+    "packets_queued",      # packets cut from those bytes
+    "packets_sent",        # transmissions started
+    "bytes_sent",          # payload bytes of those
+    "packets_delivered",   # packets written to this node's client
+    "bytes_delivered",
+    "dropped_restart",     # this node's packets queued or in flight at a restart
+    "clients",             # client connections served
+    *(f"lost_{cause}" for cause in LOSS_CAUSES),   # packets addressed to this node and lost
+)
 
 # Event kinds, in the order they run when they share a time: a reception that ends at the
 # instant another begins does not overlap it, and a node that stops sending at t can
@@ -100,7 +115,8 @@ class _Node:
     origin: float                               # tick grid: origin + k * period
     app_queue: deque = field(default_factory=deque)
     mac_queue: deque = field(default_factory=deque)
-    queue_bytes: int = 0
+    queue_bytes: int = 0                        # waiting inside the node (not yet on the air)
+    max_queue_bytes: int = 0
     tick_pending: bool = False
     mac_state: str = _IDLE
     listen_start: float = 0.0
@@ -109,25 +125,7 @@ class _Node:
     locked: _Arrival | None = None
     last_carrier: float = -math.inf             # start of the latest audible arrival
     client: bool = False
-    counters: dict = field(default_factory=dict)
-
-
-def _new_counters() -> dict[str, int]:
-    c = {
-        "bytes_in": 0,            # read from this node's client
-        "packets_queued": 0,      # packets cut from those bytes
-        "packets_sent": 0,        # transmissions started
-        "bytes_sent": 0,          # payload bytes of those
-        "queue_bytes": 0,         # bytes waiting inside the node now (not yet on the air)
-        "max_queue_bytes": 0,
-        "packets_delivered": 0,   # packets written to this node's client
-        "bytes_delivered": 0,
-        "dropped_restart": 0,     # this node's packets queued or in flight at a restart
-        "clients": 0,             # client connections served
-    }
-    for cause in LOSS_CAUSES:
-        c[f"lost_{cause}"] = 0    # packets addressed to this node and lost, by cause
-    return c
+    counters: Counters = field(default_factory=lambda: Counters(NODE_COUNTERS))
 
 
 class EmulatorCore:
@@ -147,8 +145,7 @@ class EmulatorCore:
         for spec in s.nodes:
             self._nodes[spec.name] = _Node(
                 name=spec.name, dest=s.dest_of(spec.name), period=s.period_of(spec.name),
-                max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase,
-                counters=_new_counters())
+                max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase)
         self._order = list(self._nodes)
         # Per ordered pair: propagation delay, mean received power and SNR.
         self._delay: dict[tuple[str, str], float] = {}
@@ -175,7 +172,7 @@ class EmulatorCore:
         self._run_until(t)
         n = self._node(node)
         n.client = True
-        n.counters["clients"] += 1
+        n.counters.inc("clients")
 
     def client_detached(self, node: str, t: float) -> None:
         self._run_until(t)
@@ -188,15 +185,15 @@ class EmulatorCore:
         if not data:
             return 0
         base = n.counters["bytes_in"]
-        n.counters["bytes_in"] += len(data)
+        n.counters.inc("bytes_in", len(data))
         count = 0
         for i in range(0, len(data), n.max_read_length):
             chunk = bytes(data[i:i + n.max_read_length])
             n.app_queue.append(_Packet(next(self._uids), n.name, n.dest, chunk, t, base + i))
             n.queue_bytes += len(chunk)
             count += 1
-        n.counters["packets_queued"] += count
-        self._note_queue(n)
+        n.counters.inc("packets_queued", count)
+        n.max_queue_bytes = max(n.max_queue_bytes, n.queue_bytes)
         if not n.tick_pending:
             self._schedule_tick(n, t)
         return count
@@ -208,14 +205,14 @@ class EmulatorCore:
         lost: set[int] = set()
         for n in self._nodes.values():
             for pkt in itertools.chain(n.app_queue, n.mac_queue):
-                self._nodes[pkt.source].counters["dropped_restart"] += 1
+                self._nodes[pkt.source].counters.inc("dropped_restart")
         # Packets on their way to their destination: arriving, or still propagating.
         in_flight = [arr for n in self._nodes.values() for arr in n.rx]
         in_flight += [args for _, _, _, kind, args in self._events if kind == _RX_START]
         for arr in in_flight:
             if arr.receiver == arr.packet.dest and arr.packet.uid not in lost:
                 lost.add(arr.packet.uid)
-                self._nodes[arr.packet.source].counters["dropped_restart"] += 1
+                self._nodes[arr.packet.source].counters.inc("dropped_restart")
         self._events.clear()
         for spec in self.scenario.nodes:
             n = self._nodes[spec.name]
@@ -251,10 +248,8 @@ class EmulatorCore:
     # ------------------------------------------------------------------ outputs
     def counters(self, node: str) -> dict[str, int]:
         n = self._node(node)
-        c = dict(n.counters)
-        c["queue_bytes"] = n.queue_bytes
-        c["client_connected"] = int(n.client)
-        return c
+        return {**n.counters.as_dict(), "queue_bytes": n.queue_bytes,
+                "max_queue_bytes": n.max_queue_bytes, "client_connected": int(n.client)}
 
     def all_counters(self) -> dict[str, dict[str, int]]:
         return {name: self.counters(name) for name in self._order}
@@ -375,8 +370,8 @@ class EmulatorCore:
         duration = s.tx_time(len(pkt.data))
         n.mac_state = _SENDING
         n.tx_end = t + duration
-        n.counters["packets_sent"] += 1
-        n.counters["bytes_sent"] += len(pkt.data)
+        n.counters.inc("packets_sent")
+        n.counters.inc("bytes_sent", len(pkt.data))
         if n.locked is not None:          # half duplex: sending kills the reception
             n.locked.fail = "collision"
             n.locked = None
@@ -441,13 +436,13 @@ class EmulatorCore:
         if cause is None and not r.client:
             cause = "no_client"
         if cause is not None:
-            r.counters[f"lost_{cause}"] += 1
+            r.counters.inc(f"lost_{cause}")
             if log.isEnabledFor(logging.DEBUG):
                 log.debug("%.3f %s: packet %d from %s lost (%s)", t, r.name, pkt.uid,
                           pkt.source, cause)
             return
-        r.counters["packets_delivered"] += 1
-        r.counters["bytes_delivered"] += len(pkt.data)
+        r.counters.inc("packets_delivered")
+        r.counters.inc("bytes_delivered", len(pkt.data))
         self._pending.append(Delivery(r.name, pkt.data, t, pkt.source, pkt.queued_at,
                                       pkt.sent_at, pkt.offset, pkt.uid))
 
@@ -472,7 +467,3 @@ class EmulatorCore:
                     snr.bpsk_errors and u < bpsk_per(sinr, nbits)):
                 return "collision"
         return None
-
-    def _note_queue(self, n: _Node) -> None:
-        if n.queue_bytes > n.counters["max_queue_bytes"]:
-            n.counters["max_queue_bytes"] = n.queue_bytes
