@@ -24,8 +24,8 @@ from typing import Any, Callable, Iterable
 
 from uwgen.interop.beacons import (
     DISCOVERY_ID, DISCOVERY_REQUEST_ID, PROFILE, Beacon, BeaconError, Entity, decode_beacon,
-    derive_gid, encode_beacon, encode_discovery_request, is_discovery_request,
-    rmw_type_name)
+    derive_gid, encode_beacon, encode_discovery_request, is_discovery_payload,
+    is_discovery_request, rmw_type_name)
 from uwgen.interop.graph import RemoteGraph
 from uwgen.manifest.model import LinkPolicy, Manifest
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
@@ -146,8 +146,7 @@ class DiscoveryAgent:
         A request triggers a full round of beacons; a beacon goes to the graph; a
         malformed one is counted (and logged once), never raised.
         """
-        if len(payload) < 2 or payload[0] != 0 or payload[1] not in (
-                DISCOVERY_ID, DISCOVERY_REQUEST_ID):
+        if not is_discovery_payload(payload):
             return False
         if payload[1] == DISCOVERY_REQUEST_ID:
             if not is_discovery_request(payload):
