@@ -167,6 +167,10 @@ class InterfaceLibrary:
         """Where interfaces are looked for, for error messages: the folders, then each prefix's share/."""
         return [*self.folders, *(p / "share" for p in self.prefixes)]
 
+    def looked_in(self) -> str:
+        """`search_paths()` as one phrase for the '(looked in: ...)' of error messages."""
+        return ", ".join(str(p) for p in self.search_paths()) or "no folders and no installed packages"
+
     def normalize(self, name: str) -> str | None:
         """The full name (`pkg/msg/Name`, `pkg/srv/Name`, `pkg/srv/Name_Request`) for `name`, if known.
 
@@ -231,10 +235,9 @@ class InterfaceLibrary:
 
     def describe_unknown(self, name: str) -> str:
         """Why `name` is unknown and where it was looked for (for error messages)."""
-        where = ", ".join(str(p) for p in self.search_paths()) or "nowhere (no folders, installed=False)"
         if names.split_type_name(name) is None:
             return f"'{name}' is not an interface name: expected pkg/msg/Name, pkg/srv/Name or pkg/Name"
-        return f"unknown interface '{name}' (looked in: {where})"
+        return f"unknown interface '{name}' (looked in: {self.looked_in()})"
 
     def _parse(self, entry: _Entry) -> InterfaceDef:
         definition = self._parsed.get(entry.path)
@@ -260,13 +263,12 @@ class InterfaceLibrary:
 
     def _unresolved_message(self, base: str, message: MessageDef) -> str:
         pkg, _, name = base.split("/")
-        text = f"unknown type '{base}'"
         if self.normalize(f"{pkg}/srv/{name}") is not None:
             return f"'{pkg}/srv/{name}' is a service; a field needs a message type"
+        text = f"unknown type '{base}'"
         if name == "Header" and pkg != "std_msgs" and "std_msgs/msg/Header" in self._index:
             text += " (ROS 2 does not resolve a bare 'Header' to std_msgs: write std_msgs/Header)"
-        where = ", ".join(str(p) for p in self.search_paths())
-        return f"{text} used by {message.full_name} (looked in: {where})"
+        return f"{text} used by {message.full_name} (looked in: {self.looked_in()})"
 
     def closure(self, names_: Iterable[str]) -> list[MessageDef]:
         """The messages these interfaces use, dependencies first, each once.

@@ -276,16 +276,12 @@ class _ManifestBuilder:
         if ns == other:
             raise r.error(type_node, f"{label} needs a {'message' if want == 'msg' else 'service'} type pkg/{want}/Name, got '{type_text}'")
         if not known:
-            raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found (looked in: {self._looked()})")
+            raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found (looked in: {self.lib.looked_in()})")
         definition = self.lib.get(full)
         expected = MessageDef if want == "msg" else ServiceDef
         if not isinstance(definition, expected):  # a service's part, e.g. pkg/srv/Name_Request as a service
             raise r.error(type_node, f"type '{type_text}' of {label} is not a {want}")
         return full, definition
-
-    def _looked(self) -> str:
-        paths = self.lib.search_paths()
-        return ", ".join(str(p) for p in paths) if paths else "no folders and no installed packages"
 
     def side_ref(self, entries: dict, key: str, owner: yaml.Node, label: str, sides: dict[str, Side]) -> str:
         r = self.r
