@@ -6,7 +6,9 @@ snapshots into one log line per entry, so a burst of 500 drops is one line, not 
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
+
+from uwgen.runtime.scheduler import DROP_REASONS
 
 
 @dataclass
@@ -61,12 +63,8 @@ DROP_FIELDS = {
     "bridge": tuple(f.name for f in fields(BridgeCounters)),
     # "superseded" is what a `latest` queue is for (a newer message replaced an older one):
     # it is counted in ~/status and said once, not warned about every report.
-    "link": ("overflow", "expired", "too_large", "invalid"),
+    "link": tuple(r for r in DROP_REASONS if r != "superseded"),
 }
-
-
-def as_dict(counters) -> dict[str, int]:
-    return asdict(counters)
 
 
 class DropReporter:

@@ -44,6 +44,7 @@ import os
 import random
 import threading
 import time
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Callable
 
@@ -53,8 +54,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.task import Future
 
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
-from uwgen.bridge.counters import (BridgeCounters, DropReporter, ServiceCounters, TopicCounters,
-                                   as_dict)
+from uwgen.bridge.counters import BridgeCounters, DropReporter, ServiceCounters, TopicCounters
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import (TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan, PlanError,
                                is_rmw_desert)
@@ -544,7 +544,7 @@ class BridgeNode(Node):
         for codec in (*self.plan.outgoing_topics, *self.plan.incoming_topics):
             out = codec.publisher == self.plan.side
             entry = {"id": codec.id, "type": codec.type_name,
-                     "direction": "out" if out else "in", **as_dict(self.topic_counters[codec.id])}
+                     "direction": "out" if out else "in", **asdict(self.topic_counters[codec.id])}
             if out:
                 entry["echo_guard"] = self._echo_dropped.get(codec.id, 0)
                 entry["link"] = channels.get(codec.id, {})
@@ -557,7 +557,7 @@ class BridgeNode(Node):
             serving = codec.server == self.plan.side
             entry = {"id": codec.id, "type": codec.type_name,
                      "role": "server" if serving else "client",
-                     **as_dict(self.service_counters[codec.id]),
+                     **asdict(self.service_counters[codec.id]),
                      "link": channels.get(codec.id, {})}
             if not serving:
                 entry["calls"] = call_stats.get(codec.id, {})
@@ -573,7 +573,7 @@ class BridgeNode(Node):
                            "max_read_length": self.options.link.max_read_length,
                            "period": self.options.link.period},
                 "topics": topics, "services": services,
-                "bridge": as_dict(self.counters), "echo_hazards": dict(self.echo_hazards),
+                "bridge": asdict(self.counters), "echo_hazards": dict(self.echo_hazards),
                 "link": link_stats}
 
     def discovery_status(self) -> dict | None:

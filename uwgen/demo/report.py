@@ -24,8 +24,7 @@ from statistics import median
 from typing import Iterable
 
 from uwgen.demo.records import read_records
-
-DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid")
+from uwgen.runtime.scheduler import DROP_REASONS
 
 
 def percentile(values: list[float], q: float) -> float | None:
