@@ -15,18 +15,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Iterator
 
-from uwgen.idl.model import (
-    INTEGER_RANGES, ArrayKind, FieldType, MessageDef,
-)
+from uwgen.idl.model import INTEGER_RANGES, ArrayKind, FieldType, MessageDef
+from uwgen.runtime.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES
+from uwgen.runtime.framing import MAX_PAYLOAD
 
 NATIVE = "native"
 RMW_DESERT = "rmw_desert"
 PROFILES = (NATIVE, RMW_DESERT)
-
-# rmw_desert receiver limits (wire format section 6).
-RMW_MAX_ITEMS = 64
-RMW_MAX_TEXT_BYTES = 127
-MAX_PAYLOAD = 255
 
 STRUCT_CODES = {
     "int8": "b", "uint8": "B", "char": "B", "int16": "h", "uint16": "H",
@@ -252,11 +247,11 @@ class IRBuilder:
         uses: list[str] = []
         root = Node(name="", path="", children=self._fields(msg, profile, "", uses),
                     class_key=type_key(msg.full_name))
-        min_items, fixed = self._count(root)
+        size = self._size(root)
         return CodecType(
             key=type_key(msg.full_name), full_name=msg.full_name, package=msg.package,
-            namespace=msg.namespace, name=msg.name, profile=profile, root=root, min_items=min_items,
-            fixed_items=fixed, min_bytes=self._min_bytes(root), uses=uses)
+            namespace=msg.namespace, name=msg.name, profile=profile, root=root, min_items=size.items,
+            fixed_items=size.fixed, min_bytes=size.bytes, uses=uses)
 
     def _fields(self, msg: MessageDef, profile: str, prefix: str, uses: list[str]) -> list[Node]:
         if not msg.fields:
@@ -310,56 +305,41 @@ class IRBuilder:
 
     # --- sizes: the fewest items and bytes a value can take, for profile limits ---
 
-    def _count(self, node: Node) -> tuple[int, int | None]:
+    def _size(self, node: Node) -> "_Size":
+        """The fewest items and bytes a value of this node takes (header excluded)."""
         if node.children is not None:
-            total, fixed = 0, 0
-            for child in node.children:
-                n, f = self._count(child)
-                total += n
-                fixed = None if f is None or fixed is None else fixed + f
-            return total, fixed
+            return sum((self._size(c) for c in node.children), _Size(0, 0, 0))
         enc = node.encoding
+        fixed_array = getattr(enc, "array", None) is ArrayKind.FIXED
         if isinstance(enc, Absent):
-            return 0, 0
-        if isinstance(enc, (Number, Bool, ByteScalar, Text, Filler)):
-            return 1, 1
+            return _Size(0, 0, 0)
+        if isinstance(enc, Number):
+            return _Size(1, 1, 3 if enc.is_float else 1)
+        if isinstance(enc, (Bool, ByteScalar, Text, Filler)):
+            return _Size(1, 1, 1)
+        if not fixed_array:                     # a count, then maybe nothing
+            return _Size(1, None, 1)
         if isinstance(enc, Octets):
-            return 1, (1 if enc.array is ArrayKind.FIXED else None)
+            return _Size(1, 1, 1 + enc.size)
         if isinstance(enc, (NumberArray, BoolArray, TextArray)):
-            counted = enc.array is not ArrayKind.FIXED or getattr(enc, "fixed_count", False)
-            if enc.array is ArrayKind.FIXED:
-                n = enc.size + (1 if counted else 0)
-                return n, n
-            return 1, None
+            count = 1 if getattr(enc, "fixed_count", False) else 0
+            per = 3 if isinstance(enc, NumberArray) and enc.prim.startswith("float") else 1
+            return _Size(enc.size + count, enc.size + count, enc.size * per + count)
         if isinstance(enc, MessageArray):
-            if enc.array is ArrayKind.FIXED:
-                fixed = None if enc.elem_fixed_items is None else enc.size * enc.elem_fixed_items
-                return enc.size * enc.elem_min_items, fixed
-            return 1, None
+            fixed = None if enc.elem_fixed_items is None else enc.size * enc.elem_fixed_items
+            return _Size(enc.size * enc.elem_min_items, fixed, enc.size * enc.elem_min_bytes)
         raise AssertionError(enc)
 
-    def _min_bytes(self, node: Node) -> int:
-        if node.children is not None:
-            return sum(self._min_bytes(c) for c in node.children)
-        enc = node.encoding
-        if isinstance(enc, Absent):
-            return 0
-        if isinstance(enc, Number):
-            return 3 if enc.is_float else 1
-        if isinstance(enc, (Bool, ByteScalar, Text, Filler)):
-            return 1
-        if isinstance(enc, Octets):
-            return 1 + (enc.size if enc.array is ArrayKind.FIXED else 0)
-        if isinstance(enc, (NumberArray, BoolArray, TextArray)):
-            per = 3 if isinstance(enc, NumberArray) and enc.prim.startswith("float") else 1
-            if enc.array is ArrayKind.FIXED:
-                return enc.size * per + (1 if getattr(enc, "fixed_count", False) else 0)
-            return 1
-        if isinstance(enc, MessageArray):
-            if enc.array is ArrayKind.FIXED:
-                return enc.size * enc.elem_min_bytes
-            return 1
-        raise AssertionError(enc)
+
+@dataclass(frozen=True)
+class _Size:
+    items: int              # fewest CBOR items
+    fixed: int | None       # the exact item count, when no part of the type varies
+    bytes: int              # fewest payload bytes
+
+    def __add__(self, other: "_Size") -> "_Size":
+        fixed = None if self.fixed is None or other.fixed is None else self.fixed + other.fixed
+        return _Size(self.items + other.items, fixed, self.bytes + other.bytes)
 
 
 def check_profile_limits(ct: CodecType, header_items: int) -> None:

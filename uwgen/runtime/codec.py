@@ -28,6 +28,9 @@ MAX_ID = 255
 MAX_SEQ = 0xFFFFFFFFFFFFFFFF
 F32_MAX = 3.4028234663852886e+38
 INF = float("inf")
+# What an rmw_desert receiver can take (wire format section 6).
+RMW_MAX_ITEMS = 64
+RMW_MAX_TEXT_BYTES = 127
 
 
 class CodecError(ValueError):

@@ -14,13 +14,12 @@ from typing import Any, Callable
 
 from uwgen.manifest.model import LinkPolicy, Qos, Side
 from uwgen.runtime.codec import (
-    KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, CodecError, DecodeError, EncodeError,
-    load_items, pack_items, unexpected,
+    KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
+    EncodeError, load_items, pack_items, unexpected,
 )
+from uwgen.runtime.framing import MAX_PAYLOAD
 
-RMW_MAX_ITEMS = 64
 log = logging.getLogger("uwgen.codec")
-MAX_PAYLOAD = 255
 
 
 class PlainClasses:
