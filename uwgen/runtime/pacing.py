@@ -58,7 +58,6 @@ class Pacer:
         self.period = period
         self.margin = margin
         self.bitrate = bitrate
-        self.interval = period * (1.0 + margin)
         self._next = float("-inf")
 
     @classmethod
