@@ -176,15 +176,22 @@ class InterfaceLibrary:
 
         `pkg/Name` means the message if there is one, else the service.
         """
+        resolved = self._resolve(name)
+        return None if resolved is None else resolved[0]
+
+    def _resolve(self, name: str) -> tuple[str, _Entry, str | None] | None:
+        """(full name, entry, part) for any spelling `normalize` accepts; see `_lookup`."""
         parts = name.split("/")
         if len(parts) == 2:
-            for kind in ("msg", "srv"):
-                full = f"{parts[0]}/{kind}/{parts[1]}"
-                if self._lookup(full) is not None:
-                    return full
+            candidates = [f"{parts[0]}/{kind}/{parts[1]}" for kind in ("msg", "srv")]
+        elif len(parts) == 3:
+            candidates = [name]
+        else:
             return None
-        if len(parts) == 3 and self._lookup(name) is not None:
-            return name
+        for full in candidates:
+            found = self._lookup(full)
+            if found is not None:
+                return full, *found
         return None
 
     def _lookup(self, full: str) -> tuple[_Entry, str | None] | None:
@@ -206,8 +213,8 @@ class InterfaceLibrary:
 
     def source_of(self, name: str) -> Path | None:
         """The file that defines `name`, if known."""
-        full = self.normalize(name)
-        return None if full is None else self._lookup(full)[0].path
+        resolved = self._resolve(name)
+        return None if resolved is None else resolved[1].path
 
     # -- definitions -----------------------------------------------------------------
 
@@ -216,10 +223,10 @@ class InterfaceLibrary:
 
         Raises DefinitionError if the file is broken or uses a type that does not exist.
         """
-        full = self.normalize(name)
-        if full is None:
+        resolved = self._resolve(name)
+        if resolved is None:
             return None
-        entry, part = self._lookup(full)
+        _, entry, part = resolved
         definition = self._parse(entry)
         self._check(definition)
         if part is not None:
