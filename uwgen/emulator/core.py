@@ -254,9 +254,6 @@ class EmulatorCore:
     def all_counters(self) -> dict[str, dict[str, int]]:
         return {name: self.counters(name) for name in self._order}
 
-    def client_connected(self, node: str) -> bool:
-        return self._node(node).client
-
     # ------------------------------------------------------------------ engine
     def _node(self, name: str) -> _Node:
         try:

@@ -8,7 +8,7 @@ reports mistakes as `file:line:column: message`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -116,9 +116,6 @@ class Scenario:
     def tx_time(self, payload_bytes: int) -> float:
         """Seconds on the air for a packet carrying `payload_bytes` (plus DESERT's header)."""
         return (payload_bytes + self.header_bytes) * 8.0 / self.bitrate
-
-    def with_changes(self, **changes: Any) -> "Scenario":
-        return replace(self, **changes)
 
 
 def _validate(s: Scenario) -> None:

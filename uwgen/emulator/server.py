@@ -159,11 +159,6 @@ class Emulator:
         with self._lock:
             return self._core.restarts
 
-    def now(self) -> float:
-        """Simulated time: seconds since start, on the loop's clock."""
-        loop = self._require_loop()
-        return loop.time() - self._t0
-
     def wait_listening(self, timeout: float | None = None) -> bool:
         """Block until every port accepts connections (after a start delay or a restart)."""
         return self._listening.wait(timeout)
