@@ -29,6 +29,7 @@ from uwgen.interop.beacons import (
 from uwgen.interop.graph import RemoteGraph
 from uwgen.manifest.model import LinkPolicy, Manifest
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.stats import Counters
 
 log = logging.getLogger(__name__)
 
@@ -113,8 +114,8 @@ class DiscoveryAgent:
         self._lock = threading.Lock()
         self._stopped = False
         self._warned_malformed = False
-        self._stats = {"requests_sent": 0, "requests_heard": 0, "beacons_sent": 0,
-                       "refused": 0, "beacons_heard": 0, "malformed": 0}
+        self._stats = Counters(("requests_sent", "requests_heard", "beacons_sent", "refused",
+                                "beacons_heard", "malformed"))
 
     @property
     def beacons(self) -> list[Beacon]:
@@ -177,7 +178,7 @@ class DiscoveryAgent:
     def stats(self) -> dict:
         """JSON-able counters, with the graph's beacon outcomes."""
         with self._lock:
-            out = dict(self._stats)
+            out: dict = self._stats.as_dict()
         out["graph"] = self.graph.counts()
         out["remote_entities"] = len(self.graph)
         return out
@@ -190,11 +191,11 @@ class DiscoveryAgent:
 
     def _count(self, name: str) -> None:
         with self._lock:
-            self._stats[name] += 1
+            self._stats.inc(name)
 
     def _malformed(self, why: str) -> None:
         with self._lock:
-            self._stats["malformed"] += 1
+            self._stats.inc("malformed")
             first = not self._warned_malformed
             self._warned_malformed = True
         if first:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from uwgen.interop.beacons import Beacon, Entity, ros_type_name
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.stats import Counters
 
 log = logging.getLogger(__name__)
 
@@ -77,15 +78,15 @@ class RemoteGraph:
         self._own = frozenset(own_gids)
         self._entities: dict[bytes, RemoteEntity] = {}
         self._lock = threading.Lock()
-        self._counts = {ADDED: 0, REFRESHED: 0, CHANGED: 0, REMOVED: 0,
-                        UNKNOWN_DISCONNECT: 0, IGNORED_OWN: 0}
+        self._counts = Counters((ADDED, REFRESHED, CHANGED, REMOVED, UNKNOWN_DISCONNECT,
+                                 IGNORED_OWN))
 
     def observe(self, beacon: Beacon) -> str:
         """Record one heard beacon; returns what it did (ADDED, REMOVED, ...)."""
         now = self._clock.now()
         with self._lock:
             outcome, subject = self._observe(beacon, now)
-            self._counts[outcome] += 1
+            self._counts.inc(outcome)
         if subject is not None:  # a change of the graph: worth one log line
             log.info("remote %s %s %s %s (node %s)", outcome, subject.entity.name.lower(),
                      subject.topic, subject.ros_type, subject.node)
@@ -138,7 +139,7 @@ class RemoteGraph:
     def counts(self) -> dict[str, int]:
         """How many beacons led to each outcome (JSON-able, for link stats)."""
         with self._lock:
-            return dict(self._counts)
+            return self._counts.as_dict()
 
     def as_dict(self) -> dict:
         """JSON-able snapshot for a status topic or `uwgen` output."""
