@@ -20,6 +20,7 @@ from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import (
     DURABILITY,
+    FIFO_DEFAULT_DEPTH,
     PROFILES,
     QUEUE_KINDS,
     RELIABILITY,
@@ -38,7 +39,6 @@ from uwgen.manifest.nodes import ManifestError, Reader, compose
 __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
 
 MANIFEST_NAME = "uwgen.yaml"
-FIFO_DEFAULT_DEPTH = 4   # queue depth of a fifo topic that does not say
 ID_RANGE = (1, 255)
 
 TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "defaults", "topics", "services")

@@ -13,6 +13,7 @@ PROFILES = ("native", "rmw_desert")
 QUEUE_KINDS = ("latest", "fifo")
 RELIABILITY = ("reliable", "best_effort")
 DURABILITY = ("volatile", "transient_local")
+FIFO_DEFAULT_DEPTH = 4   # queue depth of a fifo queue whose depth is not given
 
 # Ids rmw_desert uses for its discovery topics; reserved while any profile is rmw_desert.
 RMW_DISCOVERY_ID = 1
@@ -81,7 +82,7 @@ class Service:
     type: ServiceDef
     server: str                 # the side whose local graph serves it
     timeout: float = 30.0       # seconds a bridged call waits for its response
-    policy: LinkPolicy = field(default_factory=lambda: LinkPolicy(queue="fifo", depth=4))
+    policy: LinkPolicy = field(default_factory=lambda: LinkPolicy(queue="fifo", depth=FIFO_DEFAULT_DEPTH))
     profile: str = "native"
     where: SourceRef | None = None
 
