@@ -133,9 +133,6 @@ class RemoteGraph:
             return any(e.entity == entity and e.topic == topic
                        for e in self._entities.values())
 
-    def nodes(self) -> list[str]:
-        return sorted({e.node for e in self.entities()})
-
     def counts(self) -> dict[str, int]:
         """How many beacons led to each outcome (JSON-able, for link stats)."""
         with self._lock:
