@@ -90,7 +90,7 @@ def validate_ros_name(name: str) -> str | None:
     for token in name[1:].split("/"):
         if token[0].isdigit():
             return f"'{name}': the part '{token}' must not start with a digit"
-        if not ROS_TOKEN.fullmatch(token) or not token.isascii():
+        if not ROS_TOKEN.fullmatch(token):   # the pattern is ASCII-only
             return f"'{name}' may contain only letters, digits, '_' and '/'"
     if len(name) > 255:
         return f"'{name[:20]}...' is longer than 255 characters"
