@@ -210,9 +210,6 @@ class CallTable:
             return len(self._pending.get(service_id, {}))
         return sum(len(p) for p in self._pending.values())
 
-    def pending_calls(self) -> list[PendingCall]:
-        return [c for p in self._pending.values() for c in p.values()]
-
     def stats_of(self, service_id: int) -> CallStats:
         return self._stats.setdefault(service_id, CallStats())
 

@@ -261,7 +261,6 @@ class BridgeNode(Node):
         for key, policy in discovery_policies(len(beacons)).items():
             self.link.add_channel(key, policy, names.get(key))
         agent = DiscoveryAgent(beacons, send=self.link.offer, clock=self._uwclock)
-        self._link_connects = 0
         self._flush_timeout = (self._default_flush_timeout(beacons)
                                if flush_timeout is None else float(flush_timeout))
         self.create_timer(LINK_TICK, self._check_link, callback_group=self._main_group)
@@ -609,8 +608,6 @@ class BridgeNode(Node):
                                "messages are superseded by newer ones (counted in ~/status)")
             parts = self._drops.changes("topic", name, entry)
             parts += self._drops.changes("link", name, entry.get("link", {}))
-            if entry.get("echo_guard"):
-                parts += self._drops.changes("bridge", name, {"echo_guard": entry["echo_guard"]})
             if parts:
                 self._log.warning(f"{name}: dropped since last report: {', '.join(parts)}")
         for name, entry in status["services"].items():
