@@ -136,7 +136,7 @@ class Reader:
 
     def string(self, node: yaml.Node, what: str) -> str:
         value = self.value(node)
-        if not isinstance(value, str) or isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+        if not isinstance(value, str):   # value() of a mapping or list is the node itself
             raise self.error(node, f"{what} must be a string, got {self.describe(node)}")
         return value
 
