@@ -240,6 +240,7 @@ def _beacons(args) -> int:
     from uwgen.interop.beacons import encode_beacon
     from uwgen.interop.discovery import bridge_beacons
     from uwgen.interop.rmw_config import RmwConfigError
+    from uwgen.runtime.framing import encode_frame
 
     manifest = _load(args.manifest, args.interfaces)
     if args.side not in manifest.sides:
@@ -254,8 +255,7 @@ def _beacons(args) -> int:
         print(f"{b.entity.name.lower():<10} {b.topic}  {b.type_name}  gid {b.gid.hex()}  "
               f"({len(payload)} bytes)")
         if args.frames:
-            framed = b"\x99\x99" + bytes([len(payload)]) + payload + b"\x55"
-            print("  " + framed.hex(" ").upper())
+            print("  " + encode_frame(payload).hex(" ").upper())
     return EXIT_OK
 
 
