@@ -288,8 +288,9 @@ class Emulator:
             # for when it is served, never dropped.
             client.early.append(data)
             return
-        self._pump()
         with self._lock:
+            # client_data runs the core up to now first; the pump below writes every
+            # delivery that produced, in order, and re-arms the timer once.
             self._core.client_data(ns.name, self._now(), data)
         self._pump()
 
