@@ -171,8 +171,7 @@ def _sides(args, side_of: dict[str, str]):
     for side in [*side_of.values(), *([args.default_side] if args.default_side else [])]:
         if side not in order:
             order.append(side)
-    specs = []
-    used_ports = set()
+    specs: list[SideSpec] = []
     for name in order:
         if not SIDE_NAME.fullmatch(name):
             raise RmwConfigError(f"side name '{name}' must be letters, digits and '_', "
@@ -187,11 +186,11 @@ def _sides(args, side_of: dict[str, str]):
                 raise RmwConfigError(f"--side {name}={given[name]}: expected PORT or HOST:PORT")
             specs.append(SideSpec(name, port, host or "127.0.0.1"))
         else:
+            taken = {s.port for s in specs}
             port = 4000
-            while port in used_ports or port in {s.port for s in specs}:
+            while port in taken:
                 port += 1
             specs.append(SideSpec(name, port))
-        used_ports.add(specs[-1].port)
     return specs
 
 
