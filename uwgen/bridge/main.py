@@ -134,8 +134,6 @@ def main(package: str | ModuleType, side: str | None = None,
 
     argv = list(sys.argv[1:] if argv is None else argv)
     user_args = remove_ros_args(["prog", *argv])[1:]
-    ros_args = argv[len(user_args):] if user_args == argv[:len(user_args)] else \
-        [a for a in argv if a not in user_args]
     name = package if isinstance(package, str) else package.__name__
     parser = argparse.ArgumentParser(
         prog=f"python -m {name}.bridge_{side}" if side else f"python -m {name}",
@@ -152,4 +150,5 @@ def main(package: str | ModuleType, side: str | None = None,
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    return run(module, side or args.side, args, ros_args)
+    # rclpy.init reads only the --ros-args sections of argv and leaves the rest alone.
+    return run(module, side or args.side, args, argv)
