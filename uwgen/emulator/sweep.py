@@ -6,7 +6,7 @@ the SNR model's calibration (docs/emulator.md) still gives their shape.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from uwgen.emulator.core import EmulatorCore
@@ -52,7 +52,7 @@ def pdr_sweep(winds=DEFAULT_WINDS, distances=DEFAULT_DISTANCES, packets: int = 2
     base = base or SnrModel()
     out: dict[float, list[SweepPoint]] = {}
     for w in winds:
-        model = SnrModel(**{**base.__dict__, "wind": float(w)})
+        model = replace(base, wind=float(w))
         out[float(w)] = [pdr_at(d, model, packets=packets, payload=payload, seed=seed + i)
                          for i, d in enumerate(distances)]
     return out
