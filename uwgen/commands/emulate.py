@@ -94,9 +94,8 @@ def build_scenario(args: argparse.Namespace):
                             "(several only with --pdr-sweep)")
     base = load_scenario(args.scenario) if args.scenario else None
     changes: dict = {}
-    for flag, key in (("period", "period"), ("max_read_length", "max_read_length"),
-                      ("bitrate", "bitrate"), ("per", "per"), ("seed", "seed")):
-        value = getattr(args, flag)
+    for key in ("period", "max_read_length", "bitrate", "per", "seed"):
+        value = getattr(args, key)
         if value is not None:
             changes[key] = value
     if args.wind is not None:
@@ -182,7 +181,7 @@ def format_counters(counters: dict[str, dict[str, int]]) -> str:
     """Per-node counters as a table (one row per node)."""
     names = list(counters)
     width = max(len("node"), *(len(n) for n in names))
-    cols = [c for c in COUNTER_COLUMNS]
+    cols = COUNTER_COLUMNS
     header = "node".ljust(width) + " " + " ".join(c.rjust(max(len(c), 6)) for c in cols)
     lines = [header]
     for name in names:
@@ -194,9 +193,9 @@ def format_counters(counters: dict[str, dict[str, int]]) -> str:
 
 def _sweep(args: argparse.Namespace) -> int:
     from uwgen.emulator.physics import SnrModel
-    from uwgen.emulator.sweep import format_table, pdr_sweep, plot
+    from uwgen.emulator.sweep import DEFAULT_WINDS, format_table, pdr_sweep, plot
 
-    winds = args.wind if args.wind is not None else [0.0, 5.0, 10.0]
+    winds = args.wind if args.wind is not None else DEFAULT_WINDS
     if args.packets < 1:
         print("uwgen emulate: --packets must be at least 1", file=sys.stderr)
         return EXIT_USAGE
