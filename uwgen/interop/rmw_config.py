@@ -187,8 +187,7 @@ def resolve_type_text(text: str, lib: InterfaceLibrary) -> str:
     spaces = [ns] if ns else ["msg", "srv"]
     found = [f"{pkg}/{s}/{name}" for s in spaces if f"{pkg}/{s}/{name}" in lib]
     if not found:
-        raise ValueError(f"{text} is not a known interface ({lib.describe_unknown(text)})"
-                         if hasattr(lib, "describe_unknown") else f"{text} is not known")
+        raise ValueError(f"{text} is not a known interface ({lib.describe_unknown(text)})")
     if len(found) > 1:
         raise ValueError(f"{text} is ambiguous: {', '.join(found)}")
     return found[0]
