@@ -149,8 +149,9 @@ def run(args: argparse.Namespace) -> int:
     with run_emulator(scen) as emu:
         ports = {n: emu.port(n) for n in ("surface", "vehicle")}
         print(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
-              f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, 64 B every 0.2 s at "
-              f"4800 bit/s, packet error rate {args.per:g} plus collisions")
+              f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, "
+              f"{scen.max_read_length} B every {scen.period:g} s at {scen.bitrate:g} bit/s, "
+              f"packet error rate {args.per:g} plus collisions")
         print(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
         venv = _env(vdom, [str(GENERATED)], iface)
         senv = _env(sdom, [str(GENERATED)], iface)
@@ -180,11 +181,11 @@ def run(args: argparse.Namespace) -> int:
     report = build_report(out)
     print()
     print(format_report(report))
-    plot = plot_paths(report, out / "demo-path.png",
-                      f"uwgen demo: {args.distance:g} m acoustic link, 64 B / 0.2 s, PER {args.per:g}")
+    title = (f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "
+             f"{scen.period:g} s, PER {args.per:g}")
+    plot = plot_paths(report, out / "demo-path.png", title)
     if args.docs:
-        plot_paths(report, ROOT / "docs" / "demo-path.png",
-                   f"uwgen demo: {args.distance:g} m acoustic link, 64 B / 0.2 s, PER {args.per:g}")
+        plot_paths(report, ROOT / "docs" / "demo-path.png", title)
         print("plot: docs/demo-path.png")
     print(f"plot: {plot}\nrun took {elapsed:.0f} s; logs in {out}")
     if crashed:
