@@ -23,19 +23,11 @@ def generate(out_dir: Path, package: str, names: Iterable[str] = (), folders: It
     installed interface. Types a profile can never carry are left out of bulk builds
     (see the plan's `skipped`). Raises DefinitionError, ManifestError or ProfileError.
     """
-    from uwgen.codegen.generator import plan_package, render_package, write_package
-    from uwgen.idl.loader import InterfaceLibrary
-    from uwgen.manifest.loader import load_manifest
+    from uwgen.codegen.generator import plan_build, render_package, write_package
 
-    folders = [Path(f) for f in folders]
-    lib = InterfaceLibrary(folders, installed=installed)
-    wanted = lib.all_names() if all_installed else [*lib.local_names(), *names]
-    wanted = sorted({lib.normalize(n) or n for n in wanted})
-    loaded = load_manifest(Path(manifest), lib) if manifest else None
-    plan = plan_package(lib, wanted, loaded, package, tuple(profiles),
-                        str(manifest) if manifest else None)
-    target = Path(out_dir) / package
-    write_package(render_package(plan), target)
+    plan = plan_build([Path(f) for f in folders], list(names), manifest, package, tuple(profiles),
+                      installed, all_installed)
+    write_package(render_package(plan), Path(out_dir) / package)
     return import_package(Path(out_dir), package)
 
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import hashlib
 import keyword
-from dataclasses import dataclass, field
+import shutil
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import jinja2
@@ -111,6 +112,26 @@ def _digest(path: Path | None) -> str:
 
 # --- planning ------------------------------------------------------------------------
 
+def plan_build(folders: list[Path], names: list[str] = (), manifest_path: Path | None = None,
+               package: str | None = None, profiles: tuple[str, ...] = (NATIVE,),
+               installed: bool = True, all_installed: bool = False,
+               manifest_label: str | None = None) -> PackagePlan:
+    """What `uwgen build` and `uwgen.codegen.generate()` share: read the interfaces and the
+    manifest, choose the names, plan the package. `names` add interfaces to the folders'
+    own; `all_installed` builds every interface known. The package name defaults to the
+    manifest's, then to uwgen_<first folder's name>."""
+    from uwgen.manifest.loader import load_manifest   # yaml, only when a build runs
+
+    lib = InterfaceLibrary(folders, installed=installed)
+    manifest = load_manifest(Path(manifest_path), lib) if manifest_path else None
+    wanted = lib.all_names() if all_installed else [*lib.local_names(), *names]
+    wanted = sorted({lib.normalize(n) or n for n in wanted})
+    package = package or (manifest.package if manifest else None) \
+        or f"uwgen_{Path(folders[0]).resolve().name if folders else 'interfaces'}"
+    label = manifest_label or (str(manifest_path) if manifest_path else None)
+    return plan_package(lib, wanted, manifest, package, tuple(profiles), label)
+
+
 def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | None,
                  package: str, profiles: tuple[str, ...] = (NATIVE,),
                  manifest_label: str | None = None) -> PackagePlan:
@@ -165,7 +186,7 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
             consts[name] = Constants()
         return modules[name]
 
-    for full_name in _dependency_order(definitions, lib):
+    for full_name in _dependency_order(definitions):
         msg = definitions[full_name]
         mod = module(msg.package, msg.namespace)
         mod.classes.append(_plain_class(msg, mod))
@@ -189,11 +210,9 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
         mod.constants = consts[name].lines
         mod.imports.sort()
 
-    sources = sorted({(source_label(lib.source_of(n), lib), _digest(lib.source_of(n)))
-                      for n in {*definitions, *services}
-                      if not n.endswith(("_Request", "_Response"))})
-    sources += sorted({(source_label(lib.source_of(s), lib), _digest(lib.source_of(s))) for s in services})
-    sources = sorted(set(sources))
+    # A service's request and response come from its one file: read each file once.
+    files = {lib.source_of(n) for n in (*definitions, *services)}
+    sources = sorted((source_label(f, lib), _digest(f)) for f in files)
     ordered = [modules[p] for p in sorted(modules)]
     ros_imports = sorted((type_key(n), _ros_module(n), n.split("/")[2]) for n in definitions)
     plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
@@ -235,7 +254,7 @@ def _need_import(mod: ModulePlan, module: str) -> None:
         mod.imports.append(entry)
 
 
-def _dependency_order(definitions: dict[str, MessageDef], lib: InterfaceLibrary) -> list[str]:
+def _dependency_order(definitions: dict[str, MessageDef]) -> list[str]:
     order: list[str] = []
     seen: set[str] = set()
 
@@ -361,7 +380,6 @@ def _manifest_view(manifest: Manifest | None):
 
 
 def side_without_where(side):
-    from dataclasses import replace
     return replace(side, where=None)
 
 
@@ -399,12 +417,9 @@ def write_package(files: dict[str, str], out_dir: Path) -> list[str]:
         if rel not in files and path.read_text(encoding="utf-8").startswith(MARKER):
             path.unlink()
             changed.append(rel)
-    for folder in sorted(out_dir.iterdir()):
-        if folder.is_dir() and not any(folder.glob("*.py")) and folder.name != "__pycache__":
-            for cache in folder.glob("__pycache__"):
-                for f in cache.iterdir():
-                    f.unlink()
-                cache.rmdir()
+    for folder in sorted(out_dir.iterdir()):   # a ROS package no longer generated
+        if folder.is_dir() and folder.name != "__pycache__" and not any(folder.glob("*.py")):
+            shutil.rmtree(folder / "__pycache__", ignore_errors=True)
             if not any(folder.iterdir()):
                 folder.rmdir()
     return changed

@@ -9,10 +9,10 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from uwgen.codegen.generator import plan_package, render_package, stale_files, write_package
+from uwgen.codegen.generator import plan_build, render_package, stale_files, write_package
 from uwgen.codegen.ir import PROFILES, ProfileError
-from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import DefinitionError
+from uwgen.manifest.loader import ManifestError, find_manifest
 
 HELP = "generate CBOR codecs and bridge nodes from .msg/.srv folders and a manifest"
 EXIT_STALE = 1
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         stale = []
         for spec in specs:
             stale += build(spec, root, check=args.check)
-    except (DefinitionError, ProfileError, ManifestErrors) as exc:
+    except (DefinitionError, ProfileError, ManifestError) as exc:
         print(f"uwgen build: {exc}", file=sys.stderr)
         return EXIT_INPUT
     if args.check and stale:
@@ -102,45 +102,25 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-class ManifestErrors(Exception):
-    """Placeholder replaced at import time by the manifest loader's error class."""
-
-
-def _manifest_api():
-    global ManifestErrors
-    from uwgen.manifest.loader import ManifestError, find_manifest, load_manifest
-    ManifestErrors = ManifestError
-    return load_manifest, find_manifest
-
-
 def build(spec: BuildSpec, root: Path, check: bool = False) -> list[str]:
     """Generate one package; returns what is stale (check) or what changed (write)."""
     t0 = time.perf_counter()
-    load_manifest, find_manifest = _manifest_api()
-    lib = InterfaceLibrary(spec.folders, installed=spec.installed)
     manifest_path = spec.manifest
     if manifest_path is None and spec.folders:
         manifest_path = find_manifest(spec.folders[0])
-    manifest = load_manifest(manifest_path, lib) if manifest_path else None
-    names = list(lib.local_names())
-    names += [lib.normalize(t) or t for t in spec.types]
-    if spec.all_installed:
-        names = lib.all_names()
-    package = spec.package or (manifest.package if manifest else None) \
-        or f"uwgen_{(spec.folders[0].resolve().name if spec.folders else 'interfaces')}"
-    out = spec.out or (root / "generated" / package)
-    label = _relative(manifest_path, root) if manifest_path else None
-    plan = plan_package(lib, sorted(set(names)), manifest, package, spec.profiles, label)
+    plan = plan_build(spec.folders, spec.types, manifest_path, spec.package, spec.profiles,
+                      spec.installed, spec.all_installed,
+                      _relative(manifest_path, root) if manifest_path else None)
     for reason in plan.skipped:
         log.warning("left out: %s", reason)
     files = render_package(plan)
+    out = spec.out or (root / "generated" / plan.package)
     if check:
         return stale_files(files, out)
     changed = write_package(files, out)
-    dt = time.perf_counter() - t0
-    ntypes = len(plan.codecs)
     log.info("%s: %d codecs in %d modules -> %s (%d files changed) in %.2f s",
-             package, ntypes, len(plan.modules), _relative(out, root), len(changed), dt)
+             plan.package, len(plan.codecs), len(plan.modules), _relative(out, root), len(changed),
+             time.perf_counter() - t0)
     return changed
 
 
