@@ -420,8 +420,8 @@ def _decode_message(cls, r: _Reader, path: str):
             else:
                 count = r.uint(f"{where}.count")
                 # Refuse a count the payload cannot back before allocating anything.
-                if _min_items(element) == 0 and count > MAX_ITEMS or (
-                        _min_items(element) and count > len(r.items) - r.pos):
+                need = _min_items(element)
+                if need == 0 and count > MAX_ITEMS or (need and count > len(r.items) - r.pos):
                     raise PeerError(f"count {count} exceeds the items left", where)
                 if isinstance(t, d.BoundedSequence) and count > t.maximum_size:
                     raise PeerError(f"count {count} exceeds the bound {t.maximum_size}", where)
