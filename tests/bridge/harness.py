@@ -5,12 +5,16 @@ vehicle and a surface computer would, so their graphs never see each other.
 """
 from __future__ import annotations
 
+import random
 import threading
 from contextlib import contextmanager
 
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+from uwgen.bridge.node import BridgeNode
+from uwgen.bridge.plan import BridgePlan
 
 from .fakes import next_domain
 
@@ -55,6 +59,16 @@ class RosSide:
         if self.context.ok():
             rclpy.shutdown(context=self.context)
         self._thread.join(timeout=2.0)
+
+
+def start_bridge(side: RosSide, package, link_factory, *, flush_timeout: float | None = None,
+                 **options) -> BridgeNode:
+    """The bridge of `side.name` in that side's context, without ~/status timer; `options`
+    override the manifest's (BridgePlan.options)."""
+    plan = BridgePlan.from_package(package, side.name)
+    node = BridgeNode(plan, plan.options(status_period=0, **options), link_factory=link_factory,
+                      context=side.context, rng=random.Random(3), flush_timeout=flush_timeout)
+    return side.add(node)
 
 
 @contextmanager

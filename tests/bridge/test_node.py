@@ -2,19 +2,16 @@
 from __future__ import annotations
 
 import json
-import random
 
 import pytest
 from geometry_msgs.msg import Twist
 from std_msgs.msg import String
 from test_msgs.srv import BasicTypes
 
-from uwgen.bridge.node import BridgeNode
-from uwgen.bridge.plan import BridgePlan
 from uwgen.runtime.codec import load_items, pack_items
 
 from .fakes import FakeServiceCodec, FakeTopicCodec, LinkPair, fake_package, wait_for
-from .harness import ros_sides
+from .harness import ros_sides, start_bridge
 
 CMD = FakeTopicCodec(4, "/cmd", Twist, "surface")
 LOG = FakeTopicCodec(7, "/log", String, "vehicle")
@@ -23,14 +20,7 @@ SLOW = FakeServiceCodec(21, "/slow", BasicTypes, "vehicle", timeout=0.4)
 
 
 def start_bridges(sides, package, links, **opts):
-    bridges = {}
-    for side in sides:
-        plan = BridgePlan.from_package(package, side.name)
-        options = plan.options(status_period=0, **opts)
-        node = BridgeNode(plan, options, link_factory=links.factory, context=side.context,
-                          rng=random.Random(3))
-        bridges[side.name] = side.add(node)
-    return bridges
+    return {side.name: start_bridge(side, package, links.factory, **opts) for side in sides}
 
 
 def collect(node, cls, topic):

@@ -7,15 +7,13 @@ from __future__ import annotations
 
 import json
 import logging
-import random
 
 import pytest
 from geometry_msgs.msg import Twist
 from std_msgs.msg import String
 from test_msgs.srv import BasicTypes
 
-from uwgen.bridge.node import BridgeNode
-from uwgen.bridge.plan import BridgePlan, PlanError
+from uwgen.bridge.plan import PlanError
 from uwgen.interop.beacons import (
     Beacon, Entity, decode_beacon, derive_gid, encode_beacon, encode_discovery_request,
     is_discovery_request)
@@ -23,7 +21,7 @@ from uwgen.interop.discovery import DiscoveryAgent, beacons_for, discovery_polic
 from uwgen.runtime.codec import load_items
 
 from .fakes import FakeServiceCodec, FakeTopicCodec, LinkPair, fake_package, wait_for
-from .harness import ros_sides
+from .harness import ros_sides, start_bridge
 
 RMW = "rmw_desert"
 CMD = FakeTopicCodec(4, "/cmd", Twist, "surface", profile=RMW)
@@ -32,13 +30,6 @@ NATIVE_LOG = FakeTopicCodec(8, "/native_log", String, "vehicle")
 ECHO = FakeServiceCodec(20, "/echo", BasicTypes, "vehicle", timeout=5.0, profile=RMW)
 QUICK = FakeServiceCodec(21, "/quick", BasicTypes, "vehicle", timeout=0.5, profile=RMW)
 NATIVE_ECHO = FakeServiceCodec(22, "/native_echo", BasicTypes, "vehicle")
-
-
-def make_bridge(side, package, links, **kw):
-    plan = BridgePlan.from_package(package, side.name)
-    node = BridgeNode(plan, plan.options(status_period=0), link_factory=links.factory,
-                      context=side.context, rng=random.Random(3), **kw)
-    return side.add(node)
 
 
 def beacons_on(link):
@@ -58,7 +49,7 @@ def surface_only():
     package = fake_package([CMD, LOG, NATIVE_LOG], [ECHO, QUICK, NATIVE_ECHO])
     links = LinkPair()
     with ros_sides("surface") as (surface,):
-        bridge = make_bridge(surface, package, links)
+        bridge = start_bridge(surface, package, links.factory)
         yield surface, bridge, links.links["surface"]
 
 
@@ -157,7 +148,7 @@ def test_native_only_bridge_runs_no_discovery():
     package = fake_package([NATIVE_LOG], [NATIVE_ECHO])
     links = LinkPair()
     with ros_sides("surface") as (surface,):
-        bridge = make_bridge(surface, package, links)
+        bridge = start_bridge(surface, package, links.factory)
         link = links.links["surface"]
         assert bridge.discovery is None and bridge.status()["discovery"] is None
         assert 1 not in link.channels and 2 not in link.channels
@@ -172,14 +163,14 @@ def test_manifest_giving_discovery_ids_to_its_entries_is_refused(publisher):
     links = LinkPair()
     with ros_sides("surface") as (surface,):
         with pytest.raises(PlanError, match=r"ids \[1\] are rmw_desert's discovery topics"):
-            make_bridge(surface, fake_package([clash]), links)
+            start_bridge(surface, fake_package([clash]), links.factory)
 
 
 def test_entries_rclpy_cannot_carry_are_not_announced():
     missing = FakeTopicCodec(9, "/pose", None, "vehicle", profile=RMW)
     links = LinkPair()
     with ros_sides("surface") as (surface,):
-        bridge = make_bridge(surface, fake_package([CMD, missing]), links)
+        bridge = start_bridge(surface, fake_package([CMD, missing]), links.factory)
         assert "/pose" in bridge.unavailable
         assert [b.topic for b in beacons_on(links.links["surface"])] == ["/cmd"]
 
@@ -188,8 +179,8 @@ def test_two_bridges_in_the_profile_see_each_other():
     package = fake_package([CMD, LOG], [ECHO])
     links = LinkPair()
     with ros_sides("surface", "vehicle") as (surface, vehicle):
-        sb = make_bridge(surface, package, links)
-        vb = make_bridge(vehicle, package, links)
+        sb = start_bridge(surface, package, links.factory)
+        vb = start_bridge(vehicle, package, links.factory)
         # The vehicle's start-up request reaches the surface, which answers it.
         wait_for(lambda: len(sb.status()["discovery"]["remote"]) == 3, what="vehicle entities")
         remote = {(e["node"], e["entity"], e["topic"]) for e in sb.status()["discovery"]["remote"]}
@@ -276,7 +267,7 @@ def test_server_side_echoes_the_request_seq(seq):
     package = fake_package([], [ECHO])
     links = LinkPair()
     with ros_sides("vehicle") as (vehicle,):
-        bridge = make_bridge(vehicle, package, links)
+        bridge = start_bridge(vehicle, package, links.factory)
         link = links.links["vehicle"]
 
         def serve(req, resp):
@@ -328,9 +319,7 @@ def test_close_waits_for_a_stuck_link_only_up_to_its_flush_timeout():
         stuck.append(StuckLink(**kw))
         return stuck[-1]
     with ros_sides("surface") as (surface,):
-        plan = BridgePlan.from_package(fake_package([CMD]), "surface")
-        bridge = surface.add(BridgeNode(plan, plan.options(status_period=0), link_factory=factory,
-                                        context=surface.context, flush_timeout=0.05))
+        bridge = start_bridge(surface, fake_package([CMD]), factory, flush_timeout=0.05)
         surface.executor.remove_node(bridge)
         bridge.close()
         assert stuck[0].stopped and not bridge._flush_discovery()  # gave up, did not hang
