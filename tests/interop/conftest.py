@@ -2,6 +2,9 @@
 from __future__ import annotations
 
 import importlib.util
+import json
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -23,6 +26,21 @@ def load_peer():
     sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
+
+
+def start_peer(port: int, conf: Path, *args: str) -> subprocess.Popen:
+    """The peer as a process on DESERT port `port` with id table `conf` (JSON lines out)."""
+    env = dict(os.environ, DESERT_PORT=str(port), ROS_ALLOWED_TOPICS_CONFIG=str(conf))
+    return subprocess.Popen([sys.executable, str(PEER_PATH), *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+
+
+def peer_events(proc: subprocess.Popen, timeout: float = 30) -> list[dict]:
+    """Every event the peer printed, once it exited; its summary must be the last."""
+    out, err = proc.communicate(timeout=timeout)
+    lines = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+    assert lines and lines[-1]["event"] == "summary", err[-2000:]
+    return lines
 
 
 @pytest.fixture(scope="session")

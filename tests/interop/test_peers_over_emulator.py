@@ -7,28 +7,11 @@ call, all across emulated acoustic packets that cut frames at arbitrary points.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
+from conftest import peer_events, start_peer
 from uwgen.emulator import NodeSpec, Scenario, TdmaSpec, run_emulator
 
-PEER = Path(__file__).resolve().parents[1] / "peers" / "rmw_desert_peer.py"
 TABLE = {"/discovery": 1, "/discovery_request": 2, "/chatter": 4, "/set_bool": 13}
-
-
-def start_peer(port: int, conf: Path, *args: str) -> subprocess.Popen:
-    env = dict(os.environ, DESERT_PORT=str(port), ROS_ALLOWED_TOPICS_CONFIG=str(conf))
-    return subprocess.Popen([sys.executable, str(PEER), *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env)
-
-
-def events(proc: subprocess.Popen, timeout: float = 30) -> list[dict]:
-    out, err = proc.communicate(timeout=timeout)
-    lines = [json.loads(line) for line in out.splitlines()]
-    assert lines and lines[-1]["event"] == "summary", err
-    return lines
 
 
 def test_client_finds_service_and_subscriber_gets_messages_over_the_emulator(tmp_path):
@@ -54,8 +37,8 @@ def test_client_finds_service_and_subscriber_gets_messages_over_the_emulator(tmp
                              "--call", "/set_bool=std_srvs/srv/SetBool",
                              "--data", '/set_bool={"data": true}', "--wait-for-service",
                              "--until-done", "--duration", "20")
-        got = events(surface)
-        served = events(vehicle)
+        got = peer_events(surface)
+        served = peer_events(vehicle)
     assert surface.returncode == 0 and vehicle.returncode == 0
 
     summary = got[-1]
