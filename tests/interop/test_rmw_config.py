@@ -7,13 +7,11 @@ from pathlib import Path
 
 import pytest
 
+from conftest import RMW_SAMPLE, SAMPLES
 from uwgen.interop.rmw_config import (
     ResolvedType, RmwConfigError, SideSpec, conf_table, export_conf, manifest_from_conf,
     parse_conf, resolve_type_text, resolve_types)
 from uwgen.manifest.loader import load_manifest
-
-SAMPLES = Path(__file__).resolve().parents[2] / "msg_samples"
-RMW_SAMPLE = SAMPLES / "rmw_desert"
 
 
 def test_sample_conf_is_the_export_of_the_sample_manifest(rmw_manifest):

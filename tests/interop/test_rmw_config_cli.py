@@ -2,16 +2,13 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 
+from conftest import RMW_SAMPLE, SAMPLES
 from uwgen.cli import main
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.manifest.loader import load_manifest
-
-SAMPLES = Path(__file__).resolve().parents[2] / "msg_samples"
-RMW_SAMPLE = SAMPLES / "rmw_desert"
 
 
 def run(capsys, *argv):
