@@ -107,8 +107,7 @@ class DesertConnection:
         self.decoder = FrameDecoder()
         self.counters = Counters(CONNECTION_COUNTERS)
 
-        self._sock: socket.socket | None = None
-        self._connected = False
+        self._sock: socket.socket | None = None      # set exactly while connected
         self._connected_at = 0.0
         self._last_rx = 0.0
         self._failures_in_outage = 0
@@ -131,7 +130,7 @@ class DesertConnection:
 
     @property
     def connected(self) -> bool:
-        return self._connected
+        return self._sock is not None
 
     def start(self) -> None:
         if self._thread is not None:
@@ -163,7 +162,7 @@ class DesertConnection:
         o = self.outbox.stats
         c = self.counters
         return {
-            "connected": self._connected,
+            "connected": self.connected,
             "frames_sent": o.frames_sent,
             "frames_received": c["frames_received"],
             "frames_dropped": {
@@ -208,9 +207,7 @@ class DesertConnection:
             log.exception("[%s] connection thread crashed", self.name)
             raise
         finally:
-            if self._sock is not None:
-                self._close_socket()
-                self._connected = False
+            self._close_socket()
 
     def _step(self) -> None:
         sock = self._sock
@@ -302,7 +299,6 @@ class DesertConnection:
         except OSError:
             pass
         self._sock = sock
-        self._connected = True
         now = self.clock.now()
         self._connected_at = self._last_rx = now
         if self.counters.inc("connects") > 1:
@@ -329,7 +325,6 @@ class DesertConnection:
         lost = self.outbox.abandon()
         self.decoder.reset()
         self._close_socket()
-        self._connected = False
         self.counters.inc("disconnects")
         cut = f"; {lost} frame(s) cut" if lost else ""
         if self.clock.now() - self._connected_at >= self.stable_after:
