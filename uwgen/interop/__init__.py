@@ -20,7 +20,7 @@ How a bridge uses discovery (profile rmw_desert on any of its entries):
     agent.start()                                     # request + beacons (and on reconnect:
                                                       # agent.announce(request=True))
     # in on_payload, before the id table lookup:
-    if is_discovery_payload(payload): agent.handle(payload); return
+    if agent.handle(payload): return                  # discovery traffic, taken
     agent.graph.as_dict()                             # for ~/status; agent.stats() counters
     agent.stop()                                      # disconnect beacons, before link.stop()
 """
