@@ -23,7 +23,7 @@ import jinja2
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
 from uwgen.codegen.ir import NATIVE, CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
 from uwgen.idl.loader import InterfaceLibrary
-from uwgen.idl.model import ArrayKind, DefinitionError, Field, MessageDef, ServiceDef, SourceRef
+from uwgen.idl.model import OCTET_TYPES, ArrayKind, DefinitionError, Field, MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import Manifest
 
 TEMPLATES = Path(__file__).resolve().parents[2] / "templates"
@@ -314,7 +314,7 @@ def _plain_field(f: Field, package: str, mod: ModulePlan) -> PlainField:
     if not t.is_array:
         value = _ZERO.get(t.base, "0") if f.default is None else _literal(f.default, t.base)
         return PlainField(f.name, value, f.name)
-    octet = t.base in ("byte", "char", "uint8")
+    octet = t.base in OCTET_TYPES
     if octet:
         if f.default is not None:
             data = bytes(f.default if t.base != "byte" else [v if isinstance(v, int) else v[0] for v in f.default])

@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Iterator
 
-from uwgen.idl.model import INTEGER_RANGES, ArrayKind, FieldType, MessageDef
+from uwgen.idl.model import INTEGER_RANGES, OCTET_TYPES, ArrayKind, FieldType, MessageDef
 from uwgen.runtime.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES
 from uwgen.runtime.framing import MAX_PAYLOAD
 
@@ -279,7 +279,7 @@ class IRBuilder:
             return Node(name, path, Absent("rmw_desert neither sends nor expects byte fields"))
         if not ftype.is_array:
             return Node(name, path, self._scalar(base, ftype.string_bound, rmw))
-        if base in ("byte", "char", "uint8") and not rmw:
+        if base in OCTET_TYPES and not rmw:
             return Node(name, path, Octets(ftype.array, ftype.size, base))
         if base == "bool":
             return Node(name, path, BoolArray(ftype.array, ftype.size, cbor_bool=rmw))

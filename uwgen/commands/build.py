@@ -12,12 +12,11 @@ from pathlib import Path
 from uwgen.codegen.generator import plan_build, render_package, stale_files, write_package
 from uwgen.codegen.ir import PROFILES, ProfileError
 from uwgen.idl.model import DefinitionError
-from uwgen.manifest.loader import ManifestError, find_manifest
+from uwgen.manifest.loader import MANIFEST_NAME, ManifestError, find_manifest
 
 HELP = "generate CBOR codecs and bridge nodes from .msg/.srv folders and a manifest"
 EXIT_STALE = 1
 EXIT_INPUT = 2
-MANIFEST_NAME = "uwgen.yaml"
 
 log = logging.getLogger("uwgen.build")
 
