@@ -154,8 +154,7 @@ class DiscoveryAgent:
                 self._malformed("discovery request with extra items")
                 return True
             self._count("requests_heard")
-            if not self._stopped:
-                self.announce(request=False)
+            self.announce(request=False)   # nothing after stop()
             return True
         try:
             beacon = decode_beacon(payload)
