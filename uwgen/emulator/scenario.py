@@ -296,8 +296,7 @@ def scenario_from_dict(data: Any, doc: _Doc | None = None) -> Scenario:
         if "name" not in raw:
             raise fail("node has no `name`", "nodes", i)
         node_kwargs = dict(raw)
-        if "name" in node_kwargs:
-            node_kwargs["name"] = str(node_kwargs["name"])
+        node_kwargs["name"] = str(node_kwargs["name"])
         if "dest" in node_kwargs and node_kwargs["dest"] is not None:
             node_kwargs["dest"] = str(node_kwargs["dest"])
         if "position" in node_kwargs:
@@ -315,7 +314,7 @@ def scenario_from_dict(data: Any, doc: _Doc | None = None) -> Scenario:
         if key not in data or data[key] is None:
             continue
         raw = data[key]
-        if raw is True or raw == {}:
+        if raw is True:             # `snr: true` turns the model on with its defaults
             raw = {}
         if not isinstance(raw, dict):
             raise fail(f"`{key}` must be a mapping of its settings", key)
