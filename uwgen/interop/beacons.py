@@ -20,7 +20,7 @@ from enum import IntEnum
 import cbor2
 
 from uwgen.manifest.model import RMW_DISCOVERY_ID, RMW_DISCOVERY_REQUEST_ID
-from uwgen.runtime.codec import KIND_TOPIC, DecodeError, load_items
+from uwgen.runtime.codec import KIND_TOPIC, RMW_MAX_TEXT_BYTES, DecodeError, load_items
 from uwgen.runtime.framing import MAX_PAYLOAD    # one frame; rmw_desert wraps LEN above 255
 
 PROFILE = "rmw_desert"      # the profile whose entries speak this format and discovery
@@ -30,7 +30,6 @@ DISCOVERY_TOPIC = "/discovery"
 DISCOVERY_REQUEST_TOPIC = "/discovery_request"
 
 GID_SIZE = 16               # rmw's RMW_GID_STORAGE_SIZE in Jazzy
-MAX_TEXT_BYTES = 127        # rmw_desert's receiver overflows on longer text
 
 # The whole request payload: kind 0 (topic message), id 2, no fields.
 DISCOVERY_REQUEST_PAYLOAD = bytes([KIND_TOPIC, DISCOVERY_REQUEST_ID])
@@ -88,9 +87,9 @@ def _text(value: str, what: str) -> bytes:
         data = value.encode("utf-8")
     except UnicodeEncodeError as exc:
         raise BeaconError(f"{what}: not encodable as UTF-8 ({exc.reason})") from None
-    if len(data) > MAX_TEXT_BYTES:
+    if len(data) > RMW_MAX_TEXT_BYTES:
         raise BeaconError(f"{what}: {len(data)} bytes of UTF-8, rmw_desert's receiver "
-                          f"takes at most {MAX_TEXT_BYTES}")
+                          f"takes at most {RMW_MAX_TEXT_BYTES}")
     return cbor2.dumps(value)
 
 
