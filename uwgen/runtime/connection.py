@@ -279,9 +279,8 @@ class DesertConnection:
             try:
                 self._on_frame(p)
             except Exception:
-                n = self.counters.inc("callback_errors")
-                if n == 1 or n % 100 == 0:
-                    log.exception("[%s] payload handler failed (%d so far); the link goes on", self.name, n)
+                log_count(log, logging.ERROR, self.counters.inc("callback_errors"),
+                          "[%s] payload handler failed; the link goes on", self.name, exc_info=True)
 
     # -- connection state ----------------------------------------------------------------------
 

@@ -43,15 +43,17 @@ class Counters(Mapping[str, int]):
         return f"Counters({self._c})"
 
 
-def log_count(logger: logging.Logger, level: int, count: int, message: str, *args: object) -> None:
+def log_count(logger: logging.Logger, level: int, count: int, message: str, *args: object,
+              exc_info: bool = False) -> None:
     """Log a repeated event on its 1st, 10th, 100th, ... occurrence only (never once per message).
 
-    `message` gets ` (N so far)` appended after the first occurrence.
+    `message` gets ` (N so far)` appended after the first occurrence. `exc_info=True` adds the
+    exception being handled, as `logger.exception` would.
     """
     if count == 1:
-        logger.log(level, message, *args)
+        logger.log(level, message, *args, exc_info=exc_info)
     elif _is_power_of_ten(count):
-        logger.log(level, message + " (%d so far)", *args, count)
+        logger.log(level, message + " (%d so far)", *args, count, exc_info=exc_info)
 
 
 def _is_power_of_ten(n: int) -> bool:
