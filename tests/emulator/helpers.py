@@ -3,10 +3,14 @@ from __future__ import annotations
 
 import socket
 import time
+from pathlib import Path
 
 import pytest
 
 from uwgen.emulator import NodeSpec, Scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIOS = ROOT / "msg_samples" / "scenarios"
 
 
 def two_nodes(distance: float = 1500.0, **kw) -> Scenario:

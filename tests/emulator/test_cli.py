@@ -5,15 +5,13 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
 from uwgen.cli import main
 from uwgen.commands import emulate
 
-ROOT = Path(__file__).resolve().parents[2]
-SCENARIOS = ROOT / "msg_samples" / "scenarios"
+from .helpers import ROOT, SCENARIOS
 
 
 def parse(*argv: str):

@@ -8,7 +8,7 @@ import pytest
 from uwgen.emulator import (NodeSpec, Scenario, ScenarioError, SnrModel, TdmaSpec,
                             load_scenario)
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "msg_samples" / "scenarios"
+from .helpers import SCENARIOS
 
 
 def write(tmp_path: Path, text: str) -> Path:
