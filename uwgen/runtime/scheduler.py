@@ -216,9 +216,6 @@ class LinkScheduler:
             self._channels[key] = ch
             self._order = sorted(self._channels.values(), key=lambda c: (-c.priority, c.key))
 
-    def channels(self) -> list[int]:
-        return [c.key for c in self._order]
-
     # -- producer side -------------------------------------------------------------------------
 
     def offer(self, key: int, payload: bytes) -> bool:
@@ -264,14 +261,6 @@ class LinkScheduler:
             return min(times) if times else None
 
     # -- accounting ----------------------------------------------------------------------------
-
-    def expire(self, now: float | None = None) -> None:
-        """Drop expired messages now (they are also dropped whenever a payload is picked)."""
-        with self._lock:
-            self._expire(self.clock.now() if now is None else now)
-
-    def queued(self, key: int) -> int:
-        return self._channel(key).queued
 
     def stats(self) -> dict[int, dict[str, int]]:
         with self._lock:
