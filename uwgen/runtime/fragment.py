@@ -84,7 +84,8 @@ def is_fragment(payload: bytes, fragment_id: int | None) -> bool:
     """Cheap test of the header: is this payload `0, fragment_id, ...`?"""
     if fragment_id is None or len(payload) < 2 or payload[0] != FRAGMENT_KIND:
         return False
-    return payload[1:1 + len(_uint(fragment_id))] == _uint(fragment_id)
+    head = _uint(fragment_id)
+    return payload[1:1 + len(head)] == head
 
 
 def parse_fragment(payload: bytes, fragment_id: int) -> Fragment:
