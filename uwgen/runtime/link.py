@@ -22,6 +22,7 @@ from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.connection import Backoff, DesertConnection
 from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, is_fragment
+from uwgen.runtime.framing import MAX_PAYLOAD
 from uwgen.runtime.pacing import DEFAULT_MARGIN
 from uwgen.runtime.scheduler import LinkScheduler
 from uwgen.runtime.stats import Counters
@@ -65,7 +66,7 @@ class Link:
         self.scheduler = LinkScheduler(
             clock, name=name,
             splitter=self.fragmenter.split if self.fragmenter else None,
-            max_message=self.fragmenter.max_message_size if self.fragmenter else 255)
+            max_message=self.fragmenter.max_message_size if self.fragmenter else MAX_PAYLOAD)
         self.connection = DesertConnection(
             host, port, self.config, source=self._source, on_frame=self._on_frame, clock=clock,
             name=name, backoff=backoff or Backoff(rng=rng), stall_timeout=stall_timeout,
