@@ -39,7 +39,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from uwgen.emulator.physics import bpsk_per
-from uwgen.emulator.scenario import Scenario
+from uwgen.emulator.scenario import NodeSpec, Scenario
 from uwgen.runtime.stats import Counters
 
 log = logging.getLogger(__name__)
@@ -141,11 +141,7 @@ class EmulatorCore:
         self._uids = itertools.count(1)
         self._pending: list[Delivery] = []
         s = scenario
-        self._nodes: dict[str, _Node] = {}
-        for spec in s.nodes:
-            self._nodes[spec.name] = _Node(
-                name=spec.name, dest=s.dest_of(spec.name), period=s.period_of(spec.name),
-                max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase)
+        self._nodes = {spec.name: self._fresh_node(spec, start) for spec in s.nodes}
         self._order = list(self._nodes)
         # Per ordered pair: propagation delay, mean received power and SNR.
         self._delay: dict[tuple[str, str], float] = {}
@@ -202,31 +198,21 @@ class EmulatorCore:
         """A DESERT restart at `t`: queues and packets in flight are lost, clients are gone,
         and every node's send ticks start again from `t`."""
         self._run_until(t)
-        lost: set[int] = set()
         for n in self._nodes.values():
-            for pkt in itertools.chain(n.app_queue, n.mac_queue):
-                self._nodes[pkt.source].counters.inc("dropped_restart")
-        # Packets on their way to their destination: arriving, or still propagating.
+            n.counters.inc("dropped_restart", len(n.app_queue) + len(n.mac_queue))
+        # Packets on their way to their destination: arriving, or still propagating (each
+        # packet has exactly one arrival at its destination).
         in_flight = [arr for n in self._nodes.values() for arr in n.rx]
         in_flight += [args for _, _, _, kind, args in self._events if kind == _RX_START]
         for arr in in_flight:
-            if arr.receiver == arr.packet.dest and arr.packet.uid not in lost:
-                lost.add(arr.packet.uid)
+            if arr.receiver == arr.packet.dest:
                 self._nodes[arr.packet.source].counters.inc("dropped_restart")
         self._events.clear()
         for spec in self.scenario.nodes:
-            n = self._nodes[spec.name]
-            n.app_queue.clear()
-            n.mac_queue.clear()
-            n.queue_bytes = 0
-            n.tick_pending = False
-            n.mac_state = _IDLE
-            n.tx_end = -math.inf
-            n.rx.clear()
-            n.locked = None
-            n.last_carrier = -math.inf
-            n.client = False
-            n.origin = t + spec.phase
+            old = self._nodes[spec.name]
+            n = self._fresh_node(spec, t)
+            n.counters, n.max_queue_bytes = old.counters, old.max_queue_bytes   # kept
+            self._nodes[spec.name] = n
         self.restarts += 1
 
     # ------------------------------------------------------------------ time
@@ -255,6 +241,12 @@ class EmulatorCore:
         return {name: self.counters(name) for name in self._order}
 
     # ------------------------------------------------------------------ engine
+    def _fresh_node(self, spec: NodeSpec, start: float) -> _Node:
+        """`spec`'s node as DESERT starts it at `start`: idle, empty queues, no client."""
+        s = self.scenario
+        return _Node(name=spec.name, dest=s.dest_of(spec.name), period=s.period_of(spec.name),
+                     max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase)
+
     def _node(self, name: str) -> _Node:
         try:
             return self._nodes[name]
