@@ -19,15 +19,12 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from uwgen.manifest.model import LinkConfig, LinkPolicy
+from uwgen.manifest.model import NATIVE, RMW_DESERT, LinkConfig, LinkPolicy  # RMW_DESERT: discovery, seqs 1..999
 
 # What a stand-in service does when its bridged call gets no response in time.
 TIMEOUT_REPLY_NONE = "none"        # send no response: the client's own timeout detects it
 TIMEOUT_REPLY_DEFAULT = "default"  # send a default-constructed response (and log the error)
 TIMEOUT_REPLIES = (TIMEOUT_REPLY_NONE, TIMEOUT_REPLY_DEFAULT)
-
-RMW_DESERT = "rmw_desert"   # the profile whose entries need discovery and seqs 1..999
-
 
 class PlanError(Exception):
     """The bridge cannot be set up as asked (unknown side, bad option): exit status 2."""
@@ -138,7 +135,7 @@ class BridgePlan:
 
 def is_rmw_desert(entry: Any) -> bool:
     """Whether a codec is in profile rmw_desert (codecs without `profile` are native)."""
-    return getattr(entry, "profile", "native") == RMW_DESERT
+    return getattr(entry, "profile", NATIVE) == RMW_DESERT
 
 
 def import_package(name: str, package_dir: Path | None = None) -> ModuleType:

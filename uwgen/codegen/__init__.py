@@ -11,9 +11,11 @@ from pathlib import Path
 from types import ModuleType
 from typing import Iterable
 
+from uwgen.manifest.model import NATIVE
+
 
 def generate(out_dir: Path, package: str, names: Iterable[str] = (), folders: Iterable[Path] = (),
-             manifest: Path | None = None, profiles: tuple[str, ...] = ("native",),
+             manifest: Path | None = None, profiles: tuple[str, ...] = (NATIVE,),
              installed: bool = True, all_installed: bool = False) -> ModuleType:
     """Build `package` into `out_dir/package` and import it.
 

@@ -21,7 +21,8 @@ from pathlib import Path
 import jinja2
 
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
-from uwgen.codegen.ir import NATIVE, CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
+from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
+from uwgen.manifest.model import NATIVE
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import OCTET_TYPES, ArrayKind, DefinitionError, Field, MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import Manifest

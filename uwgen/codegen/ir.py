@@ -16,12 +16,10 @@ from dataclasses import dataclass, field
 from typing import Iterator
 
 from uwgen.idl.model import INTEGER_RANGES, OCTET_TYPES, ArrayKind, FieldType, MessageDef
+from uwgen.manifest.model import NATIVE, RMW_DESERT
 from uwgen.runtime.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES
 from uwgen.runtime.framing import MAX_PAYLOAD
 
-NATIVE = "native"
-RMW_DESERT = "rmw_desert"
-PROFILES = (NATIVE, RMW_DESERT)
 
 STRUCT_CODES = {
     "int8": "b", "uint8": "B", "char": "B", "int16": "h", "uint16": "H",

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from uwgen.codegen.generator import plan_build, render_package, stale_files, write_package
-from uwgen.codegen.ir import PROFILES, ProfileError
+from uwgen.codegen.ir import ProfileError
+from uwgen.manifest.model import NATIVE, PROFILES
 from uwgen.idl.model import DefinitionError
 from uwgen.manifest.loader import MANIFEST_NAME, ManifestError, find_manifest
 
@@ -71,7 +72,7 @@ def specs_from_pyproject(start: Path) -> tuple[Path, list[BuildSpec]]:
                     out=folder / b["out"] if "out" in b else None,
                     package=b.get("package"), types=list(b.get("types", [])),
                     all_installed=bool(b.get("all_installed", False)),
-                    profiles=tuple(b.get("profiles", ["native"])), installed=True))
+                    profiles=tuple(b.get("profiles", [NATIVE])), installed=True))
             return folder, specs
     raise DefinitionError(None, "no folder given and no pyproject.toml with [tool.uwgen] here; "
                                 "usage: uwgen build DIR [-m MANIFEST] [-o OUT]")
@@ -81,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.folders:
             specs = [BuildSpec(args.folders, args.manifest, args.out, args.package, args.types,
-                               args.all_installed, tuple(args.profiles or ("native",)),
+                               args.all_installed, tuple(args.profiles or (NATIVE,)),
                                not args.no_installed)]
             root = Path.cwd()
         else:

@@ -16,7 +16,6 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from uwgen.demo.records import Recorder, f32

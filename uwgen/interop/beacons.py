@@ -19,11 +19,11 @@ from enum import IntEnum
 
 import cbor2
 
-from uwgen.manifest.model import RMW_DISCOVERY_ID, RMW_DISCOVERY_REQUEST_ID
+from uwgen.manifest.model import RMW_DESERT, RMW_DISCOVERY_ID, RMW_DISCOVERY_REQUEST_ID
 from uwgen.runtime.codec import KIND_TOPIC, RMW_MAX_TEXT_BYTES, DecodeError, load_items
 from uwgen.runtime.framing import MAX_PAYLOAD    # one frame; rmw_desert wraps LEN above 255
 
-PROFILE = "rmw_desert"      # the profile whose entries speak this format and discovery
+PROFILE = RMW_DESERT        # the profile whose entries speak this format and discovery
 DISCOVERY_ID = RMW_DISCOVERY_ID                  # `/discovery`: beacons
 DISCOVERY_REQUEST_ID = RMW_DISCOVERY_REQUEST_ID  # `/discovery_request`: "send me your beacons again"
 DISCOVERY_TOPIC = "/discovery"

@@ -21,9 +21,11 @@ from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import (
     DURABILITY,
     FIFO_DEFAULT_DEPTH,
+    NATIVE,
     PROFILES,
     QUEUE_KINDS,
     RELIABILITY,
+    RMW_DESERT,
     RMW_DISCOVERY_ID,
     RMW_DISCOVERY_REQUEST_ID,
     LinkConfig,
@@ -143,7 +145,7 @@ class _ManifestBuilder:
             if not PYTHON_PACKAGE.fullmatch(package) or keyword.iskeyword(package):
                 raise r.error(node, f"package '{package}' must be a valid Python package name")
 
-        profile = "native"
+        profile = NATIVE
         if "profile" in top:
             profile = r.choice(top["profile"][1], "profile", PROFILES)
 
@@ -384,7 +386,7 @@ class _ManifestBuilder:
 
     def check_rmw_reserved(self, manifest: Manifest, top: dict) -> None:
         r = self.r
-        user = next(t for t in (*manifest.topics, *manifest.services) if t.profile == "rmw_desert")
+        user = next(t for t in (*manifest.topics, *manifest.services) if t.profile == RMW_DESERT)
         reason = f"while any topic or service uses profile rmw_desert ({user.name} at line {user.where.line} does)"
         reserved = {RMW_DISCOVERY_ID: "/discovery", RMW_DISCOVERY_REQUEST_ID: "/discovery_request"}
         for ident, topic in reserved.items():

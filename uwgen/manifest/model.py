@@ -9,7 +9,9 @@ from pathlib import Path
 
 from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
 
-PROFILES = ("native", "rmw_desert")
+NATIVE = "native"            # uwgen's own compact encoding (wire format section 4)
+RMW_DESERT = "rmw_desert"    # what rmw_desert nodes send and decode (section 6)
+PROFILES = (NATIVE, RMW_DESERT)
 QUEUE_KINDS = ("latest", "fifo")
 RELIABILITY = ("reliable", "best_effort")
 DURABILITY = ("volatile", "transient_local")
@@ -70,7 +72,7 @@ class Topic:
     publisher: str              # the side whose local graph publishes it
     policy: LinkPolicy = field(default_factory=LinkPolicy)
     qos: Qos = field(default_factory=Qos)
-    profile: str = "native"
+    profile: str = NATIVE
     where: SourceRef | None = None
 
 
@@ -83,7 +85,7 @@ class Service:
     server: str                 # the side whose local graph serves it
     timeout: float = 30.0       # seconds a bridged call waits for its response
     policy: LinkPolicy = field(default_factory=lambda: LinkPolicy(queue="fifo", depth=FIFO_DEFAULT_DEPTH))
-    profile: str = "native"
+    profile: str = NATIVE
     where: SourceRef | None = None
 
 
@@ -91,7 +93,7 @@ class Service:
 class Manifest:
     network: str
     source: Path | None
-    profile: str = "native"                      # default profile of topics and services
+    profile: str = NATIVE                        # default profile of topics and services
     package: str = ""                            # generated package name (default uwgen_<network>)
     sides: dict[str, Side] = field(default_factory=dict)
     topics: list[Topic] = field(default_factory=list)
@@ -105,4 +107,4 @@ class Manifest:
         return None
 
     def uses_rmw_desert(self) -> bool:
-        return any(t.profile == "rmw_desert" for t in (*self.topics, *self.services))
+        return any(t.profile == RMW_DESERT for t in (*self.topics, *self.services))

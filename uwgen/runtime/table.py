@@ -12,7 +12,7 @@ import logging
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from uwgen.manifest.model import LinkPolicy, Qos, Side
+from uwgen.manifest.model import RMW_DESERT, LinkPolicy, Qos, Side
 from uwgen.runtime.codec import (
     KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
     EncodeError, load_items, pack_items, unexpected,
@@ -102,7 +102,7 @@ class TypeCodec:
         except TypeError as exc:
             raise EncodeError("", f"cannot encode {self.type_name}: {exc}") from None
         data = pack_items(out)
-        if self.profile == "rmw_desert":
+        if self.profile == RMW_DESERT:
             if len(out) > RMW_MAX_ITEMS:
                 raise EncodeError("", f"{len(out)} CBOR items: an rmw_desert receiver keeps only {RMW_MAX_ITEMS}")
             if len(data) > MAX_PAYLOAD:
