@@ -20,6 +20,8 @@ from uwgen.runtime.connection import Backoff
 from uwgen.runtime.framing import encode_frame
 from uwgen.runtime.link import Link
 
+from emulator.helpers import wait_for
+
 pytestmark = pytest.mark.timeout(60)
 
 PERIOD = 0.05
@@ -69,15 +71,6 @@ def payload(i: int, size: int = 21) -> bytes:
     return text + b"." * (size - len(text))
 
 
-def wait_until(predicate, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return predicate()
-
-
 def intact_frames(sent: list[bytes], delivered) -> list[bytes]:
     """The payloads whose every frame byte arrived, given the emulator's delivered packets
     (each with its offset in the sender's byte stream)."""
@@ -103,12 +96,12 @@ def test_payloads_arrive_with_the_configured_delay_and_loss_and_every_intact_fra
         rcv = link(emu.port("vehicle"), "vehicle", on_payload=rx)
         rcv.start()
         try:
-            assert wait_until(lambda: rcv.connected, 5)
+            assert wait_for(lambda: rcv.connected, 5)
             for p in sent:                 # all queued before the first write: every write
                 assert tx.offer(KEY, p)    # but the last is a full 64-byte packet
             tx.start()
             # 160 frames of 25 bytes = 63 packets, one per 0.05 s: about 3.2 s.
-            assert wait_until(lambda: emu.counters("surface")["bytes_in"] == 160 * 25
+            assert wait_for(lambda: emu.counters("surface")["bytes_in"] == 160 * 25
                               and emu.counters("surface")["queue_bytes"] == 0, 15)
             time.sleep(0.3)
             delivered = emu.deliveries("vehicle")
@@ -143,7 +136,7 @@ def test_restarting_desert_loses_only_what_was_in_flight_and_the_link_resumes_by
         rcv = link(emu.port("vehicle"), "vehicle", on_payload=rx)
         tx.start(), rcv.start()
         try:
-            assert wait_until(lambda: tx.connected and rcv.connected, 5)
+            assert wait_for(lambda: tx.connected and rcv.connected, 5)
 
             def offer_for(seconds: float) -> None:
                 end = time.monotonic() + seconds
@@ -156,8 +149,8 @@ def test_restarting_desert_loses_only_what_was_in_flight_and_the_link_resumes_by
             offer_for(1.0)
             emu.restart(delay=0.3)
             offer_for(1.5)
-            assert wait_until(lambda: tx.connected and rcv.connected, 5)
-            assert wait_until(lambda: rx.count() >= len(sent) - _lost_bound(emu), 10)
+            assert wait_for(lambda: tx.connected and rcv.connected, 5)
+            assert wait_for(lambda: rx.count() >= len(sent) - _lost_bound(emu), 10)
             time.sleep(0.5)
             dropped = emu.counters("surface")["dropped_restart"]
             reconnects = (tx.stats()["connection"]["reconnects"],
@@ -192,7 +185,7 @@ def test_a_writer_ten_times_faster_than_the_link_never_fills_desert_beyond_one_p
         rcv = link(emu.port("vehicle"), "vehicle", on_payload=rx)
         tx.start(), rcv.start()
         try:
-            assert wait_until(lambda: tx.connected and rcv.connected, 5)
+            assert wait_for(lambda: tx.connected and rcv.connected, 5)
             # The link carries 64 B per 0.05 s = 1280 B/s; offer 12800 B/s for 2 s.
             offered, samples = 0, []
             start = time.monotonic()

@@ -9,6 +9,8 @@ import socket
 import threading
 import time
 
+from emulator.helpers import wait_for
+
 
 def free_port() -> int:
     with socket.socket() as s:
@@ -16,13 +18,9 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def wait_until(cond, timeout: float = 5.0, step: float = 0.005) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(step)
-    return bool(cond())
+def wait_until(cond, timeout: float = 5.0) -> bool:
+    """emulator.helpers.wait_for with the 5 s patience these thread-and-socket tests were written for."""
+    return wait_for(cond, timeout)
 
 
 class TinyServer:
