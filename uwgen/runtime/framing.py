@@ -19,7 +19,7 @@ once and in order, whatever garbage or loss came before.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 SYNC = b"\x99\x99"
 SYNC_BYTE = 0x99
@@ -59,9 +59,6 @@ class DecoderStats:
     bad_terminator: int = 0    # a start whose byte after LEN payload bytes was not 0x55
     stalled: int = 0           # incomplete frames given up by flush() (nothing more arrived)
     reset: int = 0             # incomplete frames thrown away by reset() (connection lost)
-
-    def as_dict(self) -> dict[str, int]:
-        return asdict(self)
 
 
 class FrameDecoder:

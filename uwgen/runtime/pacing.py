@@ -29,7 +29,7 @@ emulator (64 B / 0.2 s, 300 m, a 10 Hz command stream plus a flood): command lat
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 from uwgen.manifest.model import LinkConfig
 
@@ -85,9 +85,6 @@ class OutboxStats:
     frames_abandoned: int = 0   # frames cut (or lost in a failed write) by a disconnect
     bytes_sent: int = 0
     writes: int = 0
-
-    def as_dict(self) -> dict[str, int]:
-        return asdict(self)
 
 
 class Outbox:
