@@ -135,7 +135,14 @@ class EmulatorCore:
         self.scenario = scenario
         self.now = float(start)
         self.restarts = 0
-        self._rng = random.Random(scenario.seed)
+        # One stream per kind of chance, each from the seed: how many packets a run
+        # happens to send, or when a carrier is heard, cannot shift which numbers the
+        # packet-error draws get, so one seed gives the same losses in real time too.
+        seed = scenario.seed
+        self._listen_rng = random.Random(f"{seed}/listen")
+        self._fading_rng = random.Random(f"{seed}/fading")
+        self._bit_error_rng = random.Random(f"{seed}/bit-errors")
+        self._per_rng = random.Random(f"{seed}/per")
         self._events: list = []
         self._seq = itertools.count()
         self._uids = itertools.count(1)
@@ -319,7 +326,7 @@ class EmulatorCore:
         n.listen_start = t
         listen = s.listen_time
         if s.listen_jitter:
-            listen += s.listen_jitter * self._rng.random()
+            listen += s.listen_jitter * self._listen_rng.random()
         self._push(t + listen, _LISTEN_END, n)
 
     def _listen_end(self, n: _Node, t: float) -> None:
@@ -371,7 +378,7 @@ class EmulatorCore:
             start = t + self._delay[n.name, r]
             mean_snr = self._snr[n.name, r]
             if snr is not None:
-                faded = mean_snr + (self._rng.gauss(0.0, snr.fading_db) if snr.fading_db else 0.0)
+                faded = mean_snr + (self._fading_rng.gauss(0.0, snr.fading_db) if snr.fading_db else 0.0)
                 audible = mean_snr >= snr.threshold_db
             else:
                 faded, audible = math.inf, True
@@ -420,7 +427,7 @@ class EmulatorCore:
         pkt = arr.packet
         if pkt.dest != r.name:
             return                          # overheard: it only interfered
-        if cause is None and self.scenario.per > 0 and self._rng.random() < self.scenario.per:
+        if cause is None and self.scenario.per > 0 and self._per_rng.random() < self.scenario.per:
             cause = "per"
         if cause is None and not r.client:
             cause = "no_client"
@@ -445,7 +452,7 @@ class EmulatorCore:
         if snr is None:
             return "collision" if arr.interference > 0 else None
         nbits = (len(arr.packet.data) + self.scenario.header_bytes) * 8
-        u = self._rng.random() if snr.bpsk_errors else 1.0
+        u = self._bit_error_rng.random() if snr.bpsk_errors else 1.0
         snr_lin = 10 ** (arr.snr_db / 10)
         if snr.bpsk_errors and u < bpsk_per(snr_lin, nbits):
             return "snr"
