@@ -26,8 +26,7 @@ from sensor_msgs.msg import BatteryState, Imu, NavSatFix, NavSatStatus
 from std_msgs.msg import Header, String
 
 from uwgen.codegen import generate
-
-FRAME_OVERHEAD = 4  # 0x99 0x99 LEN ... 0x55
+from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD  # 0x99 0x99 LEN ... 0x55
 
 
 def header(frame: str) -> Header:

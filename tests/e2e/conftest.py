@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import random
 from contextlib import contextmanager
-from pathlib import Path
 
 import pytest
 

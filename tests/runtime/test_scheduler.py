@@ -297,7 +297,6 @@ def test_every_offered_message_is_accounted_for_exactly_once(policies, ops, frag
     r = Reassembler(FID, clock)
     offered_at: dict[tuple[int, int], float] = {}
     newest: dict[int, int] = {}
-    starts: dict[int, list[tuple[float, int]]] = {k: [] for k in range(len(policies))}  # (time, newest then)
     started: dict[int, tuple[float, int]] = {}     # channel -> start of the message in fragments
     sent: list[tuple[int, int, float, int]] = []   # key, serial, start time, newest at start
     n = 0
