@@ -18,10 +18,10 @@
 """Codec table of uwgen_demo (network `demo`).
 
 CODECS: (type name, profile) -> TypeCodec, for every generated type.
-TOPICS / SERVICES: manifest id -> TopicCodec / ServiceCodec.
+TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCodec.
 MANIFEST: the network's sides, profile and fragment id.
 """
-from uwgen.runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
+from uwgen.runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
 
 from ._classes import PLAIN, ROS
@@ -112,4 +112,7 @@ SERVICES = {
         request=CODECS[("turtlesim/srv/SetPen_Request", "native")],
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen")),
+}
+
+ACTIONS = {
 }

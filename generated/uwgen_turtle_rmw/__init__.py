@@ -14,10 +14,10 @@
 """Codec table of uwgen_turtle_rmw (network `turtle_rmw`).
 
 CODECS: (type name, profile) -> TypeCodec, for every generated type.
-TOPICS / SERVICES: manifest id -> TopicCodec / ServiceCodec.
+TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCodec.
 MANIFEST: the network's sides, profile and fragment id.
 """
-from uwgen.runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
+from uwgen.runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
 
 from ._classes import PLAIN, ROS
@@ -85,4 +85,7 @@ SERVICES = {
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "rmw_desert")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "rmw_desert")],
         ros_import=("turtlesim.srv", "TeleportAbsolute")),
+}
+
+ACTIONS = {
 }

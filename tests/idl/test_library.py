@@ -143,7 +143,11 @@ def test_ament_prefix_path_packages_are_found(tmp_path, monkeypatch):
     ping = lib.get("sonar_msgs/Ping")
     assert ping.nested_types() == ["builtin_interfaces/msg/Time"]
     assert prefix / "share" in lib.search_paths()
-    assert [n for n in lib.all_names() if n.startswith("sonar_msgs/")] == ["sonar_msgs/msg/Ping"]  # action/ ignored
+    assert [n for n in lib.all_names() if n.startswith("sonar_msgs/")] == [
+        "sonar_msgs/action/Scan", "sonar_msgs/msg/Ping"]
+    scan = lib.get("sonar_msgs/action/Scan")
+    assert [p.full_name for p in scan.parts] == [
+        "sonar_msgs/action/Scan_Goal", "sonar_msgs/action/Scan_Result", "sonar_msgs/action/Scan_Feedback"]
 
 
 def test_first_prefix_providing_a_package_wins(tmp_path):
