@@ -170,6 +170,10 @@ class CallTable:
             stats.unknown += 1
         return None
 
+    def get(self, service_id: int, seq: int) -> PendingCall | None:
+        """The outstanding call of this seq, left outstanding (e.g. to move its deadline)."""
+        return self._pending.get(service_id, {}).get(seq)
+
     def abandon(self, service_id: int, seq: int) -> PendingCall | None:
         """Give up a call before its response (e.g. the request could not be queued)."""
         call = self._pending.get(service_id, {}).pop(seq, None)
