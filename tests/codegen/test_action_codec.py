@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from test_msgs.action import Fibonacci
 
 from uwgen.codegen import generate
@@ -104,3 +106,23 @@ def test_encoders_refuse_bad_handles_and_codes(action):
         action.encode_answer(1, SUCCEEDED)
     with pytest.raises(EncodeError, match="status"):
         action.encode_result(1, ACCEPTED, Fibonacci.Result())
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.one_of(st.binary(max_size=40),
+                 st.lists(st.one_of(st.integers(-30, 300), st.text(max_size=3), st.binary(max_size=3),
+                                    st.floats(allow_nan=False)), max_size=8)
+                 .map(lambda items: bytes.fromhex("0309") + _pack(items)),
+                 st.lists(st.integers(0, 30), max_size=6).map(lambda items: bytes.fromhex("0209") + _pack(items))))
+def test_action_decoders_are_total(action, payload):
+    # Any bytes: a value or DecodeError, nothing else (wire format 4, "a decoder is total").
+    for decode in (action.decode_request, action.decode_response, action.decode_feedback):
+        try:
+            decode(payload)
+        except DecodeError:
+            pass
+
+
+def _pack(items) -> bytes:
+    from uwgen.runtime.codec import pack_items
+    return pack_items(list(items)) if items else b""
