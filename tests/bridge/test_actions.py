@@ -78,6 +78,18 @@ def test_unanswered_goal_is_rejected_after_accept_timeout(pair):
     assert (status["accept_timeouts"], status["goals_table"]["outstanding"]) == (1, 0)
 
 
+def test_a_late_acceptance_is_answered_with_a_cancel(pair):
+    surface, vehicle, bridges, links = pair
+    links.links["surface"].mute = True               # the goal never arrives
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    assert not send_goal(client).accepted            # rejected after accept_timeout
+    handle = links.links["surface"].offered(9)[0][2]    # [2, 9, handle, order]
+    links.links["surface"].inject(pack_items([3, 9, handle, 1]))   # "accepted", too late
+    wait_for(lambda: len(links.links["surface"].offered(9)) == 2, what="the cancel")
+    assert links.links["surface"].offered(9)[1] == pack_items([2, 9, handle])
+
+
 def test_goals_over_max_goals_are_rejected_at_once(pair):
     surface, vehicle, bridges, links = pair
     links.links["surface"].mute = True
@@ -119,6 +131,7 @@ def test_a_goal_delivered_twice_runs_once(pair):
 ])
 def test_garbage_on_the_action_id_is_counted(pair, side, payload, counter):
     surface, vehicle, bridges, links = pair
+    links.links[side].mute = True                  # no reply comes back to be counted too
     links.links[side].inject(payload)
     wait_for(lambda: counted(bridges[side])[counter] == 1, what=f"{counter} counted")
 

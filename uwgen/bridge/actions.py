@@ -183,6 +183,8 @@ class ActionStandIns:
         state = pending.token if pending is not None else None
         if state is None:
             counters.unknown += 1
+            if code == ACCEPTED:     # a goal given up here (accept timeout) runs there: stop it
+                self.w.send(ident, codec.encode_cancel(handle))
         elif code in (ACCEPTED, REJECTED) and not state.answer.done():
             if code == ACCEPTED:
                 counters.accepted += 1
