@@ -142,3 +142,11 @@ def test_payloads_in_the_wrong_direction_are_counted(pair):
     links.links["surface"].inject(pack_items([2, 9, 5]))        # the surface sends cancels
     wait_for(lambda: bridges["vehicle"].counters.wrong_direction == 1
              and bridges["surface"].counters.wrong_direction == 1, what="both counted")
+
+
+def test_final_summary_counts_goals_on_both_sides():
+    from uwgen.bridge.main import _summary
+    client = {"role": "client", "goals": 3, "accepted": 2, "results": 2}
+    server = {"role": "server", "goal_requests": 2, "results_sent": 2}
+    assert _summary({"actions": {"/fib": client}}) == "/fib goals 3 accepted 2 results 2"
+    assert _summary({"actions": {"/fib": server}}) == "/fib goals 2 results 2"
