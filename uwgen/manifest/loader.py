@@ -17,11 +17,10 @@ import yaml
 
 from uwgen.idl import names as idl_names
 from uwgen.idl.loader import InterfaceLibrary
-from uwgen.idl.model import ActionDef, MessageDef, ServiceDef, SourceRef
+from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import (
     DURABILITY,
     FIFO_DEFAULT_DEPTH,
-    MAX_GOALS_LIMIT,
     NATIVE,
     PROFILES,
     QUEUE_KINDS,
@@ -38,6 +37,7 @@ from uwgen.manifest.model import (
     Side,
     Topic,
 )
+from uwgen.manifest.actions import ACTION_KEYS, FEEDBACK_KEYS, read_action  # noqa: F401 (keys re-exported)
 from uwgen.manifest.nodes import ManifestError, Reader, compose
 
 __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
@@ -54,9 +54,7 @@ QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
 TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile")
 SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile")
-ACTION_KEYS = ("name", "id", "type", "server", "accept_timeout", "result_timeout", "max_goals",
-               *POLICY_KEYS, "feedback", "profile")
-FEEDBACK_KEYS = ("rate", "ttl", "priority")
+
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
 SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -330,66 +328,7 @@ class _ManifestBuilder:
         return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node))
 
     def action(self, node: yaml.Node, sides: dict[str, Side]) -> Action:
-        r = self.r
-        entries, name, ident, type_text, label = self.common(node, "action", ACTION_KEYS)
-        type_name, definition = self.resolve_action(entries["type"][1], type_text, label)
-        server = self.side_ref(entries, "server", node, label, sides)
-        base = Action.__dataclass_fields__
-        accept_timeout, result_timeout = base["accept_timeout"].default, base["result_timeout"].default
-        if "accept_timeout" in entries:
-            accept_timeout = r.number(entries["accept_timeout"][1], f"accept_timeout of {label}")
-        if "result_timeout" in entries:
-            result_timeout = r.number(entries["result_timeout"][1], f"result_timeout of {label}")
-        max_goals = base["max_goals"].default
-        if "max_goals" in entries:
-            max_goals = r.integer(entries["max_goals"][1], f"max_goals of {label}", 1, MAX_GOALS_LIMIT)
-        policy = self.policy(entries, {}, base["policy"].default_factory(), label)
-        feedback = base["feedback"].default_factory()
-        if "feedback" in entries:
-            feedback = self.feedback(entries["feedback"][1], feedback, label)
-        if "profile" in entries:
-            profile_node = entries["profile"][1]
-            if r.choice(profile_node, f"profile of {label}", PROFILES) != NATIVE:
-                raise r.error(profile_node, f"{label}: actions are carried in profile native only "
-                                            "(rmw_desert nodes have no actions)")
-        return Action(name, ident, type_name, definition, server, accept_timeout, result_timeout,
-                      max_goals, policy, feedback, NATIVE, r.where(node))
-
-    def resolve_action(self, type_node: yaml.Node, type_text: str, label: str) -> tuple[str, ActionDef]:
-        """The ActionDef named by `type_text` (pkg/action/Name or pkg/Name)."""
-        r = self.r
-        split = idl_names.split_type_name(type_text)
-        if split is None:
-            raise r.error(type_node, f"type '{type_text}' of {label} is not a type name: expected pkg/action/Name or pkg/Name")
-        pkg, ns, name = split
-        full = f"{pkg}/action/{name}"
-        if ns not in (None, "action") or full not in self.lib:
-            for other, kind in (("msg", "a message"), ("srv", "a service")):
-                if ns in (None, other) and f"{pkg}/{other}/{name}" in self.lib:
-                    raise r.error(type_node, f"type '{type_text}' is {kind}, but {label} needs an action type (pkg/action/Name)")
-            raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found (looked in: {self.lib.looked_in()})")
-        definition = self.lib.get(full)
-        if not isinstance(definition, ActionDef):  # an action's part, e.g. pkg/action/Name_Goal
-            raise r.error(type_node, f"type '{type_text}' of {label} is not an action")
-        return full, definition
-
-    def feedback(self, node: yaml.Node, base: LinkPolicy, label: str) -> LinkPolicy | None:
-        """`feedback: {rate, ttl, priority}` (always latest-only), or `feedback: false`."""
-        r = self.r
-        if isinstance(node, yaml.ScalarNode) and r.value(node) is False:
-            return None
-        what = f"feedback of {label}"
-        if not isinstance(node, yaml.MappingNode):
-            raise r.error(node, f"{what} must be a mapping (rate, ttl, priority) or false, got {r.describe(node)}")
-        fields = r.mapping(node, what, FEEDBACK_KEYS)
-        rate, ttl, priority = base.rate, base.ttl, base.priority
-        if "rate" in fields:
-            rate = r.number(fields["rate"][1], f"feedback rate of {label}")
-        if "ttl" in fields:
-            ttl = r.optional_number(fields["ttl"][1], f"feedback ttl of {label}")
-        if "priority" in fields:
-            priority = r.integer(fields["priority"][1], f"feedback priority of {label}")
-        return LinkPolicy(rate=rate, queue="latest", depth=1, ttl=ttl, priority=priority)
+        return read_action(self, node, sides)   # uwgen.manifest.actions: the `actions:` section
 
     def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""
