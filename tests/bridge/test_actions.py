@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient, ActionServer
+from rclpy.task import Future
 from test_msgs.action import Fibonacci
 
 from uwgen.codegen import generate
@@ -49,9 +50,13 @@ def pair(fib_codec):
         yield surface, vehicle, bridges, links
 
 
-def fib_server(node, results: list):
-    def execute(goal_handle):
+def fib_server(node, results: list, delay: float = 0.0):
+    async def execute(goal_handle):
         results.append(goal_handle.request.order)
+        if delay:
+            done = Future()
+            timer = node.create_timer(delay, lambda: (timer.cancel(), done.set_result(True)))
+            await done
         goal_handle.succeed()
         return Fibonacci.Result(sequence=[0, 1])
     return ActionServer(node, Fibonacci, "/fib", execute)
@@ -76,6 +81,44 @@ def test_unanswered_goal_is_rejected_after_accept_timeout(pair):
     assert not goal_handle.accepted
     status = counted(bridges["surface"])
     assert (status["accept_timeouts"], status["goals_table"]["outstanding"]) == (1, 0)
+    # Sent three times in all, then a cancel, in case only the answers were lost.
+    sent = links.links["surface"].offered(9)
+    assert len(sent) == 4 and sent[0] == sent[1] == sent[2] and len(sent[3]) == 3
+    assert status["goal_resends"] == 2
+
+
+def drop_replies(link, count: int) -> list:
+    """Make `link` lose its next `count` responses (kind 3); returns what it dropped."""
+    dropped, offer = [], link.offer
+
+    def lossy(key, payload):
+        if payload[0] == 3 and len(dropped) < count:
+            dropped.append(payload)
+            return True
+        return offer(key, payload)
+    link.offer = lossy
+    return dropped
+
+
+@pytest.mark.parametrize("lost, delay", [(1, 0.6), (2, 0.0)],
+                         ids=["answer lost, goal still running", "answer and result lost"])
+def test_a_goal_sent_again_runs_once(pair, lost, delay):
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    fib_server(vehicle.node("real"), results, delay)
+    dropped = drop_replies(links.links["vehicle"], lost)
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    goal_handle = send_goal(client, 5)
+    assert goal_handle.accepted
+    future = goal_handle.get_result_async()
+    wait_for(future.done, what="the result")
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+    assert results == [5] and len(dropped) == lost
+    assert counted(bridges["surface"])["goal_resends"] >= 1
+    assert counted(bridges["vehicle"])["repeated_replies"] >= 1
 
 
 def test_a_late_acceptance_is_answered_with_a_cancel(pair):
@@ -85,9 +128,10 @@ def test_a_late_acceptance_is_answered_with_a_cancel(pair):
     assert client.wait_for_server(timeout_sec=5.0)
     assert not send_goal(client).accepted            # rejected after accept_timeout
     handle = links.links["surface"].offered(9)[0][2]    # [2, 9, handle, order]
+    wait_for(lambda: len(links.links["surface"].offered(9)) == 4, what="3 goals and a cancel")
     links.links["surface"].inject(pack_items([3, 9, handle, 1]))   # "accepted", too late
-    wait_for(lambda: len(links.links["surface"].offered(9)) == 2, what="the cancel")
-    assert links.links["surface"].offered(9)[1] == pack_items([2, 9, handle])
+    wait_for(lambda: len(links.links["surface"].offered(9)) == 5, what="another cancel")
+    assert links.links["surface"].offered(9)[4] == pack_items([2, 9, handle])
 
 
 def test_goals_over_max_goals_are_rejected_at_once(pair):
@@ -100,7 +144,8 @@ def test_goals_over_max_goals_are_rejected_at_once(pair):
     second = send_goal(client)
     assert not second.accepted and not first.done()
     assert counted(bridges["surface"])["refused"] == 1
-    assert len(links.links["surface"].offered(9)) == 1         # only the first went out
+    goals = [p for p in links.links["surface"].offered(9) if len(p) > 3]
+    assert set(goals) == {goals[0]}                            # only the first went out
 
 
 def test_a_goal_delivered_twice_runs_once(pair):

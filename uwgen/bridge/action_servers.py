@@ -8,12 +8,17 @@ server is available); the result is requested locally at once and pushed as
 on the action's latest-only feedback channel. `[2, id, handle]` cancels the goal and is
 answered 3 (canceling) or 2 (refused).
 
-Losses: a local server that does not answer within `accept_timeout` is answered 0; a goal
-that does not finish within `result_timeout` is cancelled and reported aborted; a local
-server that disappears during goals gets them reported aborted after SERVER_GONE_GRACE.
+Losses: a goal that comes again (the client side sends it again while unanswered) is
+answered again if it was accepted, and a goal that finished less than two accept_timeouts
+ago gets its result again (RECENT_RESULTS per action, matched by handle and bytes), so a
+lost answer or result costs a repeat, not a second run. A local server that does not
+answer within `accept_timeout` is answered 0; a goal that does not finish within
+`result_timeout` is cancelled and reported aborted; a local server that disappears during
+goals gets them reported aborted after SERVER_GONE_GRACE.
 """
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +33,7 @@ from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, RESULTS)
 
 SERVER_GONE_GRACE = 1.0   # seconds the local server may be missing before its goals abort
+RECENT_RESULTS = 8        # finished goals per action whose result is kept for a repeated goal
 
 
 @dataclass
@@ -36,6 +42,7 @@ class Served:
 
     sent: Future                  # send_goal_async: -> ClientGoalHandle
     deadline: float
+    payload: bytes = b""          # the goal as it came (a repeat has the same bytes)
     goal_handle: Any = None       # ClientGoalHandle, once accepted
     cancel_wanted: bool = False   # a cancel came before the local server answered
 
@@ -48,6 +55,8 @@ class ActionServers:
         self.served: dict[int, tuple[Any, Any]] = {}       # id -> (codec, ActionClient)
         self.goals: dict[int, dict[int, Served]] = {}      # id -> handle -> goal
         self._gone_since: dict[int, float] = {}
+        # id -> handle -> (goal payload, result payload, when): results of finished goals
+        self.finished: dict[int, OrderedDict[int, tuple[bytes, bytes, float]]] = {}
         for codec in codecs:
             counters[codec.id] = ActionCounters()
             cls = wiring.ros_class(codec, "action")
@@ -56,6 +65,7 @@ class ActionServers:
             client = ActionClient(wiring.node, cls, codec.name, callback_group=wiring.main_group)
             self.served[codec.id] = (codec, client)
             self.goals[codec.id] = {}
+            self.finished[codec.id] = OrderedDict()
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.served:
@@ -75,7 +85,7 @@ class ActionServers:
         if self._offer(ident, codec.encode_answer(handle, code), "answer"):
             self.counters[ident].answers += 1
 
-    def _result(self, ident: int, handle: int, status: int, result: Any) -> None:
+    def _result(self, ident: int, handle: int, status: int, result: Any, entry: Served) -> None:
         codec = self.served[ident][0]
         try:
             payload = codec.encode_result(handle, status, result)
@@ -84,6 +94,11 @@ class ActionServers:
             self.w.log.error(f"{codec.name}: result of goal {handle} cannot be encoded ({exc}); "
                              "reported aborted")
             payload = codec.encode_result(handle, ABORTED, codec.ros_class().Result())
+        finished = self.finished[ident]
+        finished[handle] = (entry.payload, payload, self.w.clock.now())
+        finished.move_to_end(handle)
+        while len(finished) > RECENT_RESULTS:
+            finished.popitem(last=False)
         if self._offer(ident, payload, "result"):
             self.counters[ident].results_sent += 1
 
@@ -102,9 +117,10 @@ class ActionServers:
             self._cancel(ident, handle)
             return
         counters.goal_requests += 1
-        if handle in goals:
+        if self._repeat(ident, handle, payload):     # in flight, or finished just now
             counters.duplicate_goals += 1
             return
+        self.finished[ident].pop(handle, None)     # a new goal on a handle used before
         if not client.server_is_ready():
             counters.no_server += 1
             self.w.log.error(f"{codec.name}: goal {handle} rejected: no local action server is "
@@ -112,8 +128,25 @@ class ActionServers:
             self._answer(ident, handle, REJECTED)
             return
         sent = client.send_goal_async(goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb))
-        goals[handle] = Served(sent, self.w.clock.now() + codec.accept_timeout)
+        goals[handle] = Served(sent, self.w.clock.now() + codec.accept_timeout, payload=payload)
         sent.add_done_callback(lambda f: self._answered(ident, handle, f))
+
+    def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
+        """Answer a goal that came again; True when it was one (then it is not run)."""
+        entry = self.goals[ident].get(handle)
+        if entry is not None:
+            if entry.goal_handle is not None and entry.payload == payload:
+                self.counters[ident].repeated_replies += 1
+                self._answer(ident, handle, ACCEPTED)      # the first answer was lost
+            return True                                    # else: the answer is still to come
+        recent = self.finished[ident].get(handle)
+        codec = self.served[ident][0]
+        if recent is None or recent[0] != payload or \
+                self.w.clock.now() - recent[2] > 2 * codec.accept_timeout:
+            return False
+        self.counters[ident].repeated_replies += 1
+        self._offer(ident, recent[1], "result")            # the answer and result were lost
+        return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:
         codec = self.served[ident][0]
@@ -146,11 +179,11 @@ class ActionServers:
         del self.goals[ident][handle]
         if done.cancelled() or done.exception() is not None:
             self.counters[ident].server_errors += 1
-            self._result(ident, handle, ABORTED, self.served[ident][0].ros_class().Result())
+            self._result(ident, handle, ABORTED, self.served[ident][0].ros_class().Result(), entry)
             return
         response = done.result()
         status = response.status if response.status in RESULTS else ABORTED
-        self._result(ident, handle, status, response.result)
+        self._result(ident, handle, status, response.result, entry)
 
     def _feedback(self, ident: int, handle: int, message: Any) -> None:
         codec = self.served[ident][0]
@@ -201,7 +234,7 @@ class ActionServers:
                     log.error(f"{codec.name}: goal {handle} did not finish within "
                               f"{codec.result_timeout:g} s: cancelled, reported aborted")
                     entry.goal_handle.cancel_goal_async()
-                    self._result(ident, handle, ABORTED, codec.ros_class().Result())
+                    self._result(ident, handle, ABORTED, codec.ros_class().Result(), entry)
             self._check_server(ident, now)
 
     def _check_server(self, ident: int, now: float) -> None:
@@ -216,8 +249,8 @@ class ActionServers:
             return
         self.w.log.error(f"{codec.name}: the local action server is gone: {len(goals)} goal(s) "
                          "reported aborted")
-        for handle in list(goals):
+        for handle, entry in list(goals.items()):
             del goals[handle]
             self.counters[ident].server_gone += 1
-            self._result(ident, handle, ABORTED, codec.ros_class().Result())
+            self._result(ident, handle, ABORTED, codec.ros_class().Result(), entry)
         self._gone_since.pop(ident, None)

@@ -10,9 +10,11 @@ published to the local client. The status topic is the local ActionServer's own.
 from the local client goes out as `[2, id, handle]` and its answer decides the local
 cancel response.
 
-Losses: no answer within `accept_timeout` rejects the goal (or refuses the cancel); no
-result within `result_timeout` aborts the goal locally and sends a cancel for it. Every
-such case is logged and counted in ~/status under `actions`.
+Losses: a goal with no answer is sent again (same handle and bytes) after a third and two
+thirds of `accept_timeout`; no answer at all rejects the goal (or refuses the cancel) and
+sends a cancel, in case only the answer was lost; no result within `result_timeout` aborts
+the goal locally and sends a cancel for it. Every such case is logged and counted in
+~/status under `actions`.
 """
 from __future__ import annotations
 
@@ -31,6 +33,8 @@ from uwgen.runtime.codec import ACTION_HANDLES, KIND_REQUEST, KIND_RESPONSE, KIN
 from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCELED, CANCELING, REJECTED, RESULTS,
                                  SUCCEEDED)
 
+GOAL_SENDS = 3   # a goal goes out at most this many times within accept_timeout
+
 
 @dataclass
 class GoalState:
@@ -45,6 +49,9 @@ class GoalState:
     cancel_deadline: float = 0.0
     goal_handle: Any = None                       # rclpy ServerGoalHandle, once accepted
     early_feedback: Any = None                    # feedback that came before the goal handle
+    payload: bytes = b""                          # the goal as sent (sent again unchanged)
+    sends: int = 1
+    next_send: float = 0.0                        # when to send it again while unanswered
 
 
 class ActionStandIns:
@@ -104,6 +111,8 @@ class ActionStandIns:
                 counters.refused += 1
                 log.error(f"{codec.name}: goal rejected: the link refused it (see ~/status)")
                 return GoalResponse.REJECT
+            state.payload = payload
+            state.next_send = self.w.clock.now() + codec.accept_timeout / GOAL_SENDS
             if await state.answer != ACCEPTED:
                 return GoalResponse.REJECT
             self._states[id(goal)] = state
@@ -228,7 +237,9 @@ class ActionStandIns:
                 if not state.answer.done():
                     counters.accept_timeouts += 1
                     log.error(f"{codec.name}: goal {state.handle} got no answer within "
-                              f"{codec.accept_timeout:g} s: rejected")
+                              f"{codec.accept_timeout:g} s: rejected (a cancel is sent, in case "
+                              "only the answer was lost)")
+                    self.w.send(ident, codec.encode_cancel(state.handle))
                     state.answer.set_result(REJECTED)
                     continue
                 counters.result_timeouts += 1
@@ -236,6 +247,14 @@ class ActionStandIns:
                           f"{codec.result_timeout:g} s: aborted (a cancel is sent)")
                 self.w.send(ident, codec.encode_cancel(state.handle))
                 state.result.set_result((ABORTED, codec.ros_class().Result()))
+            for pending in table.pending(ident):
+                state = pending.token
+                if (not state.answer.done() and state.sends < GOAL_SENDS
+                        and state.next_send <= now):
+                    state.sends += 1
+                    state.next_send = now + codec.accept_timeout / GOAL_SENDS
+                    counters.goal_resends += 1
+                    self.w.send(ident, state.payload)
         for state in list(self._states.values()):
             if state.cancel is not None and not state.cancel.done() and state.cancel_deadline <= now:
                 codec = self.offered[state.ident]

@@ -174,6 +174,10 @@ class CallTable:
         """The outstanding call of this seq, left outstanding (e.g. to move its deadline)."""
         return self._pending.get(service_id, {}).get(seq)
 
+    def pending(self, service_id: int) -> list[PendingCall]:
+        """The outstanding calls of one service, in no particular order."""
+        return list(self._pending.get(service_id, {}).values())
+
     def abandon(self, service_id: int, seq: int) -> PendingCall | None:
         """Give up a call before its response (e.g. the request could not be queued)."""
         call = self._pending.get(service_id, {}).pop(seq, None)

@@ -54,6 +54,7 @@ class ActionCounters:
     accept_timeouts: int = 0  # goals with no answer within accept_timeout (rejected locally)
     results: int = 0          # results delivered to local clients
     result_timeouts: int = 0  # goals with no result within result_timeout (aborted locally)
+    goal_resends: int = 0     # goals sent again because no answer had come (same handle)
     cancels: int = 0          # cancel requests sent over the link
     cancel_timeouts: int = 0  # cancels with no answer within accept_timeout (refused locally)
     feedback: int = 0         # feedback messages published to local clients
@@ -67,6 +68,7 @@ class ActionCounters:
     server_gone: int = 0      # goals aborted because the local server disappeared
     server_errors: int = 0    # the local goal, cancel or result call failed
     answers: int = 0          # answers offered to the link
+    repeated_replies: int = 0  # answers or results sent again for a goal that came again
     results_sent: int = 0     # results offered to the link
     feedback_sent: int = 0    # feedback offered to the link (latest-only: may be superseded)
     encode_errors: int = 0    # feedback or results that could not be encoded
