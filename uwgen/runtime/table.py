@@ -247,6 +247,7 @@ class ActionCodec:
     result: TypeCodec
     feedback: TypeCodec
     ros_import: tuple[str, str]
+    fingerprint: bytes = b""      # schema fingerprint of this id, as for topics and services
 
     def ros_class(self) -> type:
         module, name = self.ros_import
