@@ -56,6 +56,7 @@ from rclpy.task import Future
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
 from uwgen.bridge.counters import BridgeCounters, DropReporter, ServiceCounters, TopicCounters
 from uwgen.bridge.inbox import Inbox
+from uwgen.bridge.schema import SCHEMA_TICK, attach_schema
 from uwgen.bridge.plan import (TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan, PlanError,
                                is_rmw_desert)
 from uwgen.interop.beacons import (DISCOVERY_ID, DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC,
@@ -144,6 +145,10 @@ class BridgeNode(Node):
         for key, policy, name in plan.channels():
             self.link.add_channel(key, policy, name)
         self.discovery = self._setup_discovery(flush_timeout)
+        self.schema = attach_schema(plan, self.link, clock, link_cfg,
+                                    lambda level, text: getattr(self._log, level)(text))
+        if self.schema is not None:
+            self.create_timer(SCHEMA_TICK, self.schema.tick, callback_group=self._main_group)
 
         self._status_pub = self.create_publisher(_string_class(), "~/status", 10)
         self.create_timer(EXPIRY_TICK, self._expire, callback_group=self._main_group)
@@ -342,11 +347,15 @@ class BridgeNode(Node):
         """Route one complete payload from the link (executor thread)."""
         if self.discovery is not None and self.discovery.handle(payload):
             return  # kind 0 on id 1 or 2: a beacon (to the graph) or a discovery request
+        if self.schema is not None and self.schema.handle(payload):
+            return  # kind 0 on schema_id: the far side's fingerprints
         try:
             kind, ident = peek_header(payload)
         except DecodeError:
             self.counters.bad_header += 1
             return
+        if self.schema is not None and not self.schema.accept(ident):
+            return  # the far side's schema for this id differs: counted in ~/status
         if kind == KIND_TOPIC and ident in self._incoming:
             self._publish_incoming(ident, payload)
         elif kind == KIND_REQUEST and ident in self._served:
@@ -568,6 +577,7 @@ class BridgeNode(Node):
         self.counters.inbox_overflow = self.inbox.overflow
         return {"network": self.plan.network, "side": self.plan.side, "time": time.time(),
                 "discovery": self.discovery_status(),
+                "schema": self.schema.stats() if self.schema is not None else None,
                 "desert": {"host": self.options.host, "port": self.options.port,
                            "max_read_length": self.options.link.max_read_length,
                            "period": self.options.link.period},

@@ -1,0 +1,202 @@
+"""Schema announcements and refusal of frames whose schema differs (sans-IO, manual clock)."""
+from __future__ import annotations
+
+import pytest
+
+from uwgen.bridge.schema import (
+    FLAG_REQUEST, AnnouncementError, SchemaGuard, decode_announcement, encode_announcements,
+)
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.codec import load_items, pack_items
+
+SID = 249
+FP_CMD, FP_POSE, FP_SRV = bytes.fromhex("11223344"), bytes.fromhex("55667788"), bytes.fromhex("99aabbcc")
+OURS = {4: ("/cmd_vel", FP_CMD), 5: ("/pose", FP_POSE), 20: ("/enable", FP_SRV)}
+
+
+class Harness:
+    """A guard with a manual clock, a recording `send`, a settable connect count."""
+
+    def __init__(self, sends=(4, 20), period=None, ours=OURS, max_payload=250):
+        self.clock = ManualClock(100.0)
+        self.sent: list[bytes] = []
+        self.logs: list[tuple[str, str]] = []
+        self.connects = 0
+        self.queued = 0
+        self.guard = SchemaGuard(SID, ours, list(sends), self._send, clock=self.clock,
+                                 period=period, max_payload=max_payload,
+                                 connects=lambda: self.connects, queued=lambda: self.queued,
+                                 say=lambda level, text: self.logs.append((level, text)))
+
+    def _send(self, payload: bytes) -> bool:
+        self.sent.append(payload)
+        return True
+
+    def take_sent(self) -> list:
+        out = [decode_announcement(p, SID) for p in self.sent]
+        self.sent.clear()
+        return out
+
+
+def announcement(*pairs, request=False) -> bytes:
+    return pack_items([0, SID, FLAG_REQUEST if request else 0, *[x for p in pairs for x in p]])
+
+
+# --- the payload ---------------------------------------------------------------------
+
+def test_announcement_round_trips_and_is_ordered_by_id():
+    [payload] = encode_announcements(SID, [(20, FP_SRV), (4, FP_CMD)], request=True)
+    assert load_items(payload) == [0, SID, 1, 4, FP_CMD, 20, FP_SRV]
+    ann = decode_announcement(payload, SID)
+    assert ann.request and ann.pairs == ((4, FP_CMD), (20, FP_SRV))
+
+
+def test_announcement_is_split_to_fit_the_packet():
+    pairs = [(i, bytes([i] * 4)) for i in range(1, 41)]
+    payloads = encode_announcements(SID, pairs, request=False, max_payload=60)
+    assert len(payloads) > 1 and all(len(p) <= 60 for p in payloads)
+    heard = [pair for p in payloads for pair in decode_announcement(p, SID).pairs]
+    assert heard == pairs
+
+
+def test_one_pair_per_payload_when_the_packet_is_tiny():
+    payloads = encode_announcements(SID, [(4, FP_CMD), (5, FP_POSE)], request=False, max_payload=3)
+    assert [decode_announcement(p, SID).pairs for p in payloads] == [((4, FP_CMD),), ((5, FP_POSE),)]
+
+
+@pytest.mark.parametrize("payload, why", [
+    (b"\xff", "not CBOR"),
+    (pack_items([0, SID]), "expected kind 0, id 249 and flags"),
+    (pack_items([0, SID, -1]), "flags must be an unsigned integer"),
+    (pack_items([0, SID, 0, 4]), "1 items after the flags"),
+    (pack_items([0, SID, 0, 0, FP_CMD]), "id must be 1..255"),
+    (pack_items([0, SID, 0, 4, "abcd"]), "fingerprint of id 4 must be 1..32 bytes"),
+    (pack_items([0, SID, 0, 4, b""]), "fingerprint of id 4 must be 1..32 bytes"),
+])
+def test_malformed_announcements_are_refused_with_a_reason(payload, why):
+    with pytest.raises(AnnouncementError, match=why):
+        decode_announcement(payload, SID)
+
+
+# --- refusing --------------------------------------------------------------------------
+
+def test_nothing_is_refused_before_the_far_side_announces():
+    h = Harness()
+    assert all(h.guard.accept(i) for i in (4, 5, 20, 77))
+    assert h.guard.refused == {}
+
+
+def test_a_differing_id_is_refused_counted_and_logged_once_with_both_values():
+    h = Harness()
+    other = bytes.fromhex("deadbeef")
+    assert h.guard.handle(announcement((4, other), (5, FP_POSE)))
+    assert not h.guard.accept(4) and not h.guard.accept(4)
+    assert h.guard.accept(5)                  # announced and equal
+    assert h.guard.accept(20)                 # never announced by the far side
+    assert h.guard.refused == {4: 2}
+    assert h.guard.handle(announcement((4, other)))   # heard again: no second log line
+    errors = [text for level, text in h.logs if level == "error"]
+    assert len(errors) == 1
+    assert "/cmd_vel (id 4): ours 11223344, theirs deadbeef" in errors[0] and "/pose" not in errors[0]
+    status = h.guard.stats()
+    assert status["mismatched"] == {"4": {"name": "/cmd_vel", "ours": "11223344", "theirs": "deadbeef",
+                                          "refused": 2}}
+    assert status["refused"] == 2 and status["heard"]["5"] == FP_POSE.hex()
+
+
+def test_agreement_after_a_rebuild_accepts_again():
+    h = Harness()
+    h.guard.handle(announcement((4, b"\x00\x00\x00\x01")))
+    assert not h.guard.accept(4)
+    h.guard.handle(announcement((4, FP_CMD)))
+    assert h.guard.accept(4) and h.guard.stats()["mismatched"] == {}
+    assert ("info", "schema now agrees with the far side for /cmd_vel (id 4)") in h.logs
+
+
+def test_a_new_different_value_is_logged_again():
+    h = Harness()
+    h.guard.handle(announcement((4, b"\x00\x00\x00\x01")))
+    h.guard.handle(announcement((4, b"\x00\x00\x00\x02")))
+    assert sum(level == "error" for level, _ in h.logs) == 2
+
+
+def test_ids_unknown_here_are_reported_once_and_not_refused():
+    h = Harness()
+    h.guard.handle(announcement((77, FP_CMD)))
+    h.guard.handle(announcement((77, FP_CMD)))
+    assert h.guard.accept(77)
+    assert [level for level, _ in h.logs] == ["warning"] and "[77]" in h.logs[0][1]
+    assert h.guard.stats()["unknown_ids"] == [77]
+
+
+def test_other_payloads_are_not_taken():
+    h = Harness()
+    assert not h.guard.handle(pack_items([0, 4, 1.5]))
+    assert not h.guard.handle(pack_items([2, SID, 7, 1]))          # a request on that id
+    assert h.guard.counters["announcements_heard"] == 0
+
+
+def test_a_malformed_announcement_is_consumed_counted_and_logged_once():
+    h = Harness()
+    assert h.guard.handle(pack_items([0, SID, 0, 4]))
+    assert h.guard.handle(pack_items([0, SID, "x"]))
+    assert h.guard.counters["bad_announcements"] == 2
+    assert len(h.logs) == 1 and h.logs[0][0] == "warning"
+    assert h.guard.accept(4)
+
+
+# --- announcing --------------------------------------------------------------------------
+
+def test_announces_what_it_sends_with_a_request_after_each_connect():
+    h = Harness(sends=(4, 20))
+    h.guard.tick()
+    assert h.sent == []                                   # not connected yet
+    h.connects = 1
+    h.guard.tick()
+    [ann] = h.take_sent()
+    assert ann.request and ann.pairs == ((4, FP_CMD), (20, FP_SRV))   # not /pose: it is received here
+    h.clock.advance(5)
+    h.guard.tick()
+    assert h.sent == []                                   # no period: nothing more
+    h.connects = 2                                        # reconnected
+    h.guard.tick()
+    assert [a.request for a in h.take_sent()] == [True]
+
+
+def test_periodic_announcements_follow_the_manifest_period():
+    h = Harness(period=600.0)
+    h.connects = 1
+    h.guard.tick()
+    h.take_sent()
+    h.clock.advance(599)
+    h.guard.tick()
+    assert h.sent == []
+    h.clock.advance(1)
+    h.guard.tick()
+    [ann] = h.take_sent()
+    assert not ann.request
+    h.clock.advance(600)
+    h.queued = 1                                          # the last one has not left yet
+    h.guard.tick()
+    assert h.sent == []
+
+
+def test_a_request_is_answered_at_most_once_per_interval():
+    h = Harness()
+    h.guard.handle(announcement((5, FP_POSE), request=True))
+    [reply] = h.take_sent()
+    assert not reply.request and reply.pairs == ((4, FP_CMD), (20, FP_SRV))
+    h.clock.advance(0.5)
+    h.guard.handle(announcement((5, FP_POSE), request=True))
+    assert h.sent == []
+    h.clock.advance(2.0)
+    h.guard.handle(announcement((5, FP_POSE), request=True))
+    assert len(h.take_sent()) == 1
+    assert h.guard.counters["requests_heard"] == 3
+
+
+def test_ids_without_a_fingerprint_are_not_announced():
+    h = Harness(sends=(4, 20), ours={**OURS, 20: ("/enable", b"")})
+    h.connects = 1
+    h.guard.tick()
+    assert h.take_sent()[0].pairs == ((4, FP_CMD),)
