@@ -163,6 +163,18 @@ def test_announces_what_it_sends_with_a_request_after_each_connect():
     assert [a.request for a in h.take_sent()] == [True]
 
 
+def test_start_queues_the_first_announcement_and_the_first_connect_adds_none():
+    h = Harness()
+    h.guard.start()
+    assert [a.request for a in h.take_sent()] == [True]
+    h.connects = 1
+    h.guard.tick()
+    assert h.sent == []
+    h.connects = 2
+    h.guard.tick()
+    assert [a.request for a in h.take_sent()] == [True]
+
+
 def test_periodic_announcements_follow_the_manifest_period():
     h = Harness(period=600.0)
     h.connects = 1

@@ -166,6 +166,8 @@ class BridgeNode(Node):
         until it connects). Called by the constructor unless `start_link=False`."""
         if self.discovery is not None:
             self.discovery.start()
+        if self.schema is not None:
+            self.schema.start()      # queued ahead of data until the link connects
         self.link.start()
 
     # -- set-up --------------------------------------------------------------------------

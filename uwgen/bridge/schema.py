@@ -8,8 +8,8 @@ as kind-0 payloads (wire-format.md section 10):
     0, schema_id, flags, id1, fp1, id2, fp2, ...     (a CBOR sequence; flags bit 0: "announce yours")
 
 split over as many payloads as needed to keep each frame within one packet
-(max_read_length). It announces after every connect of its link (asking for the far
-side's), when the far side asks (at most once per `min_reply_interval`), and every
+(max_read_length). It announces at start (queued until the link connects, then sent
+ahead of data) and after every reconnect of its link (asking for the far side's), when the far side asks (at most once per `min_reply_interval`), and every
 `period` seconds. Once an id's fingerprint has been heard, frames of that id whose
 fingerprint differs from ours are refused before decoding (`accept` is False), counted
 per id, and logged once per new disagreement with both values; an id the far side has
@@ -126,6 +126,7 @@ class SchemaGuard:
         self._reported: dict[int, bytes] = {}        # id -> their fingerprint already logged
         self._unknown: set[int] = set()
         self._last_connects = 0
+        self._started = False
         self._last_reply: float | None = None
         self._next_periodic: float | None = None
         self.counters = {"announcements_sent": 0, "payloads_sent": 0, "send_refused": 0,
@@ -149,13 +150,21 @@ class SchemaGuard:
         self.counters["announcements_sent"] += 1
         return ok
 
+    def start(self) -> None:
+        """Queue the first announcement (with a request) before the link connects: the
+        schema channel's priority sends it ahead of any data once it does."""
+        self._started = True
+        self.announce(request=True)
+
     def tick(self, now: float | None = None) -> None:
         """Announce (with a request) after each new connect, and every `period` seconds."""
         now = self._clock.now() if now is None else now
         connects = self._connects()
         if connects is not None and connects > self._last_connects:
+            first = self._last_connects == 0
             self._last_connects = connects
-            self.announce(request=True)
+            if not (first and self._started):   # start() already queued this one
+                self.announce(request=True)
             if self.period:
                 self._next_periodic = now + self.period
             return
