@@ -72,7 +72,7 @@ MANIFEST = ManifestInfo(
     },
     fragment_id=250,
     source="msg_samples/uwgen.yaml",
-    schema_id=None,
+    schema_id=249,
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
 )
