@@ -212,3 +212,14 @@ def test_ids_without_a_fingerprint_are_not_announced():
     h.connects = 1
     h.guard.tick()
     assert h.take_sent()[0].pairs == ((4, FP_CMD),)
+
+
+def test_logger_say_takes_every_severity_from_one_rclpy_logger():
+    # rclpy refuses one call site logging at two severities ("Logger severity cannot be
+    # changed between calls"); a mismatch after an info line must not raise.
+    from rclpy.logging import get_logger
+
+    from uwgen.bridge.schema import logger_say
+    say = logger_say(get_logger("uwgen_schema_test"))
+    for level in ("info", "error", "warning", "info", "error"):
+        say(level, f"{level} line")

@@ -56,7 +56,7 @@ from rclpy.task import Future
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
 from uwgen.bridge.counters import BridgeCounters, DropReporter, ServiceCounters, TopicCounters
 from uwgen.bridge.inbox import Inbox
-from uwgen.bridge.schema import SCHEMA_TICK, attach_schema
+from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.plan import (TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan, PlanError,
                                is_rmw_desert)
 from uwgen.interop.beacons import (DISCOVERY_ID, DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC,
@@ -145,8 +145,7 @@ class BridgeNode(Node):
         for key, policy, name in plan.channels():
             self.link.add_channel(key, policy, name)
         self.discovery = self._setup_discovery(flush_timeout)
-        self.schema = attach_schema(plan, self.link, clock, link_cfg,
-                                    lambda level, text: getattr(self._log, level)(text))
+        self.schema = attach_schema(plan, self.link, clock, link_cfg, logger_say(self._log))
         if self.schema is not None:
             self.create_timer(SCHEMA_TICK, self.schema.tick, callback_group=self._main_group)
 

@@ -69,6 +69,7 @@ class BridgePlan:
     defaults: BridgeOptions
     schema_id: int | None = None          # reserved id of schema announcements (None: off)
     schema_period: float | None = None    # seconds between periodic announcements
+    schema_digest: bytes = b""            # the generated package's SCHEMA_DIGEST
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str) -> "BridgePlan":
@@ -91,6 +92,7 @@ class BridgePlan:
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
             schema_id=getattr(manifest, "schema_id", None),
             schema_period=getattr(manifest, "schema_period", None),
+            schema_digest=getattr(manifest, "schema_digest", b""),
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str]]:

@@ -109,8 +109,9 @@ class SchemaGuard:
                  min_reply_interval: float = MIN_REPLY_INTERVAL,
                  connects: Callable[[], int | None] | None = None,
                  queued: Callable[[], int] | None = None,
-                 say: Callable[[str, str], None] | None = None):
+                 say: Callable[[str, str], None] | None = None, digest: bytes = b""):
         self.schema_id = schema_id
+        self.digest = digest
         self.ours = dict(ours)
         self.sends = sorted(i for i in set(sends) if self.ours.get(i, ("", b""))[1])
         self._send = send
@@ -254,7 +255,8 @@ class SchemaGuard:
         return out
 
     def stats(self) -> dict:
-        return {"id": self.schema_id, "period": self.period, "announces": self.sends,
+        return {"id": self.schema_id, "digest": self.digest.hex(), "period": self.period,
+                "announces": self.sends,
                 **self.counters,
                 "heard": {str(i): fp.hex() for i, fp in sorted(self.theirs.items())},
                 "mismatched": {str(i): v for i, v in self.mismatched().items()},
@@ -273,6 +275,19 @@ def _second_item(payload: bytes) -> int | None:
 
 
 # -- bridge wiring ---------------------------------------------------------------------
+
+def logger_say(logger: Any) -> Callable[[str, str], None]:
+    """`say` for an rclpy logger: one call site per severity (rclpy refuses a call site
+    whose severity changes between calls)."""
+    def say(level: str, text: str) -> None:
+        if level == "error":
+            logger.error(text)
+        elif level == "warning":
+            logger.warning(text)
+        else:
+            logger.info(text)
+    return say
+
 
 def channel_policy(parts: int, priorities: list[int]) -> LinkPolicy:
     """Announcements go before data (one above the highest priority) and queue two rounds."""
@@ -308,8 +323,11 @@ def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
                         lambda payload: link.offer(schema_id, payload), clock=clock,
                         period=getattr(plan, "schema_period", None),
                         max_payload=max(1, link_config.max_read_length - OVERHEAD),
-                        connects=connects, queued=queued, say=say)
+                        connects=connects, queued=queued, say=say,
+                        digest=getattr(plan, "schema_digest", b""))
     link.add_channel(schema_id, channel_policy(len(guard.payloads(True)),
                                                [p.priority for _, p, _ in channels]),
                      "schema announcements")
+    say("info", f"schema announcements on id {schema_id}: this side's schema digest is "
+                f"{guard.digest.hex() or '-'}; announcing ids {guard.sends or 'none'}")
     return guard
