@@ -223,3 +223,21 @@ def test_logger_say_takes_every_severity_from_one_rclpy_logger():
     say = logger_say(get_logger("uwgen_schema_test"))
     for level in ("info", "error", "warning", "info", "error"):
         say(level, f"{level} line")
+
+
+def test_registered_on_a_dispatcher_it_takes_announcements_and_screens_other_ids():
+    from uwgen.bridge.counters import BridgeCounters
+    from uwgen.bridge.dispatch import Dispatcher
+
+    h = Harness()
+    dispatcher = Dispatcher(BridgeCounters())
+    got = []
+    dispatcher.route(0, 4, lambda ident, payload: got.append(ident))
+    dispatcher.route(0, 5, lambda ident, payload: got.append(ident))
+    h.guard.register(dispatcher)
+    dispatcher.dispatch(announcement((4, b"\x00\x00\x00\x09"), (5, FP_POSE)))
+    dispatcher.dispatch(pack_items([0, 4, 1.0]))
+    dispatcher.dispatch(pack_items([0, 5, 1.0]))
+    assert got == [5]                                    # 4 refused before its handler ran
+    assert h.guard.counters["announcements_heard"] == 1 and h.guard.refused == {4: 1}
+    assert dispatcher.counters.unknown_id == 0

@@ -204,6 +204,12 @@ class SchemaGuard:
                 self.announce()
         return True
 
+    def register(self, dispatcher: Any) -> None:
+        """Take announcements on (0, schema_id) and screen every other payload by id
+        (a bridge.dispatch.Dispatcher)."""
+        dispatcher.route(KIND_TOPIC, self.schema_id, lambda _ident, payload: self.handle(payload))
+        dispatcher.screen(self.accept)
+
     def accept(self, ident: int) -> bool:
         """False (and counted) when the far side announced a different fingerprint for
         `ident`; True otherwise (also for ids it never announced)."""
