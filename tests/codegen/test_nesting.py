@@ -131,3 +131,29 @@ def test_the_emitter_never_nests_expressions_past_the_parser_limit(tmp_path):
     compile(source, "<decoder>", "exec")
     assert sum(line.startswith("t") for line in fn.body) == 299 // NEST_CHUNK
     assert max(line.count("(") for line in fn.body) <= NEST_CHUNK + 2
+
+
+def test_fields_named_like_python_names_still_import_and_construct(tmp_path):
+    # ROS allows field names such as `self` and `range`; the plain classes take every
+    # field as an __init__ parameter, so they must not collide with what __init__ uses.
+    src = write(tmp_path / "src", {
+        "nm_msgs/msg/A.msg": "int32 self\nint32 other\n",
+        "nm_msgs/msg/B.msg": "int32 x\n",
+        "nm_msgs/msg/R.msg": "B[2] range\nint32 type\nint32[] len\nint32 none\n",
+    })
+    plan = plan_build([src], installed=False, package="uwgen_pynames")
+    out = tmp_path / "gen" / "uwgen_pynames"
+    write_package(render_package(plan), out)
+    sys.path.insert(0, str(out.parent))
+    try:
+        pkg = importlib.import_module("uwgen_pynames")
+        from uwgen_pynames.nm_msgs.msg import A, R
+        assert A(self=3, other=4) == A(self=3, other=4) and A().self == 0
+        r = R(len=[1, 2])
+        assert len(r.range) == 2 and r.range[0].x == 0
+        codec = pkg.codec("nm_msgs/msg/R")
+        assert codec.decode(codec.encode(r, [0, 3]), (0, 3), ros=False)[0] == r
+    finally:
+        sys.path.remove(str(out.parent))
+        for name in [m for m in sys.modules if m.split(".")[0] == "uwgen_pynames"]:
+            del sys.modules[name]

@@ -45,6 +45,7 @@ class PlainClass:
     full_name: str
     fields: list[PlainField]
     constants: list[tuple[str, str]]
+    me: str = "self"       # __init__'s instance parameter: '_self' when a field is named self
 
 
 @dataclass
@@ -285,7 +286,9 @@ def _plain_class(msg: MessageDef, mod: ModulePlan) -> PlainClass:
     for f in msg.fields:
         fields.append(_plain_field(f, msg.package, mod))
     constants = [(c.name, _literal(c.value, c.type)) for c in msg.constants]
-    return PlainClass(msg.name, msg.full_name, fields, constants)
+    # Field names are __init__ parameters; none starts with '_' (see _python_safe).
+    me = "_self" if any(f.name == "self" for f in msg.fields) else "self"
+    return PlainClass(msg.name, msg.full_name, fields, constants, me)
 
 
 def _class_ref(full_name: str, package: str, mod: ModulePlan) -> str:
@@ -313,7 +316,8 @@ def _plain_field(f: Field, package: str, mod: ModulePlan) -> PlainField:
     if not t.is_primitive:
         cls = _class_ref(t.base, package, mod)
         if t.array is ArrayKind.FIXED:
-            return PlainField(f.name, "None", f"[{cls}() for _ in range({t.size})] if {f.name} is None else {f.name}")
+            # No builtin here: a field (an __init__ parameter) may be named `range`.
+            return PlainField(f.name, "None", f"[{cls}() for _ in [None] * {t.size}] if {f.name} is None else {f.name}")
         if t.is_array:
             return PlainField(f.name, "None", f"[] if {f.name} is None else {f.name}")
         return PlainField(f.name, "None", f"{cls}() if {f.name} is None else {f.name}")
