@@ -162,3 +162,25 @@ def test_any_dataclass_field_reaches_the_hash():
 def test_a_value_without_canonical_form_is_refused():
     with pytest.raises(TypeError, match="no canonical form for object at .step"):
         canonical(FutureNode(Fraction(1), object()), "")  # type: ignore[arg-type]
+
+
+def test_same_fingerprints_in_processes_with_different_hash_seeds(tmp_path):
+    import os
+    import subprocess
+    root = tmp_path / "src"
+    for rel, text in BASE_MSGS.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(text)
+    (tmp_path / "uwgen.yaml").write_text(textwrap.dedent(BASE_MANIFEST))
+    code = ("import sys; from pathlib import Path; from uwgen.codegen.generator import plan_build; "
+            "p = plan_build([Path(sys.argv[1])], manifest_path=Path(sys.argv[2]), installed=False); "
+            "print(sorted((k, v.hex()) for k, v in p.fingerprints.items()), p.schema_digest.hex())")
+    outs = []
+    for seed in ("1", "2"):
+        env = dict(os.environ, PYTHONHASHSEED=seed)
+        result = subprocess.run([sys.executable, "-c", code, str(root), str(tmp_path / "uwgen.yaml")],
+                                capture_output=True, text=True, env=env, timeout=60,
+                                cwd=Path(__file__).resolve().parents[2])
+        assert result.returncode == 0, result.stderr
+        outs.append(result.stdout)
+    assert outs[0] == outs[1] and "topic" in outs[0]
