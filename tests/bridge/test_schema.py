@@ -193,18 +193,68 @@ def test_periodic_announcements_follow_the_manifest_period():
     assert h.sent == []
 
 
-def test_a_request_is_answered_at_most_once_per_interval():
+def test_requests_are_answered_at_most_once_per_interval_and_coalesce():
     h = Harness()
     h.guard.handle(announcement((5, FP_POSE), request=True))
     [reply] = h.take_sent()
     assert not reply.request and reply.pairs == ((4, FP_CMD), (20, FP_SRV))
     h.clock.advance(0.5)
     h.guard.handle(announcement((5, FP_POSE), request=True))
-    assert h.sent == []
-    h.clock.advance(2.0)
+    h.clock.advance(0.5)
     h.guard.handle(announcement((5, FP_POSE), request=True))
-    assert len(h.take_sent()) == 1
+    h.guard.tick()
+    assert h.sent == []                                   # within 2 s of the last reply
+    h.clock.advance(1.0)
+    h.guard.tick()
+    assert len(h.take_sent()) == 1                        # both requests, one reply
+    h.clock.advance(10)
+    h.guard.tick()
+    assert h.sent == []                                   # nothing owed any more
     assert h.guard.counters["requests_heard"] == 3
+
+
+def test_a_request_is_answered_by_the_announcement_still_queued():
+    h = Harness()
+    h.queued = 1
+    h.guard.handle(announcement((5, FP_POSE), request=True))
+    h.guard.tick()
+    assert h.sent == []
+
+
+def test_reply_interval_keeps_replies_under_five_percent_of_a_slow_link():
+    from types import SimpleNamespace
+
+    from uwgen.bridge.schema import attach_schema
+    from uwgen.manifest.model import LinkConfig, LinkPolicy
+
+    class Link:
+        def __init__(self):
+            self.channels = {}
+
+        def add_channel(self, key, policy, name=None):
+            self.channels[key] = policy
+
+        def offer(self, key, payload):
+            return True
+
+        def stats(self):
+            return {}
+
+    entries = [SimpleNamespace(id=i, name=f"/t{i}", fingerprint=bytes(4)) for i in (3, 4, 5)]
+    plan = SimpleNamespace(schema_id=SID, schema_period=None, schema_digest=b"\x01\x02\x03\x04",
+                           topics=entries, services=[],
+                           channels=lambda: [(e.id, LinkPolicy(priority=7), e.name) for e in entries])
+    link = Link()
+    logs = []
+    slow = attach_schema(plan, link, ManualClock(), LinkConfig(max_read_length=32, period=1.0),
+                         lambda level, text: logs.append(text))
+    # 26-byte frame on a 32 B/s link: 0.81 s of air time, so one reply per 16.25 s at most.
+    assert slow.min_reply_interval == 26 / 32 / 0.05
+    assert link.channels[SID].priority == 8 and link.channels[SID].queue == "fifo"
+    assert "schema digest is 01020304; announcing ids [3, 4, 5]" in logs[0]
+    fast = attach_schema(plan, Link(), ManualClock(), LinkConfig(max_read_length=64, period=0.05),
+                         lambda level, text: None)
+    assert fast.min_reply_interval == 2.0
 
 
 def test_ids_without_a_fingerprint_are_not_announced():

@@ -9,7 +9,10 @@ as kind-0 payloads (wire-format.md section 10):
 
 split over as many payloads as needed to keep each frame within one packet
 (max_read_length). It announces at start (queued until the link connects, then sent
-ahead of data) and after every reconnect of its link (asking for the far side's), when the far side asks (at most once per `min_reply_interval`), and every
+ahead of data) and after every reconnect of its link (asking for the far side's); when
+the far side asks, at most once per `min_reply_interval` (the larger of 2 s and 20 times
+its own air time, so replies take at most 5 % of the link; requests heard in between
+get one reply when the interval ends); and every
 `period` seconds. Once an id's fingerprint has been heard, frames of that id whose
 fingerprint differs from ours are refused before decoding (`accept` is False), counted
 per id, and logged once per new disagreement with both values; an id the far side has
@@ -32,7 +35,8 @@ from uwgen.runtime.framing import MAX_PAYLOAD, OVERHEAD
 
 FLAG_REQUEST = 1            # "announce yours too" (sent after a connect)
 MAX_FINGERPRINT = 32        # longest fingerprint a receiver takes (uwgen sends 4 bytes)
-MIN_REPLY_INTERVAL = 2.0    # seconds: at most one reply to requests per interval
+MIN_REPLY_INTERVAL = 2.0    # seconds: at most one reply to requests per interval...
+REPLY_AIR_SHARE = 0.05      # ...and replies take at most this share of the link's air time
 SCHEMA_TICK = 0.25          # seconds between looks at the link (bridge timer)
 
 log = logging.getLogger("uwgen.schema")
@@ -129,6 +133,7 @@ class SchemaGuard:
         self._last_connects = 0
         self._started = False
         self._last_reply: float | None = None
+        self._reply_owed = False
         self._next_periodic: float | None = None
         self.counters = {"announcements_sent": 0, "payloads_sent": 0, "send_refused": 0,
                          "announcements_heard": 0, "requests_heard": 0, "bad_announcements": 0}
@@ -160,6 +165,8 @@ class SchemaGuard:
     def tick(self, now: float | None = None) -> None:
         """Announce (with a request) after each new connect, and every `period` seconds."""
         now = self._clock.now() if now is None else now
+        if self._reply_owed:
+            self._reply(now)
         connects = self._connects()
         if connects is not None and connects > self._last_connects:
             first = self._last_connects == 0
@@ -198,11 +205,20 @@ class SchemaGuard:
         self._learn(ann.pairs)
         if ann.request:
             self.counters["requests_heard"] += 1
-            now = self._clock.now()
-            if self._last_reply is None or now - self._last_reply >= self.min_reply_interval:
-                self._last_reply = now
-                self.announce()
+            self._reply_owed = True
+            self._reply(self._clock.now())
         return True
+
+    def _reply(self, now: float) -> None:
+        """Answer an owed request unless one was answered within `min_reply_interval` (then
+        `tick` answers it later: requests coalesce) or an announcement is still queued."""
+        if self._last_reply is not None and now - self._last_reply < self.min_reply_interval:
+            return
+        self._reply_owed = False
+        if self._queued():      # the announcement waiting in the link answers it
+            return
+        self._last_reply = now
+        self.announce()
 
     def register(self, dispatcher: Any) -> None:
         """Take announcements on (0, schema_id) and screen every other payload by id
@@ -331,6 +347,8 @@ def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
                         max_payload=max(1, link_config.max_read_length - OVERHEAD),
                         connects=connects, queued=queued, say=say,
                         digest=getattr(plan, "schema_digest", b""))
+    air = sum(len(p) + OVERHEAD for p in guard.payloads(False)) / link_config.bytes_per_second
+    guard.min_reply_interval = max(MIN_REPLY_INTERVAL, air / REPLY_AIR_SHARE)
     link.add_channel(schema_id, channel_policy(len(guard.payloads(True)),
                                                [p.priority for _, p, _ in channels]),
                      "schema announcements")
