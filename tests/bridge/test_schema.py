@@ -147,14 +147,14 @@ def test_a_malformed_announcement_is_consumed_counted_and_logged_once():
 
 # --- announcing --------------------------------------------------------------------------
 
-def test_announces_what_it_sends_with_a_request_after_each_connect():
+def test_announces_its_ids_with_a_request_after_each_connect():
     h = Harness(sends=(4, 20))
     h.guard.tick()
     assert h.sent == []                                   # not connected yet
     h.connects = 1
     h.guard.tick()
     [ann] = h.take_sent()
-    assert ann.request and ann.pairs == ((4, FP_CMD), (20, FP_SRV))   # not /pose: it is received here
+    assert ann.request and ann.pairs == ((4, FP_CMD), (20, FP_SRV))   # the ids it was given
     h.clock.advance(5)
     h.guard.tick()
     assert h.sent == []                                   # no period: nothing more
@@ -251,7 +251,7 @@ def test_reply_interval_keeps_replies_under_five_percent_of_a_slow_link():
     # 26-byte frame on a 32 B/s link: 0.81 s of air time, so one reply per 16.25 s at most.
     assert slow.min_reply_interval == 26 / 32 / 0.05
     assert link.channels[SID].priority == 8 and link.channels[SID].queue == "fifo"
-    assert "schema digest is 01020304; announcing ids [3, 4, 5]" in logs[0]
+    assert "schema digest is 01020304; announcing ids [3, 4, 5]" in logs[0]   # every id
     fast = attach_schema(plan, Link(), ManualClock(), LinkConfig(max_read_length=64, period=0.05),
                          lambda level, text: None)
     assert fast.min_reply_interval == 2.0

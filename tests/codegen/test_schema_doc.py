@@ -36,10 +36,10 @@ def test_worked_announcement_bytes():
     assert payloads == [hexbytes(block)]
     ann = decode_announcement(hexbytes(block), 249)
     assert ann.request and ann.pairs == ((7, fp7), (20, hexbytes("A4 95 96 A3")))
-    assert len(hexbytes(block)) + 4 == 20      # a side announcing 2 ids: 16-byte payload, 20-byte frame
+    assert len(hexbytes(block)) + 4 == 20      # 2 ids: a 16-byte payload, a 20-byte frame
 
 
 def test_stated_announcement_size_for_three_ids():
     payloads = encode_announcements(249, [(3, b"abcd"), (4, b"efgh"), (20, b"ijkl")], request=False)
-    assert "announces in a 26-byte frame" in SECTION
+    assert "a manifest of 3 ids is announced in a 26-byte frame" in SECTION
     assert [len(p) + 4 for p in payloads] == [26]

@@ -117,5 +117,8 @@ def test_mismatching_id_is_refused_and_matching_ids_flow(packages, difference):
         assert status["topics"]["/cmd_vel"]["received"] == 0          # refused before decoding
         assert status["topics"]["/cmd_vel"]["decode_errors"] == 0
         assert surface.status()["topics"]["/cmd_vel"]["link"]["sent"] >= 1
-        # The surface receives nothing on id 4, so it has nothing to refuse.
-        assert surface.status()["schema"]["mismatched"] == {}
+        # The surface, which sends id 4, learns that the vehicle refuses it (it receives
+        # nothing on id 4, so it refuses nothing itself).
+        on_surface = surface.status()["schema"]["mismatched"]
+        assert set(on_surface) == {"4"} and on_surface["4"]["refused"] == 0
+        assert on_surface["4"]["theirs"] == vehicle_pkg.TOPICS[4].fingerprint.hex()

@@ -2,8 +2,8 @@
 
 Every TopicCodec/ServiceCodec of a generated package carries `fingerprint` (4 bytes,
 see uwgen.codegen.fingerprint). With `schema_id` in the manifest, each bridge announces
-the fingerprints of the ids it sends (its outgoing topics and its services) on that id,
-as kind-0 payloads (wire-format.md section 10):
+the fingerprints of every id of its manifest on that id (the side sending an id learns
+too that the far side refuses it), as kind-0 payloads (wire-format.md section 10):
 
     0, schema_id, flags, id1, fp1, id2, fp2, ...     (a CBOR sequence; flags bit 0: "announce yours")
 
@@ -103,8 +103,8 @@ def decode_announcement(payload: bytes, schema_id: int) -> Announcement:
 class SchemaGuard:
     """One side's announcements and the far side's fingerprints (see the module doc).
 
-    `ours`: id -> (name, fingerprint) for every id of the manifest; `sends`: the ids this
-    side sends (announced); `send(payload) -> bool` queues an announcement payload;
+    `ours`: id -> (name, fingerprint) for every id of the manifest; `sends`: the ids
+    announced (every id, for a bridge); `send(payload) -> bool` queues an announcement payload;
     `say(level, text)` logs ('info', 'warning', 'error')."""
 
     def __init__(self, schema_id: int, ours: dict[int, tuple[str, bytes]], sends: list[int],
@@ -256,9 +256,9 @@ class SchemaGuard:
                 self._reported[ident] = fp
                 differ.append(f"{name} (id {ident}): ours {ours.hex()}, theirs {fp.hex()}")
         if differ:
-            self._say("error", "schema mismatch with the far side, its frames of these ids are "
-                               "refused (rebuild both sides from the same manifest and "
-                               "definitions): " + "; ".join(differ))
+            self._say("error", "schema mismatch with the far side: frames of these ids are "
+                               "refused by whichever side receives them (rebuild both sides "
+                               "from the same manifest and definitions): " + "; ".join(differ))
         if agree:
             self._say("info", "schema now agrees with the far side for " + ", ".join(agree))
         if unknown:
@@ -341,7 +341,7 @@ def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
         entry = chans.get(schema_id, chans.get(str(schema_id), {}))
         return int(entry.get("queued", 0)) if isinstance(entry, dict) else 0
 
-    guard = SchemaGuard(schema_id, ours, [key for key, _, _ in channels],
+    guard = SchemaGuard(schema_id, ours, list(ours),
                         lambda payload: link.offer(schema_id, payload), clock=clock,
                         period=getattr(plan, "schema_period", None),
                         max_payload=max(1, link_config.max_read_length - OVERHEAD),
