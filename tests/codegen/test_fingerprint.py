@@ -184,3 +184,35 @@ def test_same_fingerprints_in_processes_with_different_hash_seeds(tmp_path):
         assert result.returncode == 0, result.stderr
         outs.append(result.stdout)
     assert outs[0] == outs[1] and "topic" in outs[0]
+
+
+def test_fingerprints_cover_the_codecs_the_entries_are_generated_from(tmp_path):
+    # A tripwire for codec variants per entry (e.g. field encodings): the codec types a
+    # fingerprint hashes are those the generated TopicCodec/ServiceCodec encode with.
+    from uwgen.codegen.emit import func_name
+    from uwgen.codegen.fingerprint import entry_codecs
+    from uwgen.codegen.generator import plan_package
+    from uwgen.codegen.ir import IRBuilder
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.manifest.loader import load_manifest
+
+    plan = fingerprints(tmp_path, name="tw")
+    lib = InterfaceLibrary([tmp_path / "tw" / "src"], installed=False)
+    manifest = load_manifest(tmp_path / "tw" / "uwgen.yaml", lib)
+    chosen = entry_codecs(manifest, IRBuilder(lib.get))
+    out = tmp_path / "pkgs" / "uwgen_fp"
+    write_package(render_package(plan_package(lib, [], manifest, "uwgen_fp", manifest_label="uwgen.yaml")), out)
+    sys.path.insert(0, str(out.parent))
+    try:
+        pkg = importlib.import_module("uwgen_fp")
+        for (entry, ident), (roots, _codecs) in chosen.items():
+            if entry == "topic":
+                used = [pkg.TOPICS[ident].codec]
+            else:
+                used = [pkg.SERVICES[ident].request, pkg.SERVICES[ident].response]
+            assert [c.enc.__name__ for c in used] == [func_name("enc", ct.name, ct.suffix) for ct in roots]
+            assert [c.dec.__name__ for c in used] == [func_name("dec", ct.name, ct.suffix) for ct in roots]
+    finally:
+        sys.path.remove(str(out.parent))
+        for name in [m for m in sys.modules if m == "uwgen_fp" or m.startswith("uwgen_fp.")]:
+            del sys.modules[name]

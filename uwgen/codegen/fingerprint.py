@@ -110,21 +110,36 @@ def package_digest(fingerprints: dict[tuple[str, int], bytes]) -> bytes:
     return digest([SCHEMA_MAGIC, SCHEMA_VERSION, "package", rows])
 
 
-def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], bytes]:
-    """('topic' | 'service', id) -> fingerprint for every entry of `manifest`, from the
-    codec types `builder` (an IRBuilder) made for them."""
-    out: dict[tuple[str, int], bytes] = {}
+def entry_codecs(manifest: Any, builder: Any) -> dict[tuple[str, int], tuple[list[CodecType], dict[str, CodecType]]]:
+    """('topic' | 'service', id) -> (root codec types, every codec type they reach by key),
+    as `builder` (an IRBuilder) makes them for the manifest's entries.
+
+    These must be the codec types the entries' generated codecs are lowered from (a test
+    checks the encoder names): whoever gives an entry its own codec variant (e.g. field
+    encodings) picks it here too, so its fingerprint covers it."""
+    out = {}
     for topic in manifest.topics:
         codecs = {ct.key: ct for ct in builder.codecs_for(topic.type, topic.profile)}
-        root = builder.codec(topic.type, topic.profile)
-        out[("topic", topic.id)] = topic_fingerprint(topic.id, topic.profile, topic.type_name,
-                                                     root, codecs)
+        out[("topic", topic.id)] = ([builder.codec(topic.type, topic.profile)], codecs)
     for service in manifest.services:
         codecs: dict[str, CodecType] = {}
         for msg in (service.type.request, service.type.response):
             codecs.update({ct.key: ct for ct in builder.codecs_for(msg, service.profile)})
-        out[("service", service.id)] = service_fingerprint(
-            service.id, service.profile, service.type_name,
-            builder.codec(service.type.request, service.profile),
-            builder.codec(service.type.response, service.profile), codecs)
+        roots = [builder.codec(service.type.request, service.profile),
+                 builder.codec(service.type.response, service.profile)]
+        out[("service", service.id)] = (roots, codecs)
+    return out
+
+
+def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], bytes]:
+    """('topic' | 'service', id) -> fingerprint for every entry of `manifest`."""
+    entries = {**{("topic", t.id): t for t in manifest.topics},
+               **{("service", s.id): s for s in manifest.services}}
+    out: dict[tuple[str, int], bytes] = {}
+    for key, (roots, codecs) in entry_codecs(manifest, builder).items():
+        entry = entries[key]
+        if key[0] == "topic":
+            out[key] = topic_fingerprint(entry.id, entry.profile, entry.type_name, roots[0], codecs)
+        else:
+            out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs)
     return out
