@@ -142,6 +142,8 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
                  manifest_label: str | None = None) -> PackagePlan:
     """Decide what to generate: `names` in each of `profiles`, plus the manifest's topics
     and services in their own profiles, and every type those use."""
+    if manifest is not None and manifest_label is None:   # the package names its manifest
+        manifest_label = Path(manifest.source).name if manifest.source else "<manifest>"
     builder = IRBuilder(lambda n: _as_message(lib.get(n)))
     wanted: list[tuple[MessageDef, str, int, bool]] = []   # (type, profile, header items, required)
     for name in names:
