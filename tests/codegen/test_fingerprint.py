@@ -201,7 +201,8 @@ def test_fingerprints_cover_the_codecs_the_entries_are_generated_from(tmp_path):
     manifest = load_manifest(tmp_path / "tw" / "uwgen.yaml", lib)
     chosen = entry_codecs(manifest, IRBuilder(lib.get))
     out = tmp_path / "pkgs" / "uwgen_fp"
-    write_package(render_package(plan_package(lib, [], manifest, "uwgen_fp"))  # no label: still imports, out)
+    # No manifest label given: the package must still import (it names the file).
+    write_package(render_package(plan_package(lib, [], manifest, "uwgen_fp")), out)
     sys.path.insert(0, str(out.parent))
     try:
         pkg = importlib.import_module("uwgen_fp")
