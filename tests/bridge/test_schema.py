@@ -291,3 +291,33 @@ def test_registered_on_a_dispatcher_it_takes_announcements_and_screens_other_ids
     assert got == [5]                                    # 4 refused before its handler ran
     assert h.guard.counters["announcements_heard"] == 1 and h.guard.refused == {4: 1}
     assert dispatcher.counters.unknown_id == 0
+
+
+# --- properties ----------------------------------------------------------------------------
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=200, deadline=None)
+@given(pairs=st.dictionaries(st.integers(1, 255), st.binary(min_size=1, max_size=32), max_size=60),
+       request=st.booleans(), schema_id=st.integers(1, 255), max_payload=st.integers(1, 300))
+def test_split_announcements_carry_every_pair_once(pairs, request, schema_id, max_payload):
+    payloads = encode_announcements(schema_id, list(pairs.items()), request, max_payload)
+    heard = []
+    for p in payloads:
+        ann = decode_announcement(p, schema_id)
+        assert ann.request == request
+        assert len(p) <= max(max_payload, 3 + 2 + 2 + 34) and len(p) <= 255
+        heard += ann.pairs
+    assert heard == sorted(pairs.items())
+
+
+@settings(max_examples=300, deadline=None)
+@given(payload=st.binary(max_size=80))
+def test_any_bytes_on_the_schema_id_are_taken_or_refused_never_crash(payload):
+    h = Harness()
+    data = bytes([0x00, 0x18, SID]) + payload
+    assert h.guard.handle(data)                          # kind 0 on the schema id: taken
+    assert h.guard.counters["announcements_heard"] + h.guard.counters["bad_announcements"] == 1
+    for ident in range(1, 30):
+        h.guard.accept(ident)
