@@ -155,9 +155,9 @@ def test_announces_its_ids_with_a_request_after_each_connect():
     h.guard.tick()
     [ann] = h.take_sent()
     assert ann.request and ann.pairs == ((4, FP_CMD), (20, FP_SRV))   # the ids it was given
-    h.clock.advance(5)
+    h.clock.advance(1)
     h.guard.tick()
-    assert h.sent == []                                   # no period: nothing more
+    assert h.sent == []                                   # no period, no retry yet: nothing more
     h.connects = 2                                        # reconnected
     h.guard.tick()
     assert [a.request for a in h.take_sent()] == [True]
@@ -180,6 +180,7 @@ def test_periodic_announcements_follow_the_manifest_period():
     h.connects = 1
     h.guard.tick()
     h.take_sent()
+    h.guard.handle(announcement((5, FP_POSE)))            # heard: no retries
     h.clock.advance(599)
     h.guard.tick()
     assert h.sent == []
@@ -211,6 +212,33 @@ def test_requests_are_answered_at_most_once_per_interval_and_coalesce():
     h.guard.tick()
     assert h.sent == []                                   # nothing owed any more
     assert h.guard.counters["requests_heard"] == 3
+
+
+def test_asks_again_at_doubling_intervals_until_the_far_side_is_heard():
+    h = Harness(period=20.0)
+    h.connects = 1
+    h.guard.tick()                                        # t=100: connect, announce + request
+    h.take_sent()
+    times = []
+    for _ in range(80):                                   # 40 s in 0.5 s steps
+        h.clock.advance(0.5)
+        h.guard.tick()
+        for ann in h.take_sent():
+            times.append((round(h.clock.now() - 100, 1), ann.request))
+    # Retries at +2, +6 (gap 4), +14 (gap 8), then the period's pace (gap capped at 20):
+    # +20 is the periodic one (no request), +30 the next retry, +40 the next periodic.
+    assert times[:4] == [(2.0, True), (6.0, True), (14.0, True), (20.0, False)]
+    assert (30.0, True) in times
+    h.guard.handle(announcement((5, FP_POSE)))            # heard now
+    h.clock.advance(100)
+    h.guard.tick()
+    assert all(not a.request for a in h.take_sent())      # only the periodic one from now on
+    h.connects = 2                                        # a reconnect starts over
+    h.guard.tick()
+    h.take_sent()
+    h.clock.advance(2)
+    h.guard.tick()
+    assert [a.request for a in h.take_sent()] == [True]
 
 
 def test_a_request_is_answered_by_the_announcement_still_queued():

@@ -9,7 +9,9 @@ too that the far side refuses it), as kind-0 payloads (wire-format.md section 10
 
 split over as many payloads as needed to keep each frame within one packet
 (max_read_length). It announces at start (queued until the link connects, then sent
-ahead of data) and after every reconnect of its link (asking for the far side's); when
+ahead of data) and after every reconnect of its link (asking for the far side's, and
+asking again at doubling intervals while nothing is heard, as announcements get lost
+in collisions); when
 the far side asks, at most once per `min_reply_interval` (the larger of 2 s and 20 times
 its own air time, so replies take at most 5 % of the link; requests heard in between
 get one reply when the interval ends); and every
@@ -37,6 +39,8 @@ FLAG_REQUEST = 1            # "announce yours too" (sent after a connect)
 MAX_FINGERPRINT = 32        # longest fingerprint a receiver takes (uwgen sends 4 bytes)
 MIN_REPLY_INTERVAL = 2.0    # seconds: at most one reply to requests per interval...
 REPLY_AIR_SHARE = 0.05      # ...and replies take at most this share of the link's air time
+RETRY_FIRST = 2.0           # seconds after a connect before asking again, if nothing was heard
+RETRY_CAP = 600.0           # the retry interval doubles up to this (or to the period)
 SCHEMA_TICK = 0.25          # seconds between looks at the link (bridge timer)
 
 log = logging.getLogger("uwgen.schema")
@@ -135,6 +139,9 @@ class SchemaGuard:
         self._last_reply: float | None = None
         self._reply_owed = False
         self._next_periodic: float | None = None
+        self._heard = False                 # an announcement arrived since the last connect
+        self._retry_gap = RETRY_FIRST
+        self._retry_at: float | None = None
         self.counters = {"announcements_sent": 0, "payloads_sent": 0, "send_refused": 0,
                          "announcements_heard": 0, "requests_heard": 0, "bad_announcements": 0}
 
@@ -175,7 +182,17 @@ class SchemaGuard:
                 self.announce(request=True)
             if self.period:
                 self._next_periodic = now + self.period
+            self._heard = False
+            self._retry_gap = max(RETRY_FIRST, self.min_reply_interval)
+            self._retry_at = now + self._retry_gap
             return
+        if not self._heard and self._retry_at is not None and now >= self._retry_at:
+            # Nothing heard since the connect: the announcements may have been lost (or
+            # the far side never announces, like rmw_desert): ask again, ever less often.
+            self._retry_gap = min(2 * self._retry_gap, self.period or RETRY_CAP)
+            self._retry_at = now + self._retry_gap
+            if not self._queued():
+                self.announce(request=True)
         if self.period and self._last_connects:
             if self._next_periodic is None:
                 self._next_periodic = now + self.period
@@ -202,6 +219,7 @@ class SchemaGuard:
                                      "counted in ~/status)")
             return True
         self.counters["announcements_heard"] += 1
+        self._heard = True
         self._learn(ann.pairs)
         if ann.request:
             self.counters["requests_heard"] += 1
