@@ -126,3 +126,16 @@ def test_action_decoders_are_total(action, payload):
 def _pack(items) -> bytes:
     from uwgen.runtime.codec import pack_items
     return pack_items(list(items)) if items else b""
+
+
+def test_an_action_has_a_schema_fingerprint_of_its_definition(action, tmp_path):
+    # Same action, another result type on the same id: the fingerprint differs (section 10).
+    assert len(action.fingerprint) == 4
+    root = tmp_path / "src"
+    (root / "fib_msgs" / "action").mkdir(parents=True)
+    (root / "fib_msgs" / "action" / "Fibonacci.action").write_text(
+        "int32 order\n---\nint64[] sequence\n---\nint32[] sequence\n")
+    (root / "uwgen.yaml").write_text(MANIFEST.replace("test_msgs/action", "fib_msgs/action"))
+    other = generate(tmp_path / "gen", "uwgen_acts_other", folders=[root],
+                     manifest=root / "uwgen.yaml").ACTIONS[9]
+    assert len(other.fingerprint) == 4 and other.fingerprint != action.fingerprint

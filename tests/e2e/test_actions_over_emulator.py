@@ -20,6 +20,7 @@ ACTION_ID = 9
 MANIFEST = """\
 network: e2e_actions
 package: uwgen_e2e_actions
+schema_id: 249
 sides:
   surface:
     port: 4000
@@ -147,6 +148,12 @@ def test_goal_accepted_with_feedback_and_result(net):
     assert (surface["accepted"], surface["results"], surface["goals_table"]["completed"]) == (1, 1, 1)
     assert surface["feedback"] >= 1 and vehicle["feedback_sent"] >= surface["feedback"]
     assert (vehicle["answers"], vehicle["results_sent"]) == (1, 1)
+    # Schema announcements cover the action's id: each side heard the other's fingerprint
+    # of id 9, equal to its own, so nothing was refused.
+    own = net.package.ACTIONS[ACTION_ID].fingerprint.hex()
+    for side in ("surface", "vehicle"):
+        schema = net.bridges[side].status()["schema"]
+        assert schema["heard"].get(str(ACTION_ID)) == own and schema["refused"] == 0
     # One goal, one answer, one result (plus repeats if an answer was slow): no get_result,
     # no status on the action's channel; feedback went on its own channel.
     assert net.bridges["surface"].link.stats()["channels"][ACTION_ID]["sent"] == \

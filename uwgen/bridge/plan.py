@@ -75,6 +75,9 @@ class BridgePlan:
     defaults: BridgeOptions
     offered_actions: list[Any] = field(default_factory=list)  # ActionCodec served elsewhere: stand-in server here
     served_actions: list[Any] = field(default_factory=list)   # ActionCodec served here: call the real server
+    schema_id: int | None = None          # reserved id of schema announcements (None: off)
+    schema_period: float | None = None    # seconds between periodic announcements
+    schema_digest: bytes = b""            # the generated package's SCHEMA_DIGEST
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str) -> "BridgePlan":
@@ -98,6 +101,9 @@ class BridgePlan:
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
             offered_actions=[a for a in actions if a.server != side],
             served_actions=[a for a in actions if a.server == side],
+            schema_id=getattr(manifest, "schema_id", None),
+            schema_period=getattr(manifest, "schema_period", None),
+            schema_digest=getattr(manifest, "schema_digest", b""),
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str]]:
