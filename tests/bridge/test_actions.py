@@ -170,7 +170,7 @@ def test_a_goal_delivered_twice_runs_once(pair):
     ("surface", pack_items([3, 9, 30, 1]), "decode_errors"),        # handle out of range
     ("surface", pack_items([3, 9, 5, 4, 0]), "unknown"),            # result of no goal
     ("surface", pack_items([3, 9, 5, 1]), "unknown"),               # answer to no goal
-    ("surface", pack_items([0, 9, 5, 1, 7]), "unknown"),            # feedback of no goal
+    ("surface", pack_items([0, 9, 5, 1, 7]), "late_feedback"),      # feedback of no goal
     ("surface", pack_items([0, 9, 5, "x"]), "decode_errors"),       # feedback, wrong type
     ("vehicle", pack_items([2, 9, 5, "x"]), "decode_errors"),       # goal, wrong type
 ])

@@ -217,7 +217,7 @@ class ActionStandIns:
             return
         pending = self.tables[ident].get(ident, handle)
         if pending is None:
-            counters.unknown += 1
+            counters.late_feedback += 1   # latest-only feedback may trail its goal's result
             return
         state = pending.token
         if state.goal_handle is None:

@@ -58,7 +58,8 @@ class ActionCounters:
     cancels: int = 0          # cancel requests sent over the link
     cancel_timeouts: int = 0  # cancels with no answer within accept_timeout (refused locally)
     feedback: int = 0         # feedback messages published to local clients
-    unknown: int = 0          # answers, results or feedback for no goal in flight (dropped)
+    late_feedback: int = 0    # feedback for no goal in flight, e.g. sent just before the result
+    unknown: int = 0          # answers or results for no goal in flight (dropped)
     decode_errors: int = 0    # payloads of this action that did not decode
     # server side (the bridge calls the real action server)
     goal_requests: int = 0    # goals that came over the link
