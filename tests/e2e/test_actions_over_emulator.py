@@ -73,8 +73,8 @@ def rclpy_sleep(node, seconds: float) -> Future:
 class FibonacciServer:
     """The real action server on the vehicle: one number per `step` seconds, with feedback."""
 
-    def __init__(self, node, step: float = 0.1, reject_above: int = 30):
-        self.node, self.step, self.reject_above = node, step, reject_above
+    def __init__(self, node, step: float = 0.1, reject_above: int = 30, abort_at: int | None = None):
+        self.node, self.step, self.reject_above, self.abort_at = node, step, reject_above, abort_at
         self.goals: list[int] = []
         self.cancels = 0
         self.server = ActionServer(node, Fibonacci, "/fibonacci", self.execute,
@@ -93,6 +93,9 @@ class FibonacciServer:
         for _ in range(goal_handle.request.order - 1):
             if goal_handle.is_cancel_requested:
                 goal_handle.canceled()
+                return Fibonacci.Result(sequence=seq)
+            if len(seq) == self.abort_at:
+                goal_handle.abort()
                 return Fibonacci.Result(sequence=seq)
             seq.append(seq[-1] + seq[-2])
             goal_handle.publish_feedback(Fibonacci.Feedback(sequence=seq))
@@ -186,6 +189,16 @@ def test_goal_rejected_by_the_real_server(net):
     assert not goal_handle.accepted
     assert counters(net, "surface")["rejected"] == 1
     assert counters(net, "surface")["goals_table"]["outstanding"] == 0   # the handle is free
+
+
+def test_goal_aborted_by_the_real_server_ends_aborted_with_its_result(net):
+    FibonacciServer(net.vehicle.node("fibonacci_server"), abort_at=4)
+    client = ready_client(net)
+    goal_handle = send(client, 10)
+    assert goal_handle.accepted
+    result = result_of(goal_handle)
+    assert result.status == GoalStatus.STATUS_ABORTED
+    assert list(result.result.sequence) == [0, 1, 1, 2]    # the server's own partial result
 
 
 def test_goal_rejected_when_no_server_runs_on_the_server_side(net):
