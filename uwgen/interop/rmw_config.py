@@ -67,6 +67,9 @@ def conf_table(manifest: Manifest, include_native: bool = False) -> tuple[dict[s
                            "rmw_desert nodes cannot decode")
             continue
         entries.append((item.id, item.name))
+    for action in getattr(manifest, "actions", ()):
+        omitted.append(f"{action.name} (id {action.id}): an action (wire format 13), which "
+                       "rmw_desert nodes do not carry")
     if rmw:
         entries += [(DISCOVERY_ID, DISCOVERY_TOPIC), (DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC)]
     entries.sort()
