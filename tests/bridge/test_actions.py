@@ -195,3 +195,19 @@ def test_final_summary_counts_goals_on_both_sides():
     server = {"role": "server", "goal_requests": 2, "results_sent": 2}
     assert _summary({"actions": {"/fib": client}}) == "/fib goals 3 accepted 2 results 2"
     assert _summary({"actions": {"/fib": server}}) == "/fib goals 2 results 2"
+
+
+def test_a_client_side_ignores_the_handles_of_other_client_sides(fib_codec):
+    from uwgen.manifest.model import LinkConfig, Side
+    package = fake_package([])
+    package.ACTIONS = {9: fib_codec}
+    package.MANIFEST.sides["buoy"] = Side(name="buoy", port=4002, link=LinkConfig(64, 0.2))
+    links = LinkPair()
+    with ros_sides("surface") as (surface,):
+        bridge = start_bridge(surface, package, links.factory)
+        assert bridge.plan.action_handles == {9: (12, 23)}     # buoy has 0..11
+        links.links["surface"].inject(pack_items([3, 9, 3, 1]))          # buoy's goal 3
+        links.links["surface"].inject(pack_items([0, 9, 4, 1, 7]))        # buoy's feedback
+        wait_for(lambda: counted(bridge)["other_sides"] == 2, what="both ignored")
+        assert counted(bridge)["unknown"] == 0 and links.links["surface"].offers == []
+

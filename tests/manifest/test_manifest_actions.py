@@ -88,3 +88,26 @@ def test_action_ids_are_unique_with_topics_and_services(tmp_path):
 def test_action_server_must_be_a_side(tmp_path):
     error = error_of(tmp_path, SIDES + ACTION.replace("server: vehicle", "server: boat"))
     assert error.where.line == 10 and "server 'boat' of action /fib is not a declared side" in error.message
+
+
+THREE_SIDES = SIDES + "          buoy: {port: 4002}\n"
+
+
+def test_client_sides_share_the_goal_handles():
+    from uwgen.manifest.model import handle_range
+    sides = ["surface", "vehicle", "buoy"]
+    assert handle_range(sides, "buoy", "vehicle") == (0, 11)
+    assert handle_range(sides, "surface", "vehicle") == (12, 23)
+    assert handle_range(["surface", "vehicle"], "surface", "vehicle") == (0, 23)
+
+
+def test_max_goals_must_fit_a_client_side_share(tmp_path):
+    error = error_of(tmp_path, THREE_SIDES + ACTION + "            max_goals: 12\n")
+    assert (error.where.line, error.where.column) == (12, 16)
+    assert "max_goals of action /fib must be at most 11 with 2 client sides (12 goal handles each)" \
+        in error.message
+
+
+def test_the_default_max_goals_shrinks_to_fit_many_sides(tmp_path):
+    many = SIDES + "".join(f"          s{k}: {{port: {4010 + k}}}\n" for k in range(5))
+    assert load_text(tmp_path, many + ACTION).actions[0].max_goals == 3   # 6 clients, 4 handles each

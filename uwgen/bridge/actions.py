@@ -1,8 +1,8 @@
 """Actions offered here, served on another side: a real rclpy ActionServer stands in for the
 remote one and carries each goal over the link (wire format 13).
 
-A local client's goal takes a one-byte handle (from a CallTable per action, handles
-0..23, at most `max_goals` in flight) and goes out as `[2, id, handle, goal...]`; the goal
+A local client's goal takes a one-byte handle (from a CallTable per action, this side's
+share of the handles 0..23, see manifest.model.handle_range; at most `max_goals` in flight) and goes out as `[2, id, handle, goal...]`; the goal
 callback waits for the answer and accepts or rejects the local goal with it. The result is
 pushed by the server side (`[3, id, handle, status, result...]`) and completes the local
 goal with the same terminal status; feedback (`[0, id, handle, feedback...]`) is
@@ -56,12 +56,13 @@ class GoalState:
 
 class ActionStandIns:
     def __init__(self, wiring: Wiring, codecs: list[Any], counters: dict[int, ActionCounters],
-                 rng: random.Random | None = None):
+                 rng: random.Random | None = None, handles: dict[int, tuple[int, int]] | None = None):
         self.w = wiring
         self.codecs = codecs
         self.counters = counters
         self.offered: dict[int, Any] = {}            # id -> codec
         self.tables: dict[int, CallTable] = {}       # id -> goal handles in flight
+        self.handles: dict[int, range] = {}          # id -> this side's handles
         self.servers: list[Any] = []
         self._states: dict[int, GoalState] = {}      # id(goal message) -> its goal
         for codec in codecs:
@@ -69,8 +70,10 @@ class ActionStandIns:
             cls = wiring.ros_class(codec, "action")
             if cls is None:
                 continue
+            first, last = (handles or {}).get(codec.id, (0, ACTION_HANDLES - 1))
             table = CallTable(wiring.clock, rng=rng, max_outstanding=codec.max_goals)
-            table.set_seq_range(codec.id, 0, ACTION_HANDLES - 1)
+            table.set_seq_range(codec.id, first, last)
+            self.handles[codec.id] = range(first, last + 1)
             self.tables[codec.id] = table
             self.offered[codec.id] = codec
             self.servers.append(ActionServer(
@@ -177,6 +180,9 @@ class ActionStandIns:
             counters.decode_errors += 1
             self.w.say_once(f"dact{ident}", f"{codec.name}: response dropped, does not decode: {exc}")
             return
+        if handle not in self.handles[ident]:
+            counters.other_sides += 1       # an answer or result for another client side
+            return
         if code in RESULTS:
             pending = table.complete(ident, handle)
             if pending is None:
@@ -214,6 +220,9 @@ class ActionStandIns:
         except ValueError as exc:
             counters.decode_errors += 1
             self.w.say_once(f"dfb{ident}", f"{codec.name}: feedback dropped, does not decode: {exc}")
+            return
+        if handle not in self.handles[ident]:
+            counters.other_sides += 1
             return
         pending = self.tables[ident].get(ident, handle)
         if pending is None:

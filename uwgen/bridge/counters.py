@@ -60,6 +60,7 @@ class ActionCounters:
     feedback: int = 0         # feedback messages published to local clients
     late_feedback: int = 0    # feedback for no goal in flight, e.g. sent just before the result
     unknown: int = 0          # answers or results for no goal in flight (dropped)
+    other_sides: int = 0      # payloads for another client side's goals (its handles; ignored)
     decode_errors: int = 0    # payloads of this action that did not decode
     # server side (the bridge calls the real action server)
     goal_requests: int = 0    # goals that came over the link

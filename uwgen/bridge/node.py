@@ -82,7 +82,8 @@ class BridgeNode(Node):
         self.standins = StandIns(w, plan.called_services, self.service_counters, rng=rng)
         self.servers = Servers(w, plan.served_services, self.service_counters)
         self.action_counters: dict = {}
-        self.action_standins = ActionStandIns(w, plan.offered_actions, self.action_counters, rng=rng)
+        self.action_standins = ActionStandIns(w, plan.offered_actions, self.action_counters,
+                                              rng=rng, handles=plan.action_handles)
         self.action_servers = ActionServers(w, plan.served_actions, self.action_counters)
 
         self._wake = self.create_guard_condition(self._drain_inbox, callback_group=main_group)

@@ -23,7 +23,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from uwgen.manifest.model import NATIVE, RMW_DESERT, LinkConfig, LinkPolicy  # RMW_DESERT: discovery, seqs 1..999
+from uwgen.manifest.model import NATIVE, RMW_DESERT, LinkConfig, LinkPolicy, handle_range  # RMW_DESERT: discovery, seqs 1..999
 
 # What a stand-in service does when its bridged call gets no response in time.
 TIMEOUT_REPLY_NONE = "none"        # send no response: the client's own timeout detects it
@@ -75,6 +75,7 @@ class BridgePlan:
     defaults: BridgeOptions
     offered_actions: list[Any] = field(default_factory=list)  # ActionCodec served elsewhere: stand-in server here
     served_actions: list[Any] = field(default_factory=list)   # ActionCodec served here: call the real server
+    action_handles: dict[int, tuple[int, int]] = field(default_factory=dict)  # offered id -> this side's handles
     schema_id: int | None = None          # reserved id of schema announcements (None: off)
     schema_period: float | None = None    # seconds between periodic announcements
     schema_digest: bytes = b""            # the generated package's SCHEMA_DIGEST
@@ -101,6 +102,8 @@ class BridgePlan:
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
             offered_actions=[a for a in actions if a.server != side],
             served_actions=[a for a in actions if a.server == side],
+            action_handles={a.id: handle_range(list(sides), side, a.server)
+                            for a in actions if a.server != side},
             schema_id=getattr(manifest, "schema_id", None),
             schema_period=getattr(manifest, "schema_period", None),
             schema_digest=getattr(manifest, "schema_digest", b""),

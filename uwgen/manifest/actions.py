@@ -12,7 +12,8 @@ import yaml
 
 from uwgen.idl import names as idl_names
 from uwgen.idl.model import ActionDef
-from uwgen.manifest.model import MAX_GOALS_LIMIT, NATIVE, PROFILES, Action, LinkPolicy, Side
+from uwgen.manifest.model import (ACTION_HANDLES, MAX_GOALS_LIMIT, NATIVE, PROFILES, Action,
+                                  LinkPolicy, Side)
 
 ACTION_KEYS = ("name", "id", "type", "server", "accept_timeout", "result_timeout", "max_goals",
                "rate", "queue", "depth", "ttl", "priority", "feedback", "profile")
@@ -33,8 +34,21 @@ def read_action(b: Any, node: yaml.Node, sides: dict[str, Side]) -> Action:
     if "result_timeout" in entries:
         result_timeout = r.number(entries["result_timeout"][1], f"result_timeout of {label}")
     max_goals = base["max_goals"].default
+    # Every client side has its own share of the handles (model.handle_range), which must
+    # hold more than max_goals.
+    share = ACTION_HANDLES // max(1, len(sides) - 1)
+    limit = min(MAX_GOALS_LIMIT, share - 1)
     if "max_goals" in entries:
-        max_goals = r.integer(entries["max_goals"][1], f"max_goals of {label}", 1, MAX_GOALS_LIMIT)
+        node_ = entries["max_goals"][1]
+        max_goals = r.integer(node_, f"max_goals of {label}", 1, MAX_GOALS_LIMIT)
+        if max_goals > limit:
+            raise r.error(node_, f"max_goals of {label} must be at most {limit} with "
+                                 f"{len(sides) - 1} client sides ({share} goal handles each)")
+    elif max_goals > limit:
+        if limit < 1:
+            raise r.error(node, f"{label}: too many sides ({len(sides)}) for an action: each "
+                                f"client side needs at least 2 of the {ACTION_HANDLES} goal handles")
+        max_goals = limit
     policy = b.policy(entries, {}, base["policy"].default_factory(), label)
     feedback = base["feedback"].default_factory()
     if "feedback" in entries:

@@ -94,6 +94,16 @@ class Service:
 MAX_GOALS_LIMIT = ACTION_HANDLES // 2   # goals in flight per action, at most
 
 
+def handle_range(sides: list[str], side: str, server: str) -> tuple[int, int]:
+    """The goal handles (first, last) client side `side` uses for an action served by
+    `server`: the 24 handles are split evenly between the client sides (in name order),
+    so that goals of two client sides never share a handle (wire format 13)."""
+    clients = sorted(s for s in sides if s != server)
+    size = ACTION_HANDLES // max(1, len(clients))
+    first = clients.index(side) * size
+    return first, first + size - 1
+
+
 @dataclass(frozen=True)
 class Action:
     """A ROS 2 action bridged as goal, cancel, answer, feedback and result payloads on one id."""
