@@ -2,6 +2,8 @@
 limits and garbage are counted, never crash and never leave a local goal hanging."""
 from __future__ import annotations
 
+import time
+
 import pytest
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient, ActionServer
@@ -211,3 +213,20 @@ def test_a_client_side_ignores_the_handles_of_other_client_sides(fib_codec):
         wait_for(lambda: counted(bridge)["other_sides"] == 2, what="both ignored")
         assert counted(bridge)["unknown"] == 0 and links.links["surface"].offers == []
 
+
+
+def test_a_copy_of_a_finished_goal_is_a_repeat_only_within_the_window(pair):
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    fib_server(vehicle.node("real"), results)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    goal = pack_items([2, 9, 5, 6])
+    links.links["vehicle"].inject(goal)
+    wait_for(lambda: counted(bridges["vehicle"])["results_sent"] == 1, what="first result")
+    links.links["vehicle"].inject(goal)                 # a copy, just after: a repeat
+    wait_for(lambda: counted(bridges["vehicle"])["repeated_replies"] == 1, what="result again")
+    assert results == [6]
+    time.sleep(1.5 * 0.5)                               # REPEAT_WINDOW x accept_timeout
+    links.links["vehicle"].inject(goal)                 # later: a new goal on that handle
+    wait_for(lambda: results == [6, 6], what="the goal run again")

@@ -34,6 +34,9 @@ from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, R
 
 SERVER_GONE_GRACE = 1.0   # seconds the local server may be missing before its goals abort
 RECENT_RESULTS = 8        # finished goals per action whose result is kept for a repeated goal
+REPEAT_WINDOW = 1.5       # accept_timeouts after a goal first came in which a copy is a repeat
+                          # (the client side sends copies within one accept_timeout, and
+                          # reuses a handle only 2 accept_timeouts after its goal ended)
 
 
 @dataclass
@@ -43,6 +46,7 @@ class Served:
     sent: Future                  # send_goal_async: -> ClientGoalHandle
     deadline: float
     payload: bytes = b""          # the goal as it came (a repeat has the same bytes)
+    arrived: float = 0.0          # when it first came
     goal_handle: Any = None       # ClientGoalHandle, once accepted
     cancel_wanted: bool = False   # a cancel came before the local server answered
 
@@ -55,7 +59,7 @@ class ActionServers:
         self.served: dict[int, tuple[Any, Any]] = {}       # id -> (codec, ActionClient)
         self.goals: dict[int, dict[int, Served]] = {}      # id -> handle -> goal
         self._gone_since: dict[int, float] = {}
-        # id -> handle -> (goal payload, result payload, when): results of finished goals
+        # id -> handle -> (goal payload, result payload, when the goal first came)
         self.finished: dict[int, OrderedDict[int, tuple[bytes, bytes, float]]] = {}
         for codec in codecs:
             counters[codec.id] = ActionCounters()
@@ -95,7 +99,7 @@ class ActionServers:
                              "reported aborted")
             payload = codec.encode_result(handle, ABORTED, codec.ros_class().Result())
         finished = self.finished[ident]
-        finished[handle] = (entry.payload, payload, self.w.clock.now())
+        finished[handle] = (entry.payload, payload, entry.arrived)
         finished.move_to_end(handle)
         while len(finished) > RECENT_RESULTS:
             finished.popitem(last=False)
@@ -128,7 +132,8 @@ class ActionServers:
             self._answer(ident, handle, REJECTED)
             return
         sent = client.send_goal_async(goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb))
-        goals[handle] = Served(sent, self.w.clock.now() + codec.accept_timeout, payload=payload)
+        now = self.w.clock.now()
+        goals[handle] = Served(sent, now + codec.accept_timeout, payload=payload, arrived=now)
         sent.add_done_callback(lambda f: self._answered(ident, handle, f))
 
     def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
@@ -142,7 +147,7 @@ class ActionServers:
         recent = self.finished[ident].get(handle)
         codec = self.served[ident][0]
         if recent is None or recent[0] != payload or \
-                self.w.clock.now() - recent[2] > 2 * codec.accept_timeout:
+                self.w.clock.now() - recent[2] > REPEAT_WINDOW * codec.accept_timeout:
             return False
         self.counters[ident].repeated_replies += 1
         self._offer(ident, recent[1], "result")            # the answer and result were lost

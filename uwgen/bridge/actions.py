@@ -71,7 +71,10 @@ class ActionStandIns:
             if cls is None:
                 continue
             first, last = (handles or {}).get(codec.id, (0, ACTION_HANDLES - 1))
-            table = CallTable(wiring.clock, rng=rng, max_outstanding=codec.max_goals)
+            # A handle rests 2 accept_timeouts before reuse: the server side answers a goal
+            # that comes again on a handle from what it kept (action_servers.REPEAT_WINDOW).
+            table = CallTable(wiring.clock, rng=rng, max_outstanding=codec.max_goals,
+                              reuse_after=2 * codec.accept_timeout)
             table.set_seq_range(codec.id, first, last)
             self.handles[codec.id] = range(first, last + 1)
             self.tables[codec.id] = table
