@@ -15,8 +15,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from uwgen.codegen.ir import (
-    Absent, Bool, BoolArray, ByteScalar, CodecType, Filler, MessageArray, Node, Number,
-    NumberArray, NumberRun, Octets, Text, TextArray, segments,
+    Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, MessageArray, Node, Number,
+    NumberArray, NumberRun, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
+    segments,
 )
 from uwgen.idl.model import ArrayKind
 
@@ -34,6 +35,14 @@ class Constants:
 
     def names(self, names: tuple[str, ...]) -> str:
         return self._add(repr(names), "_N")
+
+    def values(self, values: tuple) -> str:
+        """An enum's values, by index."""
+        return self._add(repr(tuple(values)), "_V")
+
+    def table(self, values: tuple) -> str:
+        """An enum's value -> index table."""
+        return self._add(repr({v: k for k, v in enumerate(values)}), "_E")
 
     def _add(self, expr: str, prefix: str) -> str:
         name = self._names.get(expr)
@@ -104,7 +113,7 @@ class Lowering:
                 body.append(f"out += _numbers({st}, ({values},), {names})")
             else:
                 expr = access(seg.path, seg.name) if seg.name else ""
-                body.extend(self._encode_leaf(seg, seg.encoding, expr, ct.suffix))
+                body.extend(self._encode_leaf(seg, seg.encoding, expr, ct.profile_suffix))
         return Function(func_name("enc", ct.name, ct.suffix), "m, out",
                         f"Append the CBOR items of a {ct.full_name} ({ct.profile} profile) to `out`.",
                         body or ["pass"])
@@ -115,6 +124,24 @@ class Lowering:
             return ["out.append(0)  # a message with no fields is one unsigned 0"]
         if isinstance(enc, Absent):
             return [f"# {leaf.path}: not sent ({enc.why})"]
+        if isinstance(enc, Static):
+            return [f"# {leaf.path}: not sent (static {enc.value!r})"]
+        if isinstance(enc, TimeOfDay):
+            return [f"out.append(_time_of_day({expr}, {enc.step_ns}, {enc.count}, {p}))"]
+        if isinstance(enc, TimeSinceEpoch):
+            return [f"out.append(_time_since({expr}, {enc.epoch_ns}, {enc.step_ns}, {enc.nmax}, {p}))"]
+        if isinstance(enc, (Quantized, Enumerated)):
+            if isinstance(enc, Quantized):
+                args = f"{enc.a}, {enc.b}, {enc.d}, {enc.nmax}, {enc.clamp}, {p}"
+                one, many = f"_quantize({{}}, {args})", f"_quantize_all(x, {args})"
+            else:
+                table = self.consts.table(enc.values)
+                one, many = f"_enum_index({{}}, {table}, {p})", f"_enum_indices(x, {table}, {p})"
+            if enc.array is ArrayKind.NONE:
+                return [f"out.append({one.format(expr)})"]
+            return [f"x = _as_list({expr}, {p})",
+                    *self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED),
+                    f"out += {many}"]
         if isinstance(enc, Bool):
             item = "x" if enc.cbor_bool else "1 if x else 0"
             return [f"x = {expr}",
@@ -231,8 +258,11 @@ class Lowering:
             if isinstance(enc, Absent):
                 body.append(f"# {leaf.path}: not on the wire ({enc.why})")
                 continue
+            if isinstance(enc, Static):
+                value_of[leaf.path] = static_value(enc)
+                continue
             var = fresh()
-            body.extend(self._decode_leaf(leaf, enc, var, ct.suffix))
+            body.extend(self._decode_leaf(leaf, enc, var, ct.profile_suffix))
             value_of[leaf.path] = self._ros_value(enc, var)
         body.append(f"return {self._construct(ct.root, value_of)}, i")
         return Function(func_name("dec", ct.name, ct.suffix), "v, i, C",
@@ -254,6 +284,12 @@ class Lowering:
             return take + [f"if type({var}) is not int or {var} != 0: raise _bad_item({p}, 'the unsigned 0 of an empty message', {var})"]
         if isinstance(enc, Bool):
             return take + [f"if {var} is not True and {var} is not False: {var} = _item_bool({var}, {p})"]
+        if isinstance(enc, (TimeOfDay, TimeSinceEpoch, Quantized, Enumerated)) and \
+                getattr(enc, "array", ArrayKind.NONE) is ArrayKind.NONE:
+            top = index_max(enc)
+            return take + [f"if type({var}) is not int or not 0 <= {var} <= {top}: "
+                           f"raise _bad_item({p}, 'an index 0..{top}', {var})",
+                           f"{var} = {self.index_value(enc, var, p)}"]
         if isinstance(enc, ByteScalar):
             return take + [f"if type({var}) is not int or not 0 <= {var} <= 255: raise _bad_item({p}, 'a byte', {var})"]
         if isinstance(enc, Text):
@@ -305,9 +341,23 @@ class Lowering:
                     lines.append(f"if not _float32_ok({var}): raise _bad_items({p}, 'float32', {var})")
         elif isinstance(enc, BoolArray):
             lines.append(f"{var} = _item_bools({var}, {p})")
+        elif isinstance(enc, (Quantized, Enumerated)):
+            top = index_max(enc)
+            lines.append(f"if not _ints_in({var}, 0, {top}): raise _bad_items({p}, 'index 0..{top}', {var})")
+            lines.append(f"{var} = [{self.index_value(enc, 'n', p)} for n in {var}]")
         elif isinstance(enc, TextArray):
             lines.append(f"_check_texts({var}, {p}, {enc.text.bound})")
         return lines
+
+    def index_value(self, enc, n: str, p: str) -> str:
+        """The expression of the field value that index `n` stands for."""
+        if isinstance(enc, Quantized):
+            return f"({enc.a} + {n} * {enc.b}) {'/' if enc.is_float else '//'} {enc.d}"
+        if isinstance(enc, Enumerated):
+            return f"{self.consts.values(enc.values)}[{n}]"
+        if isinstance(enc, TimeOfDay):
+            return f"_from_time_of_day({n}, {enc.step_ns}, C.{enc.class_key}, {p})"
+        return f"_from_time_since({n}, {enc.epoch_ns}, {enc.step_ns}, C.{enc.class_key})"
 
     def _construct(self, node: Node, value_of: dict[str, str]) -> str:
         args = []
@@ -319,3 +369,21 @@ class Lowering:
             else:
                 args.append(f"{child.name}={value_of[child.path]}")
         return f"C.{node.class_key}({', '.join(args)})"
+
+
+def index_max(enc) -> int:
+    """The largest index an index-sent encoding (quantized, enum, time) may carry."""
+    if isinstance(enc, Enumerated):
+        return len(enc.values) - 1
+    if isinstance(enc, TimeOfDay):
+        return enc.count - 1
+    return enc.nmax
+
+
+def static_value(enc: Static) -> str:
+    """The expression a decoder fills a static field with (a fresh list each time)."""
+    if enc.octets == "byte":
+        return f"C.octet_list({bytes(enc.value)!r})"
+    if enc.octets is not None:
+        return f"C.uint8_list({bytes(enc.value)!r})"
+    return repr(enc.value)

@@ -115,6 +115,10 @@ class FieldsReader:
         keys = r.mapping(node, what, ENCODING_KEYS)
         where = r.where(node)
         present = set(keys)
+        for key in ("omit", "static", "time"):
+            if elem and key in keys:
+                raise r.error(keys[key][0], f"'{key}' of {what} applies to a whole field: name the array "
+                                            f"'{path[:-2]}' without '[]'")
 
         def alone(key: str, allowed: tuple[str, ...] = ()) -> None:
             extra = present - {key, *allowed}
