@@ -268,3 +268,37 @@ def test_native_index_out_of_range_is_a_decode_error_naming_the_field(pkg):
     with pytest.raises(DecodeError) as info:
         c.decode(bytes([0x00, 0x04, 0x19, 0x01, 0x92, 0x00]))   # 402 > 400
     assert info.value.path == "linear.x"
+
+
+def exact_grid_value(x: float, lo: Fraction, step: Fraction) -> float:
+    """What the wire must carry for x: the grid point round-half-up((x - lo) / step), exactly."""
+    n = math.floor((Fraction(x) - lo) / step + Fraction(1, 2))
+    return float(lo + n * step)
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_the_float_fast_path_rounds_exactly_like_the_fractions(pkg, profile):
+    """Values at and next to the half-way points between grid points, where a float
+    estimate alone would round the wrong way."""
+    c = codec(pkg, "twist", profile)
+    lo, step = Fraction(-2), Fraction(1, 100)
+
+    @SETTINGS
+    @given(st.integers(0, 399), st.integers(-3, 3))
+    def check(k, ulps):
+        x = float(lo + k * step + step / 2)
+        for _ in range(abs(ulps)):
+            x = math.nextafter(x, math.inf if ulps > 0 else -math.inf)
+        t = Twist()
+        t.linear.x = x
+        assert c.decode(c.encode(t)).linear.x == exact_grid_value(x, lo, step)
+
+    check()
+
+
+def test_quantize_all_fast_and_exact_agree():
+    lo, step = Fraction(-157, 100), Fraction(1, 100)
+    values = [float(lo + k * step + step / 2) for k in range(314)] + [-1.57, 1.57, 0.0, 1e-17]
+    fast = (float(lo), float(1 / step), 2.0 ** -30)
+    assert bits.quantize_all(values, -157, 1, 100, 314, False, "p", fast) == \
+        bits.quantize_all(values, -157, 1, 100, 314, False, "p")

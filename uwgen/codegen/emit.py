@@ -130,10 +130,12 @@ class Lowering:
             return [f"out.append(_time_of_day({expr}, {enc.step_ns}, {enc.count}, {p}))"]
         if isinstance(enc, TimeSinceEpoch):
             return [f"out.append(_time_since({expr}, {enc.epoch_ns}, {enc.step_ns}, {enc.nmax}, {p}))"]
+        if isinstance(enc, Quantized) and enc.array is ArrayKind.NONE:
+            return [*quantize_lines(enc, expr, p), "out.append(n)"]
         if isinstance(enc, (Quantized, Enumerated)):
             if isinstance(enc, Quantized):
                 args = f"{enc.a}, {enc.b}, {enc.d}, {enc.nmax}, {enc.clamp}, {p}"
-                one, many = f"_quantize({{}}, {args})", f"_quantize_all(x, {args})"
+                one, many = f"_quantize({{}}, {args})", f"_quantize_all(x, {args}, {enc.fast})"
             else:
                 table = self.consts.table(enc.values)
                 one, many = f"_enum_index({{}}, {table}, {p})", f"_enum_indices(x, {table}, {p})"
@@ -387,3 +389,15 @@ def static_value(enc: Static) -> str:
     if enc.octets is not None:
         return f"C.uint8_list({bytes(enc.value)!r})"
     return repr(enc.value)
+
+
+def quantize_lines(enc: Quantized, expr: str, p: str) -> list[str]:
+    """Statements that set `n` to the index of `expr` on the grid of `enc`: the float
+    estimate where it is provably the exact answer, else the exact integer computation."""
+    exact = f"_quantize(x, {enc.a}, {enc.b}, {enc.d}, {enc.nmax}, {enc.clamp}, {p})"
+    if enc.fast is None:
+        return [f"x = {expr}", f"n = {exact}"]
+    lo, inv, tol = enc.fast
+    return [f"x = {expr}",
+            f"e = (x - {lo!r}) * {inv!r} if type(x) is float else -1.0",
+            f"n = int(e + 0.5) if 0.0 <= e <= {enc.nmax} and {tol!r} < (e + 0.5) % 1.0 < {1.0 - tol!r} else {exact}"]

@@ -13,7 +13,7 @@ what cannot be written as one expression (floats, strings, loops over arrays).
 """
 from __future__ import annotations
 
-from uwgen.codegen.emit import F32_MAX, Function, Lowering, func_name, index_max, static_value
+from uwgen.codegen.emit import F32_MAX, Function, Lowering, func_name, index_max, quantize_lines, static_value
 from uwgen.codegen.ir import (
     Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, MessageArray, Node, Number,
     NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
@@ -108,8 +108,10 @@ class PackedLowering(Lowering):
             return [f"a = (a << 8) | _byte_value({expr}, {p})"]
         if isinstance(enc, Text):
             return [f"x = {expr}", *self._text_checks(enc, p), f"a = _put_text(a, x, {text_width(enc.bound)}, {p})"]
+        if isinstance(enc, Quantized) and enc.array is ArrayKind.NONE:
+            return [*quantize_lines(enc, expr, p), f"a = (a << {enc.bits}) | n"]
         if isinstance(enc, (TimeOfDay, TimeSinceEpoch)) or (
-                isinstance(enc, (Quantized, Enumerated)) and enc.array is ArrayKind.NONE):
+                isinstance(enc, Enumerated) and enc.array is ArrayKind.NONE):
             return [f"a = (a << {enc.bits}) | {self._index_of(enc, expr, p)}"]
         if isinstance(enc, Octets):
             lines = [f"x = _octets({expr}, {p})", *self._length_check(enc.array, enc.size, p, count=False)]
@@ -148,8 +150,9 @@ class PackedLowering(Lowering):
 
     def _index_of(self, enc, expr: str, p: str, many: bool = False) -> str:
         if isinstance(enc, Quantized):
+            fast = f", {enc.fast}" if many else ""
             fn = "_quantize_all" if many else "_quantize"
-            return f"{fn}({expr}, {enc.a}, {enc.b}, {enc.d}, {enc.nmax}, {enc.clamp}, {p})"
+            return f"{fn}({expr}, {enc.a}, {enc.b}, {enc.d}, {enc.nmax}, {enc.clamp}, {p}{fast})"
         if isinstance(enc, Enumerated):
             fn = "_enum_indices" if many else "_enum_index"
             return f"{fn}({expr}, {self.consts.table(enc.values)}, {p})"

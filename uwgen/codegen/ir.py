@@ -162,6 +162,19 @@ class Quantized:
         return self.prim in ("float32", "float64")
 
     @property
+    def fast(self) -> tuple[float, float, float] | None:
+        """(min, 1/step, tolerance) for the float estimate e = (v - min) * (1/step) of the
+        index, or None where floats cannot estimate it. |e - exact| < tolerance, so
+        int(e + 0.5) is the exact answer unless e + 0.5 is within tolerance of an integer;
+        encoders check that and fall back to the exact integer computation."""
+        if not self.is_float:
+            return None
+        tol = (abs(Fraction(self.a, self.b)) + self.nmax + 1) * Fraction(1, 2 ** 49) + Fraction(1, 2 ** 40)
+        if tol > Fraction(1, 64):
+            return None
+        return float(Fraction(self.a, self.d)), float(Fraction(self.d, self.b)), float(tol)
+
+    @property
     def low(self) -> Fraction:
         return Fraction(self.a, self.d)
 

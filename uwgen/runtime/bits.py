@@ -80,8 +80,23 @@ def quantize(v, a: int, b: int, d: int, nmax: int, clamp: bool, path: str) -> in
     raise EncodeError(path, f"{v!r} is outside {_grid(a, b, d, nmax)} (out_of_range: strict)")
 
 
-def quantize_all(values, a: int, b: int, d: int, nmax: int, clamp: bool, path: str) -> list:
-    return [quantize(v, a, b, d, nmax, clamp, f"{path}[{k}]") for k, v in enumerate(values)]
+def quantize_all(values, a: int, b: int, d: int, nmax: int, clamp: bool, path: str, fast=None) -> list:
+    """Every element's index; `fast` = (min, 1/step, tolerance) allows the float estimate
+    where it is provably exact (see ir.Quantized.fast), the exact computation elsewhere."""
+    out = []
+    if fast is None:
+        for k, v in enumerate(values):
+            out.append(quantize(v, a, b, d, nmax, clamp, f"{path}[{k}]"))
+        return out
+    lo, inv, tol = fast
+    top = 1.0 - tol
+    for k, v in enumerate(values):
+        e = (v - lo) * inv if type(v) is float else -1.0
+        if 0.0 <= e <= nmax and tol < (e + 0.5) % 1.0 < top:
+            out.append(int(e + 0.5))
+        else:
+            out.append(quantize(v, a, b, d, nmax, clamp, f"{path}[{k}]"))
+    return out
 
 
 def enum_index(v, table: dict, path: str) -> int:
