@@ -354,7 +354,12 @@ class Lowering:
     def index_value(self, enc, n: str, p: str) -> str:
         """The expression of the field value that index `n` stands for."""
         if isinstance(enc, Quantized):
-            return f"({enc.a} + {n} * {enc.b}) {'/' if enc.is_float else '//'} {enc.d}"
+            value = n if enc.b == 1 else f"{n} * {enc.b}"
+            if enc.a:
+                value = f"({enc.a} + {value})" if enc.a > 0 else f"({value} - {-enc.a})"
+            if enc.d == 1:
+                return value if not enc.is_float else f"float({value})"
+            return f"{value} {'/' if enc.is_float else '//'} {enc.d}"
         if isinstance(enc, Enumerated):
             return f"{self.consts.values(enc.values)}[{n}]"
         if isinstance(enc, TimeOfDay):
@@ -399,5 +404,12 @@ def quantize_lines(enc: Quantized, expr: str, p: str) -> list[str]:
         return [f"x = {expr}", f"n = {exact}"]
     lo, inv, tol = enc.fast
     return [f"x = {expr}",
-            f"e = (x - {lo!r}) * {inv!r} if type(x) is float else -1.0",
+            f"e = {offset(lo)} * {inv!r} if type(x) is float else -1.0",
             f"n = int(e + 0.5) if 0.0 <= e <= {enc.nmax} and {tol!r} < (e + 0.5) % 1.0 < {1.0 - tol!r} else {exact}"]
+
+
+def offset(lo: float) -> str:
+    """`x - lo` as a reader would write it."""
+    if lo == 0:
+        return "x"
+    return f"(x - {lo!r})" if lo > 0 else f"(x + {-lo!r})"

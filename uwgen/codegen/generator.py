@@ -170,6 +170,8 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
             skipped.append(str(exc))  # a bulk build: leave out what this profile can never carry
             continue
         for ct in builder.codecs_for(msg, profile):
+            if variant and ct.full_name == msg.full_name:
+                continue   # the entry uses its own variant; only what that uses is needed
             codecs.setdefault((ct.full_name, profile, ""), ct)
         if variant:
             codecs[(msg.full_name, profile, variant)] = builder.codec(msg, profile, fields, variant)
