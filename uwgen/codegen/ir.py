@@ -338,6 +338,13 @@ class IRBuilder:
             hit = self._cache[key] = self._build(msg, profile, {f.path: f for f in fields}, variant)
         return hit
 
+    def by_key(self, key: str, profile: str) -> CodecType:
+        """The plain codec (no field encodings) already built for type `key` in `profile`."""
+        for (_name, prof, variant), ct in self._cache.items():
+            if ct.key == key and prof == profile and not variant:
+                return ct
+        raise KeyError((key, profile))
+
     def codecs_for(self, msg: MessageDef, profile: str) -> list[CodecType]:
         """This type's codec and those of every type it uses, dependencies first."""
         out: dict[str, CodecType] = {}
