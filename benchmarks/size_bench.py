@@ -108,8 +108,8 @@ FIX_FIELDS = """
   position_covariance_type: {values: [0, 1, 2, 3]}
 """
 FIX_DCCL = ([DCCL_TIME], [dccl_enum(4), dccl_enum(4), dccl_number(-90, 90, 1e-6), dccl_number(-180, 180, 1e-6),
-                          dccl_number(-500, 500, 0.01), dccl_repeated(9, dccl_number(0, 100, 0.1)) - bits(10),
-                          dccl_enum(4)])   # a fixed float64[9]: DCCL's max_repeat without the count
+                          dccl_number(-500, 500, 0.01), dccl_repeated(9, dccl_number(0, 100, 0.1)),
+                          dccl_enum(4)])   # float64[9] as a repeated field, max_repeat 9 (DCCL has no fixed arrays)
 
 BATTERY_FIELDS = """
   header.stamp: {time: day, resolution: 1}

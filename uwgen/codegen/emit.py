@@ -12,6 +12,7 @@ bounds and the expression that builds the decoded message. The templates in
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from uwgen.codegen.ir import (
@@ -403,9 +404,12 @@ def quantize_lines(enc: Quantized, expr: str, p: str) -> list[str]:
     if enc.fast is None:
         return [f"x = {expr}", f"n = {exact}"]
     lo, inv, tol = enc.fast
+    tol = 10.0 ** math.ceil(math.log10(tol))      # a round bound above the error bound
+    scaled = offset(lo) if inv == 1.0 else f"{offset(lo)} * {inv!r}"
     return [f"x = {expr}",
-            f"e = {offset(lo)} * {inv!r} if type(x) is float else -1.0",
-            f"n = int(e + 0.5) if 0.0 <= e <= {enc.nmax} and {tol!r} < (e + 0.5) % 1.0 < {1.0 - tol!r} else {exact}"]
+            f"e = {scaled} if type(x) is float else -1.0",
+            f"if 0.0 <= e <= {enc.nmax} and {tol!r} < (e + 0.5) % 1.0 < 1 - {tol!r}: n = int(e + 0.5)",
+            f"else: n = {exact}  # outside the grid or near a rounding boundary: exact"]
 
 
 def offset(lo: float) -> str:

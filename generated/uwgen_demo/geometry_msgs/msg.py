@@ -108,18 +108,21 @@ def put_pk_t4_Twist(m, a):
     m2 = m.angular
     x = m1.x
     e = (x + 2.0) * 100.0 if type(x) is float else -1.0
-    n = int(e + 0.5) if 0.0 <= e <= 400 and 1.9770851622524788e-12 < (e + 0.5) % 1.0 < 0.9999999999980229 else _quantize(x, -200, 1, 100, 400, True, 'linear.x')
+    if 0.0 <= e <= 400 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, -200, 1, 100, 400, True, 'linear.x')  # outside the grid or near a rounding boundary: exact
     a = (a << 9) | n
     # linear.y: not sent (static 0.0)
     x = m1.z
-    e = x * 1.0 if type(x) is float else -1.0
-    n = int(e + 0.5) if 0.0 <= e <= 65535 and 1.1732481652870774e-10 < (e + 0.5) % 1.0 < 0.9999999998826752 else _quantize(x, 0, 1, 1, 65535, True, 'linear.z')
+    e = x if type(x) is float else -1.0
+    if 0.0 <= e <= 65535 and 1e-09 < (e + 0.5) % 1.0 < 1 - 1e-09: n = int(e + 0.5)
+    else: n = _quantize(x, 0, 1, 1, 65535, True, 'linear.z')  # outside the grid or near a rounding boundary: exact
     a = (a << 16) | n
     # angular.x: not sent (static 0.0)
     # angular.y: not sent (static 0.0)
     x = m2.z
     e = (x + 3.2) * 100.0 if type(x) is float else -1.0
-    n = int(e + 0.5) if 0.0 <= e <= 640 and 2.616573624436569e-12 < (e + 0.5) % 1.0 < 0.9999999999973834 else _quantize(x, -320, 1, 100, 640, True, 'angular.z')
+    if 0.0 <= e <= 640 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, -320, 1, 100, 640, True, 'angular.z')  # outside the grid or near a rounding boundary: exact
     a = (a << 10) | n
     return a
 

@@ -121,23 +121,28 @@ def put_pk_t5_Pose(m, a):
     """Append the fields of a turtlesim/msg/Pose to bit accumulator `a` (packed profile)."""
     x = m.x
     e = x * 100.0 if type(x) is float else -1.0
-    n = int(e + 0.5) if 0.0 <= e <= 1200 and 3.042899265892629e-12 < (e + 0.5) % 1.0 < 0.9999999999969571 else _quantize(x, 0, 1, 100, 1200, True, 'x')
+    if 0.0 <= e <= 1200 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, 0, 1, 100, 1200, True, 'x')  # outside the grid or near a rounding boundary: exact
     a = (a << 11) | n
     x = m.y
     e = x * 100.0 if type(x) is float else -1.0
-    n = int(e + 0.5) if 0.0 <= e <= 1200 and 3.042899265892629e-12 < (e + 0.5) % 1.0 < 0.9999999999969571 else _quantize(x, 0, 1, 100, 1200, True, 'y')
+    if 0.0 <= e <= 1200 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, 0, 1, 100, 1200, True, 'y')  # outside the grid or near a rounding boundary: exact
     a = (a << 11) | n
     x = m.theta
     e = (x + 3.142) * 1000.0 if type(x) is float else -1.0
-    n = int(e + 0.5) if 0.0 <= e <= 6284 and 1.765521062679909e-11 < (e + 0.5) % 1.0 < 0.9999999999823448 else _quantize(x, -3142, 1, 1000, 6284, True, 'theta')
+    if 0.0 <= e <= 6284 and 1e-10 < (e + 0.5) % 1.0 < 1 - 1e-10: n = int(e + 0.5)
+    else: n = _quantize(x, -3142, 1, 1000, 6284, True, 'theta')  # outside the grid or near a rounding boundary: exact
     a = (a << 13) | n
     x = m.linear_velocity
     e = (x + 2.0) * 100.0 if type(x) is float else -1.0
-    n = int(e + 0.5) if 0.0 <= e <= 400 and 1.9770851622524788e-12 < (e + 0.5) % 1.0 < 0.9999999999980229 else _quantize(x, -200, 1, 100, 400, True, 'linear_velocity')
+    if 0.0 <= e <= 400 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, -200, 1, 100, 400, True, 'linear_velocity')  # outside the grid or near a rounding boundary: exact
     a = (a << 9) | n
     x = m.angular_velocity
     e = (x + 3.2) * 100.0 if type(x) is float else -1.0
-    n = int(e + 0.5) if 0.0 <= e <= 640 and 2.616573624436569e-12 < (e + 0.5) % 1.0 < 0.9999999999973834 else _quantize(x, -320, 1, 100, 640, True, 'angular_velocity')
+    if 0.0 <= e <= 640 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, -320, 1, 100, 640, True, 'angular_velocity')  # outside the grid or near a rounding boundary: exact
     a = (a << 10) | n
     return a
 
