@@ -4,6 +4,7 @@ clamp out of range, static/omit/enum/time/bounds, and total decoders."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 import textwrap
 from fractions import Fraction
 
@@ -302,3 +303,70 @@ def test_quantize_all_fast_and_exact_agree():
     fast = (float(lo), float(1 / step), 2.0 ** -30)
     assert bits.quantize_all(values, -157, 1, 100, 314, False, "p", fast) == \
         bits.quantize_all(values, -157, 1, 100, 314, False, "p")
+
+
+SERVICES = """network: srv
+sides:
+  a: {port: 4000}
+  b: {port: 4001}
+topics:
+  - name: /diag
+    id: 4
+    type: diagnostic_msgs/msg/DiagnosticArray
+    publisher: a
+    profile: PROFILE
+    fields:
+      header.stamp: {time: epoch, epoch: 1700000000, span: 100000000}
+      header.frame_id: {omit: true}
+services:
+  - name: /set
+    id: 20
+    type: std_srvs/srv/SetBool
+    server: b
+    profile: PROFILE
+    response_fields:
+      message: {max_length: 12}
+  - name: /teleport
+    id: 21
+    type: turtlesim/srv/TeleportAbsolute
+    server: b
+    profile: PROFILE
+    request_fields:
+      x: {min: 0, max: 12, precision: 2}
+      y: {min: 0, max: 12, precision: 2}
+      theta: {min: -3.142, max: 3.142, precision: 3}
+"""
+
+
+@pytest.fixture(scope="module", params=PROFILES)
+def srv_pkg(request, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("srv")
+    (folder / "uwgen.yaml").write_text(SERVICES.replace("PROFILE", request.param))
+    root = Path(__file__).resolve().parents[2] / "msg_samples"
+    return generate(folder, f"uwgen_srv_{request.param}", folders=[root], manifest=folder / "uwgen.yaml")
+
+
+def test_request_and_response_fields_apply_to_their_own_part(srv_pkg):
+    from std_srvs.srv import SetBool
+    tp = srv_pkg.SERVICES[21]
+    req = tp.request.plain_class()(x=5.555, y=1.0, theta=3.1)   # the float 5.555 is 5.55499999...: 5.55
+    seq, back = tp.decode_request(tp.encode_request(7, req), ros=False)
+    assert seq == 7 and (back.x, back.y, back.theta) == (5.55, 1.0, 3.1)
+    s = srv_pkg.SERVICES[20]
+    resp = SetBool.Response(success=True, message="done")
+    assert s.decode_response(s.encode_response(3, resp))[1] == resp
+    with pytest.raises(EncodeError) as info:
+        s.encode_response(3, SetBool.Response(success=True, message="a much longer message"))
+    assert info.value.path == "message"
+    request = SetBool.Request(data=True)
+    assert s.decode_request(s.encode_request(4, request))[1] == request
+
+
+def test_encodings_on_a_type_with_arrays_of_messages(srv_pkg):
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    msg = DiagnosticArray(status=[DiagnosticStatus(level=b"\x01", name="dvl", message="ok",
+                                                   values=[KeyValue(key="beams", value="4")])])
+    msg.header.stamp = Time(sec=1763712000, nanosec=0)
+    msg.header.frame_id = "not sent"
+    back = srv_pkg.TOPICS[4].decode(srv_pkg.TOPICS[4].encode(msg))
+    assert back.status == msg.status and back.header.stamp == msg.header.stamp and back.header.frame_id == ""
