@@ -113,6 +113,9 @@ def test_twist_mistakes_are_located(tmp_path, fields, line, text):
     ("              header.stamp: {time: week}", 11, "time of field header.stamp"),
     ("              header: {static: 0}", 11, "std_msgs/msg/Header message"),
     ("              voltage: {min: 0, max: 1.0e+39, resolution: 1.0e+30}", 11, "outside the float32 range"),
+    ("              cell_voltage[]: {static: 0}", 11, "applies to a whole field: name the array 'cell_voltage'"),
+    ("              cell_voltage[]: {values: [1.5, 3.0]}\n              cell_voltage[]: {omit: true}", 12,
+     "duplicate key 'cell_voltage[]'"),
 ])
 def test_battery_mistakes_are_located(tmp_path, fields, line, text):
     text_written = topic("sensor_msgs/msg/BatteryState", fields)
