@@ -370,3 +370,14 @@ def test_encodings_on_a_type_with_arrays_of_messages(srv_pkg):
     msg.header.frame_id = "not sent"
     back = srv_pkg.TOPICS[4].decode(srv_pkg.TOPICS[4].encode(msg))
     assert back.status == msg.status and back.header.stamp == msg.header.stamp and back.header.frame_id == ""
+
+
+def test_the_first_clamp_of_a_field_is_logged_once(caplog):
+    bits.CLAMPED.pop("probe.x", None)
+    with caplog.at_level("WARNING", logger="uwgen.codec"):
+        for v in (7.0, 8.0, -9.0):
+            bits.quantize(v, -32, 1, 10, 64, True, "probe.x")
+    assert bits.CLAMPED["probe.x"] == 3
+    assert [r.getMessage() for r in caplog.records].count(
+        "probe.x: 7.0 is outside -3.2..3.2 and was clamped (out_of_range: clamp); later ones are only counted "
+        "(uwgen.runtime.bits.CLAMPED)") == 1 and len(caplog.records) == 1

@@ -16,6 +16,7 @@ bits not yet read: `value = (r >> (p - width)) & mask`.
 """
 from __future__ import annotations
 
+import logging
 import struct
 import time
 from collections import Counter
@@ -29,6 +30,7 @@ INT32 = (-0x80000000, 0x7FFFFFFF)
 
 # Values saturated by `out_of_range: clamp`, per field path (read by stats and tests).
 CLAMPED: Counter = Counter()
+log = logging.getLogger("uwgen.codec")
 
 
 class WallClock:
@@ -75,6 +77,9 @@ def quantize(v, a: int, b: int, d: int, nmax: int, clamp: bool, path: str) -> in
         if 0 <= n <= nmax:
             return n
     if clamp:
+        if not CLAMPED[path]:
+            log.warning("%s: %r is outside %s and was clamped (out_of_range: clamp); later ones are only "
+                        "counted (uwgen.runtime.bits.CLAMPED)", path, v, _grid(a, b, d, nmax))
         CLAMPED[path] += 1
         return 0 if n < 0 else nmax
     raise EncodeError(path, f"{v!r} is outside {_grid(a, b, d, nmax)} (out_of_range: strict)")
