@@ -138,6 +138,11 @@ def test_service_paths_are_checked_against_their_own_part(tmp_path):
     assert "of the response of service /s: turtlesim/srv/Spawn_Response has no field 'x'" in error.message
 
 
+def test_paths_inside_arrays_of_messages_are_refused(tmp_path):
+    error = error_of(tmp_path, topic("diagnostic_msgs/msg/DiagnosticArray", "              status.level: {values: [0, 1]}"))
+    assert "status is an array of messages; encodings inside arrays of messages are not supported" in error.message
+
+
 def test_static_fixed_array_length_is_checked(tmp_path):
     error = error_of(tmp_path, topic("sensor_msgs/msg/NavSatFix", "              position_covariance: {static: [0, 0]}"))
     assert "2 elements; the field is a float64[9]" in error.message

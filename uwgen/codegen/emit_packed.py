@@ -30,10 +30,6 @@ def int_width(enc) -> tuple[int, int, int]:
     return (hi - lo).bit_length(), lo, hi
 
 
-def index_bits(enc) -> int:
-    return enc.bits
-
-
 def prefix_width(array: ArrayKind, size: int | None) -> int | None:
     """Bits of a sequence's count prefix: from the bound, or None (a varint) when unbounded."""
     return count_width(size) if array is ArrayKind.BOUNDED else None
