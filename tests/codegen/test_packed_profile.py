@@ -102,3 +102,38 @@ def test_leftover_bits_are_refused(packed):
     bits = cbor2.loads(b"\x9f" + payload + b"\xff")[2]
     with pytest.raises(DecodeError, match="bits left after the last field"):
         codec.decode(b"\x00\x07" + cbor2.dumps(bits + b"\x00"), (0, 7))
+
+
+# --- every installed interface, boundary values, profile packed ---------------------------
+
+from .test_roundtrip_installed import MESSAGES, SERVICES, assert_round_trip  # noqa: E402
+from .rosvalues import VARIANTS  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def allpacked(tmp_path_factory):
+    return generate(tmp_path_factory.mktemp("allpk"), "uwgen_all_packed", all_installed=True, profiles=("packed",))
+
+
+def test_every_installed_interface_has_a_packed_codec(allpacked):
+    built = {name for name, profile in allpacked.CODECS if profile == "packed"}
+    expected = set(MESSAGES) | {f"{s}_{part}" for s in SERVICES for part in ("Request", "Response")}
+    assert expected <= built
+
+
+@pytest.mark.parametrize("type_name", MESSAGES)
+def test_every_installed_message_round_trips_packed_with_boundary_values(allpacked, type_name):
+    cls = rclpy_class(type_name)
+    for variant in VARIANTS:
+        assert_round_trip(allpacked.codec(type_name, "packed"), fill(cls, variant), (0, 42))
+
+
+@pytest.mark.parametrize("type_name", SERVICES)
+def test_every_installed_service_round_trips_packed_with_boundary_values(allpacked, type_name):
+    import importlib
+    pkg, _ns, name = type_name.split("/")
+    srv = getattr(importlib.import_module(f"{pkg}.srv"), name)
+    for variant in VARIANTS:
+        assert_round_trip(allpacked.codec(type_name + "_Request", "packed"), fill(srv.Request, variant), (2, 9, 330))
+        assert_round_trip(allpacked.codec(type_name + "_Response", "packed"), fill(srv.Response, variant),
+                          (3, 9, 2**64 - 1))
