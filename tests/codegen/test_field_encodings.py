@@ -381,3 +381,16 @@ def test_the_first_clamp_of_a_field_is_logged_once(caplog):
     assert [r.getMessage() for r in caplog.records].count(
         "probe.x: 7.0 is outside -3.2..3.2 and was clamped (out_of_range: clamp); later ones are only counted "
         "(uwgen.runtime.bits.CLAMPED)") == 1 and len(caplog.records) == 1
+
+
+def test_the_reference_manifest_builds_and_its_encodings_work(tmp_path):
+    root = Path(__file__).resolve().parents[2] / "msg_samples"
+    pkg = generate(tmp_path, "uwgen_reference_check", folders=[root], manifest=root / "manifest-reference.yaml")
+    pen = pkg.SERVICES[21]
+    req = pen.request.plain_class()(r=255, g=120, b=0, width=3, off=1)
+    payload = pen.encode_request(5, req)
+    assert payload == bytes([0x02, 0x15, 0x05, 0x18, 0xFF, 0x18, 0x78, 0x00, 0x03, 0x01])   # "off" 1 is index 1
+    assert pen.decode_request(payload, ros=False) == (5, req)
+    with pytest.raises(EncodeError) as info:
+        pen.encode_request(5, pen.request.plain_class()(width=16))
+    assert info.value.path == "width"
