@@ -138,6 +138,15 @@ def test_service_paths_are_checked_against_their_own_part(tmp_path):
     assert "of the response of service /s: turtlesim/srv/Spawn_Response has no field 'x'" in error.message
 
 
+@pytest.mark.parametrize("encoding, text", [
+    ("{min: 0, max: 3}", "need a number field, and the field is a byte"),
+    ("{values: [0, 1]}", "a byte field holds an octet"),
+])
+def test_byte_fields_take_no_numeric_encodings(tmp_path, encoding, text):
+    error = error_of(tmp_path, topic("diagnostic_msgs/msg/DiagnosticStatus", f"              level: {encoding}"))
+    assert text in error.message
+
+
 def test_paths_inside_arrays_of_messages_are_refused(tmp_path):
     error = error_of(tmp_path, topic("diagnostic_msgs/msg/DiagnosticArray", "              status.level: {values: [0, 1]}"))
     assert "status is an array of messages; encodings inside arrays of messages are not supported" in error.message

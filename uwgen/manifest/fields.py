@@ -168,7 +168,7 @@ class FieldsReader:
         r = self.r
         self.scalar_kind(node, ftype, what, "min/max")
         prim = ftype.base
-        if prim not in INTEGER_RANGES and prim not in FLOAT_TYPES:
+        if prim not in INTEGER_RANGES and prim not in FLOAT_TYPES or prim == "byte":
             raise r.error(node, f"min/max of {what} need a number field, and the field is a {prim}")
         lo = self.decimal(r.require(keys, "min", node, what), f"min of {what}")
         hi = self.decimal(r.require(keys, "max", node, what), f"max of {what}")
@@ -268,6 +268,8 @@ class FieldsReader:
         self.scalar_kind(node, ftype, what, "values")
         if ftype.base == "bool":
             raise r.error(node, f"values of {what}: a bool already takes one bit")
+        if ftype.base == "byte":
+            raise r.error(node, f"values of {what}: a byte field holds an octet, not a number; use uint8 in the .msg")
         items = r.sequence(node, f"values of {what}")
         if len(items) < 1:
             raise r.error(node, f"values of {what} must list at least one value")
