@@ -16,10 +16,9 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 
-from uwgen.codegen.generator import variant_name
 from uwgen.codegen.ir import (
     Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, IRBuilder, MessageArray, Number,
-    NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
+    NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch, variant_name,
 )
 from uwgen.idl.model import ArrayKind
 from uwgen.manifest.model import NATIVE, PACKED, RMW_DESERT, Manifest

@@ -394,3 +394,22 @@ def test_the_reference_manifest_builds_and_its_encodings_work(tmp_path):
     with pytest.raises(EncodeError) as info:
         pen.encode_request(5, pen.request.plain_class()(width=16))
     assert info.value.path == "width"
+
+
+def fingerprint_of(tmp_path, name: str, fields: str) -> bytes:
+    folder = tmp_path / name
+    folder.mkdir()
+    text = ("network: fp\nsides:\n  a: {port: 4000}\n  b: {port: 4001}\ntopics:\n"
+            "  - name: /cmd_vel\n    id: 4\n    type: geometry_msgs/msg/Twist\n    publisher: a\n"
+            "    profile: packed\n    fields:\n" + textwrap.indent(textwrap.dedent(fields).strip(), "      ") + "\n")
+    (folder / "uwgen.yaml").write_text(text)
+    return generate(folder, f"uwgen_fp_{name}", manifest=folder / "uwgen.yaml").TOPICS[4].fingerprint
+
+
+def test_field_encodings_are_part_of_the_schema_fingerprint(tmp_path):
+    base = fingerprint_of(tmp_path, "base", "linear.x: {min: -2, max: 2, precision: 2}")
+    assert fingerprint_of(tmp_path, "same", "linear.x: {min: -2, max: 2, precision: 2}") == base
+    assert fingerprint_of(tmp_path, "finer", "linear.x: {min: -2, max: 2, precision: 3}") != base
+    assert fingerprint_of(tmp_path, "clamp", "linear.x: {min: -2, max: 2, precision: 2, out_of_range: clamp}") \
+        == base   # clamping happens on the sender only: the bytes mean the same
+    assert fingerprint_of(tmp_path, "static", "linear.x: {static: 0}") != base

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Iterator
 
+from uwgen.codegen.shape import MAX_NESTING, NestingCheck
 from uwgen.idl.model import INTEGER_RANGES, OCTET_TYPES, ArrayKind, FieldType, MessageDef
 from uwgen.manifest.model import (
     ENUM, MAX_COUNT, MAX_LENGTH, NATIVE, OMIT, PACKED, QUANTIZE, RMW_DESERT, STATIC, TIME_OF_DAY,
@@ -148,7 +149,7 @@ class Quantized:
     b: int
     d: int
     nmax: int
-    clamp: bool
+    clamp: bool = field(metadata={"schema": False})   # the sender's choice; the bytes mean the same
     array: ArrayKind = ArrayKind.NONE    # cell_voltage[]: every element on the grid
     size: int | None = None
     kind: str = "quantized"
@@ -271,7 +272,9 @@ class CodecType:
     fixed_items: int | None     # item count when the type has no variable part
     min_bytes: int              # fewest payload bytes (header excluded)
     uses: list[str] = field(default_factory=list)   # keys of types referenced by arrays
-    variant: str = ""           # '' or a name for manifest field encodings: 't4' (topic 4), 'q21'/'r21'
+    # '' or the name of a manifest entry's own codec with field encodings: 't4' (topic 4),
+    # 'q21'/'r21'. It names functions only, so the schema fingerprint leaves it out.
+    variant: str = field(default="", metadata={"schema": False})
 
     @property
     def module(self) -> str:
@@ -314,6 +317,12 @@ def segments(root: Node) -> list[NumberRun | Node]:
     return out
 
 
+def variant_name(letter: str, ident: int, fields: tuple) -> str:
+    """The name of a manifest entry's own codec when it has field encodings: 't4' for
+    topic 4, 'q21' / 'r21' for the request / response of service 21; '' without."""
+    return f"{letter}{ident}" if fields else ""
+
+
 def type_key(full_name: str) -> str:
     pkg, _ns, name = full_name.split("/")
     return f"{pkg}__{name}"
@@ -324,10 +333,11 @@ def type_key(full_name: str) -> str:
 class IRBuilder:
     """Builds CodecTypes for message definitions, resolving nested types by name."""
 
-    def __init__(self, lookup):
+    def __init__(self, lookup, max_nesting: int = MAX_NESTING):
         """`lookup(full_name) -> MessageDef` resolves nested message types."""
         self._lookup = lookup
-        self._cache: dict[tuple[str, str], CodecType] = {}
+        self._cache: dict[tuple[str, str, str], CodecType] = {}
+        self._nesting = NestingCheck(lookup, max_nesting)   # recursive / too deep types: DefinitionError
 
     def codec(self, msg: MessageDef, profile: str, fields: tuple[FieldEncoding, ...] = (),
               variant: str = "") -> CodecType:
@@ -335,6 +345,7 @@ class IRBuilder:
         key = (msg.full_name, profile, variant)
         hit = self._cache.get(key)
         if hit is None:
+            self._nesting.check(msg)
             hit = self._cache[key] = self._build(msg, profile, {f.path: f for f in fields}, variant)
         return hit
 
