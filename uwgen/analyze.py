@@ -252,6 +252,7 @@ class SideBudget:
     typical: float                        # bytes per second of rate-limited traffic (typical sizes)
     worst: float | None                   # ... at worst-case sizes (None: unbounded)
     unlimited: list[str] = field(default_factory=list)   # entries with no rate
+    schema: float = 0.0                   # bytes per second of periodic schema announcements (included above)
 
     @property
     def fits(self) -> bool:
@@ -306,9 +307,10 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
                               s.type.response, s.profile, s.response_fields,
                               variant_name("r", s.id, s.response_fields), 3))
     budgets = []
+    schema = _schema_rate(manifest)
     for side in manifest.sides.values():
         cap = side.link.bytes_per_second
-        typical, worst, unlimited = 0.0, 0.0, []
+        typical, worst, unlimited = schema, schema, []
         for e in entries:
             if e.sender not in (side.name, "*") or (e.sender == "*" and _server_of(manifest, e) == side.name):
                 continue
@@ -318,8 +320,22 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
             frame = e.configured.frame
             typical += e.rate * frame.typical
             worst = None if worst is None or frame.max is None else worst + e.rate * frame.max
-        budgets.append(SideBudget(side.name, cap, typical, worst, unlimited))
+        budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema))
     return Analysis(manifest.network, bitrate, entries, budgets)
+
+
+def _schema_rate(manifest: Manifest) -> float:
+    """Bytes per second each side spends on its periodic schema announcements
+    (wire format section 10): every id's fingerprint, every `schema_period` seconds."""
+    period = getattr(manifest, "schema_period", None)
+    schema_id = getattr(manifest, "schema_id", None)
+    if schema_id is None or not period:
+        return 0.0
+    from uwgen.bridge.schema import encode_announcements
+    from uwgen.codegen.fingerprint import FINGERPRINT_BYTES
+    ids = sorted({e.id for e in (*manifest.topics, *manifest.services)})
+    payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids], request=False)
+    return sum(len(p) + FRAME_OVERHEAD for p in payloads) / period
 
 
 def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
@@ -389,6 +405,8 @@ def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
             lines.append(f"  {p.label + mark:<20}{f'{p.payload.typical}/{_b(p.payload.max)}':>20}"
                          f"{f'{p.frame.typical}/{_b(p.frame.max)}':>18}{air:>13.3f}s")
     lines += ["", "link budget (what each side sends, at the configured rates and sizes; * = configured profile)"]
+    if a.budgets and a.budgets[0].schema:
+        lines.append(f"  (includes {a.budgets[0].schema:.2f} B/s of periodic schema announcements per side)")
     lines.append(f"  {'side':<12}{'capacity B/s':>14}{'typical B/s':>13}{'worst B/s':>12}  verdict")
     for b in a.budgets:
         worst = "unbounded" if b.worst is None else f"{b.worst:.1f}"

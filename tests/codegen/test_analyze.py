@@ -86,7 +86,10 @@ def test_field_bits_are_listed_per_field(demo):
 def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     _manifest, a = demo
     surface = next(b for b in a.budgets if b.side == "surface")
-    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * 12)
+    # 5 cmd_vel frames of 12 bytes per second, plus the schema announcement of the 6 ids
+    # (a 40-byte payload: 00 18 F9 00, then id + 44 + 4 bytes each; a 44-byte frame) every 600 s
+    assert surface.schema == pytest.approx(44 / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * 12 + 44 / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
     assert not any("cannot fit" in w for w in a.warnings())
 
