@@ -27,7 +27,7 @@ from collections.abc import Callable
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.framing import FrameDecoder, FrameError, encode_frame
-from uwgen.runtime.pacing import DEFAULT_MARGIN, Outbox, Pacer
+from uwgen.runtime.pacing import DEFAULT_MARGIN, MIN_FRAME, Outbox, Pacer
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link")
@@ -221,7 +221,7 @@ class DesertConnection:
                 self.outbox.abandon()
                 raise
             self.outbox.sent(now)
-            self._maybe_more = len(batch) == self.pacer.max_bytes
+            self._maybe_more = self.outbox.pending or len(batch) > self.pacer.max_bytes - MIN_FRAME
         readable, _, _ = select.select([sock, self._wake_r], [], [], self._wait_time(self.clock.now()))
         if self._wake_r in readable:
             try:

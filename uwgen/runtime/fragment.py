@@ -14,7 +14,9 @@ docs/wire-format.md, section 7):
 - `chunk` (byte string, at least 1 byte): chunks 0..count-2 have the same length, the last one is no
   longer; the original payload (which starts with its own kind and id) is their concatenation.
 
-Every fragment payload is at most 255 bytes, so every fragment frame is at most 259 bytes.
+Every fragment payload is at most `max_payload` bytes (255, or less so that a fragment frame fits one
+DESERT packet: the Link passes `max_read_length - 4`, see `fragment_payload_for`), so a lost packet
+costs whole fragments only.
 """
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.framing import MAX_PAYLOAD
+from uwgen.runtime.framing import MAX_PAYLOAD, OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.fragment")
@@ -120,25 +122,36 @@ def encode_fragment(fragment_id: int, f: Fragment) -> bytes:
 
 # -- sender ------------------------------------------------------------------------------------
 
+MIN_FRAGMENT_PAYLOAD = 24     # below this a fragment would be mostly header: cut the frame instead
+
+
+def fragment_payload_for(max_read_length: int) -> int:
+    """The largest fragment payload whose frame fits one DESERT packet (within 24..255 bytes)."""
+    return max(MIN_FRAGMENT_PAYLOAD, min(MAX_PAYLOAD, max_read_length - OVERHEAD))
+
+
 class Fragmenter:
-    """Splits payloads over 255 bytes into fragment payloads of at most 255 bytes each."""
+    """Splits payloads over 255 bytes into fragment payloads of at most `max_payload` bytes each."""
 
     def __init__(self, fragment_id: int, *, rng: random.Random | None = None,
-                 max_fragments: int = MAX_COUNT):
+                 max_fragments: int = MAX_COUNT, max_payload: int = MAX_PAYLOAD):
         if not 1 <= fragment_id <= 255:
             raise ValueError(f"fragment_id must be 1..255, got {fragment_id}")
         if not 2 <= max_fragments <= MAX_COUNT:
             raise ValueError(f"max_fragments must be 2..{MAX_COUNT}, got {max_fragments}")
+        if not MIN_FRAGMENT_PAYLOAD <= max_payload <= MAX_PAYLOAD:
+            raise ValueError(f"max_payload must be {MIN_FRAGMENT_PAYLOAD}..{MAX_PAYLOAD}, got {max_payload}")
         self.fragment_id = fragment_id
         self.max_fragments = max_fragments
+        self.max_payload = max_payload
         self._next_transfer = (rng or random.Random()).randrange(MAX_TRANSFER + 1)
         self.max_message_size = self._chunk_size(max_fragments) * max_fragments
 
     def _chunk_size(self, count: int) -> int:
-        """Largest chunk such that the fragment with the widest header still fits 255 bytes."""
+        """Largest chunk such that the fragment with the widest header still fits max_payload."""
         head = (1 + len(_uint(self.fragment_id)) + len(_uint(MAX_TRANSFER))
                 + len(_uint(count - 1)) + len(_uint(count)))
-        size = MAX_PAYLOAD - head - 2            # byte string head: 2 bytes for 24..255
+        size = self.max_payload - head - 2       # byte string head: at most 2 bytes up to 255
         return size
 
     def plan(self, size: int) -> tuple[int, int]:
@@ -166,7 +179,7 @@ class Fragmenter:
         self._next_transfer = (transfer + 1) % (MAX_TRANSFER + 1)
         out = [encode_fragment(self.fragment_id, Fragment(transfer, i, count, payload[i * chunk:(i + 1) * chunk]))
                for i in range(count)]
-        assert all(len(p) <= MAX_PAYLOAD for p in out)
+        assert all(len(p) <= self.max_payload for p in out)
         return out
 
 

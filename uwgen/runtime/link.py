@@ -21,7 +21,7 @@ from collections.abc import Callable
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.connection import Backoff, DesertConnection
-from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, is_fragment
+from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
 from uwgen.runtime.framing import MAX_PAYLOAD
 from uwgen.runtime.pacing import DEFAULT_MARGIN
 from uwgen.runtime.scheduler import LinkScheduler
@@ -56,7 +56,9 @@ class Link:
         self.fragmenter: Fragmenter | None = None
         self.reassembler: Reassembler | None = None
         if fragment_id is not None:
-            self.fragmenter = Fragmenter(fragment_id, rng=rng, max_fragments=max_fragments)
+            # A fragment frame fits one DESERT packet, so a lost packet costs whole fragments only.
+            self.fragmenter = Fragmenter(fragment_id, rng=rng, max_fragments=max_fragments,
+                                         max_payload=fragment_payload_for(self.config.max_read_length))
             # Fragments of one message may be spread out by higher-priority traffic: be patient;
             # memory stays bounded by max_partial_* whatever the timeout.
             timeout = fragment_timeout if fragment_timeout is not None else max(30.0, 60 * self.config.period)
