@@ -24,6 +24,7 @@ from uwgen.runtime.connection import Backoff, DesertConnection
 from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
 from uwgen.runtime.framing import MAX_PAYLOAD
 from uwgen.runtime.pacing import DEFAULT_MARGIN
+from uwgen.runtime.probation import reconnect_cap
 from uwgen.runtime.scheduler import LinkScheduler
 from uwgen.runtime.stats import Counters
 
@@ -71,7 +72,8 @@ class Link:
             max_message=self.fragmenter.max_message_size if self.fragmenter else MAX_PAYLOAD)
         self.connection = DesertConnection(
             host, port, self.config, source=self._source, on_frame=self._on_frame, clock=clock,
-            name=name, backoff=backoff or Backoff(rng=rng), stall_timeout=stall_timeout,
+            name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
+            stall_timeout=stall_timeout,
             next_ready=self.scheduler.next_ready_time, on_tick=self._tick, pace_margin=pace_margin,
             bitrate=bitrate)
 
