@@ -260,7 +260,8 @@ class BridgeNode(Node):
             raise PlanError(f"cannot announce this side to rmw_desert nodes: {exc}") from None
         for key, policy in discovery_policies(len(beacons)).items():
             self.link.add_channel(key, policy, names.get(key))
-        agent = DiscoveryAgent(beacons, send=self.link.offer, clock=self._uwclock)
+        agent = DiscoveryAgent(beacons, send=self.link.offer, clock=self._uwclock,
+                               queued=lambda: self.link.queued(DISCOVERY_ID))
         self._flush_timeout = (self._default_flush_timeout(beacons)
                                if flush_timeout is None else float(flush_timeout))
         self.create_timer(LINK_TICK, self._check_link, callback_group=self._main_group)

@@ -92,6 +92,10 @@ class Link:
             self.connection.wake()
         return ok
 
+    def queued(self, key: int) -> int:
+        """Messages waiting on channel `key` (one being sent in fragments included)."""
+        return self.scheduler.stats()[key]["queued"]
+
     def start(self) -> None:
         self.connection.start()
 
