@@ -74,25 +74,25 @@ TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="native",
-        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10),
+        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("geometry_msgs/msg/Twist", "native")]),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="vehicle", profile="native",
-        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5),
+        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("turtlesim/msg/Pose", "native")]),
     6: TopicCodec(
         id=6, name="/vehicle/battery", type_name="sensor_msgs/msg/BatteryState",
         publisher="vehicle", profile="native",
-        policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1),
+        policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("sensor_msgs/msg/BatteryState", "native")]),
     7: TopicCodec(
         id=7, name="/vehicle/log", type_name="std_msgs/msg/String",
         publisher="vehicle", profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=8, ttl=60.0, priority=0),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=8, ttl=60.0, priority=0, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("std_msgs/msg/String", "native")]),
 }
@@ -101,14 +101,14 @@ SERVICES = {
     20: ServiceCodec(
         id=20, name="/turtle1/teleport_absolute", type_name="turtlesim/srv/TeleportAbsolute",
         server="vehicle", timeout=10.0, profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0),
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "native")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute")),
     21: ServiceCodec(
         id=21, name="/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="vehicle", timeout=10.0, profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0),
         request=CODECS[("turtlesim/srv/SetPen_Request", "native")],
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen")),

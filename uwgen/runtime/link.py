@@ -69,7 +69,9 @@ class Link:
         self.scheduler = LinkScheduler(
             clock, name=name,
             splitter=self.fragmenter.split if self.fragmenter else None,
-            max_message=self.fragmenter.max_message_size if self.fragmenter else MAX_PAYLOAD)
+            max_message=self.fragmenter.max_message_size if self.fragmenter else MAX_PAYLOAD,
+            fec_over=self.fragmenter.max_payload if self.fragmenter else MAX_PAYLOAD,
+            max_message_for=self.fragmenter.max_message_for if self.fragmenter else None)
         self.connection = DesertConnection(
             host, port, self.config, source=self._source, on_frame=self._on_frame, clock=clock,
             name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
