@@ -55,6 +55,7 @@ from rclpy.task import Future
 
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
 from uwgen.bridge.counters import BridgeCounters, DropReporter, ServiceCounters, TopicCounters
+from uwgen.bridge.throttle import LogThrottle
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import (TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan, PlanError,
                                is_rmw_desert)
@@ -117,6 +118,7 @@ class BridgeNode(Node):
         self._publisher_counts: dict[str, int] = {}
         self._drops = DropReporter()
         self._said: set[str] = set()
+        self._throttle = LogThrottle(self._log.error, clock)   # lines a remote peer can cause
         self._calls = CallTable(clock, rng=rng)
         self._serving: dict[int, dict[int, tuple[Future, float]]] = {}
         self._closed = False
@@ -453,8 +455,8 @@ class BridgeNode(Node):
             return
         if not client.service_is_ready():
             counters.no_server += 1
-            self._log.error(f"{codec.name}: request seq {seq} not served: no local server "
-                            "is available (the caller will time out)")
+            self._throttle.report(f"noserver{ident}", f"{codec.name}: request seq {seq} not served: no "
+                                  "local server is available (the caller will time out)")
             return
         future = client.call_async(request)
         serving[seq] = (future, self._uwclock.now() + codec.timeout)
@@ -472,30 +474,32 @@ class BridgeNode(Node):
         exc = future.exception()
         if exc is not None:
             counters.server_errors += 1
-            self._log.error(f"{codec.name}: local call for seq {seq} failed: {exc}")
+            self._throttle.report(f"srverr{ident}", f"{codec.name}: local call for seq {seq} failed: {exc}")
             return
         try:
             payload = codec.encode_response(seq, future.result())
         except ValueError as exc:
             counters.server_errors += 1
-            self._log.error(f"{codec.name}: response for seq {seq} cannot be encoded: {exc}")
+            self._throttle.report(f"srvenc{ident}", f"{codec.name}: response for seq {seq} cannot be encoded: {exc}")
             return
         if self.link.offer(ident, payload):
             counters.replies += 1
         else:
             counters.reply_refused += 1
-            self._log.error(f"{codec.name}: response for seq {seq} refused by the link")
+            self._throttle.report(f"srvref{ident}", f"{codec.name}: response for seq {seq} refused by the link")
 
     # -- timers ----------------------------------------------------------------------------
 
     def _expire(self) -> None:
+        self._throttle.tick()
         for pending in self._calls.expire():
             codec = self._called[pending.service_id]
             self.service_counters[pending.service_id].timeouts += 1
-            self._log.error(f"{codec.name}: call seq {pending.seq} got no response within "
-                            f"{codec.timeout:g} s: failed"
-                            + ("" if self.options.timeout_reply == TIMEOUT_REPLY_DEFAULT
-                               else " (no response is sent to the caller)"))
+            self._throttle.report(f"timeout{pending.service_id}",
+                                  f"{codec.name}: call seq {pending.seq} got no response within "
+                                  f"{codec.timeout:g} s: failed"
+                                  + ("" if self.options.timeout_reply == TIMEOUT_REPLY_DEFAULT
+                                     else " (no response is sent to the caller)"))
             if not pending.token.done():
                 pending.token.set_result(None)
         now = self._uwclock.now()
@@ -507,8 +511,8 @@ class BridgeNode(Node):
                     client.remove_pending_request(future)
                     future.cancel()
                     self.service_counters[ident].server_timeouts += 1
-                    self._log.error(f"{codec.name}: local server did not answer seq {seq} "
-                                    f"within {codec.timeout:g} s")
+                    self._throttle.report(f"srvtimeout{ident}", f"{codec.name}: local server did not "
+                                          f"answer seq {seq} within {codec.timeout:g} s")
 
     def _check_graph(self) -> None:
         """Find other uwgen bridges publishing our outgoing topics in this ROS graph."""
