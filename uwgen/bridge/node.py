@@ -55,6 +55,7 @@ from rclpy.task import Future
 
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
 from uwgen.bridge.counters import BridgeCounters, DropReporter, ServiceCounters, TopicCounters
+from uwgen.bridge import ledger
 from uwgen.bridge.throttle import LogThrottle
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import (TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan, PlanError,
@@ -119,6 +120,7 @@ class BridgeNode(Node):
         self._drops = DropReporter()
         self._said: set[str] = set()
         self._throttle = LogThrottle(self._log.error, clock)   # lines a remote peer can cause
+        self._sub_losses = ledger.SubscriptionLosses()
         self._calls = CallTable(clock, rng=rng)
         self._serving: dict[int, dict[int, tuple[Future, float]]] = {}
         self._closed = False
@@ -209,8 +211,8 @@ class BridgeNode(Node):
                 continue
             self._outgoing[codec.id] = codec
             self._bridge_subscriptions.append(self.create_subscription(
-                cls, codec.name, self._taker(codec), qos_profile(codec.qos),
-                callback_group=self._main_group))
+                cls, codec.name, self._taker(codec), qos_profile(ledger.subscription_qos(codec)),
+                callback_group=self._main_group, event_callbacks=self._sub_losses.callbacks(codec.id)))
         for codec in self.plan.incoming_topics:
             self.topic_counters[codec.id] = TopicCounters()
             cls = self._ros_class(codec)
@@ -544,6 +546,7 @@ class BridgeNode(Node):
         except Exception as exc:
             link_stats = {"error": str(exc)}
         channels = _channel_stats(link_stats)
+        link_lost = ledger.lost_on_link(link_stats)
         topics = {}
         for codec in (*self.plan.outgoing_topics, *self.plan.incoming_topics):
             out = codec.publisher == self.plan.side
@@ -552,6 +555,10 @@ class BridgeNode(Node):
             if out:
                 entry["echo_guard"] = self._echo_dropped.get(codec.id, 0)
                 entry["link"] = channels.get(codec.id, {})
+            entry["accounting"] = (ledger.outgoing(self.topic_counters[codec.id], channels.get(codec.id, {}),
+                                                   self._sub_losses.lost.get(codec.id, 0),
+                                                   self._echo_dropped.get(codec.id, 0)) if out
+                                   else ledger.incoming(self.topic_counters[codec.id], link_lost.get(codec.id, 0)))
             if codec.name in self.unavailable:
                 entry["unavailable"] = self.unavailable[codec.name]
             topics[codec.name] = entry

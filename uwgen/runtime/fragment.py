@@ -334,6 +334,8 @@ class Reassembler:
         self.stats = Counters(REASSEMBLER_COUNTERS)
         self._partial: dict[int, _Partial] = {}
         self._bytes = 0
+        self.lost_by_id: dict[int, int] = {}     # messages lost on the link, by their topic/service id
+        self.lost_unattributed = 0               # ... whose fragment 0 never came
         self._recent: deque[tuple[float, int, int, int]] = deque(maxlen=16)  # (time, transfer, count, crc)
 
     @property
@@ -370,7 +372,7 @@ class Reassembler:
                 log_count(log, logging.WARNING, self.stats.inc("inconsistent"),
                           "[%s] transfer %d: %s; dropped its %d fragments", self.name, f.transfer, problem,
                           p.held)
-                self._drop(f.transfer)
+                self._lose(f.transfer)
                 p = None
         if (f.is_repair or f.index < f.count - 1) and f.count * len(f.chunk) > self.max_bytes:
             # Every chunk but the last has this length: the whole message can never be held.
@@ -378,7 +380,7 @@ class Reassembler:
                       "[%s] transfer %d: %d fragments of %d bytes exceed the %d-byte reassembly bound",
                       self.name, f.transfer, f.count, len(f.chunk), self.max_bytes)
             if p is not None:
-                self._drop(f.transfer)
+                self._lose(f.transfer)
             return None
         if p is None:
             p = _Partial(count=f.count)
@@ -414,7 +416,7 @@ class Reassembler:
             log_count(log, logging.WARNING, self.stats.inc("timed_out"),
                       "[%s] transfer %d: %d of %d fragments after %.1f s; dropped (a fragment was lost)",
                       self.name, t, p.held, p.count, self.timeout)
-            self._drop(t)
+            self._lose(t)
         return len(old)
 
     # -- internals -----------------------------------------------------------------------------
@@ -425,6 +427,19 @@ class Reassembler:
     def _drop(self, transfer: int) -> None:
         p = self._partial.pop(transfer)
         self._bytes -= p.size
+
+    def _lose(self, transfer: int) -> None:
+        """Drop a partial message that will never complete, and say whose message it was: chunk 0
+        starts with the payload's own kind and id (unknown when chunk 0 never came)."""
+        chunk0 = self._partial[transfer].chunks.get(0)
+        self._drop(transfer)
+        try:
+            _, pos = _read_head(chunk0 or b"", 0, 0, "kind")
+            ident, _ = _read_head(chunk0 or b"", pos, 0, "id")
+        except FragmentError:
+            self.lost_unattributed += 1
+            return
+        self.lost_by_id[ident] = self.lost_by_id.get(ident, 0) + 1
 
     def _make_room(self, size: int, new_transfer: bool, keep: int | None = None) -> None:
         while self._partial and (
@@ -438,4 +453,4 @@ class Reassembler:
             log_count(log, logging.WARNING, self.stats.inc("evicted"),
                       "[%s] transfer %d: %d of %d fragments evicted to bound reassembly memory",
                       self.name, oldest, p.held, p.count)
-            self._drop(oldest)
+            self._lose(oldest)

@@ -114,6 +114,8 @@ class Link:
         frag = None
         if self.reassembler is not None:
             frag = {**self.reassembler.stats.as_dict(), "pending": self.reassembler.pending,
+                    "lost_by_id": dict(self.reassembler.lost_by_id),
+                    "lost_unattributed": self.reassembler.lost_unattributed,
                     "buffered_bytes": self.reassembler.buffered_bytes,
                     "nested": self.counters["nested_fragments"]}
         return {
