@@ -49,13 +49,13 @@ def test_a_flood_of_requests_for_a_service_without_server_logs_one_line():
     with ros_sides("vehicle") as (vehicle,):
         bridge = start_bridge(vehicle, package, links.factory)
         lines: list[str] = []
-        bridge._throttle._emit = lines.append
+        bridge.wiring.throttle._emit = lines.append
         for seq in range(1000):               # a peer (or a forger) sending requests nobody serves
             links.links["vehicle"].inject(SLOW.encode_request(seq % 65536, BasicTypes.Request()))
         wait_for(lambda: bridge.service_counters[SLOW.id].no_server == 1000, timeout=20.0,
                  what="every request counted")
     assert len(lines) == 1 and "not served" in lines[0]
-    assert bridge._throttle.totals == {f"noserver{SLOW.id}": 1000}
+    assert bridge.wiring.throttle.totals == {f"noserver{SLOW.id}": 1000}
 
 
 def test_a_flood_of_forged_fragments_logs_a_logarithmic_number_of_lines(caplog):
