@@ -45,3 +45,14 @@ def test_message_lost_events_are_counted_per_topic():
     cb.message_lost(SimpleNamespace(total_count=3, total_count_change=3))
     cb.message_lost(SimpleNamespace(total_count=5, total_count_change=2))
     assert losses.lost == {7: 5}
+
+
+def test_final_summary_states_the_books_per_topic():
+    from uwgen.bridge.main import _summary
+    out = ledger.outgoing(TopicCounters(taken=9), {"sent": 5, "superseded": 4}, 1, 0)
+    inc = ledger.incoming(TopicCounters(received=3, published=3), lost_on_link=1)
+    text = _summary({"topics": {"/cmd": {"direction": "out", "taken": 9, "accounting": out},
+                                "/log": {"direction": "in", "received": 3, "published": 3,
+                                         "accounting": inc}}})
+    assert text == ("/cmd published 10 taken 9 sent 5 dropped 4 queued 0; "
+                    "/log received 3 lost on link 1 delivered 3")
