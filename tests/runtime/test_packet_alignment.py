@@ -110,3 +110,42 @@ def test_through_the_emulator_with_random_loss_exactly_the_frames_of_arrived_pac
     assert sum(len(p) + 4 for _, p in sim.received) == len(arrived)
     it = iter(payloads)
     assert all(any(p == q for q in it) for _, p in sim.received)       # sent ones, in order
+
+
+def test_the_room_left_is_filled_with_frames_that_fit_and_the_held_one_goes_first():
+    sim = LinkSim(scenario(per=0.0, seed=1), "a", "b")
+    for key, prio in ((1, 10), (2, 5), (3, 0)):
+        sim.sender.add_channel(key, LinkPolicy(queue="fifo", depth=9, priority=prio))
+    for _ in range(2):
+        sim.sender.offer(1, b"\x00\x01" + bytes(28))     # 34-byte frames
+        sim.sender.offer(2, b"\x00\x02" + bytes(30))     # 36-byte frames
+        sim.sender.offer(3, b"\x00\x03" + bytes(6))      # 12-byte frames
+    sim.run(2.0)
+    writes = [[p[1] for p in FrameDecoder().feed(d.data)] for d in sim.packets]
+    # 1 + (1 held: 34 > 30 left) + the 12-byte ones that fit; then the held 1 first, 2 held...
+    assert writes == [[1, 3, 3], [1], [2], [2]]
+    assert [len(d.data) for d in sim.packets] == [58, 34, 36, 36]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(16, 128), st.data())
+def test_filling_with_frames_that_fit_keeps_writes_whole_and_each_channel_in_order(mrl, data):
+    # Payloads of 5 .. mrl - 4 bytes: every frame fits a packet (longer ones are cut, see above).
+    offers = data.draw(st.lists(st.tuples(st.integers(1, 3), st.integers(1, mrl - 8)), min_size=1, max_size=60))
+    scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"), NodeSpec("b", position=(30, 0, 0), dest="a")],
+                    period=0.2, max_read_length=mrl, bitrate=48_000.0)
+    sim = LinkSim(scen, "a", "b")
+    for key in (1, 2, 3):
+        sim.sender.add_channel(key, LinkPolicy(queue="fifo", depth=100, priority=key % 2))
+    for n, (key, size) in enumerate(offers):
+        sim.sender.offer(key, bytes([0, key]) + n.to_bytes(2, "big") + bytes(size))
+    sim.run(len(offers) * 0.25 + 1.0)
+    assert all(len(d.data) <= mrl and d.data.startswith(SYNC) for d in sim.packets)
+    for d in sim.packets:                            # each packet: whole frames
+        assert sum(len(f) + 4 for f in FrameDecoder().feed(d.data)) == len(d.data)
+    payloads = [p for _, p in sim.received]
+    assert sorted(payloads) == sorted(bytes([0, k]) + n.to_bytes(2, "big") + bytes(s)
+                                      for n, (k, s) in enumerate(offers))
+    for key in (1, 2, 3):
+        serials = [int.from_bytes(p[2:4], "big") for p in payloads if p[1] == key]
+        assert serials == sorted(serials)

@@ -59,7 +59,7 @@ class LinkSim:
             self.clock.set(t)
             while self._actions and self._actions[0][0] <= t:
                 heapq.heappop(self._actions)[2]()
-            batch = box.take(t, conn._pull)
+            batch = box.take(t, conn._pull, conn._fit)
             if batch:
                 self.core.client_data(self.src, t, batch)
                 box.sent(t)

@@ -29,7 +29,7 @@ from collections.abc import Callable
 
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.framing import FrameDecoder, FrameError, encode_frame
+from uwgen.runtime.framing import OVERHEAD, FrameDecoder, FrameError, encode_frame
 from uwgen.runtime.pacing import DEFAULT_MARGIN, MIN_FRAME, Outbox, Pacer
 from uwgen.runtime.probation import Event, Probation, reconnect_cap
 from uwgen.runtime.stats import Counters, log_count
@@ -99,10 +99,12 @@ class DesertConnection:
                  connect_timeout: float = 2.0, write_timeout: float = 5.0,
                  stable_after: float = 1.0, pace_margin: float = DEFAULT_MARGIN,
                  bitrate: float | None = None, probation: float = 0.3,
-                 unserved_after: float | None = None):
+                 unserved_after: float | None = None,
+                 source_fit: Callable[[float, int], bytes | None] | None = None):
         self.host, self.port, self.config, self.name = host, port, config, name
         self.clock = clock
         self._source, self._on_frame = source, on_frame
+        self._source_fit = source_fit     # (now, max payload size) -> payload that fits, or None
         self._next_ready, self._on_tick = next_ready, on_tick
         self.backoff = backoff or Backoff(maximum=reconnect_cap(config.period))
         self.proof = Probation(probation, unserved_after if unserved_after is not None
@@ -224,7 +226,7 @@ class DesertConnection:
         sock = self._sock
         assert sock is not None
         now = self.clock.now()
-        batch = self.outbox.take(now, self._pull) if self.proof.proven else b""
+        batch = self.outbox.take(now, self._pull, self._fit if self._source_fit else None) if self.proof.proven else b""
         if batch:
             try:
                 sock.sendall(batch, socket.MSG_NOSIGNAL)
@@ -279,9 +281,11 @@ class DesertConnection:
             deadline = min(deadline, proof_at)
         return max(0.0, deadline - now)
 
-    def _pull(self) -> bytes | None:
+    def _pull(self, room: int | None = None) -> bytes | None:
         while True:
-            payload = self._source(self.clock.now())
+            now = self.clock.now()
+            payload = (self._source(now) if room is None or self._source_fit is None
+                       else self._source_fit(now, room - OVERHEAD))
             if payload is None:
                 return None
             try:
@@ -289,6 +293,10 @@ class DesertConnection:
             except FrameError as e:
                 log_count(log, logging.ERROR, self.counters.inc("unframeable"),
                           "[%s] dropped a payload that cannot be framed: %s", self.name, e)
+
+    def _fit(self, room: int) -> bytes | None:
+        """A frame of at most `room` bytes from `source_fit`, or None."""
+        return self._pull(room) if room > OVERHEAD else None
 
     def _deliver(self, payloads: list[bytes]) -> None:
         for p in payloads:

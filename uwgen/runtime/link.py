@@ -52,6 +52,7 @@ class Link:
         self.fragment_id = fragment_id
         self._on_payload = on_payload
         self.counters = Counters(LINK_COUNTERS)
+        self._pulled_key: int | None = None       # channel of the payload pulled last
         rng = rng or random.Random()
 
         self.fragmenter: Fragmenter | None = None
@@ -77,7 +78,7 @@ class Link:
             name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
             stall_timeout=stall_timeout,
             next_ready=self.scheduler.next_ready_time, on_tick=self._tick, pace_margin=pace_margin,
-            bitrate=bitrate)
+            bitrate=bitrate, source_fit=self._source_fit)
 
     # -- contract API --------------------------------------------------------------------------
 
@@ -131,6 +132,15 @@ class Link:
 
     def _source(self, now: float) -> bytes | None:
         picked = self.scheduler.next_payload(now)
+        if picked is None:
+            return None
+        self._pulled_key = picked[0]
+        return picked[1]
+
+    def _source_fit(self, now: float, max_size: int) -> bytes | None:
+        # The frame pulled last did not fit and is held: its channel must not overtake it.
+        held = self._pulled_key if self.connection.outbox.pending else None
+        picked = self.scheduler.next_payload(now, max_size, exclude=held)
         return None if picked is None else picked[1]
 
     def _on_frame(self, payload: bytes) -> None:

@@ -15,7 +15,8 @@ waits in the scheduler's queues.
 
 Writes are packet-aligned: each write holds whole frames only, so each DESERT packet starts with a
 frame and a lost packet costs exactly the frames in it (wire format, sections 1 and 11). A frame
-that does not fit the room left waits, whole, for the next write (it goes before anything else).
+that does not fit the room left waits, whole, for the next write (it goes before anything else), and the room left is filled
+with the best frames of other channels that fit (`take(..., fit=...)`; the Link passes one).
 Only a frame longer than a packet (an rmw_desert-profile payload over `max_read_length - 4` bytes;
 native fragments are sized to fit a packet) is cut: it starts a write of its own, and its pieces
 fill the following writes alone. The old cut-and-fill mode (`aligned=False`: the last frame of a
@@ -120,17 +121,21 @@ class Outbox:
         """A frame (a cut one's rest, or a whole one that did not fit) waits for the next write."""
         return bool(self._rest or self._held)
 
-    def take(self, now: float, pull: Callable[[], bytes | None]) -> bytes:
+    def take(self, now: float, pull: Callable[[], bytes | None],
+             fit: Callable[[int], bytes | None] | None = None) -> bytes:
         """The next write, or b"" if it is not time yet or there is nothing to send.
 
         `pull()` returns the next whole frame, or None; it is called only while there is room.
+        `fit(room)` (optional) returns the next frame of at most `room` bytes, or None (and never
+        one of the channel whose frame is held): with it, the room left when the next frame in
+        priority order does not fit is filled with the best frames that do.
         """
         if self._batch_len:
             raise RuntimeError("take() before the previous batch was sent() or abandon()ed")
         if not self.pacer.may_write(now):
             return b""
         if self.aligned:
-            parts, frames = self._aligned(pull)
+            parts, frames = self._aligned(pull, fit)
         else:
             parts, frames = self._cut_and_fill(pull)
         batch = b"".join(parts)
@@ -138,7 +143,8 @@ class Outbox:
         self._batch_len = len(batch)
         return batch
 
-    def _aligned(self, pull: Callable[[], bytes | None]) -> tuple[list[bytes], int]:
+    def _aligned(self, pull: Callable[[], bytes | None],
+                 fit: Callable[[int], bytes | None] | None) -> tuple[list[bytes], int]:
         room = self.pacer.max_bytes
         if self._rest:               # the next piece of a frame longer than a packet, alone
             piece, self._rest = self._rest[:room], self._rest[room:]
@@ -157,6 +163,14 @@ class Outbox:
             else:                           # longer than a packet: cut, in writes of its own
                 self._rest = frame[room:]
                 return [frame[:room]], 0
+        # The next frame in priority order did not fit (it goes first next time, so nothing
+        # starves): fill what is left with frames that fit, from the other channels.
+        while fit is not None and parts and room >= MIN_FRAME:
+            frame = fit(room)
+            if not frame:
+                break
+            parts.append(frame)
+            room -= len(frame)
         return parts, len(parts)
 
     def _cut_and_fill(self, pull: Callable[[], bytes | None]) -> tuple[list[bytes], int]:

@@ -256,12 +256,19 @@ class LinkScheduler:
 
     # -- consumer side (the connection, when it may write) -------------------------------------
 
-    def next_payload(self, now: float | None = None) -> tuple[int, bytes] | None:
-        """The payload (at most 255 bytes) to send now, with its channel key; None if none may go."""
+    def next_payload(self, now: float | None = None, max_size: int | None = None,
+                     exclude: int | None = None) -> tuple[int, bytes] | None:
+        """The payload (at most 255 bytes) to send now, with its channel key; None if none may go.
+
+        With `max_size` (the room left in a packet-aligned write), only a channel whose next
+        payload is at most that long is served: the best such one, so the room is filled without
+        taking out a message that would have to wait, whole, for the next write. Channel
+        `exclude` is skipped (its next message is held for the next write: keep its order).
+        """
         now = self.clock.now() if now is None else now
         with self._lock:
             self._expire(now)
-            ch = self._pick(now)
+            ch = self._pick(now, max_size, exclude)
             if ch is None:
                 return None
             return ch.key, self._take(ch, now)
@@ -296,16 +303,17 @@ class LinkScheduler:
                 q.popleft()
                 ch.counters.inc("expired")
 
-    def _pick(self, now: float) -> Channel | None:
+    def _pick(self, now: float, max_size: int | None = None, exclude: int | None = None) -> Channel | None:
         best: list[Channel] = []
         for ch in self._order:
             if best and ch.priority < best[0].priority:
                 break
             t = ch.ready_at(now)
-            if t is None:
+            if t is None or ch.key == exclude:
                 continue
             if t <= now:
-                best.append(ch)
+                if max_size is None or self._next_size(ch) <= max_size:
+                    best.append(ch)
             elif not ch.queue[0].rate_held:
                 ch.queue[0].rate_held = True
                 ch.counters.inc("rate_limited")
@@ -315,6 +323,14 @@ class LinkScheduler:
         chosen = next((ch for ch in best if last is not None and ch.key > last), best[0])
         self._last_served[chosen.priority] = chosen.key
         return chosen
+
+    def _next_size(self, ch: Channel) -> int:
+        """Length of the payload `_take` would return for this channel (a message about to be
+        split: its first fragment, at most one packet's worth)."""
+        if ch.in_progress is not None:
+            return len(ch.in_progress[0])
+        n = len(ch.queue[0].payload)
+        return n if n <= ch.split_over else min(n, self.fec_over)
 
     def _take(self, ch: Channel, now: float) -> bytes:
         c = ch.counters
