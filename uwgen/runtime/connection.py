@@ -226,7 +226,7 @@ class DesertConnection:
         sock = self._sock
         assert sock is not None
         now = self.clock.now()
-        batch = self.outbox.take(now, self._pull, self._fit if self._source_fit else None) if self.proof.proven else b""
+        batch = self.outbox.take(now, self._pull, self._fit) if self.proof.proven else b""
         if batch:
             try:
                 sock.sendall(batch, socket.MSG_NOSIGNAL)
@@ -296,7 +296,7 @@ class DesertConnection:
 
     def _fit(self, room: int) -> bytes | None:
         """A frame of at most `room` bytes from `source_fit`, or None."""
-        return self._pull(room) if room > OVERHEAD else None
+        return self._pull(room) if self._source_fit is not None and room > OVERHEAD else None
 
     def _deliver(self, payloads: list[bytes]) -> None:
         for p in payloads:
