@@ -37,6 +37,7 @@ from uwgen.manifest.model import (
     Side,
     Topic,
 )
+from uwgen.manifest.fields import FieldsReader
 from uwgen.manifest.nodes import ManifestError, Reader, compose
 
 __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
@@ -52,8 +53,9 @@ POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair")
 MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
-TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile")
-SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields")
+SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
+                "request_fields", "response_fields")
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
 SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -317,7 +319,8 @@ class _ManifestBuilder:
         policy = self.policy(entries, defaults, LinkPolicy(), label)
         qos = self.qos(entries["qos"][1], default_qos) if "qos" in entries else default_qos
         topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node))
+        fields = self.fields(entries, "fields", definition, label, topic_profile)
+        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields)
 
     def service(self, node: yaml.Node, sides: dict[str, Side], profile: str) -> Service:
         r = self.r
@@ -330,7 +333,20 @@ class _ManifestBuilder:
         base = Service.__dataclass_fields__["policy"].default_factory()
         policy = self.policy(entries, {}, base, label)
         service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node))
+        request_fields = self.fields(entries, "request_fields", definition.request, f"the request of {label}", service_profile)
+        response_fields = self.fields(entries, "response_fields", definition.response, f"the response of {label}", service_profile)
+        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node),
+                       request_fields, response_fields)
+
+    def fields(self, entries: dict, key: str, msg: MessageDef, label: str, profile: str) -> tuple:
+        """Field encodings under `key` (wire format section 8); never in profile rmw_desert."""
+        if key not in entries:
+            return ()
+        key_node, node = entries[key]
+        if profile == RMW_DESERT:
+            raise self.r.error(key_node, f"{key} of {label}: profile rmw_desert cannot carry field encodings "
+                                         "(an rmw_desert node could not read them); use profile native or packed")
+        return FieldsReader(self.r, self.lib.get).read(node, msg, label)
 
     def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""
