@@ -95,8 +95,8 @@ class ActionServers:
             payload = codec.encode_result(handle, status, result)
         except ValueError as exc:
             self.counters[ident].encode_errors += 1
-            self.w.log.error(f"{codec.name}: result of goal {handle} cannot be encoded ({exc}); "
-                             "reported aborted")
+            self.w.throttle.report(f"aenc{ident}", f"{codec.name}: result of goal {handle} cannot "
+                                                   f"be encoded ({exc}); reported aborted")
             payload = codec.encode_result(handle, ABORTED, codec.ros_class().Result())
         finished = self.finished[ident]
         finished[handle] = (entry.payload, payload, entry.arrived)
@@ -127,8 +127,8 @@ class ActionServers:
         self.finished[ident].pop(handle, None)     # a new goal on a handle used before
         if not client.server_is_ready():
             counters.no_server += 1
-            self.w.log.error(f"{codec.name}: goal {handle} rejected: no local action server is "
-                             "available")
+            self.w.throttle.report(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no "
+                                                        "local action server is available")
             self._answer(ident, handle, REJECTED)
             return
         sent = client.send_goal_async(goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb))
@@ -165,7 +165,8 @@ class ActionServers:
         if goal_handle is None or not goal_handle.accepted:
             if exc is not None:
                 self.counters[ident].server_errors += 1
-                self.w.log.error(f"{codec.name}: goal {handle} failed locally: {exc}")
+                self.w.throttle.report(f"aerr{ident}", f"{codec.name}: goal {handle} failed "
+                                                       f"locally: {exc}")
             del self.goals[ident][handle]
             self._answer(ident, handle, REJECTED)
             return
@@ -222,7 +223,7 @@ class ActionServers:
     # -- timers ----------------------------------------------------------------------------
 
     def expire(self) -> None:
-        now, log = self.w.clock.now(), self.w.log
+        now, say = self.w.clock.now(), self.w.throttle.report
         for ident, goals in self.goals.items():
             codec, client = self.served[ident]
             counters = self.counters[ident]
@@ -232,12 +233,12 @@ class ActionServers:
                 del goals[handle]
                 counters.server_timeouts += 1
                 if entry.goal_handle is None:
-                    log.error(f"{codec.name}: local server did not answer goal {handle} within "
-                              f"{codec.accept_timeout:g} s: rejected")
+                    say(f"aanswer{ident}", f"{codec.name}: local server did not answer goal "
+                                           f"{handle} within {codec.accept_timeout:g} s: rejected")
                     self._answer(ident, handle, REJECTED)
                 else:
-                    log.error(f"{codec.name}: goal {handle} did not finish within "
-                              f"{codec.result_timeout:g} s: cancelled, reported aborted")
+                    say(f"aresult{ident}", f"{codec.name}: goal {handle} did not finish within "
+                                           f"{codec.result_timeout:g} s: cancelled, reported aborted")
                     entry.goal_handle.cancel_goal_async()
                     self._result(ident, handle, ABORTED, codec.ros_class().Result(), entry)
             self._check_server(ident, now)

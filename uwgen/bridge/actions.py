@@ -1,9 +1,10 @@
 """Actions offered here, served on another side: a real rclpy ActionServer stands in for the
 remote one and carries each goal over the link (wire format 13).
 
-A local client's goal takes a one-byte handle (from a CallTable per action, this side's
-share of the handles 0..23, see manifest.model.handle_range; at most `max_goals` in flight) and goes out as `[2, id, handle, goal...]`; the goal
-callback waits for the answer and accepts or rejects the local goal with it. The result is
+A local client's goal takes a one-byte handle (from a CallTable per action: this side's
+share of the handles 0..23, see manifest.model.handle_range; at most `max_goals` in
+flight) and goes out as `[2, id, handle, goal...]`; the goal callback waits for the
+answer and accepts or rejects the local goal with it. The result is
 pushed by the server side (`[3, id, handle, status, result...]`) and completes the local
 goal with the same terminal status; feedback (`[0, id, handle, feedback...]`) is
 published to the local client. The status topic is the local ActionServer's own. A cancel
@@ -241,22 +242,22 @@ class ActionStandIns:
     # -- timers ----------------------------------------------------------------------------
 
     def expire(self) -> None:
-        now, log = self.w.clock.now(), self.w.log
+        now, say = self.w.clock.now(), self.w.throttle.report   # a dead link times out many
         for ident, table in self.tables.items():
             codec, counters = self.offered[ident], self.counters[ident]
             for pending in table.expire():
                 state = pending.token
                 if not state.answer.done():
                     counters.accept_timeouts += 1
-                    log.error(f"{codec.name}: goal {state.handle} got no answer within "
-                              f"{codec.accept_timeout:g} s: rejected (a cancel is sent, in case "
-                              "only the answer was lost)")
+                    say(f"aaccept{ident}", f"{codec.name}: goal {state.handle} got no answer within "
+                                           f"{codec.accept_timeout:g} s: rejected (a cancel is sent, in "
+                                           "case only the answer was lost)")
                     self.w.send(ident, codec.encode_cancel(state.handle))
                     state.answer.set_result(REJECTED)
                     continue
                 counters.result_timeouts += 1
-                log.error(f"{codec.name}: goal {state.handle} got no result within "
-                          f"{codec.result_timeout:g} s: aborted (a cancel is sent)")
+                say(f"aresult{ident}", f"{codec.name}: goal {state.handle} got no result within "
+                                       f"{codec.result_timeout:g} s: aborted (a cancel is sent)")
                 self.w.send(ident, codec.encode_cancel(state.handle))
                 state.result.set_result((ABORTED, codec.ros_class().Result()))
             for pending in table.pending(ident):
@@ -271,7 +272,8 @@ class ActionStandIns:
             if state.cancel is not None and not state.cancel.done() and state.cancel_deadline <= now:
                 codec = self.offered[state.ident]
                 self.counters[codec.id].cancel_timeouts += 1
-                log.error(f"{codec.name}: cancel of goal {state.handle} got no answer: refused")
+                say(f"acancel{codec.id}", f"{codec.name}: cancel of goal {state.handle} got no "
+                                          "answer: refused")
                 state.cancel.set_result(None)
 
     def goal_stats(self, ident: int) -> dict:

@@ -25,6 +25,7 @@ from typing import Any, Callable
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 
+from uwgen.bridge import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
@@ -190,6 +191,7 @@ class BridgeNode(Node):
         self.dispatcher.dispatch(payload)
 
     def _expire(self) -> None:
+        self.wiring.throttle.tick()
         self.standins.expire()
         self.servers.expire()
         self.action_standins.expire()
@@ -208,7 +210,7 @@ class BridgeNode(Node):
         return self.reporter.snapshot(
             link_stats, discovery=self.discovery_status(),
             schema=self.schema.stats() if self.schema is not None else None,
-            topics=self.topics.status(channels),
+            topics=self.topics.status(channels, ledger.lost_on_link(link_stats)),
             services=service_status(self.standins, self.servers, channels, self.unavailable),
             actions=action_status(self.action_standins, self.action_servers, channels,
                                   self.unavailable),
