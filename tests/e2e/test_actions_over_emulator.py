@@ -73,8 +73,10 @@ def rclpy_sleep(node, seconds: float) -> Future:
 class FibonacciServer:
     """The real action server on the vehicle: one number per `step` seconds, with feedback."""
 
-    def __init__(self, node, step: float = 0.1, reject_above: int = 30, abort_at: int | None = None):
+    def __init__(self, node, step: float = 0.1, reject_above: int = 30, abort_at: int | None = None,
+                 cancellable: bool = True):
         self.node, self.step, self.reject_above, self.abort_at = node, step, reject_above, abort_at
+        self.cancellable = cancellable
         self.goals: list[int] = []
         self.cancels = 0
         self.server = ActionServer(node, Fibonacci, "/fibonacci", self.execute,
@@ -85,7 +87,7 @@ class FibonacciServer:
 
     def on_cancel(self, goal_handle):
         self.cancels += 1
-        return CancelResponse.ACCEPT
+        return CancelResponse.ACCEPT if self.cancellable else CancelResponse.REJECT
 
     async def execute(self, goal_handle):
         self.goals.append(goal_handle.request.order)
@@ -180,6 +182,20 @@ def test_cancel_crosses_and_the_goal_ends_canceled(net):
     assert real.cancels == 1
     assert len(result.result.sequence) < 26            # stopped early
     assert counters(net, "surface")["cancels"] == 1
+
+
+def test_a_cancel_the_real_server_refuses_leaves_the_goal_running(net):
+    real = FibonacciServer(net.vehicle.node("fibonacci_server"), step=0.2, cancellable=False)
+    client = ready_client(net)
+    feedback: list = []
+    goal_handle = send(client, 8, feedback)
+    wait_for(lambda: feedback, what="first feedback")
+    cancel = goal_handle.cancel_goal_async()
+    wait_for(cancel.done, timeout=10.0, what="the cancel answer")
+    assert cancel.result().goals_canceling == [] and real.cancels == 1
+    result = result_of(goal_handle)
+    assert result.status == GoalStatus.STATUS_SUCCEEDED
+    assert list(result.result.sequence) == [0, 1, 1, 2, 3, 5, 8, 13, 21]
 
 
 def test_goal_rejected_by_the_real_server(net):
