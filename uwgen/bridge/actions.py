@@ -236,7 +236,12 @@ class ActionStandIns:
         if state.goal_handle is None:
             state.early_feedback = feedback
             return
-        state.goal_handle.publish_feedback(feedback)
+        try:
+            state.goal_handle.publish_feedback(feedback)
+        except Exception as exc:   # a codec/rclpy class mismatch: counted, never raised
+            counters.decode_errors += 1
+            self.w.say_once(f"pfb{ident}", f"{codec.name}: cannot publish feedback: {exc!r}")
+            return
         counters.feedback += 1
 
     # -- timers ----------------------------------------------------------------------------
