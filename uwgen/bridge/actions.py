@@ -131,7 +131,10 @@ class ActionStandIns:
         if state is not None:
             state.goal_handle = goal_handle
             if state.early_feedback is not None:
-                goal_handle.publish_feedback(state.early_feedback)
+                try:
+                    goal_handle.publish_feedback(state.early_feedback)
+                except Exception:   # as in on_feedback: never raised (counted there)
+                    self.counters[state.ident].decode_errors += 1
         goal_handle.execute()
 
     def _executor(self, codec: Any):
