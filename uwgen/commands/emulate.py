@@ -145,6 +145,15 @@ def _serve(scenario, duration: float | None) -> int:
     except EmulatorError as exc:
         print(f"uwgen emulate: {exc}", file=sys.stderr)
         return EXIT_FAILED
+    feeds = None
+    if any(n.pose_topic is not None for n in scenario.nodes):
+        from uwgen.emulator.ros_pose import PoseFeedError, PoseFeeds
+        try:
+            feeds = PoseFeeds(emu, scenario).start()
+        except PoseFeedError as exc:
+            emu.stop()
+            print(f"uwgen emulate: {exc}", file=sys.stderr)
+            return EXIT_FAILED
     mode = "TDMA" if scenario.tdma else "CSMA-ALOHA"
     channel = (f"SNR model (wind {scenario.snr.wind:g} m/s)" if scenario.snr else "no SNR losses")
     log.info("emulating %d DESERT nodes: period %.3g s, max_read_length %d, %g bit/s, %s, "
@@ -172,6 +181,8 @@ def _serve(scenario, duration: float | None) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        if feeds is not None:
+            feeds.stop()
         emu.stop()
     print(format_counters(emu.all_counters()), flush=True)
     return 0

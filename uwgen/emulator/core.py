@@ -21,7 +21,8 @@ and UW/PHYSICAL):
   TDMA: it transmits only inside its own slot, and only if the packet ends before the
   guard time;
 - a packet is on the air for (bytes + header) * 8 / bitrate seconds and reaches every other
-  node after distance / sound speed;
+  node after distance / sound speed, the distance (and the SNR) taken when it is sent:
+  nodes may move along waypoints or be placed live by `set_position` (uwgen.emulator.motion);
 - a receiver locks onto the first packet it can acquire; a packet that arrives while it is
   transmitting or already locked is lost, and a transmission starting during a reception
   kills that reception (half duplex); the locked packet is lost if the interference of
@@ -43,6 +44,7 @@ import random
 from collections import deque
 from dataclasses import dataclass, field
 
+from uwgen.emulator.motion import Track
 from uwgen.emulator.physics import bpsk_per
 from uwgen.emulator.scenario import NodeSpec, Scenario
 from uwgen.runtime.stats import Counters
@@ -152,24 +154,18 @@ class EmulatorCore:
         s = scenario
         self._nodes = {spec.name: self._fresh_node(spec, start) for spec in s.nodes}
         self._order = list(self._nodes)
-        # Per ordered pair: propagation delay, mean received power and SNR.
-        self._delay: dict[tuple[str, str], float] = {}
-        self._power: dict[tuple[str, str], float] = {}
-        self._snr: dict[tuple[str, str], float] = {}
         snr = s.snr
-        self._noise = 10 ** (snr.noise_db() / 10) if snr else 0.0
-        for a in self._order:
-            for b in self._order:
-                if a == b:
-                    continue
-                d = s.distance(a, b)
-                self._delay[a, b] = d / s.sound_speed
-                if snr:
-                    self._power[a, b] = 10 ** (snr.received_db(d) / 10)
-                    self._snr[a, b] = snr.snr_db(d)
-                else:
-                    self._power[a, b] = 1.0
-                    self._snr[a, b] = math.inf
+        self._noise_db = snr.noise_db() if snr else 0.0
+        self._noise = 10 ** (self._noise_db / 10) if snr else 0.0
+        # Where each node is: fixed, a track of waypoints, or the latest live position.
+        self._fixed = {spec.name: spec.position for spec in s.nodes}
+        self._tracks = {spec.name: Track(spec.waypoints) for spec in s.nodes if spec.waypoints}
+        self._live: dict[str, tuple[float, float, float]] = {}
+        self._moving = {spec.name for spec in s.nodes if s.moves(spec.name)}
+        # Per ordered pair of fixed nodes: (propagation delay, mean power, mean SNR).
+        self._static = {(a, b): self._link_at(a, b, start) for a in self._order
+                        for b in self._order if a != b
+                        and a not in self._moving and b not in self._moving}
 
     # ------------------------------------------------------------------ inputs
     def client_attached(self, node: str, t: float) -> None:
@@ -182,6 +178,28 @@ class EmulatorCore:
     def client_detached(self, node: str, t: float) -> None:
         self._run_until(t)
         self._node(node).client = False
+
+    def set_position(self, node: str, t: float, position) -> None:
+        """From `t` on, `node` is at `position` (x, y, z metres): a live pose overrides its
+        waypoints and fixed position. Packets sent from then on use it."""
+        self._run_until(t)
+        self._node(node)
+        x, y, z = (float(c) for c in position)
+        if not all(math.isfinite(c) for c in (x, y, z)):
+            raise ValueError(f"position of {node} must be finite, got {position!r}")
+        self._live[node] = (x, y, z)
+        if node not in self._moving:
+            self._moving.add(node)
+            self._static = {k: v for k, v in self._static.items() if node not in k}
+
+    def position(self, node: str, t: float | None = None) -> tuple[float, float, float]:
+        """Where `node` is at `t` (default: now)."""
+        self._node(node)
+        t = self.now if t is None else t
+        if node in self._live:
+            return self._live[node]
+        track = self._tracks.get(node)
+        return track.at(t) if track is not None else self._fixed[node]
 
     def client_data(self, node: str, t: float, data: bytes) -> int:
         """Bytes read from `node`'s client at `t`: cut and queued. Returns packets queued."""
@@ -255,6 +273,15 @@ class EmulatorCore:
         s = self.scenario
         return _Node(name=spec.name, dest=s.dest_of(spec.name), period=s.period_of(spec.name),
                      max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase)
+
+    def _link_at(self, a: str, b: str, t: float) -> tuple[float, float, float]:
+        """(propagation delay, mean received power, mean SNR dB) from a to b at time t."""
+        d = math.dist(self.position(a, t), self.position(b, t))
+        snr = self.scenario.snr
+        if snr is None:
+            return d / self.scenario.sound_speed, 1.0, math.inf
+        received = snr.received_db(d)
+        return d / self.scenario.sound_speed, 10 ** (received / 10), received - self._noise_db
 
     def _node(self, name: str) -> _Node:
         try:
@@ -380,8 +407,9 @@ class EmulatorCore:
         for r in self._order:
             if r == n.name:
                 continue
-            start = t + self._delay[n.name, r]
-            mean_snr = self._snr[n.name, r]
+            link = self._static.get((n.name, r))
+            delay, power, mean_snr = link if link is not None else self._link_at(n.name, r, t)
+            start = t + delay
             if snr is not None:
                 faded = mean_snr + (self._fading_rng.gauss(0.0, snr.fading_db) if snr.fading_db else 0.0)
             else:
@@ -389,8 +417,8 @@ class EmulatorCore:
             # The end is the sender's tx_end plus the delay: the same expression as the start
             # of a packet it sends right after, so back-to-back packets never overlap by a
             # rounding error.
-            end = n.tx_end + self._delay[n.name, r]
-            arr = _Arrival(pkt, r, start, end, self._power[n.name, r], faded)
+            end = n.tx_end + delay
+            arr = _Arrival(pkt, r, start, end, power, faded)
             self._push(start, _RX_START, arr)
         self._push(n.tx_end, _TX_END, n)
         if log.isEnabledFor(logging.DEBUG):

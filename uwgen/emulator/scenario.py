@@ -14,6 +14,7 @@ from typing import Any
 
 import yaml
 
+from uwgen.emulator.motion import PoseFeed, Position, Track, check_waypoints
 from uwgen.emulator.physics import SnrModel
 
 MAX_READ_LENGTH_LIMIT = 4096  # DESERT crashes above this (measured on DESERT 4.0.0)
@@ -36,6 +37,9 @@ class NodeSpec:
     period / max_read_length default to the scenario's.  slot is its TDMA slot (default:
     its index among the nodes).  phase shifts its send ticks (DESERT nodes of one scenario
     start together, so by default every node ticks at the same instants).
+    waypoints, if given, move the node: (t, x, y, z) points it passes in straight lines
+    (uwgen.emulator.motion); pose_topic drives it live from a ROS topic instead (its
+    position until the first message is `position`, or the waypoints').
     """
 
     name: str
@@ -46,6 +50,8 @@ class NodeSpec:
     max_read_length: int | None = None
     slot: int | None = None
     phase: float = 0.0
+    waypoints: tuple = ()
+    pose_topic: PoseFeed | None = None
 
 
 @dataclass(frozen=True)
@@ -110,8 +116,20 @@ class Scenario:
         assert self.tdma is not None
         return self.tdma.slots if self.tdma.slots is not None else len(self.nodes)
 
-    def distance(self, a: str, b: str) -> float:
-        return math.dist(self.node(a).position, self.node(b).position)
+    def distance(self, a: str, b: str, t: float = 0.0) -> float:
+        return math.dist(self.position_at(a, t), self.position_at(b, t))
+
+    def position_at(self, name: str, t: float) -> Position:
+        """Where `name` is `t` seconds after the start (its waypoints, else its position)."""
+        spec = self.node(name)
+        if spec.waypoints:
+            return Track(spec.waypoints).at(t)
+        return spec.position
+
+    def moves(self, name: str) -> bool:
+        """Does `name` move (waypoints or a live pose topic)?"""
+        spec = self.node(name)
+        return bool(spec.waypoints) or spec.pose_topic is not None
 
     def tx_time(self, payload_bytes: int) -> float:
         """Seconds on the air for a packet carrying `payload_bytes` (plus DESERT's header)."""
@@ -169,6 +187,12 @@ def _validate(s: Scenario) -> None:
             _check_read_length(n.max_read_length, f"{where}: max_read_length", bad)
         if not _finite(n.phase) or n.phase < 0:
             bad(f"{where}: phase must be >= 0, got {n.phase!r}")
+        if n.waypoints:
+            problem = check_waypoints(n.waypoints)
+            if problem:
+                bad(f"{where}: waypoints: {problem}")
+        if n.pose_topic is not None and not isinstance(n.pose_topic, PoseFeed):
+            bad(f"{where}: pose_topic must be a PoseFeed, got {n.pose_topic!r}")
     if s.tdma is not None:
         t = s.tdma
         if not _finite(t.frame) or t.frame <= 0:
@@ -209,6 +233,7 @@ _TOP_KEYS = {f.name for f in fields(Scenario)}
 _NODE_KEYS = {f.name for f in fields(NodeSpec)}
 _TDMA_KEYS = {f.name for f in fields(TdmaSpec)}
 _SNR_KEYS = {f.name for f in fields(SnrModel)}
+_POSE_KEYS = {f.name for f in fields(PoseFeed)}
 
 
 class _Doc:
@@ -305,6 +330,28 @@ def scenario_from_dict(data: Any, doc: _Doc | None = None) -> Scenario:
                 raise fail("position is a list of up to three numbers [x, y, z] in metres",
                            "nodes", i, "position")
             node_kwargs["position"] = tuple(list(pos) + [0.0] * (3 - len(pos)))
+        if "waypoints" in node_kwargs:
+            wps = node_kwargs["waypoints"]
+            problem = check_waypoints(wps)
+            if problem:
+                raise fail(problem, "nodes", i, "waypoints")
+            node_kwargs["waypoints"] = tuple(tuple(w) for w in wps)
+        if node_kwargs.get("pose_topic") is not None:
+            feed = node_kwargs["pose_topic"]
+            if not isinstance(feed, dict):
+                raise fail("pose_topic is a mapping: topic, type, scale, offset",
+                           "nodes", i, "pose_topic")
+            _reject_unknown(feed, _POSE_KEYS, ("nodes", i, "pose_topic"), fail)
+            if "offset" in feed:
+                off = feed["offset"]
+                if not isinstance(off, list) or len(off) not in (1, 2, 3):
+                    raise fail("offset is a list of up to three numbers [x, y, z] in metres",
+                               "nodes", i, "pose_topic", "offset")
+                feed = {**feed, "offset": tuple(list(off) + [0.0] * (3 - len(off)))}
+            try:
+                node_kwargs["pose_topic"] = PoseFeed(**feed)
+            except (TypeError, ValueError) as exc:
+                raise fail(str(exc), "nodes", i, "pose_topic") from None
         try:
             nodes.append(NodeSpec(**node_kwargs))
         except TypeError as exc:
