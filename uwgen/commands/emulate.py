@@ -1,6 +1,7 @@
 """`uwgen emulate`: run emulated DESERT nodes on 127.0.0.1, or print the PDR sweep.
 
     uwgen emulate msg_samples/scenarios/two-nodes.yaml
+    uwgen emulate -m msg_samples/uwgen.yaml [scenario.yaml]     # sides, ports, links from the manifest
     uwgen emulate --nodes 2 --ports 4000 4001 --distance 1500 --period 0.2 --wind 5
     uwgen emulate --pdr-sweep --wind 0 5 10 --plot docs/pdr-sweep.png
 
@@ -30,6 +31,10 @@ COUNTER_COLUMNS = ("bytes_in", "packets_queued", "packets_sent", "packets_delive
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", nargs="?", type=Path,
                         help="YAML scenario (msg_samples/scenarios/*.yaml); flags override it")
+    parser.add_argument("-m", "--manifest", type=Path, default=None,
+                        help="uwgen manifest: one node per side, named after it, with its port "
+                             "and link settings; a scenario file then only adds physics "
+                             "(positions, waypoints, snr, tdma, seed, ...)")
     g = parser.add_argument_group("nodes (without a scenario file)")
     g.add_argument("--nodes", type=int, default=None, metavar="N",
                    help="number of nodes, on a line, each sending to the next (default 2)")
@@ -92,7 +97,18 @@ def build_scenario(args: argparse.Namespace):
     if args.wind is not None and len(args.wind) != 1:
         raise ScenarioError("--wind takes one value when running nodes "
                             "(several only with --pdr-sweep)")
-    base = load_scenario(args.scenario) if args.scenario else None
+    if args.manifest is not None:
+        from uwgen.emulator.from_manifest import scenario_from_manifest
+        if args.nodes is not None or args.ports is not None:
+            raise ScenarioError("--nodes and --ports come from the manifest's sides with -m")
+        spacing = args.distance if args.distance is not None else 1000.0
+        base = scenario_from_manifest(args.manifest, args.scenario, spacing)
+        args = argparse.Namespace(**{**vars(args), "distance": None,
+                                     "period": _refuse(args.period, "--period"),
+                                     "max_read_length": _refuse(args.max_read_length,
+                                                                "--max-read-length")})
+    else:
+        base = load_scenario(args.scenario) if args.scenario else None
     changes: dict = {}
     for key in ("period", "max_read_length", "bitrate", "per", "seed"):
         value = getattr(args, key)
@@ -134,6 +150,13 @@ def build_scenario(args: argparse.Namespace):
     if base is None:
         return Scenario(**changes)
     return replace(base, **changes)
+
+
+def _refuse(value, flag: str):
+    from uwgen.emulator.scenario import ScenarioError
+    if value is not None:
+        raise ScenarioError(f"{flag} comes from the manifest's link settings with -m")
+    return None
 
 
 def _serve(scenario, duration: float | None) -> int:

@@ -31,6 +31,8 @@ and UW/PHYSICAL):
   (DESERT's MEANPOWER model), and the bit errors are BPSK's at that SINR;
 - with an SNR model, a packet whose faded SNR is under the acquisition threshold, or that
   draws BPSK bit errors, is lost ("snr"); then the fixed packet error rate applies ("per");
+- a packet's destination is one node or every other node (`dest: "*"`, broadcast, as
+  DESERT's IP broadcast address): each addressee receives, or loses, its own copy;
 - an intact packet for this node is written to its client, or dropped ("no_client") when
   none is connected.
 """
@@ -46,7 +48,7 @@ from dataclasses import dataclass, field
 
 from uwgen.emulator.motion import Track
 from uwgen.emulator.physics import bpsk_per
-from uwgen.emulator.scenario import NodeSpec, Scenario
+from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario
 from uwgen.runtime.stats import Counters
 
 log = logging.getLogger(__name__)
@@ -227,13 +229,13 @@ class EmulatorCore:
         self._run_until(t)
         for n in self._nodes.values():
             n.counters.inc("dropped_restart", len(n.app_queue) + len(n.mac_queue))
-        # Packets on their way to their destination: arriving, or still propagating (each
-        # packet has exactly one arrival at its destination).
+        # Packets on their way: arriving, or still propagating (counted once each, a
+        # broadcast too).
         in_flight = [arr for n in self._nodes.values() for arr in n.rx]
         in_flight += [args for _, _, _, kind, args in self._events if kind == _RX_START]
-        for arr in in_flight:
-            if arr.receiver == arr.packet.dest:
-                self._nodes[arr.packet.source].counters.inc("dropped_restart")
+        for uid, source in {(a.packet.uid, a.packet.source) for a in in_flight
+                            if a.packet.dest in (a.receiver, BROADCAST)}:
+            self._nodes[source].counters.inc("dropped_restart")
         self._events.clear()
         for spec in self.scenario.nodes:
             old = self._nodes[spec.name]
@@ -459,7 +461,7 @@ class EmulatorCore:
         else:
             cause = arr.fail
         pkt = arr.packet
-        if pkt.dest != r.name:
+        if pkt.dest != r.name and pkt.dest != BROADCAST:
             return                          # overheard: it only interfered
         if cause is None and self.scenario.per > 0 and self._per_rng.random() < self.scenario.per:
             cause = "per"
