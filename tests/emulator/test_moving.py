@@ -170,3 +170,17 @@ def test_a_ros_pose_topic_moves_the_node_in_the_running_emulator():
         pub_node.destroy_node()
         ctx.try_shutdown()
     time.sleep(0)
+
+
+def test_the_sample_moving_scenario_goes_out_and_comes_back():
+    from .helpers import SCENARIOS
+    scen = load_scenario(SCENARIOS / "moving.yaml")
+    assert scen.distance("surface", "vehicle", 0.0) == pytest.approx(300.0 * (1 + (50 / 300) ** 2) ** 0.5)
+    assert scen.position_at("vehicle", 750.0) == (3000.0, 0.0, 50.0)
+    assert scen.position_at("vehicle", 2000.0) == (300.0, 0.0, 50.0)
+    with_manifest = load_scenario(SCENARIOS / "moving.yaml",
+                                  base_nodes=[NodeSpec("surface", port=4000, period=0.2,
+                                                       max_read_length=64),
+                                              NodeSpec("vehicle", port=4001, period=0.2,
+                                                       max_read_length=64)])
+    assert with_manifest.moves("vehicle")

@@ -179,10 +179,12 @@ def _serve(scenario, duration: float | None) -> int:
             return EXIT_FAILED
     mode = "TDMA" if scenario.tdma else "CSMA-ALOHA"
     channel = (f"SNR model (wind {scenario.snr.wind:g} m/s)" if scenario.snr else "no SNR losses")
-    log.info("emulating %d DESERT nodes: period %.3g s, max_read_length %d, %g bit/s, %s, "
-             "%s, per %.3g, seed %d", len(scenario.nodes), scenario.period,
-             scenario.max_read_length, scenario.bitrate, mode, channel, scenario.per,
-             scenario.seed)
+    periods = sorted({scenario.period_of(n) for n in scenario.names()})
+    lengths = sorted({scenario.max_read_length_of(n) for n in scenario.names()})
+    log.info("emulating %d DESERT nodes (%s): period %s s, max_read_length %s, %g bit/s, %s, "
+             "%s, per %.3g, seed %d", len(scenario.nodes), ", ".join(scenario.names()),
+             "/".join(f"{p:.3g}" for p in periods), "/".join(map(str, lengths)),
+             scenario.bitrate, mode, channel, scenario.per, scenario.seed)
     stop = threading.Event()
     previous = {}
 

@@ -83,7 +83,8 @@ def load_trace(jsonl: Path) -> Trace:
     events = [json.loads(line) for line in jsonl.read_text().splitlines() if line.strip()]
     # The application period is in the run's name (`_app1.0`) or its parameters; 0.2 s else.
     app = re.search(r"_app([\d.]+)", jsonl.name)
-    period = float(params.get("app", app.group(1) if app else 0.2))
+    period = float(params.get("app", params.get("app_period", params.get(
+        "period", app.group(1) if app else 0.2))))
     last = max((e["t"] for e in events), default=0.0)
     tr = Trace(name=jsonl.name[:-len(".jsonl")], distance=float(params.get("dist", 300)),
                period=period, end=exit_t if exit_t is not None else last + 1.0,
@@ -197,8 +198,8 @@ class Row:
 
 
 def compare(traces: list[Trace], seeds: range = range(1, 33), **overrides) -> list[Row]:
-    """One row per pattern and direction with traffic: real pooled over repetitions,
-    emulated pooled over repetitions and seeds."""
+    """One row per pattern, distance and direction with traffic: real pooled over
+    repetitions, emulated pooled over repetitions and seeds."""
     rows: dict[tuple[str, str], Row] = {}
     for tr in traces:
         real = measure_real(tr)
@@ -206,7 +207,7 @@ def compare(traces: list[Trace], seeds: range = range(1, 33), **overrides) -> li
         for side in SIDES:
             if not real[side].writes:
                 continue
-            row = rows.setdefault((tr.pattern, side),
+            row = rows.setdefault((tr.pattern, tr.distance, side),
                                   Row(tr.pattern, side, tr.distance, Direction(), Direction()))
             row.real.add(real[side])
             for e in emus:
