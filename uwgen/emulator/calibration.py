@@ -124,6 +124,12 @@ class Direction:
     def median_latency(self) -> float:
         return statistics.median(self.latencies) if self.latencies else float("nan")
 
+    def latency_quantile(self, q: float) -> float:
+        if not self.latencies:
+            return float("nan")
+        ordered = sorted(self.latencies)
+        return ordered[round(q * (len(ordered) - 1))]
+
 
 def _key(payload: bytes) -> tuple[str, int] | None:
     side = _TAGS.get(payload[:2])
@@ -218,15 +224,19 @@ def compare(traces: list[Trace], seeds: range = range(1, 33), **overrides) -> li
 
 def table(rows: list[Row]) -> str:
     """The markdown table of docs/emulator.md."""
+    def spread(d: Direction) -> str:
+        return " / ".join(f"{d.latency_quantile(q):.3f}" for q in (0.1, 0.5, 0.9))
+
     lines = ["| pattern | direction | distance | real delivered | emulated delivered "
-             "| real median latency | emulated median latency | merged chunks (real / emulated) |",
+             "| real latency p10 / p50 / p90 (s) | emulated latency p10 / p50 / p90 (s) "
+             "| merged chunks (real / emulated) |",
              "|---|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         arrow = "A→B" if r.side == "A" else "B→A"
         lines.append(
             f"| {r.pattern} | {arrow} | {r.distance:.0f} m | {r.real.fraction:.3f} "
-            f"| {r.emulated.fraction:.3f} | {r.real.median_latency:.3f} s "
-            f"| {r.emulated.median_latency:.3f} s | {r.real.merged} / {r.emulated.merged} |")
+            f"| {r.emulated.fraction:.3f} | {spread(r.real)} | {spread(r.emulated)} "
+            f"| {r.real.merged} / {r.emulated.merged} |")
     return "\n".join(lines)
 
 
