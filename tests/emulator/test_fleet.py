@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import pytest
 
-from uwgen.emulator import BROADCAST, EmulatorCore, NodeSpec, Scenario, TdmaSpec, load_scenario
+from uwgen.emulator import BROADCAST, EmulatorCore, NodeSpec, Scenario, load_scenario
 
 from .helpers import SCENARIOS
 

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import textwrap
-import time
 
 import pytest
 
@@ -169,7 +168,6 @@ def test_a_ros_pose_topic_moves_the_node_in_the_running_emulator():
     finally:
         pub_node.destroy_node()
         ctx.try_shutdown()
-    time.sleep(0)
 
 
 def test_the_sample_moving_scenario_goes_out_and_comes_back():
