@@ -35,6 +35,7 @@ import math
 import random
 import time
 import tracemalloc
+from collections import Counter
 from dataclasses import dataclass, field
 
 from uwgen.emulator.core import LOSS_CAUSES, EmulatorCore
@@ -48,6 +49,13 @@ from uwgen.runtime.scheduler import DROP_REASONS
 FRAGMENT_ID = 250
 SIDES = ("surface", "vehicle")
 LINK = LinkConfig(max_read_length=64, period=0.2)
+
+
+def _fit(conn) -> tuple:
+    """The connection's `fit` callback when its outbox takes one (packet-aligned writes fill
+    the room left in a write with a frame that fits), else nothing."""
+    fit = getattr(conn, "_fit", None)
+    return (fit,) if fit is not None else ()
 
 
 @dataclass(frozen=True)
@@ -103,6 +111,7 @@ class _Received:
     count: int = 0       # delivered intact, in order, once
     repeated: int = 0    # a number at or below the last one: twice, or out of order
     corrupt: int = 0     # in order, but the content is not what was sent (a false frame)
+    corrupt_sizes: Counter = field(default_factory=Counter)   # sent size -> false frames
     last_at: float = 0.0
 
 
@@ -176,6 +185,7 @@ class Soak:
             # A frame whose tail was lost with a packet, taken with the bytes after it up to
             # a 0x55 that happened to sit LEN bytes on (wire-format section 2: no checksum).
             rec.corrupt += 1
+            rec.corrupt_sizes[len(flow.payload(seq))] += 1
             return
         rec.count, rec.last_at = rec.count + 1, self.clock.now()
         answer = self.responder.get((flow.key, side))
@@ -236,7 +246,7 @@ class Soak:
         for s in self.sides.values():                 # what each connection thread writes
             if s.connected:
                 conn = s.link.connection
-                batch = conn.outbox.take(t, conn._pull)
+                batch = conn.outbox.take(t, conn._pull, *_fit(conn))
                 if batch:
                     self.core.client_data(s.name, t, batch)
                     conn.outbox.sent(t)
@@ -300,6 +310,13 @@ class Soak:
 
     def corrupt(self) -> int:
         return sum(r.corrupt for r in self.received.values())
+
+    def corrupt_sizes(self) -> Counter:
+        """How many messages of each sent size were delivered as false frames."""
+        total: Counter = Counter()
+        for r in self.received.values():
+            total.update(r.corrupt_sizes)
+        return total
 
     def check(self, drained: bool = False, corrupt_allowed: int = 0) -> None:
         """Everything adds up (raises AssertionError saying what does not): nothing delivered
