@@ -21,11 +21,16 @@ def test_demo_manifest_is_exactly_the_contract():
         "surface": ("127.0.0.1", 4000, link), "vehicle": ("127.0.0.1", 4001, link)}
     topics = [(t.name, t.id, t.type_name, t.publisher, t.policy, t.profile) for t in m.topics]
     assert topics == [
-        ("/turtle1/cmd_vel", 4, "geometry_msgs/msg/Twist", "surface", LinkPolicy(5.0, "latest", 1, 1.0, 10), "native"),
-        ("/turtle1/pose", 5, "turtlesim/msg/Pose", "vehicle", LinkPolicy(2.0, "latest", 1, 2.0, 5), "native"),
+        ("/turtle1/cmd_vel", 4, "geometry_msgs/msg/Twist", "surface", LinkPolicy(5.0, "latest", 1, 1.0, 10), "packed"),
+        ("/turtle1/pose", 5, "turtlesim/msg/Pose", "vehicle", LinkPolicy(2.0, "latest", 1, 2.0, 5), "packed"),
         ("/vehicle/battery", 6, "sensor_msgs/msg/BatteryState", "vehicle", LinkPolicy(0.2, "latest", 1, 10.0, 1), "native"),
         ("/vehicle/log", 7, "std_msgs/msg/String", "vehicle", LinkPolicy(None, "fifo", 8, 60.0, 0), "native"),
     ]
+    assert [(f.path, f.kind) for f in m.topics[0].fields] == [
+        ("linear.x", "quantize"), ("linear.y", "static"), ("linear.z", "quantize"), ("angular.x", "static"),
+        ("angular.y", "static"), ("angular.z", "quantize")]
+    assert [f.path for f in m.topics[1].fields] == ["x", "y", "theta", "linear_velocity", "angular_velocity"]
+    assert all(not t.fields for t in m.topics[2:]) and all(not s.request_fields for s in m.services)
     services = [(s.name, s.id, s.type_name, s.server, s.timeout) for s in m.services]
     assert services == [
         ("/turtle1/teleport_absolute", 20, "turtlesim/srv/TeleportAbsolute", "vehicle", 10.0),
@@ -36,6 +41,7 @@ def test_demo_manifest_is_exactly_the_contract():
     assert isinstance(m.services[1].type, ServiceDef) and m.services[1].type.full_name == "turtlesim/srv/SetPen"
     assert m.entry(20).name == "/turtle1/teleport_absolute" and m.entry(99) is None
     assert m.topics[0].where.line == 15 and m.source == SAMPLES / "uwgen.yaml"
+    assert m.schema_id == 249 and m.schema_period == 600.0
 
 
 def test_reference_manifest_loads():
@@ -145,3 +151,10 @@ def test_a_topic_and_a_service_may_share_a_name(tmp_path):
 def test_find_manifest_uses_the_uwgen_yaml_convention(tmp_path):
     assert find_manifest(SAMPLES) == SAMPLES / "uwgen.yaml"
     assert find_manifest(tmp_path) is None
+
+
+def test_schema_announcements_are_off_by_default_and_period_may_be_null(tmp_path):
+    m = load_text(tmp_path, SIDES)
+    assert m.schema_id is None and m.schema_period == 600.0
+    m = load_text(tmp_path, SIDES + "        schema_id: 249\n        schema_period: null\n")
+    assert m.schema_id == 249 and m.schema_period is None

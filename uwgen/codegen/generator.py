@@ -13,6 +13,7 @@ the inputs: the same definitions and manifest give the same bytes.
 from __future__ import annotations
 
 import hashlib
+import json
 import keyword
 import shutil
 from dataclasses import dataclass, field, replace
@@ -21,8 +22,10 @@ from pathlib import Path
 import jinja2
 
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
-from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
-from uwgen.manifest.model import NATIVE
+from uwgen.codegen.emit_packed import PackedLowering
+from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest
+from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key, variant_name
+from uwgen.manifest.model import NATIVE, PACKED
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import OCTET_TYPES, ArrayKind, DefinitionError, Field, MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import Manifest
@@ -44,6 +47,7 @@ class PlainClass:
     full_name: str
     fields: list[PlainField]
     constants: list[tuple[str, str]]
+    me: str = "self"       # __init__'s instance parameter: '_self' when a field is named self
 
 
 @dataclass
@@ -61,6 +65,7 @@ class ModulePlan:
     services: list[ServiceHolder] = field(default_factory=list)
     functions: list[Function] = field(default_factory=list)
     constants: list[str] = field(default_factory=list)
+    bits_imports: list[str] = field(default_factory=list)    # uwgen.runtime.bits helpers used
 
 
     @property
@@ -76,6 +81,7 @@ class CodecEntry:
     module: str       # alias of its module: '_geometry_msgs_msg'
     enc: str
     dec: str
+    variant: str = ""  # '' or the name of a manifest field-encoding variant ('t4', 'q21', 'r21')
 
 
 @dataclass
@@ -89,6 +95,8 @@ class PackagePlan:
     ros_imports: list[tuple[str, str, str]]  # (class key, module, class name)
     plain_keys: list[tuple[str, str, str]]   # (class key, generated module, class name)
     skipped: list[str] = field(default_factory=list)   # types a profile can never carry (bulk builds)
+    fingerprints: dict[tuple[str, int], bytes] = field(default_factory=dict)  # ('topic'|'service', id) -> fp
+    schema_digest: bytes | None = None                # of every fingerprint (None without a manifest)
 
 
 def source_label(path: Path | None, lib: InterfaceLibrary) -> str:
@@ -138,23 +146,28 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
                  manifest_label: str | None = None) -> PackagePlan:
     """Decide what to generate: `names` in each of `profiles`, plus the manifest's topics
     and services in their own profiles, and every type those use."""
+    if manifest is not None and manifest_label is None:   # the package names its manifest
+        manifest_label = Path(manifest.source).name if manifest.source else "<manifest>"
     builder = IRBuilder(lambda n: _as_message(lib.get(n)))
-    wanted: list[tuple[MessageDef, str, int, bool]] = []   # (type, profile, header items, required)
+    # (type, profile, header items, required, field encodings, variant)
+    wanted: list[tuple[MessageDef, str, int, bool, tuple, str]] = []
     for name in names:
         definition = lib.get(name)
         for profile in profiles:
             for msg in _messages_of(definition):
-                wanted.append((msg, profile, 3 if isinstance(definition, ServiceDef) else 2, False))
+                wanted.append((msg, profile, 3 if isinstance(definition, ServiceDef) else 2, False, (), ""))
     if manifest is not None:
         for topic in manifest.topics:
-            wanted.append((topic.type, topic.profile, 2, True))
+            wanted.append((topic.type, topic.profile, 2, True, topic.fields, variant_name("t", topic.id, topic.fields)))
         for service in manifest.services:
-            wanted += [(service.type.request, service.profile, 3, True),
-                       (service.type.response, service.profile, 3, True)]
+            wanted += [(service.type.request, service.profile, 3, True, service.request_fields,
+                        variant_name("q", service.id, service.request_fields)),
+                       (service.type.response, service.profile, 3, True, service.response_fields,
+                        variant_name("r", service.id, service.response_fields))]
 
-    codecs: dict[tuple[str, str], CodecType] = {}
+    codecs: dict[tuple[str, str, str], CodecType] = {}
     skipped: list[str] = []
-    for msg, profile, header_items, required in wanted:
+    for msg, profile, header_items, required, fields, variant in wanted:
         try:
             check_profile_limits(builder.codec(msg, profile), header_items)
         except ProfileError as exc:
@@ -163,10 +176,14 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
             skipped.append(str(exc))  # a bulk build: leave out what this profile can never carry
             continue
         for ct in builder.codecs_for(msg, profile):
-            codecs.setdefault((ct.full_name, profile), ct)
+            if variant and ct.full_name == msg.full_name:
+                continue   # the entry uses its own variant; only what that uses is needed
+            codecs.setdefault((ct.full_name, profile, ""), ct)
+        if variant:
+            codecs[(msg.full_name, profile, variant)] = builder.codec(msg, profile, fields, variant)
 
     definitions: dict[str, MessageDef] = {}
-    for (full_name, _profile) in codecs:
+    for (full_name, _profile, _variant) in codecs:
         definitions[full_name] = _python_safe(_as_message(lib.get(full_name)))
     services: dict[str, ServiceDef] = {}
     for name in names:
@@ -198,18 +215,25 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
 
     module_of = {ct.key: ct.module for ct in codecs.values()}
     entries: list[CodecEntry] = []
-    for (full_name, profile) in sorted(codecs, key=lambda k: (k[1] != NATIVE, k[1], k[0])):
-        ct = codecs[(full_name, profile)]
+    for key in sorted(codecs, key=lambda k: (k[1] != NATIVE, k[1], k[2], k[0])):
+        ct = codecs[key]
         mod = module(ct.package, ct.namespace)
-        low = Lowering(ct.module, consts[ct.module], module_of)
-        enc, dec = low.encoder(ct), low.decoder(ct)
-        mod.functions += [enc, dec]
+        if ct.profile == PACKED:
+            functions = PackedLowering(ct.module, consts[ct.module], module_of).packed_functions(ct)
+        else:
+            low = Lowering(ct.module, consts[ct.module], module_of)
+            functions = [low.encoder(ct), low.decoder(ct)]
+        mod.functions += functions
+        enc, dec = (f for f in functions if f.name.startswith(("enc", "dec")))
         for used in ct.uses:
             _need_import(mod, module_of[used])
-        entries.append(CodecEntry(full_name, profile, ct.key, module_alias(ct.module), enc.name, dec.name))
+        entries.append(CodecEntry(ct.full_name, ct.profile, ct.key, module_alias(ct.module), enc.name, dec.name,
+                                  ct.variant))
     for name, mod in modules.items():
         mod.constants = consts[name].lines
         mod.imports.sort()
+        text = "\n".join(line for fn in mod.functions for line in fn.body)
+        mod.bits_imports = [h for h in BITS_HELPERS if f"_{h}(" in text]
 
     # A service's request and response come from its one file: read each file once.
     files = {lib.source_of(n) for n in (*definitions, *services)}
@@ -217,8 +241,20 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     ordered = [modules[p] for p in sorted(modules)]
     ros_imports = sorted((type_key(n), _ros_module(n), n.split("/")[2]) for n in definitions)
     plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
+    fingerprints = manifest_fingerprints(manifest, builder) if manifest is not None else {}
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
-                       ros_imports, plain_keys, sorted(set(skipped)))
+                       ros_imports, plain_keys, sorted(set(skipped)), fingerprints,
+                       package_digest(fingerprints) if manifest is not None else None)
+
+
+# Helpers of uwgen.runtime.bits that generated modules may call (imported as _name).
+BITS_HELPERS = (
+    "end", "enum_index", "enum_indices", "finish", "from_time_of_day", "from_time_since", "get_bools",
+    "get_bytes", "get_count", "get_float", "get_floats", "get_indices", "get_text", "get_texts",
+    "get_uints", "put_bools", "put_bytes", "put_count", "put_float", "put_floats", "put_indices",
+    "put_text", "put_uint", "put_uints", "quantize", "quantize_all", "start", "time_of_day", "time_since",
+    "bshort",
+)
 
 
 def _python_safe(msg: MessageDef) -> MessageDef:
@@ -280,7 +316,9 @@ def _plain_class(msg: MessageDef, mod: ModulePlan) -> PlainClass:
     for f in msg.fields:
         fields.append(_plain_field(f, msg.package, mod))
     constants = [(c.name, _literal(c.value, c.type)) for c in msg.constants]
-    return PlainClass(msg.name, msg.full_name, fields, constants)
+    # Field names are __init__ parameters; none starts with '_' (see _python_safe).
+    me = "_self" if any(f.name == "self" for f in msg.fields) else "self"
+    return PlainClass(msg.name, msg.full_name, fields, constants, me)
 
 
 def _class_ref(full_name: str, package: str, mod: ModulePlan) -> str:
@@ -308,7 +346,8 @@ def _plain_field(f: Field, package: str, mod: ModulePlan) -> PlainField:
     if not t.is_primitive:
         cls = _class_ref(t.base, package, mod)
         if t.array is ArrayKind.FIXED:
-            return PlainField(f.name, "None", f"[{cls}() for _ in range({t.size})] if {f.name} is None else {f.name}")
+            # No builtin here: a field (an __init__ parameter) may be named `range`.
+            return PlainField(f.name, "None", f"[{cls}() for _ in [None] * {t.size}] if {f.name} is None else {f.name}")
         if t.is_array:
             return PlainField(f.name, "None", f"[] if {f.name} is None else {f.name}")
         return PlainField(f.name, "None", f"{cls}() if {f.name} is None else {f.name}")
@@ -351,7 +390,7 @@ def render_package(plan: PackagePlan) -> dict[str, str]:
         header=header, modules=[(m.package, m.namespace, module_alias(m.name)) for m in plan.modules],
         plain_keys=plan.plain_keys, ros_imports=plan.ros_imports)
     files["__init__.py"] = env.get_template("package_init.py.j2").render(
-        header=header, plan=plan, manifest=_manifest_view(plan.manifest))
+        header=header, plan=plan, manifest=_manifest_view(plan))
     if plan.manifest is not None and (TEMPLATES / "bridge.py.j2").exists():
         for side in sorted(plan.manifest.sides):
             files[f"bridge_{side}.py"] = env.get_template("bridge.py.j2").render(
@@ -359,25 +398,42 @@ def render_package(plan: PackagePlan) -> dict[str, str]:
     return files
 
 
-def _manifest_view(manifest: Manifest | None):
+def _manifest_view(plan: PackagePlan):
     """Python source for the manifest's parts the codec table keeps (reprs of dataclasses)."""
+    manifest = plan.manifest
     if manifest is None:
         return None
     return {
         "network": manifest.network, "profile": manifest.profile,
         "fragment_id": manifest.fragment_id,
+        "schema_id": manifest.schema_id, "schema_period": manifest.schema_period,
+        "schema_digest": plan.schema_digest.hex(),
         "sides": [(name, repr(side_without_where(side))) for name, side in sorted(manifest.sides.items())],
         "topics": [dict(id=t.id, name=t.name, type_name=t.type_name, publisher=t.publisher,
                         policy=repr(t.policy), qos=repr(t.qos), profile=t.profile,
-                        key=type_key(t.type.full_name))
+                        key=type_key(t.type.full_name),
+                        codec=_codec_ref(t.type_name, t.profile, variant_name("t", t.id, t.fields)),
+                        fingerprint=plan.fingerprints[("topic", t.id)].hex())
                    for t in sorted(manifest.topics, key=lambda t: t.id)],
         "services": [dict(id=s.id, name=s.name, type_name=s.type_name, server=s.server,
                           timeout=s.timeout, policy=repr(s.policy), profile=s.profile,
                           request_key=type_key(s.type.request.full_name),
                           response_key=type_key(s.type.response.full_name),
-                          ros_module=f"{s.type.package}.srv", ros_name=s.type.name)
+                          request=_codec_ref(s.type_name + "_Request", s.profile,
+                                             variant_name("q", s.id, s.request_fields)),
+                          response=_codec_ref(s.type_name + "_Response", s.profile,
+                                              variant_name("r", s.id, s.response_fields)),
+                          ros_module=f"{s.type.package}.srv", ros_name=s.type.name,
+                          fingerprint=plan.fingerprints[("service", s.id)].hex())
                      for s in sorted(manifest.services, key=lambda s: s.id)],
     }
+
+
+def _codec_ref(type_name: str, profile: str, variant: str) -> str:
+    """How the codec table names the codec of a manifest entry."""
+    if variant:
+        return f"VARIANTS[{json.dumps(variant)}]"
+    return f"CODECS[({json.dumps(type_name)}, {json.dumps(profile)})]"
 
 
 def side_without_where(side):

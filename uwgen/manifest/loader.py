@@ -28,6 +28,7 @@ from uwgen.manifest.model import (
     RMW_DESERT,
     RMW_DISCOVERY_ID,
     RMW_DISCOVERY_REQUEST_ID,
+    SCHEMA_PERIOD_DEFAULT,
     LinkConfig,
     LinkPolicy,
     Manifest,
@@ -36,6 +37,7 @@ from uwgen.manifest.model import (
     Side,
     Topic,
 )
+from uwgen.manifest.fields import FieldsReader
 from uwgen.manifest.nodes import ManifestError, Reader, compose
 
 __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
@@ -43,14 +45,17 @@ __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "
 MANIFEST_NAME = "uwgen.yaml"
 ID_RANGE = (1, 255)
 
-TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "defaults", "topics", "services")
+TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id", "schema_period",
+            "defaults", "topics", "services")
 SIDE_KEYS = ("host", "port", "link")
 LINK_KEYS = ("max_read_length", "period")
-POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority")
+POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair")
+MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
-TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile")
-SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields")
+SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
+                "request_fields", "response_fields")
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
 SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -139,6 +144,7 @@ class _ManifestBuilder:
         self.r = reader
         self.lib = lib
         self.ids: dict[int, _IdUse] = {}
+        self.repair_nodes: dict[str, yaml.Node] = {}    # "topic /x" -> its repair: value node
 
     # -- top level -------------------------------------------------------------------
 
@@ -191,6 +197,14 @@ class _ManifestBuilder:
         fragment_id = None
         if "fragment_id" in top:
             fragment_id = self.fragment_id(top["fragment_id"][1])
+        schema_id = None
+        if "schema_id" in top:
+            schema_id = self.schema_id(top["schema_id"][1], fragment_id)
+        schema_period = SCHEMA_PERIOD_DEFAULT
+        if "schema_period" in top:
+            node = top["schema_period"][1]
+            none = isinstance(node, yaml.ScalarNode) and r.value(node) is None
+            schema_period = None if none else r.number(node, "schema_period (seconds; null for none)")
 
         manifest = Manifest(
             network=network,
@@ -201,9 +215,12 @@ class _ManifestBuilder:
             topics=topics,
             services=services,
             fragment_id=fragment_id,
+            schema_id=schema_id,
+            schema_period=schema_period,
         )
         if manifest.uses_rmw_desert():
             self.check_rmw_reserved(manifest, top)
+        self.check_repair(manifest)
         return manifest
 
     # -- sides -----------------------------------------------------------------------
@@ -317,7 +334,8 @@ class _ManifestBuilder:
         policy = self.policy(entries, defaults, LinkPolicy(), label)
         qos = self.qos(entries["qos"][1], default_qos) if "qos" in entries else default_qos
         topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node))
+        fields = self.fields(entries, "fields", definition, label, topic_profile)
+        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields)
 
     def service(self, node: yaml.Node, sides: dict[str, Side], profile: str) -> Service:
         r = self.r
@@ -330,7 +348,20 @@ class _ManifestBuilder:
         base = Service.__dataclass_fields__["policy"].default_factory()
         policy = self.policy(entries, {}, base, label)
         service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node))
+        request_fields = self.fields(entries, "request_fields", definition.request, f"the request of {label}", service_profile)
+        response_fields = self.fields(entries, "response_fields", definition.response, f"the response of {label}", service_profile)
+        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node),
+                       request_fields, response_fields)
+
+    def fields(self, entries: dict, key: str, msg: MessageDef, label: str, profile: str) -> tuple:
+        """Field encodings under `key` (wire format section 8); never in profile rmw_desert."""
+        if key not in entries:
+            return ()
+        key_node, node = entries[key]
+        if profile == RMW_DESERT:
+            raise self.r.error(key_node, f"{key} of {label}: profile rmw_desert cannot carry field encodings "
+                                         "(an rmw_desert node could not read them); use profile native or packed")
+        return FieldsReader(self.r, self.lib.get).read(node, msg, label)
 
     def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""
@@ -344,6 +375,12 @@ class _ManifestBuilder:
             return None, False
 
         rate, ttl, priority, queue = base.rate, base.ttl, base.priority, base.queue
+        repair = base.repair
+        node, _ = pick("repair")
+        if node is not None:
+            repair = r.integer(node, f"repair of {label}", 0, MAX_REPAIR)
+            if repair:
+                self.repair_nodes.setdefault(label, node)
         node, _ = pick("rate")
         if node is not None:
             rate = r.optional_number(node, f"rate of {label}")
@@ -367,7 +404,7 @@ class _ManifestBuilder:
             depth = base.depth if base.queue == "fifo" else FIFO_DEFAULT_DEPTH
             if depth_node is not None:
                 depth = r.integer(depth_node, f"depth of {label}", 1)
-        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority)
+        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority, repair=repair)
 
     def qos(self, node: yaml.Node, base: Qos) -> Qos:
         r = self.r
@@ -399,6 +436,33 @@ class _ManifestBuilder:
             raise r.error(node, f"fragment_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
         return ident
 
+    def check_repair(self, manifest: Manifest) -> None:
+        """`repair` needs fragments: a fragment_id, and the native profile."""
+        for entry in (*manifest.topics, *manifest.services):
+            if not entry.policy.repair:
+                continue
+            kind = "topic" if entry in manifest.topics else "service"
+            node = self.repair_nodes[f"{kind} {entry.name}"]
+            if manifest.fragment_id is None:
+                raise self.r.error(node, f"repair of {kind} {entry.name} needs fragments: set fragment_id "
+                                   f"(repair fragments travel on it)")
+            if entry.profile == RMW_DESERT:
+                raise self.r.error(node, f"repair of {kind} {entry.name}: profile rmw_desert messages are "
+                                   f"never fragmented (rmw_desert nodes cannot reassemble them); use "
+                                   f"profile native or remove repair")
+
+    def schema_id(self, node: yaml.Node, fragment_id: int | None) -> int | None:
+        r = self.r
+        if isinstance(node, yaml.ScalarNode) and r.value(node) is None:
+            return None
+        ident = r.integer(node, "schema_id", *ID_RANGE)
+        if ident in self.ids:
+            user = self.ids[ident]
+            raise r.error(node, f"schema_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
+        if ident == fragment_id:
+            raise r.error(node, f"schema_id {ident} is also the fragment_id; the two reserved ids must differ")
+        return ident
+
     def check_rmw_reserved(self, manifest: Manifest, top: dict) -> None:
         r = self.r
         user = next(t for t in (*manifest.topics, *manifest.services) if t.profile == RMW_DESERT)
@@ -410,3 +474,5 @@ class _ManifestBuilder:
                 raise r.error(use.node, f"id {ident} of {use.what} is reserved for rmw_desert's {topic} {reason}")
         if manifest.fragment_id in reserved:
             raise r.error(top["fragment_id"][1], f"fragment_id {manifest.fragment_id} is reserved for rmw_desert's {reserved[manifest.fragment_id]} {reason}")
+        if manifest.schema_id in reserved:
+            raise r.error(top["schema_id"][1], f"schema_id {manifest.schema_id} is reserved for rmw_desert's {reserved[manifest.schema_id]} {reason}")
