@@ -118,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
     from uwgen.commands.demo import GENERATED, PACKAGE, Proc, _env, domains
     from uwgen.demo.interfaces import BuildError, ensure_interfaces
     from uwgen.demo.records import read_records
+    from uwgen.demo.report import POSE_KEY_STEPS
     from uwgen.emulator import run_emulator
 
     out: Path = args.out
@@ -176,10 +177,10 @@ def run(args: argparse.Namespace) -> int:
     veh = list(read_records(out / "vehicle.jsonl"))
     cmd = by_distance([(r["k"], r["t"]) for r in op if r.get("ev") == "cmd"],
                       [(r["k"], r["t"]) for r in veh if r.get("ev") == "cmd"], distance_at)
-    key = ("x", "y", "theta")
-    pose = by_distance([(tuple(r[k] for k in key), r["t"]) for r in veh if r.get("ev") == "pose"],
-                       [(tuple(r[k] for k in key), r["t"]) for r in op if r.get("ev") == "pose_rx"],
-                       distance_at)
+    def key(r):          # poses cross quantized: match on the manifest's grid (demo report)
+        return tuple(round(r[k] / step) for k, step in POSE_KEY_STEPS)
+    pose = by_distance([(key(r), r["t"]) for r in veh if r.get("ev") == "pose"],
+                       [(key(r), r["t"]) for r in op if r.get("ev") == "pose_rx"], distance_at)
     print("\nratios are of published messages: the link keeps only the latest cmd_vel (10 Hz) "
           "and pose and sends one 64 B packet per 0.2 s each way")
     print(format_bins("cmd_vel (surface -> vehicle)", cmd))
