@@ -46,7 +46,7 @@ import random
 from collections import deque
 from dataclasses import dataclass, field
 
-from uwgen.emulator.motion import Track
+from uwgen.emulator.motion import Geometry
 from uwgen.emulator.physics import bpsk_per
 from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario
 from uwgen.runtime.stats import Counters
@@ -157,17 +157,9 @@ class EmulatorCore:
         self._nodes = {spec.name: self._fresh_node(spec, start) for spec in s.nodes}
         self._order = list(self._nodes)
         snr = s.snr
-        self._noise_db = snr.noise_db() if snr else 0.0
-        self._noise = 10 ** (self._noise_db / 10) if snr else 0.0
-        # Where each node is: fixed, a track of waypoints, or the latest live position.
-        self._fixed = {spec.name: spec.position for spec in s.nodes}
-        self._tracks = {spec.name: Track(spec.waypoints) for spec in s.nodes if spec.waypoints}
-        self._live: dict[str, tuple[float, float, float]] = {}
-        self._moving = {spec.name for spec in s.nodes if s.moves(spec.name)}
-        # Per ordered pair of fixed nodes: (propagation delay, mean power, mean SNR).
-        self._static = {(a, b): self._link_at(a, b, start) for a in self._order
-                        for b in self._order if a != b
-                        and a not in self._moving and b not in self._moving}
+        # Where nodes are, and what a packet between two of them meets (motion.Geometry).
+        self.geometry = Geometry(s, start)
+        self._noise = 10 ** (self.geometry.noise_db / 10) if snr else 0.0
 
     # ------------------------------------------------------------------ inputs
     def client_attached(self, node: str, t: float) -> None:
@@ -186,22 +178,12 @@ class EmulatorCore:
         waypoints and fixed position. Packets sent from then on use it."""
         self._run_until(t)
         self._node(node)
-        x, y, z = (float(c) for c in position)
-        if not all(math.isfinite(c) for c in (x, y, z)):
-            raise ValueError(f"position of {node} must be finite, got {position!r}")
-        self._live[node] = (x, y, z)
-        if node not in self._moving:
-            self._moving.add(node)
-            self._static = {k: v for k, v in self._static.items() if node not in k}
+        self.geometry.set_position(node, position)
 
     def position(self, node: str, t: float | None = None) -> tuple[float, float, float]:
         """Where `node` is at `t` (default: now)."""
         self._node(node)
-        t = self.now if t is None else t
-        if node in self._live:
-            return self._live[node]
-        track = self._tracks.get(node)
-        return track.at(t) if track is not None else self._fixed[node]
+        return self.geometry.position(node, self.now if t is None else t)
 
     def client_data(self, node: str, t: float, data: bytes) -> int:
         """Bytes read from `node`'s client at `t`: cut and queued. Returns packets queued."""
@@ -275,15 +257,6 @@ class EmulatorCore:
         s = self.scenario
         return _Node(name=spec.name, dest=s.dest_of(spec.name), period=s.period_of(spec.name),
                      max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase)
-
-    def _link_at(self, a: str, b: str, t: float) -> tuple[float, float, float]:
-        """(propagation delay, mean received power, mean SNR dB) from a to b at time t."""
-        d = math.dist(self.position(a, t), self.position(b, t))
-        snr = self.scenario.snr
-        if snr is None:
-            return d / self.scenario.sound_speed, 1.0, math.inf
-        received = snr.received_db(d)
-        return d / self.scenario.sound_speed, 10 ** (received / 10), received - self._noise_db
 
     def _node(self, name: str) -> _Node:
         try:
@@ -409,8 +382,7 @@ class EmulatorCore:
         for r in self._order:
             if r == n.name:
                 continue
-            link = self._static.get((n.name, r))
-            delay, power, mean_snr = link if link is not None else self._link_at(n.name, r, t)
+            delay, power, mean_snr = self.geometry.link(n.name, r, t)
             start = t + delay
             if snr is not None:
                 faded = mean_snr + (self._fading_rng.gauss(0.0, snr.fading_db) if snr.fading_db else 0.0)

@@ -105,3 +105,53 @@ def check_waypoints(waypoints) -> str | None:
 
 def _finite(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+class Geometry:
+    """Where every node of a scenario is, and what a packet between two of them meets:
+    (propagation delay, mean received power, mean SNR in dB) at the moment it is sent.
+    Pairs of fixed nodes are computed once; a pair with a moving node at each packet."""
+
+    def __init__(self, scenario, start: float = 0.0):
+        self.scenario = scenario
+        snr = scenario.snr
+        self.noise_db = snr.noise_db() if snr else 0.0
+        self._fixed = {spec.name: spec.position for spec in scenario.nodes}
+        self._tracks = {spec.name: Track(spec.waypoints) for spec in scenario.nodes
+                        if spec.waypoints}
+        self._live: dict[str, Position] = {}
+        self._moving = {spec.name for spec in scenario.nodes if scenario.moves(spec.name)}
+        names = scenario.names()
+        self._static = {(a, b): self._compute(a, b, start) for a in names for b in names
+                        if a != b and a not in self._moving and b not in self._moving}
+
+    def set_position(self, node: str, position: Position) -> None:
+        """`node` is at `position` from now on (a live pose overrides waypoints)."""
+        x, y, z = (float(c) for c in position)
+        if not all(math.isfinite(c) for c in (x, y, z)):
+            raise ValueError(f"position of {node} must be finite, got {position!r}")
+        self._live[node] = (x, y, z)
+        if node not in self._moving:
+            self._moving.add(node)
+            self._static = {k: v for k, v in self._static.items() if node not in k}
+
+    def position(self, node: str, t: float) -> Position:
+        if node in self._live:
+            return self._live[node]
+        track = self._tracks.get(node)
+        return track.at(t) if track is not None else self._fixed[node]
+
+    def link(self, a: str, b: str, t: float) -> tuple[float, float, float]:
+        """(propagation delay s, mean received power (linear, 1.0 without SNR model), mean SNR
+        dB (inf without)) of a packet a sends to b at time t."""
+        cached = self._static.get((a, b))
+        return cached if cached is not None else self._compute(a, b, t)
+
+    def _compute(self, a: str, b: str, t: float) -> tuple[float, float, float]:
+        d = math.dist(self.position(a, t), self.position(b, t))
+        delay = d / self.scenario.sound_speed
+        snr = self.scenario.snr
+        if snr is None:
+            return delay, 1.0, math.inf
+        received = snr.received_db(d)
+        return delay, 10 ** (received / 10), received - self.noise_db
