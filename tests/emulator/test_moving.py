@@ -182,3 +182,21 @@ def test_the_sample_moving_scenario_goes_out_and_comes_back():
                                               NodeSpec("vehicle", port=4001, period=0.2,
                                                        max_read_length=64)])
     assert with_manifest.moves("vehicle")
+
+
+def test_a_pose_type_that_cannot_be_loaded_is_a_clear_error():
+    from uwgen.emulator.ros_pose import PoseFeedError, load_type
+    with pytest.raises(PoseFeedError, match="no_such_pkg/msg/Odometry is not available"):
+        load_type("no_such_pkg/msg/Odometry")
+    with pytest.raises(PoseFeedError, match="nav_msgs/msg/NoSuchType"):
+        load_type("nav_msgs/msg/NoSuchType")
+    assert load_type("nav_msgs/msg/Odometry").__name__ == "Odometry"
+
+
+def test_emulate_with_an_unloadable_pose_type_exits_1_with_the_reason(tmp_path, capsys):
+    from uwgen.cli import main
+    path = tmp_path / "s.yaml"
+    path.write_text("nodes:\n  - {name: a, port: 0}\n  - {name: b, port: 0, pose_topic: "
+                    "{topic: /b/odom, type: no_such_pkg/msg/Odometry}}\n")
+    assert main(["emulate", str(path), "--duration", "0.1"]) == 1
+    assert "not available to rclpy" in capsys.readouterr().err

@@ -24,10 +24,13 @@ class PoseFeedError(RuntimeError):
 
 
 def load_type(type_name: str):
-    """The rclpy class of `pkg/msg/Name`."""
+    """The rclpy class of `pkg/msg/Name`; PoseFeedError if it cannot be imported here."""
     package, _, name = type_name.split("/")
     try:
-        return getattr(importlib.import_module(f"{package}.msg"), name)
+        cls = getattr(importlib.import_module(f"{package}.msg"), name)
+        if not hasattr(cls, "_TYPE_SUPPORT"):
+            raise AttributeError("it is not a ROS message class")
+        return cls
     except (AttributeError, ImportError) as exc:
         raise PoseFeedError(f"pose type {type_name} is not available to rclpy here: {exc}") from None
 
@@ -49,8 +52,11 @@ class PoseFeeds:
         self._thread: threading.Thread | None = None
 
     def start(self) -> "PoseFeeds":
-        import rclpy
-        from rclpy.executors import SingleThreadedExecutor
+        try:
+            import rclpy
+            from rclpy.executors import SingleThreadedExecutor
+        except ImportError as exc:
+            raise PoseFeedError(f"pose topics need ROS 2 (rclpy) in this environment: {exc}") from None
 
         self._context = rclpy.Context()
         rclpy.init(context=self._context)
