@@ -191,7 +191,7 @@ def replay(trace: Trace, seed: int = 1, **overrides) -> dict[str, Direction]:
         core.client_data(side, t, data)
     for d in core.advance(trace.end):
         recvs.append((d.time, d.node, d.data))
-    return _measure([w for w in trace.writes], recvs)
+    return _measure(trace.writes, recvs)
 
 
 @dataclass
