@@ -61,6 +61,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run_g = parser.add_argument_group("running")
     run_g.add_argument("--duration", type=float, default=None, metavar="S",
                        help="stop after S seconds (default: until Ctrl-C / SIGTERM)")
+    run_g.add_argument("--crash-every", type=float, default=None, metavar="S",
+                       help="make DESERT crash at random, on average every S seconds (every "
+                            "client disconnected, queues lost), as real DESERT does under load")
+    run_g.add_argument("--crash-down", type=float, default=1.0, metavar="S",
+                       help="with --crash-every: seconds DESERT stays down (default 1)")
     sweep = parser.add_argument_group("PDR sweep (simulated, no sockets)")
     sweep.add_argument("--pdr-sweep", action="store_true",
                        help="print the delivery ratio against distance for each --wind")
@@ -83,7 +88,10 @@ def run(args: argparse.Namespace) -> int:
     except ScenarioError as exc:
         print(f"uwgen emulate: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    return _serve(scenario, args.duration)
+    if args.crash_every is not None and not (args.crash_every > 0 and args.crash_down >= 0):
+        print("uwgen emulate: --crash-every must be > 0 and --crash-down >= 0", file=sys.stderr)
+        return EXIT_USAGE
+    return _serve(scenario, args.duration, args.crash_every, args.crash_down)
 
 
 def build_scenario(args: argparse.Namespace):
@@ -159,7 +167,8 @@ def _refuse(value, flag: str):
     return None
 
 
-def _serve(scenario, duration: float | None) -> int:
+def _serve(scenario, duration: float | None, crash_every: float | None = None,
+           crash_down: float = 1.0) -> int:
     from uwgen.emulator.server import Emulator, EmulatorError
 
     emu = Emulator(scenario)
@@ -177,6 +186,12 @@ def _serve(scenario, duration: float | None) -> int:
             emu.stop()
             print(f"uwgen emulate: {exc}", file=sys.stderr)
             return EXIT_FAILED
+    crasher = None
+    if crash_every is not None:
+        from uwgen.emulator.chaos import Crasher
+        crasher = Crasher(emu, crash_every, crash_down, scenario.seed).start()
+        log.info("emulator: DESERT will crash at random, every %.3g s on average, down %.3g s",
+                 crash_every, crash_down)
     mode = "TDMA" if scenario.tdma else "CSMA-ALOHA"
     channel = (f"SNR model (wind {scenario.snr.wind:g} m/s)" if scenario.snr else "no SNR losses")
     periods = sorted({scenario.period_of(n) for n in scenario.names()})
@@ -206,10 +221,14 @@ def _serve(scenario, duration: float | None) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        if crasher is not None:
+            crasher.stop()
         if feeds is not None:
             feeds.stop()
         emu.stop()
     print(format_counters(emu.all_counters()), flush=True)
+    if crasher is not None:
+        print(f"DESERT crashed {crasher.crashes} times (simulated, --crash-every)", flush=True)
     return 0
 
 
