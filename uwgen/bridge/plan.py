@@ -109,15 +109,17 @@ class BridgePlan:
             schema_digest=getattr(manifest, "schema_digest", b""),
         )
 
-    def channels(self) -> list[tuple[int, LinkPolicy, str]]:
-        """Link channels this side sends on, as (id, policy, name): its outgoing topics, and
+    def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
+        """Link channels this side sends on, as (id, policy, name, whole): its outgoing topics,
         every service and action it takes part in (requests from the calling side, responses
         from the serving side), and the feedback of the actions it serves (key
-        FEEDBACK_KEY_BASE + id, latest-only)."""
-        chans = [(t.id, t.policy, t.name) for t in self.outgoing_topics]
-        chans += [(s.id, s.policy, s.name) for s in (*self.called_services, *self.served_services)]
-        chans += [(a.id, a.policy, a.name) for a in (*self.offered_actions, *self.served_actions)]
-        chans += [(FEEDBACK_KEY_BASE + a.id, a.feedback_policy, f"{a.name} feedback")
+        FEEDBACK_KEY_BASE + id, latest-only). `whole`: an rmw_desert entry, never fragmented
+        (actions are native only)."""
+        chans = [(t.id, t.policy, t.name, is_rmw_desert(t)) for t in self.outgoing_topics]
+        chans += [(s.id, s.policy, s.name, is_rmw_desert(s))
+                  for s in (*self.called_services, *self.served_services)]
+        chans += [(a.id, a.policy, a.name, False) for a in (*self.offered_actions, *self.served_actions)]
+        chans += [(FEEDBACK_KEY_BASE + a.id, a.feedback_policy, f"{a.name} feedback", False)
                   for a in self.served_actions if a.feedback_policy is not None]
         return sorted(chans, key=lambda c: c[0])
 
