@@ -229,9 +229,12 @@ class ProfileCost:
     frame: Size           # payload + frame bytes
 
 
+ACTION_KINDS = ("goal", "result", "feedback")   # an action's payloads (wire format 13)
+
+
 @dataclass
 class EntryCost:
-    kind: str             # topic, request, response
+    kind: str             # topic, request, response, goal, result, feedback
     name: str
     id: int
     type_name: str
@@ -306,6 +309,16 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
         entries.append(_entry(builder, sizer, "response", s.name, s.id, s.type_name, s.server, s.policy.rate,
                               s.type.response, s.profile, s.response_fields,
                               variant_name("r", s.id, s.response_fields), 3))
+    for a in getattr(manifest, "actions", ()):
+        # Goals (and the 3-byte cancels) from every client side; answers (4 bytes), results
+        # and latest-only feedback from the server side.
+        entries.append(_entry(builder, sizer, "goal", a.name, a.id, a.type_name, "*", a.policy.rate,
+                              a.type.goal, a.profile, (), "", 3))
+        entries.append(_entry(builder, sizer, "result", a.name, a.id, a.type_name, a.server,
+                              a.policy.rate, a.type.result, a.profile, (), "", 4))
+        if a.feedback is not None:
+            entries.append(_entry(builder, sizer, "feedback", a.name, a.id, a.type_name, a.server,
+                                  a.feedback.rate, a.type.feedback, a.profile, (), "", 3))
     budgets = []
     schema = _schema_rate(manifest)
     for side in manifest.sides.values():
@@ -333,19 +346,23 @@ def _schema_rate(manifest: Manifest) -> float:
         return 0.0
     from uwgen.bridge.schema import encode_announcements
     from uwgen.codegen.fingerprint import FINGERPRINT_BYTES
-    ids = sorted({e.id for e in (*manifest.topics, *manifest.services)})
+    ids = sorted({e.id for e in (*manifest.topics, *manifest.services,
+                                 *getattr(manifest, "actions", ()))})
     payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids], request=False)
     return sum(len(p) + FRAME_OVERHEAD for p in payloads) / period
 
 
 def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
-    return next((s.server for s in manifest.services if s.id == entry.id), None)
+    return next((s.server for s in (*manifest.services, *getattr(manifest, "actions", ()))
+                 if s.id == entry.id), None)
 
 
 def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, profile, fields, variant,
            header_items) -> EntryCost:
     head = Size(2, 2, 2) if ident < 24 else Size(3, 3, 3)
-    if header_items == 3:
+    if kind in ACTION_KINDS:
+        head = head + Size(header_items - 2, header_items - 2, header_items - 2)  # handle (+ status)
+    elif header_items == 3:
         head = head + Size(1, 2, 9)   # the seq: any unsigned, typically under 256
     configured = builder.codec(msg, profile, fields, variant)
     options = [(NATIVE, (), "", "native")]
@@ -353,7 +370,7 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
         options.append((RMW_DESERT, (), "", "rmw_desert"))
     if fields:
         options += [(NATIVE, fields, variant, "native + fields"), (PACKED, fields, variant, "packed + fields")]
-    else:
+    elif kind not in ACTION_KINDS:     # actions travel in profile native only
         options.append((PACKED, (), "", "packed"))
     costs = []
     for prof, f, var, label in options:

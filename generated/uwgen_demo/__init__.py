@@ -2,6 +2,7 @@
 # Package: uwgen_demo
 # Manifest: msg_samples/uwgen.yaml
 # Sources (sha256 prefix):
+#   msg_samples/turtlesim/action/RotateAbsolute.action  f559ab5b32a9
 #   msg_samples/turtlesim/msg/Color.msg  9cd63f14c0af
 #   msg_samples/turtlesim/msg/Pose.msg  d6acd5f43ab2
 #   msg_samples/turtlesim/srv/Kill.srv  bc91430b62e3
@@ -18,11 +19,11 @@
 """Codec table of uwgen_demo (network `demo`).
 
 CODECS: (type name, profile) -> TypeCodec, for every generated type.
-TOPICS / SERVICES: manifest id -> TopicCodec / ServiceCodec.
+TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCodec.
 MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
 """
-from uwgen.runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
+from uwgen.runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
 
 from ._classes import PLAIN, ROS
@@ -30,6 +31,7 @@ from .builtin_interfaces import msg as _builtin_interfaces_msg
 from .geometry_msgs import msg as _geometry_msgs_msg
 from .sensor_msgs import msg as _sensor_msgs_msg
 from .std_msgs import msg as _std_msgs_msg
+from .turtlesim import action as _turtlesim_action
 from .turtlesim import msg as _turtlesim_msg
 from .turtlesim import srv as _turtlesim_srv
 
@@ -38,6 +40,9 @@ CODECS = {
     ("sensor_msgs/msg/BatteryState", "native"): TypeCodec("sensor_msgs/msg/BatteryState", "native", _sensor_msgs_msg.enc_BatteryState, _sensor_msgs_msg.dec_BatteryState, PLAIN, ROS, "sensor_msgs__BatteryState"),
     ("std_msgs/msg/Header", "native"): TypeCodec("std_msgs/msg/Header", "native", _std_msgs_msg.enc_Header, _std_msgs_msg.dec_Header, PLAIN, ROS, "std_msgs__Header"),
     ("std_msgs/msg/String", "native"): TypeCodec("std_msgs/msg/String", "native", _std_msgs_msg.enc_String, _std_msgs_msg.dec_String, PLAIN, ROS, "std_msgs__String"),
+    ("turtlesim/action/RotateAbsolute_Feedback", "native"): TypeCodec("turtlesim/action/RotateAbsolute_Feedback", "native", _turtlesim_action.enc_RotateAbsolute_Feedback, _turtlesim_action.dec_RotateAbsolute_Feedback, PLAIN, ROS, "turtlesim__RotateAbsolute_Feedback"),
+    ("turtlesim/action/RotateAbsolute_Goal", "native"): TypeCodec("turtlesim/action/RotateAbsolute_Goal", "native", _turtlesim_action.enc_RotateAbsolute_Goal, _turtlesim_action.dec_RotateAbsolute_Goal, PLAIN, ROS, "turtlesim__RotateAbsolute_Goal"),
+    ("turtlesim/action/RotateAbsolute_Result", "native"): TypeCodec("turtlesim/action/RotateAbsolute_Result", "native", _turtlesim_action.enc_RotateAbsolute_Result, _turtlesim_action.dec_RotateAbsolute_Result, PLAIN, ROS, "turtlesim__RotateAbsolute_Result"),
     ("turtlesim/msg/Color", "native"): TypeCodec("turtlesim/msg/Color", "native", _turtlesim_msg.enc_Color, _turtlesim_msg.dec_Color, PLAIN, ROS, "turtlesim__Color"),
     ("turtlesim/msg/Pose", "native"): TypeCodec("turtlesim/msg/Pose", "native", _turtlesim_msg.enc_Pose, _turtlesim_msg.dec_Pose, PLAIN, ROS, "turtlesim__Pose"),
     ("turtlesim/srv/Kill_Request", "native"): TypeCodec("turtlesim/srv/Kill_Request", "native", _turtlesim_srv.enc_Kill_Request, _turtlesim_srv.dec_Kill_Request, PLAIN, ROS, "turtlesim__Kill_Request"),
@@ -66,7 +71,7 @@ def codec(type_name, profile="native"):
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("cd91ef23")
+SCHEMA_DIGEST = bytes.fromhex("15b02242")
 
 MANIFEST = ManifestInfo(
     network="demo",
@@ -130,4 +135,18 @@ SERVICES = {
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),
         fingerprint=bytes.fromhex("3345d7b2")),
+}
+
+ACTIONS = {
+    30: ActionCodec(
+        id=30, name="/turtle1/rotate_absolute", type_name="turtlesim/action/RotateAbsolute",
+        server="vehicle", accept_timeout=10.0, result_timeout=60.0,
+        max_goals=4, profile="native",
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=4, repair=0),
+        feedback_policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=2.0, priority=2, repair=0),
+        goal=CODECS[("turtlesim/action/RotateAbsolute_Goal", "native")],
+        result=CODECS[("turtlesim/action/RotateAbsolute_Result", "native")],
+        feedback=CODECS[("turtlesim/action/RotateAbsolute_Feedback", "native")],
+        ros_import=("turtlesim.action", "RotateAbsolute"),
+        fingerprint=bytes.fromhex("d498bd11")),
 }

@@ -2,6 +2,7 @@
 # Package: uwgen_turtle_rmw
 # Manifest: msg_samples/rmw_desert/uwgen.yaml
 # Sources (sha256 prefix):
+#   msg_samples/turtlesim/action/RotateAbsolute.action  f559ab5b32a9
 #   msg_samples/turtlesim/msg/Color.msg  9cd63f14c0af
 #   msg_samples/turtlesim/msg/Pose.msg  d6acd5f43ab2
 #   msg_samples/turtlesim/srv/Kill.srv  bc91430b62e3
@@ -14,19 +15,23 @@
 """Codec table of uwgen_turtle_rmw (network `turtle_rmw`).
 
 CODECS: (type name, profile) -> TypeCodec, for every generated type.
-TOPICS / SERVICES: manifest id -> TopicCodec / ServiceCodec.
+TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCodec.
 MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
 """
-from uwgen.runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
+from uwgen.runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
 
 from ._classes import PLAIN, ROS
 from .geometry_msgs import msg as _geometry_msgs_msg
+from .turtlesim import action as _turtlesim_action
 from .turtlesim import msg as _turtlesim_msg
 from .turtlesim import srv as _turtlesim_srv
 
 CODECS = {
+    ("turtlesim/action/RotateAbsolute_Feedback", "native"): TypeCodec("turtlesim/action/RotateAbsolute_Feedback", "native", _turtlesim_action.enc_RotateAbsolute_Feedback, _turtlesim_action.dec_RotateAbsolute_Feedback, PLAIN, ROS, "turtlesim__RotateAbsolute_Feedback"),
+    ("turtlesim/action/RotateAbsolute_Goal", "native"): TypeCodec("turtlesim/action/RotateAbsolute_Goal", "native", _turtlesim_action.enc_RotateAbsolute_Goal, _turtlesim_action.dec_RotateAbsolute_Goal, PLAIN, ROS, "turtlesim__RotateAbsolute_Goal"),
+    ("turtlesim/action/RotateAbsolute_Result", "native"): TypeCodec("turtlesim/action/RotateAbsolute_Result", "native", _turtlesim_action.enc_RotateAbsolute_Result, _turtlesim_action.dec_RotateAbsolute_Result, PLAIN, ROS, "turtlesim__RotateAbsolute_Result"),
     ("turtlesim/msg/Color", "native"): TypeCodec("turtlesim/msg/Color", "native", _turtlesim_msg.enc_Color, _turtlesim_msg.dec_Color, PLAIN, ROS, "turtlesim__Color"),
     ("turtlesim/msg/Pose", "native"): TypeCodec("turtlesim/msg/Pose", "native", _turtlesim_msg.enc_Pose, _turtlesim_msg.dec_Pose, PLAIN, ROS, "turtlesim__Pose"),
     ("turtlesim/srv/Kill_Request", "native"): TypeCodec("turtlesim/srv/Kill_Request", "native", _turtlesim_srv.enc_Kill_Request, _turtlesim_srv.dec_Kill_Request, PLAIN, ROS, "turtlesim__Kill_Request"),
@@ -95,4 +100,7 @@ SERVICES = {
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "rmw_desert")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
         fingerprint=bytes.fromhex("a49596a3")),
+}
+
+ACTIONS = {
 }

@@ -2,6 +2,7 @@
 # Package: uwgen_turtle_rmw
 # Manifest: msg_samples/rmw_desert/uwgen.yaml
 # Sources (sha256 prefix):
+#   msg_samples/turtlesim/action/RotateAbsolute.action  f559ab5b32a9
 #   msg_samples/turtlesim/msg/Color.msg  9cd63f14c0af
 #   msg_samples/turtlesim/msg/Pose.msg  d6acd5f43ab2
 #   msg_samples/turtlesim/srv/Kill.srv  bc91430b62e3
@@ -15,6 +16,7 @@
 from uwgen.runtime.table import PlainClasses, RosClasses
 
 from .geometry_msgs import msg as _geometry_msgs_msg
+from .turtlesim import action as _turtlesim_action
 from .turtlesim import msg as _turtlesim_msg
 from .turtlesim import srv as _turtlesim_srv
 
@@ -25,6 +27,9 @@ PLAIN = PlainClasses({
     "turtlesim__Kill_Request": _turtlesim_srv.Kill_Request,
     "turtlesim__Kill_Response": _turtlesim_srv.Kill_Response,
     "turtlesim__Pose": _turtlesim_msg.Pose,
+    "turtlesim__RotateAbsolute_Feedback": _turtlesim_action.RotateAbsolute_Feedback,
+    "turtlesim__RotateAbsolute_Goal": _turtlesim_action.RotateAbsolute_Goal,
+    "turtlesim__RotateAbsolute_Result": _turtlesim_action.RotateAbsolute_Result,
     "turtlesim__SetPen_Request": _turtlesim_srv.SetPen_Request,
     "turtlesim__SetPen_Response": _turtlesim_srv.SetPen_Response,
     "turtlesim__Spawn_Request": _turtlesim_srv.Spawn_Request,
@@ -42,6 +47,9 @@ ROS = RosClasses(fallback=PLAIN, imports={
     "turtlesim__Kill_Request": ("turtlesim.srv", "Kill_Request"),
     "turtlesim__Kill_Response": ("turtlesim.srv", "Kill_Response"),
     "turtlesim__Pose": ("turtlesim.msg", "Pose"),
+    "turtlesim__RotateAbsolute_Feedback": ("turtlesim.action", "RotateAbsolute.Feedback"),
+    "turtlesim__RotateAbsolute_Goal": ("turtlesim.action", "RotateAbsolute.Goal"),
+    "turtlesim__RotateAbsolute_Result": ("turtlesim.action", "RotateAbsolute.Result"),
     "turtlesim__SetPen_Request": ("turtlesim.srv", "SetPen_Request"),
     "turtlesim__SetPen_Response": ("turtlesim.srv", "SetPen_Response"),
     "turtlesim__Spawn_Request": ("turtlesim.srv", "Spawn_Request"),

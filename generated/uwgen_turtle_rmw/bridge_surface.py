@@ -2,6 +2,7 @@
 # Package: uwgen_turtle_rmw
 # Manifest: msg_samples/rmw_desert/uwgen.yaml
 # Sources (sha256 prefix):
+#   msg_samples/turtlesim/action/RotateAbsolute.action  f559ab5b32a9
 #   msg_samples/turtlesim/msg/Color.msg  9cd63f14c0af
 #   msg_samples/turtlesim/msg/Pose.msg  d6acd5f43ab2
 #   msg_samples/turtlesim/srv/Kill.srv  bc91430b62e3

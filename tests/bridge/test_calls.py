@@ -260,3 +260,22 @@ def test_server_answering_only_the_latest_call_times_the_older_ones_out():
     assert table.complete(20, calls[0].seq) is None
     stats = table.stats()[20]
     assert (stats["completed"], stats["timeouts"], stats["late"], stats["outstanding"]) == (1, 2, 1, 0)
+
+
+def test_reuse_after_rests_a_finished_seq_while_another_is_free():
+    clock = ManualClock()
+    table = CallTable(clock, rng=random.Random(1), max_outstanding=2, reuse_after=10.0)
+    table.set_seq_range(9, 0, 2)                      # three seqs, at most two outstanding
+    a = table.begin(9, 5.0).seq
+    table.complete(9, a)
+    b = table.begin(9, 5.0).seq
+    c = table.begin(9, 5.0).seq
+    assert a not in (b, c)                             # the rested seq is skipped...
+    table.complete(9, b)
+    d = table.begin(9, 5.0).seq                        # ...unless only rested ones are free
+    assert d in (a, b)
+    clock.advance(10.0)
+    table.complete(9, c)
+    table.complete(9, d)
+    # c and d just ended; of a and b, the one d did not take has rested 10 s: it is next.
+    assert {table.begin(9, 5.0).seq} == {a, b} - {d}

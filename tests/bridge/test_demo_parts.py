@@ -103,6 +103,8 @@ def test_report_matches_messages_and_accounts_for_drops(tmp_path):
         op.append({"t": t + i * 0.2 + 0.5, "ev": "pose_rx", **pose})
     op.append({"t": t + 2, "ev": "call", "name": "/vehicle/set_pen", "ok": True, "rtt": 0.8})
     op.append({"t": t + 3, "ev": "call", "name": "/vehicle/set_pen", "ok": False, "rtt": 12.0})
+    op.append({"t": t + 9, "ev": "mission", "name": "/turtle1/rotate_absolute", "ok": True,
+               "status": "succeeded", "feedback": 4, "rtt": 6.5, "delta": 1.25})
     write(tmp_path / "operator.jsonl", op)
     write(tmp_path / "vehicle.jsonl", veh)
     (tmp_path / "bridge_surface.json").write_text(json.dumps({"topics": {"/turtle1/cmd_vel": {
@@ -119,6 +121,8 @@ def test_report_matches_messages_and_accounts_for_drops(tmp_path):
     assert (pen.calls, pen.ok, pen.failed) == (2, 1, 1)
     text = format_report(report)
     assert "/turtle1/cmd_vel" in text and "400 ms" in text
+    assert ("action /turtle1/rotate_absolute: succeeded after 6.50 s, 4 feedback messages, "
+            "turned 1.25 rad") in text
     png = plot_paths(report, tmp_path / "p.png")
     assert png.read_bytes()[:4] == b"\x89PNG"
 
@@ -131,6 +135,12 @@ def test_recorder_writes_lines_and_reader_skips_a_torn_tail(tmp_path):
     with (tmp_path / "r.jsonl").open("a") as fh:
         fh.write('{"t": 1, "ev": "tor')
     assert [r["k"] for r in read_records(tmp_path / "r.jsonl")] == [1, 2]
+
+
+def test_turn_to_gives_the_short_way_round():
+    from uwgen.demo.vehicle import turn_to
+    assert turn_to(1.5, 0.5) == pytest.approx(1.0)
+    assert turn_to(-3.0, 3.0) == pytest.approx(2 * math.pi - 6.0)   # across +-pi, not back
 
 
 def test_report_reads_the_bridges_accounting_and_names_what_does_not_add_up(tmp_path):

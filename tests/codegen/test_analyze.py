@@ -86,10 +86,11 @@ def test_field_bits_are_listed_per_field(demo):
 def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     _manifest, a = demo
     surface = next(b for b in a.budgets if b.side == "surface")
-    # 5 cmd_vel frames of 12 bytes per second, plus the schema announcement of the 6 ids
-    # (a 40-byte payload: 00 18 F9 00, then id + 44 + 4 bytes each; a 44-byte frame) every 600 s
-    assert surface.schema == pytest.approx(44 / 600)
-    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * 12 + 44 / 600)
+    # 5 cmd_vel frames of 12 bytes per second, plus the schema announcement of the 7 ids
+    # (a 47-byte payload: 00 18 F9 00, then id + 44 + 4 bytes each, id 30 taking 2 bytes;
+    # a 51-byte frame) every 600 s. The action's goals have no rate: warned about below.
+    assert surface.schema == pytest.approx(51 / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * 12 + 51 / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
     assert not any("cannot fit" in w for w in a.warnings())
 
@@ -122,3 +123,23 @@ def test_a_broken_manifest_is_a_located_error(tmp_path):
 def test_air_time_counts_desert_packet_overhead():
     assert air_time(20, 200.0, 64) == pytest.approx((20 + 4) * 8 / 200)
     assert air_time(130, 4800.0, 64) == pytest.approx((130 + 3 * 4) * 8 / 4800)
+
+
+def test_an_action_costs_its_goal_result_and_feedback(demo, demo_pkg):
+    _manifest, a = demo
+    name = "/turtle1/rotate_absolute"                  # id 30, RotateAbsolute: one float32 each
+    goal, result, feedback = (entry(a, kind, name) for kind in ("goal", "result", "feedback"))
+    assert (goal.sender, result.sender, feedback.sender, feedback.rate) == ("*", "vehicle", "vehicle", 1.0)
+    # What the generated codec sends: 02 18 1E h, then the float32 as half (3) or single (5)
+    codec = demo_pkg.ACTIONS[30]
+    Goal, Result = codec.goal.plain_class(), codec.result.plain_class()
+    goals = [len(codec.encode_goal(7, Goal(theta=t))) for t in (1.5, 0.1)]
+    results = [len(codec.encode_result(7, 4, Result(delta=d))) for d in (1.5, 0.1)]
+    assert (goal.configured.payload.min, goal.configured.payload.max) == tuple(goals) == (7, 9)
+    assert (result.configured.payload.min, result.configured.payload.max) == tuple(results) == (8, 10)
+    assert [p.label for p in goal.profiles] == ["native"]                              # native only
+    vehicle = next(b for b in a.budgets if b.side == "vehicle")
+    surface = next(b for b in a.budgets if b.side == "surface")
+    assert f"result {name}" in vehicle.unlimited and f"goal {name}" in surface.unlimited
+    assert f"feedback {name}" not in vehicle.unlimited
+

@@ -209,6 +209,9 @@ def test_fingerprints_cover_the_codecs_the_entries_are_generated_from(tmp_path):
         for (entry, ident), (roots, _codecs) in chosen.items():
             if entry == "topic":
                 used = [pkg.TOPICS[ident].codec]
+            elif entry == "action":
+                action = pkg.ACTIONS[ident]
+                used = [action.goal, action.result, action.feedback]
             else:
                 used = [pkg.SERVICES[ident].request, pkg.SERVICES[ident].response]
             assert [c.enc.__name__ for c in used] == [func_name("enc", ct.name, ct.suffix) for ct in roots]

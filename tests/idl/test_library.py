@@ -28,7 +28,7 @@ def lib() -> InterfaceLibrary:
 
 def test_samples_define_turtlesim_only(lib):
     assert lib.local_names() == [
-        "turtlesim/msg/Color", "turtlesim/msg/Pose",
+        "turtlesim/action/RotateAbsolute", "turtlesim/msg/Color", "turtlesim/msg/Pose",
         "turtlesim/srv/Kill", "turtlesim/srv/SetPen", "turtlesim/srv/Spawn",
         "turtlesim/srv/TeleportAbsolute", "turtlesim/srv/TeleportRelative",
     ]
@@ -43,6 +43,9 @@ def test_turtlesim_samples_match_jazzy(lib):
     assert shape(lib.get("turtlesim/msg/Color")) == [("r", "uint8"), ("g", "uint8"), ("b", "uint8")]
     set_pen = lib.get("turtlesim/srv/SetPen")
     assert shape(set_pen.request) == [(n, "uint8") for n in ("r", "g", "b", "width", "off")]
+    rotate = lib.get("turtlesim/action/RotateAbsolute")
+    assert [shape(p) for p in rotate.parts] == [
+        [("theta", "float32")], [("delta", "float32")], [("remaining", "float32")]]
     assert shape(set_pen.response) == []
     spawn = lib.get("turtlesim/srv/Spawn")
     assert shape(spawn.request) == [("x", "float32"), ("y", "float32"), ("theta", "float32"), ("name", "string")]
@@ -117,7 +120,7 @@ def test_a_package_folder_itself_can_be_given():
 
 def test_the_same_folder_given_twice_is_read_once():
     lib = InterfaceLibrary(folders=[SAMPLES, SAMPLES / "turtlesim"], installed=False)
-    assert len(lib.local_names()) == 7
+    assert len(lib.local_names()) == 8
 
 
 def test_installed_false_sees_only_folders():
@@ -143,7 +146,11 @@ def test_ament_prefix_path_packages_are_found(tmp_path, monkeypatch):
     ping = lib.get("sonar_msgs/Ping")
     assert ping.nested_types() == ["builtin_interfaces/msg/Time"]
     assert prefix / "share" in lib.search_paths()
-    assert [n for n in lib.all_names() if n.startswith("sonar_msgs/")] == ["sonar_msgs/msg/Ping"]  # action/ ignored
+    assert [n for n in lib.all_names() if n.startswith("sonar_msgs/")] == [
+        "sonar_msgs/action/Scan", "sonar_msgs/msg/Ping"]
+    scan = lib.get("sonar_msgs/action/Scan")
+    assert [p.full_name for p in scan.parts] == [
+        "sonar_msgs/action/Scan_Goal", "sonar_msgs/action/Scan_Result", "sonar_msgs/action/Scan_Feedback"]
 
 
 def test_first_prefix_providing_a_package_wins(tmp_path):

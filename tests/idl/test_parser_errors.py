@@ -136,8 +136,8 @@ def test_invalid_interface_and_package_names(package, name, fragment):
 
 
 def test_unknown_file_kind(tmp_path):
-    path = tmp_path / "pkg" / "action" / "Go.action"
+    path = tmp_path / "pkg" / "idl" / "Go.idl"
     path.parent.mkdir(parents=True)
-    path.write_text("int32 a\n---\n---\n")
-    with pytest.raises(DefinitionError, match="expected .msg or .srv"):
+    path.write_text("module pkg {};\n")
+    with pytest.raises(DefinitionError, match="expected .msg, .srv or .action"):
         parse_file(path)

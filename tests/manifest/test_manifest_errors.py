@@ -95,7 +95,7 @@ CASES = [
     pytest.param(SIDES + SERVICE + "          - {name: /s, id: 5, type: std_srvs/Trigger, server: vehicle}\n", "11:5",
                  "service /s is declared twice (first at line 7)", id="duplicate-service-name"),
     pytest.param(SIDES + TOPIC + SERVICE.replace("id: 4", "id: 3"), "14:9",
-                 "id 3 of service /s is already used by topic /a (line 8); ids are unique across topics and services",
+                 "id 3 of service /s is already used by topic /a (line 8); ids are unique across topics, services and actions",
                  id="duplicate-id"),
     pytest.param(SIDES + "        fragment_id: 3\n" + TOPIC, "5:14", "fragment_id 3 collides with the id of topic /a (line 9)",
                  id="fragment-id-collides"),

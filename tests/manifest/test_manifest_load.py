@@ -4,7 +4,7 @@ from __future__ import annotations
 import yaml
 
 from uwgen.manifest.loader import (
-    DEFAULTS_KEYS, FIFO_DEFAULT_DEPTH, LINK_KEYS, QOS_KEYS, SERVICE_KEYS, SIDE_KEYS, TOP_KEYS, TOPIC_KEYS,
+    ACTION_KEYS, DEFAULTS_KEYS, FEEDBACK_KEYS, FIFO_DEFAULT_DEPTH, LINK_KEYS, QOS_KEYS, SERVICE_KEYS, SIDE_KEYS, TOP_KEYS, TOPIC_KEYS,
     find_manifest, load_manifest,
 )
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
@@ -60,6 +60,8 @@ def test_reference_manifest_documents_every_key():
         "topic": set().union(*(t.keys() for t in root["topics"])),
         "qos": set().union(*(t.get("qos", {}).keys() for t in root["topics"])),
         "service": set().union(*(s.keys() for s in root["services"])),
+        "action": set().union(*(a.keys() for a in root["actions"])),
+        "feedback": set().union(*(a["feedback"].keys() for a in root["actions"])),
     }
     assert used["top"] == set(TOP_KEYS)
     assert used["side"] == set(SIDE_KEYS)
@@ -67,6 +69,8 @@ def test_reference_manifest_documents_every_key():
     assert used["topic"] == set(TOPIC_KEYS)
     assert used["qos"] == set(QOS_KEYS)
     assert used["service"] == set(SERVICE_KEYS)
+    assert used["action"] == set(ACTION_KEYS)
+    assert used["feedback"] == set(FEEDBACK_KEYS)
     assert used["defaults"] <= set(DEFAULTS_KEYS)
     text = (SAMPLES / "manifest-reference.yaml").read_text()
     for key in DEFAULTS_KEYS:   # documented (in comments) even where not all are set

@@ -15,7 +15,9 @@ a previous run of the bridge (still in flight over a slow link) do not match a n
 they then count up, wrapping from `last` to `first`, skipping any seq still outstanding.
 The default range is 0..seq_modulus-1 (2**16 values, so a seq costs at most 3 bytes on the
 wire); `set_seq_range()` narrows it for one service, e.g. to 1..999 toward rmw_desert
-servers (RMW_DESERT_SEQ_RANGE), whose own clients pick seqs 0..999.
+servers (RMW_DESERT_SEQ_RANGE), whose own clients pick seqs 0..999. With `reuse_after`,
+a seq finished less than that many seconds ago is not given out again while another free
+one exists (actions: a repeated goal must never be mistaken for a new one).
 """
 from __future__ import annotations
 
@@ -80,7 +82,8 @@ class CallTable:
     def __init__(self, clock: Clock = SYSTEM_CLOCK, *, rng: random.Random | None = None,
                  seq_modulus: int = DEFAULT_SEQ_MODULUS,
                  max_outstanding: int = DEFAULT_MAX_OUTSTANDING,
-                 memory: int = DEFAULT_MEMORY, keep_latencies: int = 1000):
+                 memory: int = DEFAULT_MEMORY, keep_latencies: int = 1000,
+                 reuse_after: float = 0.0):
         if seq_modulus < 2:
             raise ValueError("seq_modulus must be at least 2")
         if not 1 <= max_outstanding < seq_modulus:
@@ -95,6 +98,8 @@ class CallTable:
         self._ranges: dict[int, tuple[int, int]] = {}
         self._pending: dict[int, dict[int, PendingCall]] = {}
         self._finished: dict[int, OrderedDict[int, str]] = {}
+        self._freed_at: dict[int, dict[int, float]] = {}
+        self._reuse_after = reuse_after
         self._stats: dict[int, CallStats] = {}
 
     # -- configuration -----------------------------------------------------------------
@@ -145,8 +150,18 @@ class CallTable:
         seq = self._next.get(service_id)
         if seq is None or not first <= seq <= last:
             seq = first + self._rng.randrange(size)
-        while seq in pending:  # terminates: the range holds more seqs than max_outstanding
+        freed = self._freed_at.get(service_id, {})
+        now = self._clock.now()
+        fallback = None
+        for _ in range(size):   # the range holds more seqs than max_outstanding: one is free
+            if seq not in pending:
+                if now - freed.get(seq, -float("inf")) >= self._reuse_after:
+                    break
+                if fallback is None:
+                    fallback = seq                 # free, but finished only recently
             seq = first + (seq - first + 1) % size
+        else:
+            seq = fallback
         self._next[service_id] = first + (seq - first + 1) % size
         return seq
 
@@ -169,6 +184,14 @@ class CallTable:
         else:
             stats.unknown += 1
         return None
+
+    def get(self, service_id: int, seq: int) -> PendingCall | None:
+        """The outstanding call of this seq, left outstanding (e.g. to move its deadline)."""
+        return self._pending.get(service_id, {}).get(seq)
+
+    def pending(self, service_id: int) -> list[PendingCall]:
+        """The outstanding calls of one service, in no particular order."""
+        return list(self._pending.get(service_id, {}).values())
 
     def abandon(self, service_id: int, seq: int) -> PendingCall | None:
         """Give up a call before its response (e.g. the request could not be queued)."""
@@ -193,6 +216,8 @@ class CallTable:
         return expired
 
     def _remember(self, service_id: int, seq: int, outcome: str) -> None:
+        if self._reuse_after:
+            self._freed_at.setdefault(service_id, {})[seq] = self._clock.now()
         finished = self._finished.setdefault(service_id, OrderedDict())
         finished[seq] = outcome
         finished.move_to_end(seq)

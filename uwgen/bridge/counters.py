@@ -45,6 +45,39 @@ class ServiceCounters:
 
 
 @dataclass
+class ActionCounters:
+    # client side (the bridge offers the action to local clients)
+    goals: int = 0            # goals local clients sent to the bridge's action server
+    refused: int = 0          # goals rejected here: too many in flight, encode error, link refused
+    accepted: int = 0         # goals the server side accepted
+    rejected: int = 0         # goals the server side rejected
+    accept_timeouts: int = 0  # goals with no answer within accept_timeout (rejected locally)
+    results: int = 0          # results delivered to local clients
+    result_timeouts: int = 0  # goals with no result within result_timeout (aborted locally)
+    goal_resends: int = 0     # goals sent again because no answer had come (same handle)
+    cancels: int = 0          # cancel requests sent over the link
+    cancel_timeouts: int = 0  # cancels with no answer within accept_timeout (refused locally)
+    feedback: int = 0         # feedback messages published to local clients
+    late_feedback: int = 0    # feedback for no goal in flight, e.g. sent just before the result
+    unknown: int = 0          # answers or results for no goal in flight (dropped)
+    other_sides: int = 0      # payloads for another client side's goals (its handles; ignored)
+    decode_errors: int = 0    # payloads of this action that did not decode
+    # server side (the bridge calls the real action server)
+    goal_requests: int = 0    # goals that came over the link
+    duplicate_goals: int = 0  # a goal for a handle already in flight (dropped)
+    no_server: int = 0        # no local action server: the goal was rejected
+    server_timeouts: int = 0  # the local server did not answer or finish in time
+    server_gone: int = 0      # goals aborted because the local server disappeared
+    server_errors: int = 0    # the local goal, cancel or result call failed
+    answers: int = 0          # answers offered to the link
+    repeated_replies: int = 0  # answers or results sent again for a goal that came again
+    results_sent: int = 0     # results offered to the link
+    feedback_sent: int = 0    # feedback offered to the link (latest-only: may be superseded)
+    encode_errors: int = 0    # feedback or results that could not be encoded
+    reply_refused: int = 0    # answers, results or feedback the link refused
+
+
+@dataclass
 class BridgeCounters:
     """Payloads that belong to no topic or service of this side."""
 
@@ -60,6 +93,9 @@ DROP_FIELDS = {
     "service": ("encode_errors", "refused", "timeouts", "decode_errors", "duplicate_requests",
                 "no_server", "server_timeouts", "server_errors", "reply_refused",
                 "late", "duplicate", "unknown"),
+    "action": ("refused", "accept_timeouts", "result_timeouts", "cancel_timeouts", "unknown",
+               "decode_errors", "duplicate_goals", "no_server", "server_timeouts", "server_gone",
+               "server_errors", "encode_errors", "reply_refused"),
     "bridge": tuple(f.name for f in fields(BridgeCounters)),
     # "superseded" is what a `latest` queue is for (a newer message replaced an older one):
     # it is counted in ~/status and said once, not warned about every report.

@@ -122,6 +122,11 @@ def _summary(status: dict) -> str:
             parts.append(f"{name} calls {s['local_calls']} ok {s['responses']} timeouts {s['timeouts']}")
         else:
             parts.append(f"{name} requests {s['requests']} replies {s['replies']}")
+    for name, a in status.get("actions", {}).items():
+        if a["role"] == "client":
+            parts.append(f"{name} goals {a['goals']} accepted {a['accepted']} results {a['results']}")
+        else:
+            parts.append(f"{name} goals {a['goal_requests']} results {a['results_sent']}")
     discovery = status.get("discovery")
     if discovery:
         remote = discovery.get("remote", [])

@@ -4,6 +4,7 @@ The node only wires parts to rclpy and the link; each part reads on its own:
 
 - `topics.TopicBridge`: subscriptions that send, publishers of what arrives, echo guard;
 - `services.StandIns` / `services.Servers`: bridged service calls, both sides;
+- `actions.ActionStandIns` / `action_servers.ActionServers`: bridged actions, both sides;
 - `discovery.RmwDiscovery`: rmw_desert beacons, when an entry is in profile rmw_desert;
 - `status.StatusReporter`: ~/status, the stats file, drop log lines;
 - `dispatch.Dispatcher`: each received payload's header read once, routed by (kind, id).
@@ -25,6 +26,8 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node
 
 from uwgen.bridge import ledger
+from uwgen.bridge.action_servers import ActionServers
+from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
@@ -57,7 +60,7 @@ def node_name_for(plan: BridgePlan) -> str:
 
 
 class BridgeNode(Node):
-    """Carries one side's manifest topics and services over its DESERT link."""
+    """Carries one side's manifest topics, services and actions over its DESERT link."""
 
     def __init__(self, plan: BridgePlan, options: BridgeOptions | None = None, *,
                  link_factory: LinkFactory = default_link_factory, clock: Clock = SYSTEM_CLOCK,
@@ -79,6 +82,10 @@ class BridgeNode(Node):
         self.topics = TopicBridge(w, plan.outgoing_topics, plan.incoming_topics)
         self.standins = StandIns(w, plan.called_services, self.service_counters, rng=rng)
         self.servers = Servers(w, plan.served_services, self.service_counters)
+        self.action_counters: dict = {}
+        self.action_standins = ActionStandIns(w, plan.offered_actions, self.action_counters,
+                                              rng=rng, handles=plan.action_handles)
+        self.action_servers = ActionServers(w, plan.served_actions, self.action_counters)
 
         self._wake = self.create_guard_condition(self._drain_inbox, callback_group=main_group)
         self.inbox = Inbox(self._wake.trigger)
@@ -98,7 +105,8 @@ class BridgeNode(Node):
             self.create_timer(SCHEMA_TICK, self.schema.tick, callback_group=main_group)
 
         self.dispatcher = Dispatcher(self.counters)
-        for part in (self.topics, self.standins, self.servers, self.rmw_discovery, self.schema):
+        for part in (self.topics, self.standins, self.servers, self.action_standins,
+                     self.action_servers, self.rmw_discovery, self.schema):
             if part is not None:
                 part.register(self.dispatcher)
 
@@ -186,6 +194,8 @@ class BridgeNode(Node):
         self.wiring.throttle.tick()
         self.standins.expire()
         self.servers.expire()
+        self.action_standins.expire()
+        self.action_servers.expire()
 
     def _check_graph(self) -> None:
         self.topics.check_graph()
@@ -202,6 +212,8 @@ class BridgeNode(Node):
             schema=self.schema.stats() if self.schema is not None else None,
             topics=self.topics.status(channels, ledger.lost_on_link(link_stats)),
             services=service_status(self.standins, self.servers, channels, self.unavailable),
+            actions=action_status(self.action_standins, self.action_servers, channels,
+                                  self.unavailable),
             bridge=asdict(self.counters), echo_hazards=dict(self.echo_hazards))
 
     def discovery_status(self) -> dict | None:

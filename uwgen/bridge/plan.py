@@ -7,8 +7,12 @@ bridge therefore never has a subscription and a publisher on the same topic, so 
 never take its own publication and send it back over the link. Services likewise: the
 serving side calls the real service, every other side offers a stand-in service.
 
+Actions likewise: the server side calls the real action server through an action client,
+every other side offers a stand-in action server.
+
 The generated package is duck-typed (see notes/contracts.md): `MANIFEST` with `network`,
-`sides` and `fragment_id`; `TOPICS` and `SERVICES` mapping id to codec objects.
+`sides` and `fragment_id`; `TOPICS`, `SERVICES` and `ACTIONS` (packages generated before
+actions have none) mapping id to codec objects.
 """
 from __future__ import annotations
 
@@ -19,12 +23,14 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from uwgen.manifest.model import NATIVE, RMW_DESERT, LinkConfig, LinkPolicy  # RMW_DESERT: discovery, seqs 1..999
+from uwgen.manifest.model import NATIVE, RMW_DESERT, LinkConfig, LinkPolicy, handle_range  # RMW_DESERT: discovery, seqs 1..999
 
 # What a stand-in service does when its bridged call gets no response in time.
 TIMEOUT_REPLY_NONE = "none"        # send no response: the client's own timeout detects it
 TIMEOUT_REPLY_DEFAULT = "default"  # send a default-constructed response (and log the error)
 TIMEOUT_REPLIES = (TIMEOUT_REPLY_NONE, TIMEOUT_REPLY_DEFAULT)
+# Link channel key of an action's feedback: never a wire id (those are 1..255).
+FEEDBACK_KEY_BASE = 256
 
 class PlanError(Exception):
     """The bridge cannot be set up as asked (unknown side, bad option): exit status 2."""
@@ -67,6 +73,9 @@ class BridgePlan:
     served_services: list[Any]    # ServiceCodec served here: call the real local service
     fragment_id: int | None
     defaults: BridgeOptions
+    offered_actions: list[Any] = field(default_factory=list)  # ActionCodec served elsewhere: stand-in server here
+    served_actions: list[Any] = field(default_factory=list)   # ActionCodec served here: call the real server
+    action_handles: dict[int, tuple[int, int]] = field(default_factory=dict)  # offered id -> this side's handles
     schema_id: int | None = None          # reserved id of schema announcements (None: off)
     schema_period: float | None = None    # seconds between periodic announcements
     schema_digest: bytes = b""            # the generated package's SCHEMA_DIGEST
@@ -81,6 +90,7 @@ class BridgePlan:
         entry = sides[side]
         topics = sorted(package.TOPICS.values(), key=lambda t: t.id)
         services = sorted(package.SERVICES.values(), key=lambda s: s.id)
+        actions = sorted(getattr(package, "ACTIONS", {}).values(), key=lambda a: a.id)
         return cls(
             network=manifest.network,
             side=side,
@@ -90,6 +100,10 @@ class BridgePlan:
             served_services=[s for s in services if s.server == side],
             fragment_id=getattr(manifest, "fragment_id", None),
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
+            offered_actions=[a for a in actions if a.server != side],
+            served_actions=[a for a in actions if a.server == side],
+            action_handles={a.id: handle_range(list(sides), side, a.server)
+                            for a in actions if a.server != side},
             schema_id=getattr(manifest, "schema_id", None),
             schema_period=getattr(manifest, "schema_period", None),
             schema_digest=getattr(manifest, "schema_digest", b""),
@@ -97,11 +111,16 @@ class BridgePlan:
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
         """Link channels this side sends on, as (id, policy, name, whole): its outgoing topics,
-        and every service it takes part in (requests from the calling side, responses from the
-        serving side). `whole`: an rmw_desert entry, never fragmented."""
+        every service and action it takes part in (requests from the calling side, responses
+        from the serving side), and the feedback of the actions it serves (key
+        FEEDBACK_KEY_BASE + id, latest-only). `whole`: an rmw_desert entry, never fragmented
+        (actions are native only)."""
         chans = [(t.id, t.policy, t.name, is_rmw_desert(t)) for t in self.outgoing_topics]
         chans += [(s.id, s.policy, s.name, is_rmw_desert(s))
                   for s in (*self.called_services, *self.served_services)]
+        chans += [(a.id, a.policy, a.name, False) for a in (*self.offered_actions, *self.served_actions)]
+        chans += [(FEEDBACK_KEY_BASE + a.id, a.feedback_policy, f"{a.name} feedback", False)
+                  for a in self.served_actions if a.feedback_policy is not None]
         return sorted(chans, key=lambda c: c[0])
 
     @property
@@ -137,7 +156,10 @@ class BridgePlan:
             return ", ".join(f"{i.name}#{i.id}" for i in items) or "-"
         return (f"network {self.network} side {self.side}: sends {names(self.outgoing_topics)}; "
                 f"receives {names(self.incoming_topics)}; calls {names(self.called_services)}; "
-                f"serves {names(self.served_services)}")
+                f"serves {names(self.served_services)}"
+                + (f"; offers actions {names(self.offered_actions)}; serves actions "
+                   f"{names(self.served_actions)}" if self.offered_actions or self.served_actions
+                   else ""))
 
 
 def is_rmw_desert(entry: Any) -> bool:

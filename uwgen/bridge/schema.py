@@ -341,7 +341,9 @@ def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
     schema_id = getattr(plan, "schema_id", None)
     if schema_id is None:
         return None
-    ours = {e.id: (e.name, getattr(e, "fingerprint", b"")) for e in (*plan.topics, *plan.services)}
+    actions = (*getattr(plan, "offered_actions", ()), *getattr(plan, "served_actions", ()))
+    ours = {e.id: (e.name, getattr(e, "fingerprint", b""))
+            for e in (*plan.topics, *plan.services, *actions)}
     channels = plan.channels()
 
     def link_stats() -> dict:

@@ -59,6 +59,11 @@ class StatusReporter:
             parts += self._drops.changes("link", name, entry.get("link", {}))
             if parts:
                 log.warning(f"{name}: dropped since last report: {', '.join(parts)}")
+        for name, entry in status.get("actions", {}).items():
+            parts = self._drops.changes("action", name, entry)
+            parts += self._drops.changes("link", name, entry.get("link", {}))
+            if parts:
+                log.warning(f"{name}: dropped since last report: {', '.join(parts)}")
         parts = self._drops.changes("bridge", "", status["bridge"])
         if parts:
             log.warning(f"payloads dropped since last report: {', '.join(parts)}")

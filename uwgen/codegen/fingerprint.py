@@ -2,7 +2,7 @@
 
 Two sides that disagree about an id's type, profile or field encodings misread each
 other silently; MAVLink guards against this with CRC_EXTRA, DCCL with its hash codec.
-uwgen computes, at build time, for every topic and service of the manifest:
+uwgen computes, at build time, for every topic, service and action of the manifest:
 
     fingerprint = SHA-256(canonical CBOR of the id's description)[:FINGERPRINT_BYTES]
 
@@ -10,9 +10,9 @@ The description (wire-format.md section 10) is the CBOR array
 
     ["uwgen-schema", 1, entry, kinds, id, profile, type name, roots, types]
 
-where `entry` is "topic" or "service", `kinds` the header kinds the id travels with
-([0], or [2, 3] for a service), `roots` the codec keys of the message(s) (request then
-response for a service) and `types` every codec type they reach (inlined or through
+where `entry` is "topic", "service" or "action", `kinds` the header kinds the id travels
+with ([0], [2, 3] for a service, [0, 2, 3] for an action), `roots` the codec keys of the
+message(s) (request then response for a service; goal, result, feedback for an action) and `types` every codec type they reach (inlined or through
 arrays), sorted by key, each written generically: a dataclass becomes a map of its
 fields plus "@": its class name (leaving out fields marked `metadata={"schema": False}`,
 which name generated code and not bytes), an Enum its value, a list/tuple an array. Any IR
@@ -107,6 +107,13 @@ def service_fingerprint(ident: int, profile: str, type_name: str, request: Codec
                               [request, response], codecs))
 
 
+def action_fingerprint(ident: int, profile: str, type_name: str, goal: CodecType,
+                       result: CodecType, feedback: CodecType,
+                       codecs: dict[str, CodecType]) -> bytes:
+    return digest(description("action", [KIND_TOPIC, KIND_REQUEST, KIND_RESPONSE], ident, profile,
+                              type_name, [goal, result, feedback], codecs))
+
+
 def package_digest(fingerprints: dict[tuple[str, int], bytes]) -> bytes:
     """One fingerprint of a whole manifest: of the sorted (entry, id, fingerprint) triples."""
     rows = [[entry, ident, fp] for (entry, ident), fp in sorted(fingerprints.items())]
@@ -114,7 +121,8 @@ def package_digest(fingerprints: dict[tuple[str, int], bytes]) -> bytes:
 
 
 def entry_codecs(manifest: Any, builder: Any) -> dict[tuple[str, int], tuple[list[CodecType], dict[str, CodecType]]]:
-    """('topic' | 'service', id) -> (root codec types, every codec type they reach by key),
+    """('topic' | 'service' | 'action', id) -> (root codec types, every codec type they reach
+    by key),
     as `builder` (an IRBuilder) makes them for the manifest's entries.
 
     These must be the codec types the entries' generated codecs are lowered from (a test
@@ -134,18 +142,27 @@ def entry_codecs(manifest: Any, builder: Any) -> dict[tuple[str, int], tuple[lis
                  builder.codec(service.type.response, service.profile, service.response_fields,
                                variant_name("r", service.id, service.response_fields))]
         out[("service", service.id)] = (roots, codecs)
+    for action in getattr(manifest, "actions", ()):
+        codecs = {}
+        for msg in action.type.parts:
+            codecs.update({ct.key: ct for ct in builder.codecs_for(msg, action.profile)})
+        roots = [builder.codec(msg, action.profile) for msg in action.type.parts]
+        out[("action", action.id)] = (roots, codecs)
     return out
 
 
 def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], bytes]:
-    """('topic' | 'service', id) -> fingerprint for every entry of `manifest`."""
+    """('topic' | 'service' | 'action', id) -> fingerprint for every entry of `manifest`."""
     entries = {**{("topic", t.id): t for t in manifest.topics},
-               **{("service", s.id): s for s in manifest.services}}
+               **{("service", s.id): s for s in manifest.services},
+               **{("action", a.id): a for a in getattr(manifest, "actions", ())}}
     out: dict[tuple[str, int], bytes] = {}
     for key, (roots, codecs) in entry_codecs(manifest, builder).items():
         entry = entries[key]
         if key[0] == "topic":
             out[key] = topic_fingerprint(entry.id, entry.profile, entry.type_name, roots[0], codecs)
+        elif key[0] == "action":
+            out[key] = action_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs)
         else:
             out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs)
     return out

@@ -26,8 +26,9 @@ from uwgen.codegen.emit_packed import PackedLowering
 from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest
 from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key, variant_name
 from uwgen.manifest.model import NATIVE, PACKED
-from uwgen.idl.loader import InterfaceLibrary
-from uwgen.idl.model import OCTET_TYPES, ArrayKind, DefinitionError, Field, MessageDef, ServiceDef, SourceRef
+from uwgen.idl.loader import InterfaceLibrary, parts_of
+from uwgen.idl.model import (OCTET_TYPES, ActionDef, ArrayKind, DefinitionError, Field, MessageDef,
+                             ServiceDef, SourceRef)
 from uwgen.manifest.model import Manifest
 
 TEMPLATES = Path(__file__).resolve().parents[2] / "templates"
@@ -57,12 +58,19 @@ class ServiceHolder:
 
 
 @dataclass
+class ActionHolder:
+    name: str
+    full_name: str
+
+
+@dataclass
 class ModulePlan:
     package: str                                              # ROS package
-    namespace: str                                            # msg or srv
+    namespace: str                                            # msg, srv or action
     imports: list[tuple[str, str, str]] = field(default_factory=list)  # (package, namespace, alias) used
     classes: list[PlainClass] = field(default_factory=list)
     services: list[ServiceHolder] = field(default_factory=list)
+    actions: list[ActionHolder] = field(default_factory=list)
     functions: list[Function] = field(default_factory=list)
     constants: list[str] = field(default_factory=list)
     bits_imports: list[str] = field(default_factory=list)    # uwgen.runtime.bits helpers used
@@ -144,8 +152,8 @@ def plan_build(folders: list[Path], names: list[str] = (), manifest_path: Path |
 def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | None,
                  package: str, profiles: tuple[str, ...] = (NATIVE,),
                  manifest_label: str | None = None) -> PackagePlan:
-    """Decide what to generate: `names` in each of `profiles`, plus the manifest's topics
-    and services in their own profiles, and every type those use."""
+    """Decide what to generate: `names` in each of `profiles`, plus the manifest's topics,
+    services and actions in their own profiles, and every type those use."""
     if manifest is not None and manifest_label is None:   # the package names its manifest
         manifest_label = Path(manifest.source).name if manifest.source else "<manifest>"
     builder = IRBuilder(lambda n: _as_message(lib.get(n)))
@@ -154,8 +162,8 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     for name in names:
         definition = lib.get(name)
         for profile in profiles:
-            for msg in _messages_of(definition):
-                wanted.append((msg, profile, 3 if isinstance(definition, ServiceDef) else 2, False, (), ""))
+            for msg in parts_of(definition):
+                wanted.append((msg, profile, header_len(msg), False, (), ""))
     if manifest is not None:
         for topic in manifest.topics:
             wanted.append((topic.type, topic.profile, 2, True, topic.fields, variant_name("t", topic.id, topic.fields)))
@@ -164,6 +172,8 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
                         variant_name("q", service.id, service.request_fields)),
                        (service.type.response, service.profile, 3, True, service.response_fields,
                         variant_name("r", service.id, service.response_fields))]
+        for action in manifest.actions:
+            wanted += [(msg, action.profile, header_len(msg), True, (), "") for msg in action.type.parts]
 
     codecs: dict[tuple[str, str, str], CodecType] = {}
     skipped: list[str] = []
@@ -186,13 +196,18 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     for (full_name, _profile, _variant) in codecs:
         definitions[full_name] = _python_safe(_as_message(lib.get(full_name)))
     services: dict[str, ServiceDef] = {}
+    actions: dict[str, ActionDef] = {}
     for name in names:
         d = lib.get(name)
         if isinstance(d, ServiceDef):
             services[d.full_name] = d
+        elif isinstance(d, ActionDef):
+            actions[d.full_name] = d
     if manifest is not None:
         for s in manifest.services:
             services[s.type.full_name] = s.type
+        for a in manifest.actions:
+            actions[a.type.full_name] = a.type
 
     modules: dict[str, ModulePlan] = {}
     consts: dict[str, Constants] = {}
@@ -212,6 +227,10 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
         srv = services[full_name]
         if srv.request.full_name in definitions and srv.response.full_name in definitions:
             module(srv.package, "srv").services.append(ServiceHolder(srv.name, srv.full_name))
+    for full_name in sorted(actions):
+        act = actions[full_name]
+        if all(part.full_name in definitions for part in act.parts):
+            module(act.package, "action").actions.append(ActionHolder(act.name, act.full_name))
 
     module_of = {ct.key: ct.module for ct in codecs.values()}
     entries: list[CodecEntry] = []
@@ -236,10 +255,10 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
         mod.bits_imports = [h for h in BITS_HELPERS if f"_{h}(" in text]
 
     # A service's request and response come from its one file: read each file once.
-    files = {lib.source_of(n) for n in (*definitions, *services)}
+    files = {lib.source_of(n) for n in (*definitions, *services, *actions)}
     sources = sorted((source_label(f, lib), _digest(f)) for f in files)
     ordered = [modules[p] for p in sorted(modules)]
-    ros_imports = sorted((type_key(n), _ros_module(n), n.split("/")[2]) for n in definitions)
+    ros_imports = sorted((type_key(n), *_ros_import(n)) for n in definitions)
     plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
     fingerprints = manifest_fingerprints(manifest, builder) if manifest is not None else {}
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
@@ -274,15 +293,29 @@ def _as_message(d) -> MessageDef:
     return d
 
 
-def _messages_of(definition) -> list[MessageDef]:
-    if isinstance(definition, ServiceDef):
-        return [definition.request, definition.response]
-    return [definition]
+def header_len(msg: MessageDef) -> int:
+    """Items before a message's fields on the wire: kind and id, a service's seq, an
+    action's goal handle and (results only) status (wire format 3 and 13)."""
+    if msg.namespace == "srv":
+        return 3
+    if msg.namespace == "action":
+        return 4 if msg.name.endswith("_Result") else 3
+    return 2
 
 
 def _ros_module(full_name: str) -> str:
     pkg, ns, _name = full_name.split("/")
     return f"{pkg}.{ns}"
+
+
+def _ros_import(full_name: str) -> tuple[str, str]:
+    """(module, class) of a type's rclpy class. rclpy exports an action's goal, result
+    and feedback only as attributes of the action class: `Fibonacci.Goal`."""
+    pkg, ns, name = full_name.split("/")
+    if ns == "action":
+        base, _, part = name.rpartition("_")
+        return f"{pkg}.{ns}", f"{base}.{part}"
+    return f"{pkg}.{ns}", name
 
 
 def _need_import(mod: ModulePlan, module: str) -> None:
@@ -426,6 +459,12 @@ def _manifest_view(plan: PackagePlan):
                           ros_module=f"{s.type.package}.srv", ros_name=s.type.name,
                           fingerprint=plan.fingerprints[("service", s.id)].hex())
                      for s in sorted(manifest.services, key=lambda s: s.id)],
+        "actions": [dict(id=a.id, name=a.name, type_name=a.type_name, server=a.server,
+                         accept_timeout=a.accept_timeout, result_timeout=a.result_timeout,
+                         max_goals=a.max_goals, policy=repr(a.policy), feedback=repr(a.feedback),
+                         profile=a.profile, ros_module=f"{a.type.package}.action",
+                         ros_name=a.type.name, fingerprint=plan.fingerprints[("action", a.id)].hex())
+                    for a in sorted(manifest.actions, key=lambda a: a.id)],
     }
 
 

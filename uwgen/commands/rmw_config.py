@@ -139,7 +139,7 @@ def _export(args) -> int:
     manifest = _load(args.manifest, args.interfaces)
     result = export_conf(manifest, include_native=args.include_native)
     for note in result.omitted:
-        print(f"uwgen rmw-config: left out {note} (--include-native lists it)", file=sys.stderr)
+        print(f"uwgen rmw-config: left out {note}", file=sys.stderr)
     if args.output is None:
         sys.stdout.write(result.text)
     else:

@@ -136,7 +136,7 @@ def _importable(package: str) -> bool:
 
 
 def _interface_files(folder: Path) -> list[Path]:
-    return sorted(p for sub in ("msg", "srv") for p in (folder / sub).glob(f"*.{sub}"))
+    return sorted(p for sub in ("msg", "srv", "action") for p in (folder / sub).glob(f"*.{sub}"))
 
 
 def _digest(files: list[Path]) -> str:
@@ -156,6 +156,8 @@ def _dependencies(files: list[Path], package: str) -> list[str]:
                 dep = first[0].split("/")[0]
                 if dep != package:
                     deps.add(dep)
+        if p.suffix == ".action":
+            deps.add("action_msgs")    # the generated action types use its GoalInfo, GoalStatus
     return sorted(deps)
 
 
@@ -168,7 +170,7 @@ def ensure_interfaces(folder: Path, cache: Path = CACHE, quiet: bool = True) -> 
         return env
     files = _interface_files(folder)
     if not files:
-        raise BuildError(f"{folder}: no msg/*.msg or srv/*.srv files")
+        raise BuildError(f"{folder}: no msg/*.msg, srv/*.srv or action/*.action files")
     digest = _digest(files)
     work = cache / package
     env = InterfaceEnv(package, work / "install")

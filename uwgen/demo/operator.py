@@ -2,7 +2,8 @@
 
 It publishes `geometry_msgs/Twist` on /turtle1/cmd_vel at 10 Hz (twice the rate the
 manifest lets over the link, so the link policy has work to do), calls
-/vehicle/set_pen and /turtle1/teleport_absolute through the bridge, and listens to
+/vehicle/set_pen and /turtle1/teleport_absolute through the bridge, sends the mission
+action /turtle1/rotate_absolute (turn to face north) after the square, and listens to
 /turtle1/pose, /vehicle/battery and /vehicle/log. It steers to the square's corners by
 the poses it receives (a `Pilot`), as a person at the surface would: open-loop commands
 alone drift, because every lost command shifts a turn. Each command carries its
@@ -24,6 +25,9 @@ RATE = 10.0                  # Hz of cmd_vel
 START = (2.0, 2.0, 0.0)      # where the square starts (teleport target)
 CALL_TIMEOUT = 12.0          # s the operator waits for a bridged call (the manifest's 10 s + margin)
 CALL_TRIES = 3               # a request or response lost on the link fails the call: try again
+MISSION_HEADING = math.pi / 2   # rad: the mission action turns the vehicle to face north
+GOAL_WAIT = 15.0             # s for the goal's answer (the manifest's accept_timeout + margin)
+RESULT_WAIT = 65.0           # s for its result (the manifest's result_timeout + margin)
 
 
 def square_waypoints(start: tuple[float, float], side: float, laps: int = 1) -> list[tuple[float, float]]:
@@ -119,9 +123,12 @@ def main(argv: list[str] | None = None) -> int:
 
     import rclpy
     from geometry_msgs.msg import Twist
+    from action_msgs.msg import GoalStatus
+    from rclpy.action import ActionClient
     from rclpy.executors import ExternalShutdownException
     from sensor_msgs.msg import BatteryState
     from std_msgs.msg import String
+    from turtlesim.action import RotateAbsolute
     from turtlesim.msg import Pose
     from turtlesim.srv import SetPen, TeleportAbsolute
 
@@ -134,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     cmd_pub = node.create_publisher(Twist, "/turtle1/cmd_vel", 10)
     pen = node.create_client(SetPen, "/vehicle/set_pen")
     teleport = node.create_client(TeleportAbsolute, "/turtle1/teleport_absolute")
+    rotate = ActionClient(node, RotateAbsolute, "/turtle1/rotate_absolute")
     seen = {"pose": 0, "battery": 0, "log": 0}
 
     def on_pose(p: Pose) -> None:
@@ -187,6 +195,37 @@ def main(argv: list[str] | None = None) -> int:
             log.error(f"{what}: no response within {CALL_TIMEOUT:.0f} s (lost on the link?)")
         return ok
 
+    def spin_until(done, seconds: float) -> bool:
+        end = time.monotonic() + seconds
+        while not done() and time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        return done()
+
+    def mission(theta: float) -> None:
+        """Send the mission action's goal and wait for its result, recording both."""
+        name = "/turtle1/rotate_absolute"
+        feedback: list[float] = []
+        t0 = time.time()
+        sent = rotate.send_goal_async(RotateAbsolute.Goal(theta=theta),
+                                      feedback_callback=lambda m: feedback.append(m.feedback.remaining))
+        if not spin_until(sent.done, GOAL_WAIT) or not sent.result().accepted:
+            log.error(f"{name}: goal (heading {theta:.2f} rad) not accepted")
+            record("mission", name=name, ok=False, status="rejected", feedback=0, rtt=time.time() - t0)
+            return
+        log.info(f"{name}: goal accepted in {time.time() - t0:.2f} s, turning to {theta:.2f} rad")
+        done = sent.result().get_result_async()
+        ok = spin_until(done.done, RESULT_WAIT)
+        status = done.result().status if ok else GoalStatus.STATUS_UNKNOWN
+        names = {GoalStatus.STATUS_SUCCEEDED: "succeeded", GoalStatus.STATUS_CANCELED: "canceled",
+                 GoalStatus.STATUS_ABORTED: "aborted"}
+        rtt = time.time() - t0
+        record("mission", name=name, ok=status == GoalStatus.STATUS_SUCCEEDED,
+               status=names.get(status, "no result"), feedback=len(feedback), rtt=rtt,
+               delta=done.result().result.delta if ok else None)
+        log.info(f"{name}: {names.get(status, 'no result')} after {rtt:.2f} s, "
+                 f"{len(feedback)} feedback messages"
+                 + (f", turned {done.result().result.delta:.2f} rad" if ok else ""))
+
     def drive(lin: float, ang: float, k: int) -> None:
         msg = Twist()
         msg.linear.x, msg.angular.z, msg.linear.z = float(lin), float(ang), float(k)
@@ -227,6 +266,7 @@ def main(argv: list[str] | None = None) -> int:
             drive(0.0, 0.0, k)
             spin_for(1.0 / RATE)
         record("stop")
+        mission(MISSION_HEADING)
         call(pen, SetPen.Request(r=0, g=0, b=0, width=1, off=1), "set_pen (off)")
         spin_for(3.0)                     # the last poses and log lines
         log.info(f"done: received {seen['pose']} poses, {seen['battery']} battery states, "

@@ -88,6 +88,7 @@ class Report:
     deviation_max: float | None
     end_error: float | None
     emulator: dict
+    missions: list[dict] = field(default_factory=list)   # the operator's action goals
     sizes: list["FrameSize"] = field(default_factory=list)
 
 
@@ -209,7 +210,7 @@ def build_report(out_dir: Path) -> Report:
         end_error = math.dist(commanded[-1], truth[-1])
     return Report(rows, services, commanded, reported, truth,
                   (sum(dev) / len(dev)) if dev else None, max(dev) if dev else None,
-                  end_error, emulator)
+                  end_error, emulator, ev(op, "mission"))
 
 
 def paths(op: list[dict], veh: list[dict]):
@@ -279,6 +280,10 @@ def format_report(report: Report) -> str:
         lines.append(f"{s.name:<28} {s.calls:>5} {s.ok:>4} {s.failed:>6} {s.policy:>6} "
                      f"{_ms(median(s.rtts) if s.rtts else None):>14} {_ms(percentile(s.rtts, 95)):>8}")
     lines.append("")
+    for m in report.missions:
+        lines.append(f"action {m.get('name')}: {m.get('status')} after {m.get('rtt', 0):.2f} s, "
+                     f"{m.get('feedback', 0)} feedback messages"
+                     + (f", turned {m['delta']:.2f} rad" if m.get("delta") is not None else ""))
     if report.deviation_mean is not None:
         lines.append(f"path: the poses the surface received stay within {report.deviation_max:.2f} m "
                      f"of the commanded square (mean {report.deviation_mean:.2f} m)"

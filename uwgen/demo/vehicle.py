@@ -4,7 +4,9 @@ It integrates `geometry_msgs/Twist` commands on /turtle1/cmd_vel (unicycle model
 command older than 1 s means stop, as turtlesim does) into a `turtlesim/msg/Pose` on
 /turtle1/pose at 10 Hz, publishes a `sensor_msgs/BatteryState` at 1 Hz and log lines on
 /vehicle/log (one of them longer than 255 bytes, so it crosses the link in fragments),
-and serves /turtle1/teleport_absolute and /vehicle/set_pen.
+serves /turtle1/teleport_absolute and /vehicle/set_pen, and runs the mission action
+/turtle1/rotate_absolute (turtlesim's RotateAbsolute: turn on the spot to a heading, with
+the remaining angle as feedback).
 
     python -m uwgen.demo.vehicle [--record FILE] [--log-every 15]
 
@@ -26,6 +28,9 @@ STEP = 0.02              # s: integration step
 POSE_PERIOD = 0.1        # s
 BATTERY_PERIOD = 1.0     # s
 MISSION_LINE_AT = 4.0    # s after start: the long log line (> 255 bytes: fragmented)
+ROTATE_SPEED = 0.6       # rad/s at most while turning to a heading (the action)
+ROTATE_TOLERANCE = 0.02  # rad: a heading this close is reached
+ROTATE_STEP = 0.1        # s between rotation commands (and feedback)
 
 
 class VehicleSim:
@@ -54,6 +59,11 @@ class VehicleSim:
         self.lin = self.ang = 0.0
 
 
+def turn_to(target: float, theta: float) -> float:
+    """The signed angle (-pi..pi) from heading `theta` to heading `target`."""
+    return math.atan2(math.sin(target - theta), math.cos(target - theta))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m uwgen.demo.vehicle", description=__doc__.split("\n")[0])
     parser.add_argument("--record", type=Path, help="write events as JSON lines here")
@@ -62,9 +72,12 @@ def main(argv: list[str] | None = None) -> int:
 
     import rclpy
     from geometry_msgs.msg import Twist
+    from rclpy.action import ActionServer, CancelResponse
     from rclpy.executors import ExternalShutdownException
+    from rclpy.task import Future
     from sensor_msgs.msg import BatteryState
     from std_msgs.msg import String
+    from turtlesim.action import RotateAbsolute
     from turtlesim.msg import Pose
     from turtlesim.srv import SetPen, TeleportAbsolute
 
@@ -104,6 +117,40 @@ def main(argv: list[str] | None = None) -> int:
         say(f"pen {'off' if req.off else 'on'}: rgb({req.r},{req.g},{req.b}) width {req.width}")
         return resp
 
+    def pause(seconds: float) -> Future:
+        """A future done after `seconds`: the action waits without blocking the executor."""
+        done = Future()
+
+        def fire() -> None:
+            timer.cancel()
+            if not done.done():
+                done.set_result(True)
+        timer = node.create_timer(seconds, fire)
+        return done
+
+    async def rotate(goal_handle) -> RotateAbsolute.Result:
+        target, start_theta = goal_handle.request.theta, sim.theta
+        record("rotate_goal", theta=target)
+        say(f"mission: turning to heading {target:.2f} rad")
+        feedback = RotateAbsolute.Feedback()
+        while True:
+            remaining = turn_to(target, sim.theta)
+            if goal_handle.is_cancel_requested:
+                sim.command(0.0, 0.0, time.monotonic())
+                goal_handle.canceled()
+                break
+            if abs(remaining) < ROTATE_TOLERANCE:
+                sim.command(0.0, 0.0, time.monotonic())
+                goal_handle.succeed()
+                break
+            sim.command(0.0, max(-ROTATE_SPEED, min(ROTATE_SPEED, 2.0 * remaining)), time.monotonic())
+            feedback.remaining = remaining
+            goal_handle.publish_feedback(feedback)
+            await pause(ROTATE_STEP)
+        delta = turn_to(sim.theta, start_theta)
+        record("rotate_done", status=goal_handle.status, delta=delta, theta=sim.theta)
+        return RotateAbsolute.Result(delta=delta)
+
     def step() -> None:
         now = time.monotonic()
         sim.step(now, STEP)
@@ -141,6 +188,8 @@ def main(argv: list[str] | None = None) -> int:
     node.create_subscription(Twist, "/turtle1/cmd_vel", on_cmd, 10)
     node.create_service(TeleportAbsolute, "/turtle1/teleport_absolute", on_teleport)
     node.create_service(SetPen, "/vehicle/set_pen", on_set_pen)
+    ActionServer(node, RotateAbsolute, "/turtle1/rotate_absolute", rotate,
+                 cancel_callback=lambda goal_handle: CancelResponse.ACCEPT)
     node.create_timer(STEP, step)
     node.create_timer(POSE_PERIOD, publish_pose)
     node.create_timer(BATTERY_PERIOD, publish_battery)

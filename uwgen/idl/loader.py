@@ -1,18 +1,19 @@
-"""The interface library: every `.msg`/`.srv` uwgen can see, parsed on demand.
+"""The interface library: every `.msg`/`.srv`/`.action` uwgen can see, parsed on demand.
 
 Interfaces come from two places:
 
 - folders given explicitly (e.g. `msg_samples/`), each either a parent of packages
-  (`<folder>/<package>/msg/*.msg`, `<folder>/<package>/srv/*.srv`) or a package folder
-  itself (one that has `msg/` or `srv/`);
-- installed ROS packages: `<prefix>/share/<package>/{msg,srv}/` for the environment's
+  (`<folder>/<package>/msg/*.msg`, `<folder>/<package>/srv/*.srv`,
+  `<folder>/<package>/action/*.action`) or a package folder itself (one that has `msg/`,
+  `srv/` or `action/`);
+- installed ROS packages: `<prefix>/share/<package>/{msg,srv,action}/` for the environment's
   own prefix (`sys.prefix`, where the ROS wheels install) and then every entry of
   `AMENT_PREFIX_PATH`, in order. The first prefix that has a package provides it.
 
 A package found in a given folder hides the installed package of the same name entirely
 (a local copy replaces the installed one; mixing files of two versions of a package
-would be wrong). `action/` folders and `.idl` files are ignored: uwgen does not bridge
-actions yet.
+would be wrong). `.idl` files are ignored. An action's goal, result and feedback are
+messages named `pkg/action/Name_Goal`, `_Result` and `_Feedback`.
 
 Building the index only lists folders; files are parsed the first time they are asked
 for and cached, so naming one type costs one parse plus its dependencies.
@@ -26,10 +27,11 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from uwgen.idl import names
-from uwgen.idl.model import DefinitionError, InterfaceDef, MessageDef, ServiceDef, SourceRef
+from uwgen.idl.model import (ACTION_PARTS, ActionDef, DefinitionError, InterfaceDef, MessageDef,
+                             ServiceDef, SourceRef)
 from uwgen.idl.parser import parse_file
 
-_KINDS = (("msg", ".msg"), ("srv", ".srv"))
+_KINDS = (("msg", ".msg"), ("srv", ".srv"), ("action", ".action"))
 
 
 class UnknownInterface(DefinitionError, KeyError):
@@ -107,20 +109,18 @@ class InterfaceLibrary:
             if not found:
                 raise DefinitionError(
                     SourceRef(folder, 1, 1),
-                    "no interfaces found: expected <package>/msg/*.msg or <package>/srv/*.srv "
-                    "(or a package folder with msg/ or srv/)",
+                    "no interfaces found: expected <package>/msg/*.msg, <package>/srv/*.srv or "
+                    "<package>/action/*.action (or a package folder with msg/, srv/ or action/)",
                 )
         return packages
 
     @staticmethod
     def _package_dirs(folder: Path) -> list[Path]:
-        if (folder / "msg").is_dir() or (folder / "srv").is_dir():
+        def has_kinds(d: Path) -> bool:
+            return any((d / kind).is_dir() for kind, _ in _KINDS)
+        if has_kinds(folder):
             return [folder]
-        return sorted(
-            child
-            for child in folder.iterdir()
-            if child.is_dir() and ((child / "msg").is_dir() or (child / "srv").is_dir())
-        )
+        return sorted(child for child in folder.iterdir() if child.is_dir() and has_kinds(child))
 
     @staticmethod
     def _package_entries(package: str, package_dir: Path, local: bool) -> list[_Entry]:
@@ -172,9 +172,10 @@ class InterfaceLibrary:
         return ", ".join(str(p) for p in self.search_paths()) or "no folders and no installed packages"
 
     def normalize(self, name: str) -> str | None:
-        """The full name (`pkg/msg/Name`, `pkg/srv/Name`, `pkg/srv/Name_Request`) for `name`, if known.
+        """The full name (`pkg/msg/Name`, `pkg/srv/Name`, `pkg/srv/Name_Request`,
+        `pkg/action/Name`, `pkg/action/Name_Goal`) for `name`, if known.
 
-        `pkg/Name` means the message if there is one, else the service.
+        `pkg/Name` means the message if there is one, else the service, else the action.
         """
         resolved = self._resolve(name)
         return None if resolved is None else resolved[0]
@@ -183,7 +184,7 @@ class InterfaceLibrary:
         """(full name, entry, part) for any spelling `normalize` accepts; see `_lookup`."""
         parts = name.split("/")
         if len(parts) == 2:
-            candidates = [f"{parts[0]}/{kind}/{parts[1]}" for kind in ("msg", "srv")]
+            candidates = [f"{parts[0]}/{kind}/{parts[1]}" for kind, _ in _KINDS]
         elif len(parts) == 3:
             candidates = [name]
         else:
@@ -195,17 +196,20 @@ class InterfaceLibrary:
         return None
 
     def _lookup(self, full: str) -> tuple[_Entry, str | None] | None:
-        """(entry, part) for a full name; part is 'request'/'response' for a service's message."""
+        """(entry, part) for a full name; part is 'request'/'response' for a service's
+        message, 'goal'/'result'/'feedback' for an action's."""
         entry = self._index.get(full)
         if entry is not None:
             return entry, None
-        pkg, _, rest = full.partition("/srv/")
-        if rest:
-            for suffix, part in (("_Request", "request"), ("_Response", "response")):
-                if rest.endswith(suffix):
-                    entry = self._index.get(f"{pkg}/srv/{rest[: -len(suffix)]}")
+        for ns, suffixes in (("srv", ("Request", "Response")), ("action", ACTION_PARTS)):
+            pkg, _, rest = full.partition(f"/{ns}/")
+            if not rest:
+                continue
+            for suffix in suffixes:
+                if rest.endswith(f"_{suffix}"):
+                    entry = self._index.get(f"{pkg}/{ns}/{rest[: -len(suffix) - 1]}")
                     if entry is not None:
-                        return entry, part
+                        return entry, suffix.lower()
         return None
 
     def __contains__(self, name: str) -> bool:
@@ -243,7 +247,7 @@ class InterfaceLibrary:
     def describe_unknown(self, name: str) -> str:
         """Why `name` is unknown and where it was looked for (for error messages)."""
         if names.split_type_name(name) is None:
-            return f"'{name}' is not an interface name: expected pkg/msg/Name, pkg/srv/Name or pkg/Name"
+            return f"'{name}' is not an interface name: expected pkg/msg/Name, pkg/srv/Name, pkg/action/Name or pkg/Name"
         return f"unknown interface '{name}' (looked in: {self.looked_in()})"
 
     def _parse(self, entry: _Entry) -> InterfaceDef:
@@ -257,8 +261,7 @@ class InterfaceLibrary:
         """Every nested type a definition names must exist and be a message."""
         if definition.full_name in self._checked:
             return
-        messages = [definition] if isinstance(definition, MessageDef) else [definition.request, definition.response]
-        for message in messages:
+        for message in parts_of(definition):
             for f in message.fields:
                 if f.type.is_primitive:
                     continue
@@ -287,12 +290,7 @@ class InterfaceLibrary:
         order: list[MessageDef] = []
         done: set[str] = set()
         for name in names_:
-            definition = self.get(name)
-            if isinstance(definition, ServiceDef):
-                roots = [definition.request, definition.response]
-            else:
-                roots = [definition]
-            for root in roots:
+            for root in parts_of(self.get(name)):
                 self._visit(root, order, done, [])
         return order
 
@@ -311,3 +309,13 @@ class InterfaceLibrary:
         stack.pop()
         done.add(message.full_name)
         order.append(message)
+
+
+def parts_of(definition: InterfaceDef) -> list[MessageDef]:
+    """The messages of an interface: itself, a service's request and response, or an
+    action's goal, result and feedback."""
+    if isinstance(definition, ServiceDef):
+        return [definition.request, definition.response]
+    if isinstance(definition, ActionDef):
+        return definition.parts
+    return [definition]

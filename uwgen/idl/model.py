@@ -112,14 +112,15 @@ class Constant:
 
 @dataclass
 class MessageDef:
-    """One message: `pkg/msg/Name`, or a service's `pkg/srv/Name_Request`/`_Response`."""
+    """One message: `pkg/msg/Name`, a service's `pkg/srv/Name_Request`/`_Response`, or an
+    action's `pkg/action/Name_Goal`/`_Result`/`_Feedback`."""
 
     package: str
     name: str
     fields: list[Field] = field(default_factory=list)
     constants: list[Constant] = field(default_factory=list)
     source: Path | None = None
-    namespace: str = "msg"  # "msg", or "srv" for a service's request/response
+    namespace: str = "msg"  # "msg", "srv" for a service's request/response, "action" for an action's parts
 
     @property
     def full_name(self) -> str:
@@ -147,7 +148,29 @@ class ServiceDef:
         return f"{self.package}/srv/{self.name}"
 
 
-InterfaceDef = Union[MessageDef, ServiceDef]
+@dataclass
+class ActionDef:
+    """An action: goal, result and feedback messages (`pkg/action/Name_Goal`, ...)."""
+
+    package: str
+    name: str
+    goal: MessageDef
+    result: MessageDef
+    feedback: MessageDef
+    source: Path | None = None
+
+    @property
+    def full_name(self) -> str:
+        return f"{self.package}/action/{self.name}"
+
+    @property
+    def parts(self) -> list[MessageDef]:
+        return [self.goal, self.result, self.feedback]
+
+
+ACTION_PARTS = ("Goal", "Result", "Feedback")
+
+InterfaceDef = Union[MessageDef, ServiceDef, ActionDef]
 
 
 class DefinitionError(Exception):

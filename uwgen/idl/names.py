@@ -18,7 +18,7 @@ CONSTANT_NAME = re.compile(r"[A-Z](?:[A-Z0-9_]?[A-Z0-9]+)*")
 
 # Suffixes rosidl accepts after a message name (the parts of services and actions).
 _MESSAGE_SUFFIXES = ("_Request", "_Response", "_Goal", "_Result", "_Feedback")
-NAMESPACES = ("msg", "srv")
+NAMESPACES = ("msg", "srv", "action")
 
 
 def is_package_name(name: str) -> bool:

@@ -1,4 +1,4 @@
-"""Parser for the ROS 2 `.msg` and `.srv` languages into `uwgen.idl.model` objects.
+"""Parser for the ROS 2 `.msg`, `.srv` and `.action` languages into `uwgen.idl.model` objects.
 
 Line by line, the rules are those of `rosidl_adapter.parser` (the reference ROS 2 uses
 to turn `.msg` into IDL, from which rclpy's classes are generated), so uwgen and rclpy
@@ -25,7 +25,9 @@ from pathlib import Path
 
 from uwgen.idl import names
 from uwgen.idl.model import (
+    ACTION_PARTS,
     PRIMITIVE_TYPES,
+    ActionDef,
     STRING_TYPES,
     ArrayKind,
     Constant,
@@ -168,7 +170,8 @@ def parse_message_lines(
         if text.strip() == SEPARATOR:
             if namespace == "msg":
                 raise line.error(0, "'---' separates a service's request and response; it is not allowed in a .msg file")
-            raise line.error(0, "a service separator must be exactly '---', alone on its line without spaces")
+            what = "an action" if namespace == "action" else "a service"
+            raise line.error(0, f"{what} separator must be exactly '---', alone on its line without spaces")
         if text[0] == " ":
             raise line.error(0, "unexpected indentation: a field or constant must start at column 1")
         type_text, _, rest = text.partition(" ")
@@ -265,6 +268,35 @@ def parse_service_string(text: str, package: str, name: str, path: Path | str = 
     return ServiceDef(package, name, request, response, source=path)
 
 
+def parse_action_string(text: str, package: str, name: str, path: Path | str = "<string>") -> ActionDef:
+    """Parse the text of a `.action` file: goal `Name_Goal`, `---`, result `Name_Result`,
+    `---`, feedback `Name_Feedback` (as rosidl_adapter.parser.parse_action_string)."""
+    path = Path(path)
+    _check_names(package, name, path)
+    lines = text.splitlines()
+    separators = [i for i, line in enumerate(lines) if line == SEPARATOR]
+    if len(separators) != 2:
+        for i, line in enumerate(lines):
+            if line != SEPARATOR and line.replace("\t", " ").strip() == SEPARATOR:
+                raise DefinitionError(
+                    SourceRef(path, i + 1, 1),
+                    "an action separator must be exactly '---', alone on its line without spaces",
+                )
+        if len(separators) > 2:
+            raise DefinitionError(
+                SourceRef(path, separators[2] + 1, 1),
+                "extra '---': an action has exactly two separators (goal --- result --- feedback)",
+            )
+        at = SourceRef(path, (separators[0] + 1) if separators else 1, 1)
+        raise DefinitionError(at, f"an action needs two '---' lines (goal --- result --- feedback), "
+                                  f"found {len(separators)}")
+    bounds = [(0, separators[0]), (separators[0] + 1, separators[1]), (separators[1] + 1, len(lines))]
+    goal, result, feedback = (
+        parse_message_lines(lines[a:b], package, f"{name}_{part}", path, "action", a + 1)
+        for part, (a, b) in zip(ACTION_PARTS, bounds))
+    return ActionDef(package, name, goal, result, feedback, source=path)
+
+
 def _check_names(package: str, name: str, path: Path) -> None:
     if not names.is_package_name(package):
         raise DefinitionError(SourceRef(path, 1, 1), f"'{package}' is not a valid package name (lower case letters, digits, '_')")
@@ -284,10 +316,10 @@ def read_text(path: Path) -> str:
 
 
 def parse_file(path: Path | str, package: str | None = None):
-    """Parse `<package>/msg/Name.msg` or `<package>/srv/Name.srv`.
+    """Parse `<package>/msg/Name.msg`, `<package>/srv/Name.srv` or `<package>/action/Name.action`.
 
-    The package defaults to the name of the folder above `msg/` or `srv/`.
-    Returns a MessageDef or a ServiceDef.
+    The package defaults to the name of the folder above `msg/`, `srv/` or `action/`.
+    Returns a MessageDef, a ServiceDef or an ActionDef.
     """
     path = Path(path)
     if package is None:
@@ -297,4 +329,7 @@ def parse_file(path: Path | str, package: str | None = None):
         return parse_message_string(text, package, path.stem, path)
     if path.suffix == ".srv":
         return parse_service_string(text, package, path.stem, path)
-    raise DefinitionError(SourceRef(path, 1, 1), f"unsupported interface file '{path.name}': expected .msg or .srv")
+    if path.suffix == ".action":
+        return parse_action_string(text, package, path.stem, path)
+    raise DefinitionError(SourceRef(path, 1, 1),
+                          f"unsupported interface file '{path.name}': expected .msg, .srv or .action")

@@ -64,9 +64,12 @@ def conf_table(manifest: Manifest, include_native: bool = False) -> tuple[dict[s
     for item in (*manifest.topics, *manifest.services):
         if rmw and item.profile != PROFILE and not include_native:
             omitted.append(f"{item.name} (id {item.id}): profile {item.profile}, which "
-                           "rmw_desert nodes cannot decode")
+                           "rmw_desert nodes cannot decode (--include-native lists it)")
             continue
         entries.append((item.id, item.name))
+    for action in getattr(manifest, "actions", ()):
+        omitted.append(f"{action.name} (id {action.id}): an action (wire format 13), which "
+                       "rmw_desert nodes do not carry")
     if rmw:
         entries += [(DISCOVERY_ID, DISCOVERY_TOPIC), (DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC)]
     entries.sort()

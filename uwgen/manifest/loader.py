@@ -29,6 +29,7 @@ from uwgen.manifest.model import (
     RMW_DISCOVERY_ID,
     RMW_DISCOVERY_REQUEST_ID,
     SCHEMA_PERIOD_DEFAULT,
+    Action,
     LinkConfig,
     LinkPolicy,
     Manifest,
@@ -37,6 +38,7 @@ from uwgen.manifest.model import (
     Side,
     Topic,
 )
+from uwgen.manifest.actions import ACTION_KEYS, FEEDBACK_KEYS, read_action  # noqa: F401 (keys re-exported)
 from uwgen.manifest.fields import FieldsReader
 from uwgen.manifest.nodes import ManifestError, Reader, compose
 
@@ -46,7 +48,7 @@ MANIFEST_NAME = "uwgen.yaml"
 ID_RANGE = (1, 255)
 
 TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id", "schema_period",
-            "defaults", "topics", "services")
+            "defaults", "topics", "services", "actions")
 SIDE_KEYS = ("host", "port", "link")
 LINK_KEYS = ("max_read_length", "period")
 POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair")
@@ -56,6 +58,7 @@ DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
 TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields")
 SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
                 "request_fields", "response_fields")
+
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
 SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -191,8 +194,13 @@ class _ManifestBuilder:
         if "services" in top:
             for node in r.sequence(top["services"][1], "services"):
                 services.append(self.service(node, sides, profile))
+        actions = []
+        if "actions" in top:
+            for node in r.sequence(top["actions"][1], "actions"):
+                actions.append(self.action(node, sides))
         self.unique_names(topics, "topic")
         self.unique_names(services, "service")
+        self.unique_names(actions, "action")
 
         fragment_id = None
         if "fragment_id" in top:
@@ -214,6 +222,7 @@ class _ManifestBuilder:
             sides=sides,
             topics=topics,
             services=services,
+            actions=actions,
             fragment_id=fragment_id,
             schema_id=schema_id,
             schema_period=schema_period,
@@ -287,7 +296,7 @@ class _ManifestBuilder:
         ident = r.integer(id_node, f"id of {label}", *ID_RANGE)
         if ident in self.ids:
             first = self.ids[ident]
-            raise r.error(id_node, f"id {ident} of {label} is already used by {first.what} (line {r.where(first.node).line}); ids are unique across topics and services")
+            raise r.error(id_node, f"id {ident} of {label} is already used by {first.what} (line {r.where(first.node).line}); ids are unique across topics, services and actions")
         self.ids[ident] = _IdUse(label, id_node)
         type_node = r.require(entries, "type", node, label)
         type_text = r.string(type_node, f"type of {label}")
@@ -362,6 +371,9 @@ class _ManifestBuilder:
             raise self.r.error(key_node, f"{key} of {label}: profile rmw_desert cannot carry field encodings "
                                          "(an rmw_desert node could not read them); use profile native or packed")
         return FieldsReader(self.r, self.lib.get).read(node, msg, label)
+
+    def action(self, node: yaml.Node, sides: dict[str, Side]) -> Action:
+        return read_action(self, node, sides)   # uwgen.manifest.actions: the `actions:` section
 
     def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""

@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 
-from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
+from uwgen.idl.model import ActionDef, MessageDef, ServiceDef, SourceRef
+from uwgen.runtime.codec import ACTION_HANDLES  # goal handles 0..23: one CBOR byte each
 
 NATIVE = "native"            # uwgen's own compact encoding (wire format section 4)
 RMW_DESERT = "rmw_desert"    # what rmw_desert nodes send and decode (section 6)
@@ -141,6 +142,38 @@ class Service:
     response_fields: tuple[FieldEncoding, ...] = ()   # manifest `response_fields:`
 
 
+MAX_GOALS_LIMIT = ACTION_HANDLES // 2   # goals in flight per action, at most
+
+
+def handle_range(sides: list[str], side: str, server: str) -> tuple[int, int]:
+    """The goal handles (first, last) client side `side` uses for an action served by
+    `server`: the 24 handles are split evenly between the client sides (in name order),
+    so that goals of two client sides never share a handle (wire format 13)."""
+    clients = sorted(s for s in sides if s != server)
+    size = ACTION_HANDLES // max(1, len(clients))
+    first = clients.index(side) * size
+    return first, first + size - 1
+
+
+@dataclass(frozen=True)
+class Action:
+    """A ROS 2 action bridged as goal, cancel, answer, feedback and result payloads on one id."""
+
+    name: str                   # ROS name, e.g. /vehicle/go_to
+    id: int
+    type_name: str              # pkg/action/Name
+    type: ActionDef
+    server: str                 # the side whose local graph runs the real action server
+    accept_timeout: float = 10.0   # seconds for the answer to a goal or a cancel
+    result_timeout: float = 600.0  # seconds an accepted goal may run before it is aborted
+    max_goals: int = 4          # goals in flight at once; more are rejected
+    # goals and cancels (client side), answers and results (server side)
+    policy: LinkPolicy = field(default_factory=lambda: LinkPolicy(queue="fifo", depth=FIFO_DEFAULT_DEPTH))
+    feedback: LinkPolicy | None = field(default_factory=lambda: LinkPolicy(rate=0.2))  # latest only; None: not sent
+    profile: str = NATIVE
+    where: SourceRef | None = None
+
+
 @dataclass
 class Manifest:
     network: str
@@ -150,12 +183,13 @@ class Manifest:
     sides: dict[str, Side] = field(default_factory=dict)
     topics: list[Topic] = field(default_factory=list)
     services: list[Service] = field(default_factory=list)
+    actions: list[Action] = field(default_factory=list)
     fragment_id: int | None = None               # reserved id for fragments of payloads > 255 bytes
     schema_id: int | None = None                 # reserved id for schema announcements (wire format 10)
     schema_period: float | None = SCHEMA_PERIOD_DEFAULT  # seconds between announcements; None: connect/request only
 
-    def entry(self, id: int) -> Topic | Service | None:
-        for item in (*self.topics, *self.services):
+    def entry(self, id: int) -> Topic | Service | Action | None:
+        for item in (*self.topics, *self.services, *self.actions):
             if item.id == id:
                 return item
         return None

@@ -14,7 +14,7 @@ from typing import Any, Callable
 
 from uwgen.manifest.model import RMW_DESERT, LinkPolicy, Qos, Side
 from uwgen.runtime.codec import (
-    KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
+    ACTION_HANDLES, KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
     EncodeError, load_items, pack_items, unexpected,
 )
 from uwgen.runtime.framing import MAX_PAYLOAD
@@ -54,7 +54,9 @@ class RosClasses:
         except KeyError:
             raise AttributeError(key) from None
         try:
-            cls = getattr(importlib.import_module(module), name)
+            cls = importlib.import_module(module)
+            for part in name.split("."):   # an action's parts: `Fibonacci.Goal`
+                cls = getattr(cls, part)
         except (ImportError, AttributeError) as exc:
             cls = getattr(self._fallback, key)
             log.info("no rclpy class %s.%s (%s): decoding to the generated plain class", module, name, exc)
@@ -209,3 +211,115 @@ class ManifestInfo:
     schema_id: int | None = None       # reserved id of schema announcements (None: not announced)
     schema_period: float | None = None  # seconds between periodic announcements (None: none)
     schema_digest: bytes = b""         # fingerprint of the whole manifest (wire format section 10)
+
+
+# What follows an action's goal handle in a response (kind 3), wire format 13. Answers to a
+# goal or a cancel are the goal's state after it; a result's status is followed by the
+# result's fields. The numbers 1..6 are those of action_msgs/msg/GoalStatus.
+REJECTED = 0         # the goal was not accepted
+ACCEPTED = 1         # the goal was accepted
+CANCEL_REFUSED = 2   # (EXECUTING) the cancel was refused: the goal goes on
+CANCELING = 3        # the cancel was accepted
+SUCCEEDED = 4
+CANCELED = 5
+ABORTED = 6
+ANSWERS = (REJECTED, ACCEPTED, CANCEL_REFUSED, CANCELING)
+RESULTS = (SUCCEEDED, CANCELED, ABORTED)
+
+
+@dataclass(frozen=True)
+class ActionCodec:
+    """One action on one manifest id (wire format 13):
+
+    - goal (client side -> server side): `[2, id, handle, goal fields...]`
+    - cancel (client side -> server side): `[2, id, handle]`
+    - answer (server side -> client side): `[3, id, handle, REJECTED|ACCEPTED|CANCEL_REFUSED|CANCELING]`
+    - result (server side -> client side): `[3, id, handle, SUCCEEDED|CANCELED|ABORTED, result fields...]`
+    - feedback (server side -> client side): `[0, id, handle, feedback fields...]`
+    """
+
+    id: int
+    name: str
+    type_name: str
+    server: str
+    accept_timeout: float
+    result_timeout: float
+    max_goals: int
+    profile: str
+    policy: LinkPolicy            # goals and cancels; answers and results
+    feedback_policy: LinkPolicy | None   # latest only; None: feedback is not sent
+    goal: TypeCodec
+    result: TypeCodec
+    feedback: TypeCodec
+    ros_import: tuple[str, str]
+    fingerprint: bytes = b""      # schema fingerprint of this id, as for topics and services
+
+    def ros_class(self) -> type:
+        module, name = self.ros_import
+        return getattr(importlib.import_module(module), name)
+
+    # client side -> server side
+
+    def encode_goal(self, handle: int, goal: Any) -> bytes:
+        return self.goal.encode(goal, [KIND_REQUEST, self.id, _handle(handle)])
+
+    def encode_cancel(self, handle: int) -> bytes:
+        return pack_items([KIND_REQUEST, self.id, _handle(handle)])
+
+    def decode_request(self, payload: bytes, ros: bool = True) -> tuple[int, Any]:
+        """(handle, goal), or (handle, None) for a cancel."""
+        head = self._header(payload, KIND_REQUEST, 3)
+        if head is not None:
+            return head[2], None
+        msg, head = self.goal.decode(payload, (KIND_REQUEST, self.id, None), ros)
+        return _handle(head[2], DecodeError), msg
+
+    # server side -> client side
+
+    def encode_answer(self, handle: int, answer: int) -> bytes:
+        if answer not in ANSWERS:
+            raise EncodeError("answer", f"{answer!r} is not an answer code {ANSWERS}")
+        return pack_items([KIND_RESPONSE, self.id, _handle(handle), answer])
+
+    def encode_result(self, handle: int, status: int, result: Any) -> bytes:
+        if status not in RESULTS:
+            raise EncodeError("status", f"{status!r} is not a terminal status {RESULTS}")
+        return self.result.encode(result, [KIND_RESPONSE, self.id, _handle(handle), status])
+
+    def decode_response(self, payload: bytes, ros: bool = True) -> tuple[int, int, Any]:
+        """(handle, code, result): result is None for an answer (code in ANSWERS)."""
+        head = self._header(payload, KIND_RESPONSE, 4)
+        if head is not None:
+            if head[3] not in ANSWERS:
+                raise DecodeError("answer", f"{head[3]!r} is not an answer code {ANSWERS}")
+            return head[2], head[3], None
+        msg, head = self.result.decode(payload, (KIND_RESPONSE, self.id, None, None), ros)
+        if head[3] not in RESULTS:
+            raise DecodeError("status", f"{head[3]!r} is not a terminal status {RESULTS}")
+        return _handle(head[2], DecodeError), head[3], msg
+
+    def encode_feedback(self, handle: int, feedback: Any) -> bytes:
+        return self.feedback.encode(feedback, [KIND_TOPIC, self.id, _handle(handle)])
+
+    def decode_feedback(self, payload: bytes, ros: bool = True) -> tuple[int, Any]:
+        msg, head = self.feedback.decode(payload, (KIND_TOPIC, self.id, None), ros)
+        return _handle(head[2], DecodeError), msg
+
+    def _header(self, payload: bytes, kind: int, n: int) -> list | None:
+        """The items of a payload that is only a header of `n` unsigned items (a cancel,
+        an answer), else None (a goal or a result: its codec decodes it)."""
+        v = load_items(payload)
+        if len(v) != n:
+            return None
+        for k, got in enumerate(v):
+            want = (kind, self.id)[k] if k < 2 else None
+            if type(got) is not int or (want is not None and got != want) or got < 0:
+                raise DecodeError(("kind", "id", "handle", "code")[k], f"unexpected item {got!r}")
+        _handle(v[2], DecodeError)
+        return v
+
+
+def _handle(handle: int, error: type = EncodeError) -> int:
+    if type(handle) is not int or not 0 <= handle < ACTION_HANDLES:
+        raise error("handle", f"expected a goal handle 0..{ACTION_HANDLES - 1}, got {handle!r}")
+    return handle

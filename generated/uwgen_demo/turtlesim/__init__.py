@@ -2,6 +2,7 @@
 # Package: uwgen_demo
 # Manifest: msg_samples/uwgen.yaml
 # Sources (sha256 prefix):
+#   msg_samples/turtlesim/action/RotateAbsolute.action  f559ab5b32a9
 #   msg_samples/turtlesim/msg/Color.msg  9cd63f14c0af
 #   msg_samples/turtlesim/msg/Pose.msg  d6acd5f43ab2
 #   msg_samples/turtlesim/srv/Kill.srv  bc91430b62e3
@@ -15,4 +16,4 @@
 #   share/sensor_msgs/msg/BatteryState.msg  ce13430f3c10
 #   share/std_msgs/msg/Header.msg  d2cea14630e3
 #   share/std_msgs/msg/String.msg  2022b3f1c32b
-"""turtlesim: generated plain classes and codecs, laid out like rclpy's (msg, srv)."""
+"""turtlesim: generated plain classes and codecs, laid out like rclpy's (action, msg, srv)."""

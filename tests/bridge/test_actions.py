@@ -1,0 +1,232 @@
+"""Bridged actions with real rclpy graphs on both sides and a fake link: losses, repeats,
+limits and garbage are counted, never crash and never leave a local goal hanging."""
+from __future__ import annotations
+
+import time
+
+import pytest
+from action_msgs.msg import GoalStatus
+from rclpy.action import ActionClient, ActionServer
+from rclpy.task import Future
+from test_msgs.action import Fibonacci
+
+from uwgen.codegen import generate
+from uwgen.runtime.codec import pack_items
+
+from .fakes import LinkPair, fake_package, wait_for
+from .harness import ros_sides, start_bridge
+
+MANIFEST = """\
+network: fake
+sides:
+  surface: {port: 4000}
+  vehicle: {port: 4001}
+actions:
+  - name: /fib
+    id: 9
+    type: test_msgs/action/Fibonacci
+    server: vehicle
+    accept_timeout: 0.5
+    result_timeout: 30
+    max_goals: 1
+"""
+
+
+@pytest.fixture(scope="module")
+def fib_codec(tmp_path_factory):
+    root = tmp_path_factory.mktemp("fakeacts")
+    (root / "pkg" / "msg").mkdir(parents=True)
+    (root / "pkg" / "msg" / "Unused.msg").write_text("int8 x\n")
+    (root / "uwgen.yaml").write_text(MANIFEST)
+    return generate(tmp_path_factory.mktemp("gen"), "uwgen_fakeacts", folders=[root],
+                    manifest=root / "uwgen.yaml").ACTIONS[9]
+
+
+@pytest.fixture
+def pair(fib_codec):
+    package = fake_package([])
+    package.ACTIONS = {9: fib_codec}
+    links = LinkPair()
+    with ros_sides("surface", "vehicle") as (surface, vehicle):
+        bridges = {s.name: start_bridge(s, package, links.factory) for s in (surface, vehicle)}
+        yield surface, vehicle, bridges, links
+
+
+def fib_server(node, results: list, delay: float = 0.0):
+    async def execute(goal_handle):
+        results.append(goal_handle.request.order)
+        if delay:
+            done = Future()
+            timer = node.create_timer(delay, lambda: (timer.cancel(), done.set_result(True)))
+            await done
+        goal_handle.succeed()
+        return Fibonacci.Result(sequence=[0, 1])
+    return ActionServer(node, Fibonacci, "/fib", execute)
+
+
+def send_goal(client, order=3):
+    future = client.send_goal_async(Fibonacci.Goal(order=order))
+    wait_for(future.done, what="the goal's answer")
+    return future.result()
+
+
+def counted(bridge) -> dict:
+    return bridge.status()["actions"]["/fib"]
+
+
+def test_unanswered_goal_is_rejected_after_accept_timeout(pair):
+    surface, vehicle, bridges, links = pair
+    links.links["surface"].mute = True               # the goal never arrives
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    goal_handle = send_goal(client)
+    assert not goal_handle.accepted
+    status = counted(bridges["surface"])
+    assert (status["accept_timeouts"], status["goals_table"]["outstanding"]) == (1, 0)
+    # Sent three times in all, then a cancel, in case only the answers were lost.
+    sent = links.links["surface"].offered(9)
+    assert len(sent) == 4 and sent[0] == sent[1] == sent[2] and len(sent[3]) == 3
+    assert status["goal_resends"] == 2
+
+
+def drop_replies(link, count: int) -> list:
+    """Make `link` lose its next `count` responses (kind 3); returns what it dropped."""
+    dropped, offer = [], link.offer
+
+    def lossy(key, payload):
+        if payload[0] == 3 and len(dropped) < count:
+            dropped.append(payload)
+            return True
+        return offer(key, payload)
+    link.offer = lossy
+    return dropped
+
+
+@pytest.mark.parametrize("lost, delay", [(1, 0.6), (2, 0.0)],
+                         ids=["answer lost, goal still running", "answer and result lost"])
+def test_a_goal_sent_again_runs_once(pair, lost, delay):
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    fib_server(vehicle.node("real"), results, delay)
+    dropped = drop_replies(links.links["vehicle"], lost)
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    goal_handle = send_goal(client, 5)
+    assert goal_handle.accepted
+    future = goal_handle.get_result_async()
+    wait_for(future.done, what="the result")
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+    assert results == [5] and len(dropped) == lost
+    assert counted(bridges["surface"])["goal_resends"] >= 1
+    assert counted(bridges["vehicle"])["repeated_replies"] >= 1
+
+
+def test_a_late_acceptance_is_answered_with_a_cancel(pair):
+    surface, vehicle, bridges, links = pair
+    links.links["surface"].mute = True               # the goal never arrives
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    assert not send_goal(client).accepted            # rejected after accept_timeout
+    handle = links.links["surface"].offered(9)[0][2]    # [2, 9, handle, order]
+    wait_for(lambda: len(links.links["surface"].offered(9)) == 4, what="3 goals and a cancel")
+    links.links["surface"].inject(pack_items([3, 9, handle, 1]))   # "accepted", too late
+    wait_for(lambda: len(links.links["surface"].offered(9)) == 5, what="another cancel")
+    assert links.links["surface"].offered(9)[4] == pack_items([2, 9, handle])
+
+
+def test_goals_over_max_goals_are_rejected_at_once(pair):
+    surface, vehicle, bridges, links = pair
+    links.links["surface"].mute = True
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    first = client.send_goal_async(Fibonacci.Goal(order=1))   # holds the only handle
+    wait_for(lambda: counted(bridges["surface"])["goals"] == 1, what="first goal taken")
+    second = send_goal(client)
+    assert not second.accepted and not first.done()
+    assert counted(bridges["surface"])["refused"] == 1
+    goals = [p for p in links.links["surface"].offered(9) if len(p) > 3]
+    assert set(goals) == {goals[0]}                            # only the first went out
+
+
+def test_a_goal_delivered_twice_runs_once(pair):
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    fib_server(vehicle.node("real"), results)
+    links.links["surface"].duplicate = True
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    goal_handle = send_goal(client, 4)
+    assert goal_handle.accepted
+    future = goal_handle.get_result_async()
+    wait_for(future.done, what="the result")
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+    assert results == [4]
+    wait_for(lambda: counted(bridges["vehicle"])["duplicate_goals"] == 1, what="repeat counted")
+
+
+@pytest.mark.parametrize("side, payload, counter", [
+    ("surface", pack_items([3, 9, 30, 1]), "decode_errors"),        # handle out of range
+    ("surface", pack_items([3, 9, 5, 4, 0]), "unknown"),            # result of no goal
+    ("surface", pack_items([3, 9, 5, 1]), "unknown"),               # answer to no goal
+    ("surface", pack_items([0, 9, 5, 1, 7]), "late_feedback"),      # feedback of no goal
+    ("surface", pack_items([0, 9, 5, "x"]), "decode_errors"),       # feedback, wrong type
+    ("vehicle", pack_items([2, 9, 5, "x"]), "decode_errors"),       # goal, wrong type
+])
+def test_garbage_on_the_action_id_is_counted(pair, side, payload, counter):
+    surface, vehicle, bridges, links = pair
+    links.links[side].mute = True                  # no reply comes back to be counted too
+    links.links[side].inject(payload)
+    wait_for(lambda: counted(bridges[side])[counter] == 1, what=f"{counter} counted")
+
+
+def test_payloads_in_the_wrong_direction_are_counted(pair):
+    surface, vehicle, bridges, links = pair
+    links.links["vehicle"].inject(pack_items([3, 9, 5, 1]))     # the vehicle sends answers
+    links.links["surface"].inject(pack_items([2, 9, 5]))        # the surface sends cancels
+    wait_for(lambda: bridges["vehicle"].counters.wrong_direction == 1
+             and bridges["surface"].counters.wrong_direction == 1, what="both counted")
+
+
+def test_final_summary_counts_goals_on_both_sides():
+    from uwgen.bridge.main import _summary
+    client = {"role": "client", "goals": 3, "accepted": 2, "results": 2}
+    server = {"role": "server", "goal_requests": 2, "results_sent": 2}
+    assert _summary({"actions": {"/fib": client}}) == "/fib goals 3 accepted 2 results 2"
+    assert _summary({"actions": {"/fib": server}}) == "/fib goals 2 results 2"
+
+
+def test_a_client_side_ignores_the_handles_of_other_client_sides(fib_codec):
+    from uwgen.manifest.model import LinkConfig, Side
+    package = fake_package([])
+    package.ACTIONS = {9: fib_codec}
+    package.MANIFEST.sides["buoy"] = Side(name="buoy", port=4002, link=LinkConfig(64, 0.2))
+    links = LinkPair()
+    with ros_sides("surface") as (surface,):
+        bridge = start_bridge(surface, package, links.factory)
+        assert bridge.plan.action_handles == {9: (12, 23)}     # buoy has 0..11
+        links.links["surface"].inject(pack_items([3, 9, 3, 1]))          # buoy's goal 3
+        links.links["surface"].inject(pack_items([0, 9, 4, 1, 7]))        # buoy's feedback
+        wait_for(lambda: counted(bridge)["other_sides"] == 2, what="both ignored")
+        assert counted(bridge)["unknown"] == 0 and links.links["surface"].offers == []
+
+
+
+def test_a_copy_of_a_finished_goal_is_a_repeat_only_within_the_window(pair):
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    fib_server(vehicle.node("real"), results)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    goal = pack_items([2, 9, 5, 6])
+    links.links["vehicle"].inject(goal)
+    wait_for(lambda: counted(bridges["vehicle"])["results_sent"] == 1, what="first result")
+    links.links["vehicle"].inject(goal)                 # a copy, just after: a repeat
+    wait_for(lambda: counted(bridges["vehicle"])["repeated_replies"] == 1, what="result again")
+    assert results == [6]
+    time.sleep(1.5 * 0.5)                               # REPEAT_WINDOW x accept_timeout
+    links.links["vehicle"].inject(goal)                 # later: a new goal on that handle
+    wait_for(lambda: results == [6, 6], what="the goal run again")

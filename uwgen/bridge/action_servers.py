@@ -1,0 +1,262 @@
+"""Actions served here: goals from the link are sent to the real action server through an
+rclpy ActionClient, and its answers, feedback and result go back (wire format 13).
+
+Per goal handle of the client side: `[2, id, handle, goal...]` becomes `send_goal_async`;
+its acceptance is answered `[3, id, handle, 1]` (or 0: rejected, also when no local
+server is available); the result is requested locally at once and pushed as
+`[3, id, handle, status, result...]`; feedback goes out as `[0, id, handle, feedback...]`
+on the action's latest-only feedback channel. `[2, id, handle]` cancels the goal and is
+answered 3 (canceling) or 2 (refused).
+
+Losses: a goal that comes again (the client side sends it again while unanswered) is
+answered again if it was accepted, and a goal that finished less than two accept_timeouts
+ago gets its result again (RECENT_RESULTS per action, matched by handle and bytes), so a
+lost answer or result costs a repeat, not a second run. A local server that does not
+answer within `accept_timeout` is answered 0; a goal that does not finish within
+`result_timeout` is cancelled and reported aborted; a local server that disappears during
+goals gets them reported aborted after SERVER_GONE_GRACE.
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.action import ActionClient
+from rclpy.task import Future
+
+from uwgen.bridge.counters import ActionCounters
+from uwgen.bridge.dispatch import Dispatcher
+from uwgen.bridge.plan import FEEDBACK_KEY_BASE
+from uwgen.bridge.wiring import Wiring
+from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, RESULTS)
+
+SERVER_GONE_GRACE = 1.0   # seconds the local server may be missing before its goals abort
+RECENT_RESULTS = 8        # finished goals per action whose result is kept for a repeated goal
+REPEAT_WINDOW = 1.5       # accept_timeouts after a goal first came in which a copy is a repeat
+                          # (the client side sends copies within one accept_timeout, and
+                          # reuses a handle only 2 accept_timeouts after its goal ended)
+
+
+@dataclass
+class Served:
+    """One goal from the link, at the real server (server side)."""
+
+    sent: Future                  # send_goal_async: -> ClientGoalHandle
+    deadline: float
+    payload: bytes = b""          # the goal as it came (a repeat has the same bytes)
+    arrived: float = 0.0          # when it first came
+    goal_handle: Any = None       # ClientGoalHandle, once accepted
+    cancel_wanted: bool = False   # a cancel came before the local server answered
+
+
+class ActionServers:
+    def __init__(self, wiring: Wiring, codecs: list[Any], counters: dict[int, ActionCounters]):
+        self.w = wiring
+        self.codecs = codecs
+        self.counters = counters
+        self.served: dict[int, tuple[Any, Any]] = {}       # id -> (codec, ActionClient)
+        self.goals: dict[int, dict[int, Served]] = {}      # id -> handle -> goal
+        self._gone_since: dict[int, float] = {}
+        # id -> handle -> (goal payload, result payload, when the goal first came)
+        self.finished: dict[int, OrderedDict[int, tuple[bytes, bytes, float]]] = {}
+        for codec in codecs:
+            counters[codec.id] = ActionCounters()
+            cls = wiring.ros_class(codec, "action")
+            if cls is None:
+                continue
+            client = ActionClient(wiring.node, cls, codec.name, callback_group=wiring.main_group)
+            self.served[codec.id] = (codec, client)
+            self.goals[codec.id] = {}
+            self.finished[codec.id] = OrderedDict()
+
+    def register(self, dispatcher: Dispatcher) -> None:
+        for ident in self.served:
+            dispatcher.route(KIND_REQUEST, ident, self.on_request)
+            dispatcher.sends(KIND_RESPONSE, ident)
+            dispatcher.sends(KIND_TOPIC, ident)
+
+    def _offer(self, ident: int, payload: bytes, what: str, key: int | None = None) -> bool:
+        if self.w.send(ident if key is None else key, payload):
+            return True
+        self.counters[ident].reply_refused += 1
+        self.w.say_once(f"aref{ident}{what}", f"{self.served[ident][0].name}: {what} refused by the link")
+        return False
+
+    def _answer(self, ident: int, handle: int, code: int) -> None:
+        codec = self.served[ident][0]
+        if self._offer(ident, codec.encode_answer(handle, code), "answer"):
+            self.counters[ident].answers += 1
+
+    def _result(self, ident: int, handle: int, status: int, result: Any, entry: Served) -> None:
+        codec = self.served[ident][0]
+        try:
+            payload = codec.encode_result(handle, status, result)
+        except ValueError as exc:
+            self.counters[ident].encode_errors += 1
+            self.w.throttle.report(f"aenc{ident}", f"{codec.name}: result of goal {handle} cannot "
+                                                   f"be encoded ({exc}); reported aborted")
+            payload = codec.encode_result(handle, ABORTED, codec.ros_class().Result())
+        finished = self.finished[ident]
+        finished[handle] = (entry.payload, payload, entry.arrived)
+        finished.move_to_end(handle)
+        while len(finished) > RECENT_RESULTS:
+            finished.popitem(last=False)
+        if self._offer(ident, payload, "result"):
+            self.counters[ident].results_sent += 1
+
+    # -- the link (executor thread) --------------------------------------------------------
+
+    def on_request(self, ident: int, payload: bytes) -> None:
+        codec, client = self.served[ident]
+        counters, goals = self.counters[ident], self.goals[ident]
+        try:
+            handle, goal = codec.decode_request(payload)
+        except ValueError as exc:
+            counters.decode_errors += 1
+            self.w.say_once(f"dreq{ident}", f"{codec.name}: request dropped, does not decode: {exc}")
+            return
+        if goal is None:
+            self._cancel(ident, handle)
+            return
+        counters.goal_requests += 1
+        if self._repeat(ident, handle, payload):     # in flight, or finished just now
+            counters.duplicate_goals += 1
+            return
+        self.finished[ident].pop(handle, None)     # a new goal on a handle used before
+        if not client.server_is_ready():
+            counters.no_server += 1
+            self.w.throttle.report(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no "
+                                                        "local action server is available")
+            self._answer(ident, handle, REJECTED)
+            return
+        sent = client.send_goal_async(goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb))
+        now = self.w.clock.now()
+        goals[handle] = Served(sent, now + codec.accept_timeout, payload=payload, arrived=now)
+        sent.add_done_callback(lambda f: self._answered(ident, handle, f))
+
+    def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
+        """Answer a goal that came again; True when it was one (then it is not run)."""
+        entry = self.goals[ident].get(handle)
+        if entry is not None:
+            if entry.goal_handle is not None and entry.payload == payload:
+                self.counters[ident].repeated_replies += 1
+                self._answer(ident, handle, ACCEPTED)      # the first answer was lost
+            return True                                    # else: the answer is still to come
+        recent = self.finished[ident].get(handle)
+        codec = self.served[ident][0]
+        if recent is None or recent[0] != payload or \
+                self.w.clock.now() - recent[2] > REPEAT_WINDOW * codec.accept_timeout:
+            return False
+        self.counters[ident].repeated_replies += 1
+        self._offer(ident, recent[1], "result")            # the answer and result were lost
+        return True
+
+    def _answered(self, ident: int, handle: int, sent: Future) -> None:
+        codec = self.served[ident][0]
+        entry = self.goals[ident].get(handle)
+        exc = sent.exception() if not sent.cancelled() else None
+        goal_handle = sent.result() if exc is None and not sent.cancelled() else None
+        if entry is None or entry.sent is not sent:   # gave up on it already
+            if goal_handle is not None and goal_handle.accepted:
+                goal_handle.cancel_goal_async()       # nobody waits for it any more
+            return
+        if goal_handle is None or not goal_handle.accepted:
+            if exc is not None:
+                self.counters[ident].server_errors += 1
+                self.w.throttle.report(f"aerr{ident}", f"{codec.name}: goal {handle} failed "
+                                                       f"locally: {exc}")
+            del self.goals[ident][handle]
+            self._answer(ident, handle, REJECTED)
+            return
+        entry.goal_handle = goal_handle
+        entry.deadline = self.w.clock.now() + codec.result_timeout
+        self._answer(ident, handle, ACCEPTED)
+        goal_handle.get_result_async().add_done_callback(
+            lambda f: self._finished(ident, handle, goal_handle, f))
+        if entry.cancel_wanted:
+            self._cancel(ident, handle)
+
+    def _finished(self, ident: int, handle: int, goal_handle: Any, done: Future) -> None:
+        entry = self.goals[ident].get(handle)
+        if entry is None or entry.goal_handle is not goal_handle:
+            return                     # already reported (timeout, server gone)
+        del self.goals[ident][handle]
+        if done.cancelled() or done.exception() is not None:
+            self.counters[ident].server_errors += 1
+            self._result(ident, handle, ABORTED, self.served[ident][0].ros_class().Result(), entry)
+            return
+        response = done.result()
+        status = response.status if response.status in RESULTS else ABORTED
+        self._result(ident, handle, status, response.result, entry)
+
+    def _feedback(self, ident: int, handle: int, message: Any) -> None:
+        codec = self.served[ident][0]
+        if codec.feedback_policy is None or handle not in self.goals[ident]:
+            return
+        try:
+            payload = codec.encode_feedback(handle, message.feedback)
+        except ValueError as exc:
+            self.counters[ident].encode_errors += 1
+            self.w.say_once(f"efb{ident}", f"{codec.name}: feedback not sent, cannot encode: {exc}")
+            return
+        if self._offer(ident, payload, "feedback", FEEDBACK_KEY_BASE + ident):
+            self.counters[ident].feedback_sent += 1
+
+    def _cancel(self, ident: int, handle: int) -> None:
+        entry = self.goals[ident].get(handle)
+        if entry is None:
+            self._answer(ident, handle, CANCEL_REFUSED)   # finished: its result is on its way
+            return
+        if entry.goal_handle is None:
+            entry.cancel_wanted = True                     # answered once the server has answered
+            return
+        entry.cancel_wanted = False
+        entry.goal_handle.cancel_goal_async().add_done_callback(
+            lambda f: self._cancel_answered(ident, handle, f))
+
+    def _cancel_answered(self, ident: int, handle: int, done: Future) -> None:
+        ok = not done.cancelled() and done.exception() is None and bool(done.result().goals_canceling)
+        self._answer(ident, handle, CANCELING if ok else CANCEL_REFUSED)
+
+    # -- timers ----------------------------------------------------------------------------
+
+    def expire(self) -> None:
+        now, say = self.w.clock.now(), self.w.throttle.report
+        for ident, goals in self.goals.items():
+            codec, client = self.served[ident]
+            counters = self.counters[ident]
+            for handle, entry in list(goals.items()):
+                if entry.deadline > now:
+                    continue
+                del goals[handle]
+                counters.server_timeouts += 1
+                if entry.goal_handle is None:
+                    say(f"aanswer{ident}", f"{codec.name}: local server did not answer goal "
+                                           f"{handle} within {codec.accept_timeout:g} s: rejected")
+                    self._answer(ident, handle, REJECTED)
+                else:
+                    say(f"aresult{ident}", f"{codec.name}: goal {handle} did not finish within "
+                                           f"{codec.result_timeout:g} s: cancelled, reported aborted")
+                    entry.goal_handle.cancel_goal_async()
+                    self._result(ident, handle, ABORTED, codec.ros_class().Result(), entry)
+            self._check_server(ident, now)
+
+    def _check_server(self, ident: int, now: float) -> None:
+        """Abort the goals of a local server that has disappeared (for SERVER_GONE_GRACE)."""
+        codec, client = self.served[ident]
+        goals = self.goals[ident]
+        if not goals or client.server_is_ready():
+            self._gone_since.pop(ident, None)
+            return
+        since = self._gone_since.setdefault(ident, now)
+        if now - since < SERVER_GONE_GRACE:
+            return
+        self.w.log.error(f"{codec.name}: the local action server is gone: {len(goals)} goal(s) "
+                         "reported aborted")
+        for handle, entry in list(goals.items()):
+            del goals[handle]
+            self.counters[ident].server_gone += 1
+            self._result(ident, handle, ABORTED, codec.ros_class().Result(), entry)
+        self._gone_since.pop(ident, None)

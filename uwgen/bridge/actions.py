@@ -1,0 +1,312 @@
+"""Actions offered here, served on another side: a real rclpy ActionServer stands in for the
+remote one and carries each goal over the link (wire format 13).
+
+A local client's goal takes a one-byte handle (from a CallTable per action: this side's
+share of the handles 0..23, see manifest.model.handle_range; at most `max_goals` in
+flight) and goes out as `[2, id, handle, goal...]`; the goal callback waits for the
+answer and accepts or rejects the local goal with it. The result is
+pushed by the server side (`[3, id, handle, status, result...]`) and completes the local
+goal with the same terminal status; feedback (`[0, id, handle, feedback...]`) is
+published to the local client. The status topic is the local ActionServer's own. A cancel
+from the local client goes out as `[2, id, handle]` and its answer decides the local
+cancel response.
+
+Losses: a goal with no answer is sent again (same handle and bytes) after a third and two
+thirds of `accept_timeout`; no answer at all rejects the goal (or refuses the cancel) and
+sends a cancel, in case only the answer was lost; no result within `result_timeout` aborts
+the goal locally and sends a cancel for it. Every such case is logged and counted in
+~/status under `actions`.
+"""
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass, field
+from typing import Any
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.task import Future
+
+from uwgen.bridge.calls import CallTable, CallTableFull
+from uwgen.bridge.counters import ActionCounters
+from uwgen.bridge.dispatch import Dispatcher
+from uwgen.bridge.wiring import Wiring
+from uwgen.runtime.codec import ACTION_HANDLES, KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCELED, CANCELING, REJECTED, RESULTS,
+                                 SUCCEEDED)
+
+GOAL_SENDS = 3   # a goal goes out at most this many times within accept_timeout
+
+
+@dataclass
+class GoalState:
+    """One local goal in flight over the link (client side)."""
+
+    ident: int                                    # the action's id
+    handle: int
+    request: Any                                  # the goal message (the key rclpy gives back)
+    answer: Future = field(default_factory=Future)   # -> ACCEPTED or REJECTED
+    result: Future = field(default_factory=Future)   # -> (status, result message)
+    cancel: Future | None = None                  # -> CANCELING or CANCEL_REFUSED
+    cancel_deadline: float = 0.0
+    goal_handle: Any = None                       # rclpy ServerGoalHandle, once accepted
+    early_feedback: Any = None                    # feedback that came before the goal handle
+    payload: bytes = b""                          # the goal as sent (sent again unchanged)
+    sends: int = 1
+    next_send: float = 0.0                        # when to send it again while unanswered
+
+
+class ActionStandIns:
+    def __init__(self, wiring: Wiring, codecs: list[Any], counters: dict[int, ActionCounters],
+                 rng: random.Random | None = None, handles: dict[int, tuple[int, int]] | None = None):
+        self.w = wiring
+        self.codecs = codecs
+        self.counters = counters
+        self.offered: dict[int, Any] = {}            # id -> codec
+        self.tables: dict[int, CallTable] = {}       # id -> goal handles in flight
+        self.handles: dict[int, range] = {}          # id -> this side's handles
+        self.servers: list[Any] = []
+        self._states: dict[int, GoalState] = {}      # id(goal message) -> its goal
+        for codec in codecs:
+            counters[codec.id] = ActionCounters()
+            cls = wiring.ros_class(codec, "action")
+            if cls is None:
+                continue
+            first, last = (handles or {}).get(codec.id, (0, ACTION_HANDLES - 1))
+            # A handle rests 2 accept_timeouts before reuse: the server side answers a goal
+            # that comes again on a handle from what it kept (action_servers.REPEAT_WINDOW).
+            table = CallTable(wiring.clock, rng=rng, max_outstanding=codec.max_goals,
+                              reuse_after=2 * codec.accept_timeout)
+            table.set_seq_range(codec.id, first, last)
+            self.handles[codec.id] = range(first, last + 1)
+            self.tables[codec.id] = table
+            self.offered[codec.id] = codec
+            self.servers.append(ActionServer(
+                wiring.node, cls, codec.name, self._executor(codec),
+                goal_callback=self._goal_callback(codec), cancel_callback=self._cancel_callback(codec),
+                handle_accepted_callback=self._accepted, callback_group=wiring.service_group))
+
+    def register(self, dispatcher: Dispatcher) -> None:
+        for ident in self.offered:
+            dispatcher.route(KIND_RESPONSE, ident, self.on_response)
+            dispatcher.route(KIND_TOPIC, ident, self.on_feedback)
+            dispatcher.sends(KIND_REQUEST, ident)
+
+    # -- the local action server's callbacks (executor thread) -----------------------------
+
+    def _goal_callback(self, codec: Any):
+        counters, table, log = self.counters[codec.id], self.tables[codec.id], self.w.log
+
+        async def on_goal(goal: Any) -> GoalResponse:
+            counters.goals += 1
+            try:
+                pending = table.begin(codec.id, codec.accept_timeout)
+            except CallTableFull:
+                counters.refused += 1
+                log.error(f"{codec.name}: goal rejected: {codec.max_goals} goals already in flight "
+                          "(manifest max_goals)")
+                return GoalResponse.REJECT
+            state = pending.token = GoalState(codec.id, pending.seq, goal)
+            try:
+                payload = codec.encode_goal(state.handle, goal)
+            except ValueError as exc:
+                table.abandon(codec.id, state.handle)
+                counters.refused += 1
+                log.error(f"{codec.name}: goal rejected, cannot be encoded: {exc}")
+                return GoalResponse.REJECT
+            if not self.w.send(codec.id, payload):
+                table.abandon(codec.id, state.handle)
+                counters.refused += 1
+                log.error(f"{codec.name}: goal rejected: the link refused it (see ~/status)")
+                return GoalResponse.REJECT
+            state.payload = payload
+            state.next_send = self.w.clock.now() + codec.accept_timeout / GOAL_SENDS
+            if await state.answer != ACCEPTED:
+                return GoalResponse.REJECT
+            self._states[id(goal)] = state
+            return GoalResponse.ACCEPT
+        return on_goal
+
+    def _accepted(self, goal_handle: Any) -> None:
+        state = self._states.get(id(goal_handle.request))
+        if state is not None:
+            state.goal_handle = goal_handle
+            if state.early_feedback is not None:
+                try:
+                    goal_handle.publish_feedback(state.early_feedback)
+                except Exception:   # as in on_feedback: never raised (counted there)
+                    self.counters[state.ident].decode_errors += 1
+        goal_handle.execute()
+
+    def _executor(self, codec: Any):
+        counters = self.counters[codec.id]
+
+        async def execute(goal_handle: Any) -> Any:
+            state = self._states.get(id(goal_handle.request))
+            if state is None:   # cannot happen: accepted goals have a state
+                goal_handle.abort()
+                return codec.ros_class().Result()
+            try:
+                status, result = await state.result
+            finally:
+                self._states.pop(id(goal_handle.request), None)
+            if status == SUCCEEDED:
+                goal_handle.succeed()
+            elif status == CANCELED and goal_handle.is_cancel_requested:
+                goal_handle.canceled()
+            else:
+                goal_handle.abort()
+            counters.results += 1
+            return result
+        return execute
+
+    def _cancel_callback(self, codec: Any):
+        counters, log = self.counters[codec.id], self.w.log
+
+        async def on_cancel(goal_handle: Any) -> CancelResponse:
+            state = self._states.get(id(goal_handle.request))
+            if state is None:
+                return CancelResponse.REJECT
+            if state.cancel is None or state.cancel.done():
+                state.cancel = Future()
+                state.cancel_deadline = self.w.clock.now() + codec.accept_timeout
+                counters.cancels += 1
+                if not self.w.send(codec.id, codec.encode_cancel(state.handle)):
+                    log.error(f"{codec.name}: cancel of goal {state.handle} refused by the link")
+                    state.cancel.set_result(None)
+            answer = await state.cancel
+            return CancelResponse.ACCEPT if answer == CANCELING else CancelResponse.REJECT
+        return on_cancel
+
+    # -- the link (executor thread) --------------------------------------------------------
+
+    def on_response(self, ident: int, payload: bytes) -> None:
+        codec, counters, table = self.offered[ident], self.counters[ident], self.tables[ident]
+        try:
+            handle, code, result = codec.decode_response(payload)
+        except ValueError as exc:
+            counters.decode_errors += 1
+            self.w.say_once(f"dact{ident}", f"{codec.name}: response dropped, does not decode: {exc}")
+            return
+        if handle not in self.handles[ident]:
+            counters.other_sides += 1       # an answer or result for another client side
+            return
+        if code in RESULTS:
+            pending = table.complete(ident, handle)
+            if pending is None:
+                counters.unknown += 1
+                return
+            state = pending.token
+            if not state.answer.done():   # the answer was lost; the result says it all
+                counters.accepted += 1
+                state.answer.set_result(ACCEPTED)
+            state.result.set_result((code, result))
+            return
+        pending = table.get(ident, handle)
+        state = pending.token if pending is not None else None
+        if state is None:
+            counters.unknown += 1
+            if code == ACCEPTED:     # a goal given up here (accept timeout) runs there: stop it
+                self.w.send(ident, codec.encode_cancel(handle))
+        elif code in (ACCEPTED, REJECTED) and not state.answer.done():
+            if code == ACCEPTED:
+                counters.accepted += 1
+                pending.deadline = self.w.clock.now() + codec.result_timeout
+            else:
+                counters.rejected += 1
+                table.complete(ident, handle)
+            state.answer.set_result(code)
+        elif code not in (ACCEPTED, REJECTED) and state.cancel is not None and not state.cancel.done():
+            state.cancel.set_result(code)
+        else:
+            counters.unknown += 1     # a repeated answer
+
+    def on_feedback(self, ident: int, payload: bytes) -> None:
+        codec, counters = self.offered[ident], self.counters[ident]
+        try:
+            handle, feedback = codec.decode_feedback(payload)
+        except ValueError as exc:
+            counters.decode_errors += 1
+            self.w.say_once(f"dfb{ident}", f"{codec.name}: feedback dropped, does not decode: {exc}")
+            return
+        if handle not in self.handles[ident]:
+            counters.other_sides += 1
+            return
+        pending = self.tables[ident].get(ident, handle)
+        if pending is None:
+            counters.late_feedback += 1   # latest-only feedback may trail its goal's result
+            return
+        state = pending.token
+        if state.goal_handle is None:
+            state.early_feedback = feedback
+            return
+        try:
+            state.goal_handle.publish_feedback(feedback)
+        except Exception as exc:   # a codec/rclpy class mismatch: counted, never raised
+            counters.decode_errors += 1
+            self.w.say_once(f"pfb{ident}", f"{codec.name}: cannot publish feedback: {exc!r}")
+            return
+        counters.feedback += 1
+
+    # -- timers ----------------------------------------------------------------------------
+
+    def expire(self) -> None:
+        now, say = self.w.clock.now(), self.w.throttle.report   # a dead link times out many
+        for ident, table in self.tables.items():
+            codec, counters = self.offered[ident], self.counters[ident]
+            for pending in table.expire():
+                state = pending.token
+                if not state.answer.done():
+                    counters.accept_timeouts += 1
+                    say(f"aaccept{ident}", f"{codec.name}: goal {state.handle} got no answer within "
+                                           f"{codec.accept_timeout:g} s: rejected (a cancel is sent, in "
+                                           "case only the answer was lost)")
+                    self.w.send(ident, codec.encode_cancel(state.handle))
+                    state.answer.set_result(REJECTED)
+                    continue
+                counters.result_timeouts += 1
+                say(f"aresult{ident}", f"{codec.name}: goal {state.handle} got no result within "
+                                       f"{codec.result_timeout:g} s: aborted (a cancel is sent)")
+                self.w.send(ident, codec.encode_cancel(state.handle))
+                state.result.set_result((ABORTED, codec.ros_class().Result()))
+            for pending in table.pending(ident):
+                state = pending.token
+                if (not state.answer.done() and state.sends < GOAL_SENDS
+                        and state.next_send <= now):
+                    state.sends += 1
+                    state.next_send = now + codec.accept_timeout / GOAL_SENDS
+                    counters.goal_resends += 1
+                    self.w.send(ident, state.payload)
+        for state in list(self._states.values()):
+            if state.cancel is not None and not state.cancel.done() and state.cancel_deadline <= now:
+                codec = self.offered[state.ident]
+                self.counters[codec.id].cancel_timeouts += 1
+                say(f"acancel{codec.id}", f"{codec.name}: cancel of goal {state.handle} got no "
+                                          "answer: refused")
+                state.cancel.set_result(None)
+
+    def goal_stats(self, ident: int) -> dict:
+        table = self.tables.get(ident)
+        return table.stats().get(ident, {}) if table is not None else {}
+
+
+def action_status(standins: ActionStandIns, servers: Any, channels: dict[int, dict],
+                  unavailable: dict[str, str]) -> dict[str, dict]:
+    """The `actions` section of ~/status: counters, goal handles (client side) and the
+    link channels (goals/answers/results on key id, feedback on FEEDBACK_KEY_BASE + id)."""
+    from dataclasses import asdict
+
+    from uwgen.bridge.plan import FEEDBACK_KEY_BASE
+    out = {}
+    for codec, serving in ([(c, False) for c in standins.codecs] + [(c, True) for c in servers.codecs]):
+        counters = (servers if serving else standins).counters[codec.id]
+        entry = {"id": codec.id, "type": codec.type_name, "role": "server" if serving else "client",
+                 **asdict(counters), "link": channels.get(codec.id, {})}
+        if serving:
+            entry["feedback_link"] = channels.get(FEEDBACK_KEY_BASE + codec.id, {})
+            entry["in_flight"] = len(servers.goals.get(codec.id, {}))
+        else:
+            entry["goals_table"] = standins.goal_stats(codec.id)
+        if codec.name in unavailable:
+            entry["unavailable"] = unavailable[codec.name]
+        out[codec.name] = entry
+    return out
