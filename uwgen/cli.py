@@ -16,6 +16,7 @@ COMMANDS = {
     "emulate": "uwgen.commands.emulate",
     "bridge": "uwgen.commands.bridge",
     "demo": "uwgen.commands.demo",
+    "ros-interfaces": "uwgen.commands.ros_interfaces",
     "rmw-config": "uwgen.commands.rmw_config",
 }
 
@@ -54,7 +55,15 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     first = next((a for a in argv if not a.startswith("-")), None)
     parser = build_parser(first if first in COMMANDS else None)
+    # A command that runs another program (`uwgen ros-interfaces DIR -- CMD ...`) gets
+    # everything after the first `--` untouched.
+    tail: list[str] = []
+    module = sys.modules.get(COMMANDS.get(first or "", ""))
+    if getattr(module, "TAKES_COMMAND", False) and "--" in argv:
+        cut = argv.index("--")
+        argv, tail = argv[:cut], argv[cut + 1:]
     args = parser.parse_args(argv)
+    args.command_line = tail
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.INFO,
         format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr)

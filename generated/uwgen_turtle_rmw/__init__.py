@@ -51,6 +51,13 @@ def codec(type_name, profile="native"):
     return CODECS[(type_name, profile)]
 
 
+# Interface packages of this build's own folders: package -> (folder, digest of its files).
+# `uwgen bridge` activates the rclpy type support `uwgen ros-interfaces` built of them.
+ROS_INTERFACES = {
+    "turtlesim": ("msg_samples/turtlesim", "e960247dccb0138e"),
+}
+
+
 MANIFEST = ManifestInfo(
     network="turtle_rmw",
     profile="rmw_desert",

@@ -58,10 +58,12 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
     import signal
     import threading
 
-    from uwgen.demo.interfaces import activate_built
-    built = activate_built()  # interfaces `uwgen demo` built (turtlesim), if any
-    if built:
-        log.info("using interfaces built in build/ros-interfaces: %s", ", ".join(built))
+    from uwgen.typesupport import BuildError, activate_recorded
+    try:  # the type support of the package's own interfaces (uwgen ros-interfaces builds it)
+        for env in activate_recorded(getattr(package, "ROS_INTERFACES", {})):
+            log.info("using the rclpy type support of %s built in %s", env.package, env.prefix)
+    except BuildError as exc:
+        log.error("%s; their topics and services are not bridged", exc)
 
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor

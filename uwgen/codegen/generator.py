@@ -89,6 +89,9 @@ class PackagePlan:
     ros_imports: list[tuple[str, str, str]]  # (class key, module, class name)
     plain_keys: list[tuple[str, str, str]]   # (class key, generated module, class name)
     skipped: list[str] = field(default_factory=list)   # types a profile can never carry (bulk builds)
+    # Local interface packages used: (package, folder label, digest of its .msg/.srv files);
+    # bridges activate the rclpy type support built from exactly these (uwgen.typesupport).
+    ros_interfaces: list[tuple[str, str, str]] = field(default_factory=list)
 
 
 def source_label(path: Path | None, lib: InterfaceLibrary) -> str:
@@ -218,7 +221,16 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     ros_imports = sorted((type_key(n), _ros_module(n), n.split("/")[2]) for n in definitions)
     plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
-                       ros_imports, plain_keys, sorted(set(skipped)))
+                       ros_imports, plain_keys, sorted(set(skipped)),
+                       _local_packages(lib, [*definitions, *services]))
+
+
+def _local_packages(lib: InterfaceLibrary, used: list[str]) -> list[tuple[str, str, str]]:
+    from uwgen.typesupport import source_digest
+
+    local = set(lib.local_names())
+    dirs = {Path(lib.source_of(n)).parent.parent for n in used if n in local}
+    return sorted((d.name, source_label(d, lib), source_digest(d)) for d in dirs)
 
 
 def _python_safe(msg: MessageDef) -> MessageDef:

@@ -40,6 +40,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="profiles to build the folders' interfaces in (default: native); repeatable")
     p.add_argument("--no-installed", action="store_true",
                    help="do not look for interfaces in installed ROS packages")
+    p.add_argument("--ros", action="store_true",
+                   help="also build rclpy type support for the interface packages in the folders "
+                        "(as `uwgen ros-interfaces DIR` does; cached outside the source tree)")
     p.add_argument("--check", action="store_true",
                    help="write nothing; exit 1 if the package on disk differs from what would be generated")
 
@@ -93,6 +96,16 @@ def run(args: argparse.Namespace) -> int:
     except (DefinitionError, ProfileError, ManifestError) as exc:
         print(f"uwgen build: {exc}", file=sys.stderr)
         return EXIT_INPUT
+    if args.ros and not args.check:
+        from uwgen.commands.ros_interfaces import ensure_folders
+        from uwgen.typesupport import BuildError
+        try:
+            folders = list(dict.fromkeys(f for spec in specs for f in spec.folders))
+            for env in ensure_folders(folders, quiet=True):
+                log.info("rclpy type support of %s: %s", env.package, env.prefix or "installed")
+        except BuildError as exc:
+            print(f"uwgen build: {exc}", file=sys.stderr)
+            return EXIT_STALE
     if args.check and stale:
         print("uwgen build --check: generated code is stale:", file=sys.stderr)
         for line in stale:

@@ -121,7 +121,7 @@ def _env(domain: int, extra_paths: list[str], iface_env) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from uwgen.demo.interfaces import BuildError, ensure_interfaces
+    from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.report import build_report, format_report, plot_paths
     from uwgen.emulator import NodeSpec, Scenario, run_emulator
 

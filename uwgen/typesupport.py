@@ -1,20 +1,31 @@
-"""Make ROS interface packages that are not installed (turtlesim) usable by rclpy.
+"""rclpy type support for your own interface packages, built once with ROS's rosidl tools.
 
-The demo manifest uses turtlesim's messages and services, but no turtlesim package exists
-for pip; rclpy can only publish a type whose C type support is built. This module builds
-the interfaces of a folder like `msg_samples/turtlesim` with ROS's own generators (CMake,
-`rosidl_generate_interfaces`, the C compiler) into `build/ros-interfaces/<package>/install`
-once, and reuses that build while the .msg/.srv files are unchanged (a stamp holds their
-hash). The CMake-only ROS packages the build needs are installed with pip into
-`build/ros-interfaces/tools` the first time (no compiled code; about 11 MB).
+rclpy can publish, subscribe to and serve only the types whose C type support is built.
+Installed packages (geometry_msgs, ...) bring theirs; a package of your own (`auv_msgs/`
+with `msg/*.msg`) needs a build. This module runs ROS's own generators (CMake,
+`rosidl_generate_interfaces`, the C compiler) on such a package and keeps the result in a
+cache outside the source tree, keyed by the digest of the package's .msg/.srv files:
 
-    env = ensure_interfaces(Path("msg_samples/turtlesim"))   # InterfaceEnv, or raises BuildError
-    env.activate()           # this process can now import turtlesim.msg
-    env.child_env(os.environ)  # environment for child processes
+    <cache>/ros-interfaces/<env>/<package>-<digest>/install     one build per source digest
+    <cache>/ros-interfaces/<env>/tools                          CMake parts of ament/rosidl (pip, once)
+
+`<cache>` is $UWGEN_CACHE, else $XDG_CACHE_HOME/uwgen, else ~/.cache/uwgen; `<env>` names
+this Python environment (the build links against its ROS libraries). `uwgen build`
+records each local package's digest in the generated package (`ROS_INTERFACES`), and a
+bridge activates exactly that build in its own process, so nobody sets PYTHONPATH,
+AMENT_PREFIX_PATH or LD_LIBRARY_PATH by hand:
+
+    env = ensure_interfaces(Path("interfaces/auv_msgs"))   # InterfaceEnv, or raises BuildError
+    env.activate()                   # this process can now import auv_msgs.msg
+    env.child_env(os.environ)        # environment for a child process that needs them too
+    activate_recorded({"auv_msgs": "1f2e..."})   # what a bridge does with ROS_INTERFACES
+
+Commands: `uwgen ros-interfaces DIR` (build, or run a command with them), `uwgen build --ros`.
 """
 from __future__ import annotations
 
 import ctypes
+import fcntl
 import hashlib
 import importlib
 import logging
@@ -23,13 +34,14 @@ import shutil
 import subprocess
 import sys
 import sysconfig
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-log = logging.getLogger("uwgen.demo.interfaces")
+log = logging.getLogger("uwgen.typesupport")
 
-ROOT = Path(__file__).resolve().parents[2]
-CACHE = ROOT / "build" / "ros-interfaces"
+CACHE_ENV = "UWGEN_CACHE"
+DIGEST_CHARS = 16
 
 # CMake-side ROS packages (pure data and scripts) that rosidl_generate_interfaces needs and the
 # runtime wheels do not bring. Installed --no-deps: the generators themselves are in the venv.
@@ -86,7 +98,22 @@ ament_package()
 
 
 class BuildError(Exception):
-    """The interfaces could not be built; the message says what is missing."""
+    """The interfaces could not be built or found; the message says what to do."""
+
+
+def cache_root() -> Path:
+    """uwgen's cache folder: $UWGEN_CACHE, else $XDG_CACHE_HOME/uwgen, else ~/.cache/uwgen."""
+    given = os.environ.get(CACHE_ENV)
+    if given:
+        return Path(given).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "uwgen"
+
+
+def interfaces_cache(cache: Path | None = None) -> Path:
+    """Where this Python environment's interface builds live (builds link against its ROS)."""
+    env = hashlib.sha256(f"{sys.prefix}\0{sys.version_info[:2]}\0{sys.platform}".encode()).hexdigest()
+    return (cache or cache_root()) / "ros-interfaces" / f"py{sys.version_info[0]}{sys.version_info[1]}-{env[:8]}"
 
 
 @dataclass(frozen=True)
@@ -108,7 +135,12 @@ class InterfaceEnv:
         if self.prefix is not None:
             _prepend_env(os.environ, "AMENT_PREFIX_PATH", str(self.prefix))
             # rmw loads the type support libraries by bare name; LD_LIBRARY_PATH is read only
-            # at process start, so load them now: dlopen then finds them by soname.
+            # at process start, so load them now: dlopen then finds them by soname. They need
+            # the ROS libraries rclpy's C extension loads (without rclpy they serve nothing).
+            try:
+                from rclpy.impl.implementation_singleton import rclpy_implementation  # noqa: F401
+            except ImportError:
+                return
             for lib in sorted((self.prefix / "lib").glob("lib*.so")):
                 ctypes.CDLL(str(lib), mode=ctypes.RTLD_GLOBAL)
 
@@ -128,22 +160,40 @@ def _prepend_env(env, key: str, value: str) -> None:
 
 
 def _importable(package: str) -> bool:
-    try:
-        importlib.import_module(f"{package}.msg")
-        return True
-    except ImportError:
-        return False
+    for ns in ("msg", "srv"):
+        try:
+            importlib.import_module(f"{package}.{ns}")
+            return True
+        except ImportError:
+            continue
+    return False
 
 
-def _interface_files(folder: Path) -> list[Path]:
-    return sorted(p for sub in ("msg", "srv") for p in (folder / sub).glob(f"*.{sub}"))
+def package_dirs(folder: Path) -> list[Path]:
+    """The interface packages in `folder`: itself if it has msg/ or srv/, else its children that do."""
+    folder = Path(folder)
+    if (folder / "msg").is_dir() or (folder / "srv").is_dir():
+        return [folder]
+    if not folder.is_dir():
+        return []
+    return sorted(c for c in folder.iterdir()
+                  if c.is_dir() and ((c / "msg").is_dir() or (c / "srv").is_dir()))
 
 
-def _digest(files: list[Path]) -> str:
+def interface_files(package_dir: Path) -> list[Path]:
+    return sorted(p for sub in ("msg", "srv") for p in (Path(package_dir) / sub).glob(f"*.{sub}"))
+
+
+def source_digest(package_dir: Path) -> str:
+    """Digest of a package's .msg/.srv files (names and bytes): the key of its build."""
     h = hashlib.sha256()
-    for p in files:
-        h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
-    return h.hexdigest()
+    for p in interface_files(package_dir):
+        h.update(f"{p.parent.name}/{p.name}".encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.hexdigest()[:DIGEST_CHARS]
+
+
+def build_dir(package: str, digest: str, cache: Path | None = None) -> Path:
+    return interfaces_cache(cache) / f"{package}-{digest}"
 
 
 def _dependencies(files: list[Path], package: str) -> list[str]:
@@ -159,30 +209,82 @@ def _dependencies(files: list[Path], package: str) -> list[str]:
     return sorted(deps)
 
 
-def ensure_interfaces(folder: Path, cache: Path = CACHE, quiet: bool = True) -> InterfaceEnv:
-    """Importable interfaces for the ROS package in `folder` (its name is the folder's)."""
+def ensure_interfaces(folder: Path, cache: Path | None = None, quiet: bool = True) -> InterfaceEnv:
+    """Importable interfaces for the ROS package in `folder` (its name is the folder's):
+    installed ones as they are, others built into the cache (or reused from it)."""
     folder = Path(folder).resolve()
     package = folder.name
-    env = InterfaceEnv(package, None)
-    if _importable(package):
-        return env
-    files = _interface_files(folder)
+    if _importable(package) and not _built_here(package, cache):
+        return InterfaceEnv(package, None)
+    files = interface_files(folder)
     if not files:
         raise BuildError(f"{folder}: no msg/*.msg or srv/*.srv files")
-    digest = _digest(files)
-    work = cache / package
+    work = build_dir(package, source_digest(folder), cache)
     env = InterfaceEnv(package, work / "install")
-    stamp = work / "stamp"
-    if not (stamp.exists() and stamp.read_text().strip() == digest and env.site.is_dir()):
-        _build(folder, package, files, work, digest, quiet)
+    if not ((work / "stamp").is_file() and env.site.is_dir()):
+        with _locked(work.parent):   # another uwgen may be building the same thing
+            if not ((work / "stamp").is_file() and env.site.is_dir()):
+                _build(folder, package, files, work, quiet)
     env.activate()
     if not _importable(package):
         raise BuildError(f"built {package} into {env.prefix} but `import {package}.msg` still fails")
     return env
 
 
-def _tools(cache: Path, quiet: bool) -> Path:
-    tools = cache / "tools"
+@contextmanager
+def _locked(folder: Path):
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fh = (folder / ".lock").open("a")
+    except OSError as exc:
+        raise BuildError(f"cannot write the interface cache {folder}: {exc.strerror} "
+                         f"(set {CACHE_ENV} to a writable folder)") from None
+    with fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _built_here(package: str, cache: Path | None) -> bool:
+    """Whether an importable `package` comes from a build of ours (maybe another digest)."""
+    module = sys.modules.get(f"{package}.msg") or sys.modules.get(f"{package}.srv")
+    where = getattr(module, "__file__", None) or ""
+    return str(interfaces_cache(cache)) in where
+
+
+def activate_recorded(recorded: dict[str, object], cache: Path | None = None) -> list[InterfaceEnv]:
+    """Activate, in this process, the builds of the interface packages a generated package
+    was made from (its `ROS_INTERFACES`: package -> digest, or (folder label, digest)).
+
+    Packages rclpy can import already are left alone. A package with no build of its digest
+    raises BuildError naming the command that builds it."""
+    envs = []
+    missing = []
+    for package, value in sorted(recorded.items()):
+        label, digest = value if isinstance(value, tuple) else (package, value)
+        if _importable(package):
+            continue
+        work = build_dir(package, digest, cache)
+        env = InterfaceEnv(package, work / "install")
+        if (work / "stamp").is_file() and env.site.is_dir():
+            env.activate()
+            envs.append(env)
+            continue
+        others = sorted(interfaces_cache(cache).glob(f"{package}-*/stamp"))
+        why = (f"the builds in {interfaces_cache(cache)} are of other versions of its files"
+               if others else f"no build in {interfaces_cache(cache)}")
+        missing.append(f"{package} ({why})")
+        last_label = label
+    if missing:
+        raise BuildError(f"rclpy has no type support for {', '.join(missing)}: run "
+                         f"`uwgen ros-interfaces {last_label}` (or `uwgen build --ros`) first")
+    return envs
+
+
+def _tools(root: Path, quiet: bool) -> Path:
+    tools = root / "tools"
     done = tools / ".complete"
     if done.exists():
         return tools
@@ -202,12 +304,16 @@ def _tools(cache: Path, quiet: bool) -> Path:
     return tools
 
 
-def _build(folder: Path, package: str, files: list[Path], work: Path, digest: str,
-           quiet: bool) -> None:
+def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: bool) -> None:
     for tool in ("cmake", "c++", "cc", "make"):
         if shutil.which(tool) is None:
             raise BuildError(f"building the {package} interfaces needs `{tool}` on PATH "
                              "(apt-get install cmake g++ make)")
+    try:
+        work.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BuildError(f"cannot write the interface cache {work}: {exc.strerror} "
+                         f"(set {CACHE_ENV} to a writable folder)") from None
     tools = _tools(work.parent, quiet)
     venv = Path(sys.prefix)
     src, build, install = work / "src" / package, work / "build", work / "install"
@@ -231,7 +337,8 @@ def _build(folder: Path, package: str, files: list[Path], work: Path, digest: st
     env["PYTHONPATH"] = os.pathsep.join([str(tools), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     env["PATH"] = os.pathsep.join([str(venv / "bin"), env.get("PATH", "")])
     build.mkdir(parents=True)
-    log.info("building the %s interfaces with rosidl (about 30 s, first run only)", package)
+    log.info("building rclpy type support of %s with rosidl into %s (about 30 s, once per "
+             "version of its files)", package, work)
     steps = [
         ["cmake", str(src), f"-DCMAKE_PREFIX_PATH={';'.join(prefixes)}",
          f"-DCMAKE_INSTALL_PREFIX={install}", f"-DPython3_EXECUTABLE={sys.executable}",
@@ -246,18 +353,4 @@ def _build(folder: Path, package: str, files: list[Path], work: Path, digest: st
             if res.returncode != 0:
                 raise BuildError(f"`{' '.join(cmd[:2])}` failed building {package} "
                                  f"(exit {res.returncode}); see {logfile}")
-    (work / "stamp").write_text(digest + "\n")
-
-
-def activate_built(cache: Path = CACHE) -> list[str]:
-    """Make every interface package built here before importable in this process (for
-    `uwgen bridge` on the demo manifest); returns their names."""
-    names = []
-    for install in sorted(cache.glob("*/install")):
-        package = install.parent.name
-        if not _importable(package):
-            env = InterfaceEnv(package, install)
-            if env.site is not None and env.site.is_dir():
-                env.activate()
-                names.append(package)
-    return names
+    (work / "stamp").write_text(f"{package} from {folder}\n")
