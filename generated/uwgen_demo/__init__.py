@@ -77,6 +77,28 @@ MANIFEST = ManifestInfo(
     source="msg_samples/uwgen.yaml",
 )
 
+# What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
+BUILT_FROM = {
+    "manifest": "74c6c7bcabeb2d8c",
+    "sources": {
+        "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
+        "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
+        "share/geometry_msgs/msg/Vector3.msg": "d8b9ea9aad1f424f",
+        "share/sensor_msgs/msg/BatteryState.msg": "ce13430f3c107274",
+        "share/std_msgs/msg/Header.msg": "d2cea14630e39ed0",
+        "share/std_msgs/msg/String.msg": "2022b3f1c32b578f",
+        "turtlesim/msg/Color.msg": "9cd63f14c0afc12d",
+        "turtlesim/msg/Pose.msg": "d6acd5f43ab2f405",
+        "turtlesim/srv/Kill.srv": "bc91430b62e30789",
+        "turtlesim/srv/SetPen.srv": "95e6dc64b2c91cf1",
+        "turtlesim/srv/Spawn.srv": "d5119789329add3e",
+        "turtlesim/srv/TeleportAbsolute.srv": "7755c0adf8472ee7",
+        "turtlesim/srv/TeleportRelative.srv": "eebcb1ded19b604d",
+    },
+    "root": "..",
+    "command": "uwgen build msg_samples",
+}
+
 TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",

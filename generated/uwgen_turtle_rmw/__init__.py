@@ -69,6 +69,24 @@ MANIFEST = ManifestInfo(
     source="msg_samples/rmw_desert/uwgen.yaml",
 )
 
+# What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
+BUILT_FROM = {
+    "manifest": "ec52507e1a5aa256",
+    "sources": {
+        "../turtlesim/msg/Color.msg": "9cd63f14c0afc12d",
+        "../turtlesim/msg/Pose.msg": "d6acd5f43ab2f405",
+        "../turtlesim/srv/Kill.srv": "bc91430b62e30789",
+        "../turtlesim/srv/SetPen.srv": "95e6dc64b2c91cf1",
+        "../turtlesim/srv/Spawn.srv": "d5119789329add3e",
+        "../turtlesim/srv/TeleportAbsolute.srv": "7755c0adf8472ee7",
+        "../turtlesim/srv/TeleportRelative.srv": "eebcb1ded19b604d",
+        "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
+        "share/geometry_msgs/msg/Vector3.msg": "d8b9ea9aad1f424f",
+    },
+    "root": "../..",
+    "command": "uwgen build msg_samples -m msg_samples/rmw_desert/uwgen.yaml",
+}
+
 TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import jinja2
 
+from uwgen.errors import Collector
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
 from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
 from uwgen.manifest.model import NATIVE
@@ -92,6 +93,8 @@ class PackagePlan:
     # Local interface packages used: (package, folder label, digest of its .msg/.srv files);
     # bridges activate the rclpy type support built from exactly these (uwgen.typesupport).
     ros_interfaces: list[tuple[str, str, str]] = field(default_factory=list)
+    source_paths: list[tuple[Path, bool]] = field(default_factory=list)   # (definition file, local)
+    built_from: dict | None = None     # uwgen.buildinfo record, set by `uwgen build`
 
 
 def source_label(path: Path | None, lib: InterfaceLibrary) -> str:
@@ -126,8 +129,20 @@ def plan_build(folders: list[Path], names: list[str] = (), manifest_path: Path |
     manifest's, then to uwgen_<first folder's name>."""
     from uwgen.manifest.loader import load_manifest   # yaml, only when a build runs
 
+    from uwgen.manifest.loader import ManifestError
+
     lib = InterfaceLibrary(folders, installed=installed)
-    manifest = load_manifest(Path(manifest_path), lib) if manifest_path else None
+    # Every broken definition of the folders and every broken manifest entry is reported
+    # (up to uwgen.errors.MAX_ERRORS), not only the first.
+    errors = Collector()
+    for name in lib.local_names():
+        with errors.attempt(DefinitionError):
+            lib.get(name)
+    manifest = None
+    if manifest_path:
+        with errors.attempt(ManifestError, DefinitionError):
+            manifest = load_manifest(Path(manifest_path), lib)
+    errors.raise_if_any()
     wanted = lib.all_names() if all_installed else [*lib.local_names(), *names]
     wanted = sorted({lib.normalize(n) or n for n in wanted})
     package = package or (manifest.package if manifest else None) \
@@ -157,16 +172,19 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
 
     codecs: dict[tuple[str, str], CodecType] = {}
     skipped: list[str] = []
+    errors = Collector()
     for msg, profile, header_items, required in wanted:
         try:
             check_profile_limits(builder.codec(msg, profile), header_items)
         except ProfileError as exc:
             if required:  # the manifest asks for it: refuse the build
-                raise
-            skipped.append(str(exc))  # a bulk build: leave out what this profile can never carry
+                errors.add(exc)
+            else:
+                skipped.append(str(exc))  # a bulk build: leave out what this profile can never carry
             continue
         for ct in builder.codecs_for(msg, profile):
             codecs.setdefault((ct.full_name, profile), ct)
+    errors.raise_if_any()
 
     definitions: dict[str, MessageDef] = {}
     for (full_name, _profile) in codecs:
@@ -216,13 +234,15 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
 
     # A service's request and response come from its one file: read each file once.
     files = {lib.source_of(n) for n in (*definitions, *services)}
+    local_files = {Path(lib.source_of(n)).resolve() for n in lib.local_names()}
     sources = sorted((source_label(f, lib), _digest(f)) for f in files)
     ordered = [modules[p] for p in sorted(modules)]
     ros_imports = sorted((type_key(n), _ros_module(n), n.split("/")[2]) for n in definitions)
     plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
                        ros_imports, plain_keys, sorted(set(skipped)),
-                       _local_packages(lib, [*definitions, *services]))
+                       _local_packages(lib, [*definitions, *services]),
+                       sorted((Path(f), Path(f).resolve() in local_files) for f in files if f is not None))
 
 
 def _local_packages(lib: InterfaceLibrary, used: list[str]) -> list[tuple[str, str, str]]:
