@@ -38,8 +38,13 @@ log = logging.getLogger("uwgen.demo")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=ROOT / "demo_output",
-                        help="folder for logs, records, stats and the plot (default demo_output/)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="folder for logs, records, stats and the plot (default demo_output/ "
+                             "in the checkout, or in uwgen's cache if the checkout is read-only)")
+    parser.add_argument("--desert", type=desert_endpoints, default=None, metavar="HOST:PORT,HOST:PORT",
+                        help="run against a running DESERT instead of the emulator: the surface "
+                             "node's and the vehicle's application sockets (the bridges use the "
+                             "manifest's link settings, 64 B every 0.2 s)")
     parser.add_argument("--docs", action="store_true",
                         help="also write the plot to docs/demo-path.png")
     parser.add_argument("--distance", type=float, default=300.0, help="metres between the nodes")
@@ -50,7 +55,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--laps", type=int, default=1, help="laps of the square")
     parser.add_argument("--timeout", type=float, default=180.0,
                         help="give up if the operator has not finished after this many seconds")
-    parser.add_argument("--quiet", action="store_true", help="do not relay the nodes' logs")
+    parser.add_argument("--quiet", dest="quiet_command", action="store_true",
+                        help="print only the report and problems: no relayed node logs, no INFO "
+                             "lines (same as `uwgen --quiet demo`)")
+
+
+def desert_endpoints(text: str) -> dict[str, tuple[str, int]]:
+    """`HOST:PORT,HOST:PORT` -> {"surface": (host, port), "vehicle": (host, port)}."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected two HOST:PORT, the surface's then the vehicle's")
+    out = {}
+    for side, part in zip(("surface", "vehicle"), parts):
+        host, sep, port = part.rpartition(":")
+        if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise argparse.ArgumentTypeError(f"{part!r}: expected HOST:PORT with a port 1..65535")
+        out[side] = (host.strip("[]"), int(port))
+    return out
+
+
+def default_out() -> Path:
+    """demo_output/ in the checkout, or in uwgen's cache when the checkout is read-only."""
+    if os.access(ROOT, os.W_OK):
+        return ROOT / "demo_output"
+    from uwgen.typesupport import cache_root
+    return cache_root() / "demo_output"
 
 
 def domains() -> tuple[int, int]:
@@ -120,19 +149,47 @@ def _env(domain: int, extra_paths: list[str], iface_env) -> dict:
     return iface_env.child_env(env)
 
 
+class _given_desert:
+    """Stands in for the emulator when the demo runs against a DESERT someone else started."""
+
+    def __init__(self, endpoints):
+        self.endpoints = endpoints
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def all_counters(self) -> dict:
+        return {}   # a real DESERT's counters are not ours to read
+
+
+def _endpoint(hp: tuple[str, int]) -> str:
+    return f"{hp[0]}:{hp[1]}"
+
+
 def run(args: argparse.Namespace) -> int:
     from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.report import build_report, format_report, plot_paths
     from uwgen.emulator import NodeSpec, Scenario, run_emulator
 
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
+    quiet = args.quiet or getattr(args, "quiet_command", False)
+    say = (lambda *a, **k: None) if quiet else print
+    out: Path = args.out or default_out()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"uwgen demo: cannot write {out}: {exc.strerror}; give another folder with --out",
+              file=sys.stderr)
+        return EXIT_FAILED
     for old in out.glob("*.json*"):
         old.unlink()
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
         return EXIT_FAILED
-    print("uwgen demo: a surface operator drives a simulated vehicle over an emulated acoustic link")
+    where = "a running DESERT" if args.desert else "an emulated acoustic link"
+    say(f"uwgen demo: a surface operator drives a simulated vehicle over {where}")
     try:
         iface = ensure_interfaces(ROOT / "msg_samples" / "turtlesim")
     except BuildError as exc:
@@ -146,26 +203,32 @@ def run(args: argparse.Namespace) -> int:
     py = sys.executable
     procs: list[Proc] = []
     t0 = time.monotonic()
-    with run_emulator(scen) as emu:
-        ports = {n: emu.port(n) for n in ("surface", "vehicle")}
-        print(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
-              f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, "
-              f"{scen.max_read_length} B every {scen.period:g} s at {scen.bitrate:g} bit/s, "
-              f"packet error rate {args.per:g} plus collisions")
-        print(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
+    with (_given_desert(args.desert) if args.desert else run_emulator(scen)) as emu:
+        endpoints = args.desert or {n: ("127.0.0.1", emu.port(n)) for n in ("surface", "vehicle")}
+        ports = {n: port for n, (_host, port) in endpoints.items()}
+        if args.desert:
+            say(f"  DESERT nodes: surface on {_endpoint(endpoints['surface'])}, vehicle on "
+                f"{_endpoint(endpoints['vehicle'])} (not started by uwgen)")
+        else:
+            say(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
+                f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, "
+                f"{scen.max_read_length} B every {scen.period:g} s at {scen.bitrate:g} bit/s, "
+                f"packet error rate {args.per:g} plus collisions")
+        say(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
         venv = _env(vdom, [str(GENERATED)], iface)
         senv = _env(sdom, [str(GENERATED)], iface)
         try:
             for side, env in (("vehicle", venv), ("surface", senv)):
                 procs.append(Proc(f"bridge_{side}", [
-                    py, "-m", f"{PACKAGE}.bridge_{side}", "--port", str(ports[side]),
+                    py, "-m", f"{PACKAGE}.bridge_{side}", "--host", endpoints[side][0],
+                    "--port", str(ports[side]),
                     "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5"],
-                    env, out, not args.quiet))
+                    env, out, not quiet))
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
-                                          str(out / "vehicle.jsonl")], venv, out, not args.quiet))
+                                          str(out / "vehicle.jsonl")], venv, out, not quiet))
             operator = Proc("operator", [py, "-m", "uwgen.demo.operator", "--record",
                                          str(out / "operator.jsonl"), "--side", str(args.side),
-                                         "--laps", str(args.laps)], senv, out, not args.quiet)
+                                         "--laps", str(args.laps)], senv, out, not quiet)
             procs.append(operator)
             try:
                 operator.proc.wait(args.timeout)
@@ -181,7 +244,9 @@ def run(args: argparse.Namespace) -> int:
     report = build_report(out)
     print()
     print(format_report(report))
-    title = (f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "
+    title = (f"uwgen demo: DESERT at {_endpoint(endpoints['surface'])} and {_endpoint(endpoints['vehicle'])}"
+             if args.desert else
+             f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "
              f"{scen.period:g} s, PER {args.per:g}")
     plot = plot_paths(report, out / "demo-path.png", title)
     if args.docs:
