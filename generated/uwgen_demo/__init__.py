@@ -21,8 +21,8 @@ CODECS: (type name, profile) -> TypeCodec, for every generated type.
 TOPICS / SERVICES: manifest id -> TopicCodec / ServiceCodec.
 MANIFEST: the network's sides, profile and fragment id.
 """
-from uwgen.runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
-from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
+from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
+from ._runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 
 from ._classes import PLAIN, ROS
 from .builtin_interfaces import msg as _builtin_interfaces_msg

@@ -22,6 +22,7 @@ import jinja2
 
 from uwgen.errors import Collector
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
+from uwgen.codegen.vendor import runtime_files
 from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
 from uwgen.manifest.model import NATIVE
 from uwgen.idl.loader import InterfaceLibrary
@@ -384,6 +385,8 @@ def render_package(plan: PackagePlan) -> dict[str, str]:
         plain_keys=plan.plain_keys, ros_imports=plan.ros_imports)
     files["__init__.py"] = env.get_template("package_init.py.j2").render(
         header=header, plan=plan, manifest=_manifest_view(plan.manifest))
+    first_lines = env.get_template("_header.j2").render(header=header).splitlines(keepends=True)[:2]
+    files.update(runtime_files("".join(first_lines)))   # the marker line and the package
     if plan.manifest is not None and (TEMPLATES / "bridge.py.j2").exists():
         for side in sorted(plan.manifest.sides):
             files[f"bridge_{side}.py"] = env.get_template("bridge.py.j2").render(

@@ -14,6 +14,7 @@ from uwgen.buildinfo import make_record
 from uwgen.errors import ErrorList
 from uwgen.codegen.generator import plan_build, render_package, stale_files, write_package
 from uwgen.codegen.ir import ProfileError
+from uwgen.codegen.vendor import VendorError
 from uwgen.manifest.model import NATIVE, PROFILES
 from uwgen.idl.model import DefinitionError
 from uwgen.manifest.loader import MANIFEST_NAME, ManifestError, find_manifest
@@ -120,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"uwgen build: {error}", file=sys.stderr)
         print(f"uwgen build: {exc.summary()}", file=sys.stderr)
         return EXIT_INPUT
-    except (DefinitionError, ProfileError, ManifestError) as exc:
+    except (DefinitionError, ProfileError, ManifestError, VendorError) as exc:
         print(f"uwgen build: {exc}", file=sys.stderr)
         return EXIT_INPUT
     if args.ros and not args.check:

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
+if TYPE_CHECKING:   # annotations only: this module stays stdlib-only (generated packages carry it)
+    from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
 
 NATIVE = "native"            # uwgen's own compact encoding (wire format section 4)
 RMW_DESERT = "rmw_desert"    # what rmw_desert nodes send and decode (section 6)
