@@ -192,6 +192,26 @@ def source_digest(package_dir: Path) -> str:
     return h.hexdigest()[:DIGEST_CHARS]
 
 
+def local_dependencies(package_dir: Path) -> list[Path]:
+    """The interface packages next to this one (same parent folder) that its files use."""
+    package_dir = Path(package_dir)
+    deps = _dependencies(interface_files(package_dir), package_dir.name)
+    return [package_dir.parent / d for d in deps if package_dirs(package_dir.parent / d)]
+
+
+def build_digest(package_dir: Path, _seen: frozenset = frozenset()) -> str:
+    """The key of a package's build: its files' digest, and the keys of the packages next
+    to it that it uses (its build links against theirs)."""
+    own = source_digest(package_dir)
+    deps = [d for d in local_dependencies(package_dir) if d.name not in _seen]
+    if not deps:
+        return own
+    h = hashlib.sha256(own.encode())
+    for d in deps:
+        h.update(f"\0{d.name}={build_digest(d, _seen | {Path(package_dir).name})}".encode())
+    return h.hexdigest()[:DIGEST_CHARS]
+
+
 def build_dir(package: str, digest: str, cache: Path | None = None) -> Path:
     return interfaces_cache(cache) / f"{package}-{digest}"
 
@@ -219,12 +239,15 @@ def ensure_interfaces(folder: Path, cache: Path | None = None, quiet: bool = Tru
     files = interface_files(folder)
     if not files:
         raise BuildError(f"{folder}: no msg/*.msg or srv/*.srv files")
-    work = build_dir(package, source_digest(folder), cache)
+    # Packages of yours that this one uses (next to it) are built and activated first.
+    deps = [ensure_interfaces(d, cache, quiet) for d in local_dependencies(folder)]
+    work = build_dir(package, build_digest(folder), cache)
     env = InterfaceEnv(package, work / "install")
     if not ((work / "stamp").is_file() and env.site.is_dir()):
         with _locked(work.parent):   # another uwgen may be building the same thing
             if not ((work / "stamp").is_file() and env.site.is_dir()):
-                _build(folder, package, files, work, quiet)
+                _build(folder, package, files, work, quiet,
+                       [d.prefix for d in deps if d.prefix is not None])
     env.activate()
     if not _importable(package):
         raise BuildError(f"built {package} into {env.prefix} but `import {package}.msg` still fails")
@@ -304,7 +327,8 @@ def _tools(root: Path, quiet: bool) -> Path:
     return tools
 
 
-def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: bool) -> None:
+def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: bool,
+           dep_prefixes: list[Path] = ()) -> None:
     for tool in ("cmake", "c++", "cc", "make"):
         if shutil.which(tool) is None:
             raise BuildError(f"building the {package} interfaces needs `{tool}` on PATH "
@@ -327,11 +351,11 @@ def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: boo
         name=package, source=folder.name,
         depends="".join(f"  <depend>{d}</depend>\n" for d in deps)))
     (src / "CMakeLists.txt").write_text(CMAKE.format(
-        name=package, venv_lib=venv / "lib",
+        name=package, venv_lib=";".join(str(p / "lib") for p in (venv, *dep_prefixes)),
         find_deps="\n".join(f"find_package({d} REQUIRED)" for d in deps),
         files="\n".join(f'  "{p.parent.name}/{p.name}"' for p in files),
         dep_line=f"  DEPENDENCIES {' '.join(deps)}" if deps else ""))
-    prefixes = [str(venv), str(tools)]
+    prefixes = [str(venv), str(tools), *map(str, dep_prefixes)]
     env = dict(os.environ)
     env["AMENT_PREFIX_PATH"] = os.pathsep.join(prefixes)
     env["PYTHONPATH"] = os.pathsep.join([str(tools), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)

@@ -1,10 +1,15 @@
 """uwgen.typesupport: where builds of your own interfaces live and how bridges find them."""
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 from uwgen import typesupport
-from uwgen.typesupport import BuildError, activate_recorded, build_dir, cache_root, source_digest
+from uwgen.typesupport import (
+    BuildError, activate_recorded, build_digest, build_dir, cache_root, source_digest,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -36,7 +41,7 @@ def test_generated_package_records_the_digest_of_its_own_interfaces():
     uwgen_demo = import_package("uwgen_demo", ROOT / "generated")
     label, digest = uwgen_demo.ROS_INTERFACES["turtlesim"]
     assert label == "msg_samples/turtlesim"
-    assert digest == source_digest(ROOT / "msg_samples" / "turtlesim")
+    assert digest == build_digest(ROOT / "msg_samples" / "turtlesim")
     assert "geometry_msgs" not in uwgen_demo.ROS_INTERFACES   # installed: nothing to build
 
 
@@ -56,3 +61,40 @@ def test_a_missing_build_names_the_command_that_makes_it(monkeypatch, tmp_path):
 def test_installed_packages_need_no_build(monkeypatch, tmp_path):
     monkeypatch.setenv("UWGEN_CACHE", str(tmp_path))
     assert activate_recorded({"geometry_msgs": ("x/geometry_msgs", "0" * 16)}) == []
+
+
+def two_packages(root: Path, depth_type: str = "float32") -> Path:
+    """interfaces/{ts_base_msgs, ts_report_msgs}: the second uses the first."""
+    (root / "ts_base_msgs" / "msg").mkdir(parents=True, exist_ok=True)
+    (root / "ts_base_msgs" / "msg" / "Depth.msg").write_text(f"{depth_type} metres\n")
+    (root / "ts_report_msgs" / "msg").mkdir(parents=True, exist_ok=True)
+    (root / "ts_report_msgs" / "msg" / "Report.msg").write_text("ts_base_msgs/Depth depth\nstring note\n")
+    return root
+
+
+def test_a_package_using_another_of_yours_is_keyed_by_both(tmp_path):
+    root = two_packages(tmp_path / "interfaces")
+    before, own = build_digest(root / "ts_report_msgs"), source_digest(root / "ts_report_msgs")
+    assert before != own
+    two_packages(root, depth_type="float64")     # only the package it uses changed
+    assert source_digest(root / "ts_report_msgs") == own
+    assert build_digest(root / "ts_report_msgs") != before
+
+
+@pytest.mark.timeout(400)
+def test_ros_interfaces_builds_a_package_using_another_and_runs_a_program_with_them(tmp_path):
+    root = two_packages(tmp_path / "interfaces")
+    code = ("import rclpy, ts_report_msgs.msg as r, ts_base_msgs.msg as b\n"
+            "from rclpy.serialization import serialize_message, deserialize_message\n"
+            "m = r.Report(depth=b.Depth(metres=12.5), note='ok')\n"
+            "back = deserialize_message(serialize_message(m), r.Report)\n"
+            "print(back.depth.metres, back.note)")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("LD_LIBRARY_PATH", "AMENT_PREFIX_PATH", "_ROS_WHEELS_BOOTSTRAP_COMPLETE")}
+    env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
+    env["PYTHONPATH"] = str(ROOT)
+    res = subprocess.run([sys.executable, "-m", "uwgen.cli", "ros-interfaces", str(root), "--",
+                          sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         timeout=380)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "12.5 ok"

@@ -247,11 +247,11 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
 
 
 def _local_packages(lib: InterfaceLibrary, used: list[str]) -> list[tuple[str, str, str]]:
-    from uwgen.typesupport import source_digest
+    from uwgen.typesupport import build_digest
 
     local = set(lib.local_names())
     dirs = {Path(lib.source_of(n)).parent.parent for n in used if n in local}
-    return sorted((d.name, source_label(d, lib), source_digest(d)) for d in dirs)
+    return sorted((d.name, source_label(d, lib), build_digest(d)) for d in dirs)
 
 
 def _python_safe(msg: MessageDef) -> MessageDef:
