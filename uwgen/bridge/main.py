@@ -54,6 +54,11 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    from uwgen.codegen.vendor import foreign_runtime
+    problem = foreign_runtime(package)
+    if problem:
+        print(f"uwgen bridge: {problem}", file=sys.stderr)
+        return EXIT_USAGE
 
     import signal
     import threading
