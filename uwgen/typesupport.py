@@ -159,8 +159,11 @@ def _prepend_env(env, key: str, value: str) -> None:
         env[key] = os.pathsep.join([value, *parts])
 
 
+INTERFACE_KINDS = ("msg", "srv", "action")
+
+
 def _importable(package: str) -> bool:
-    for ns in ("msg", "srv"):
+    for ns in INTERFACE_KINDS:
         try:
             importlib.import_module(f"{package}.{ns}")
             return True
@@ -170,22 +173,26 @@ def _importable(package: str) -> bool:
 
 
 def package_dirs(folder: Path) -> list[Path]:
-    """The interface packages in `folder`: itself if it has msg/ or srv/, else its children that do."""
+    """The interface packages in `folder`: itself if it has msg/, srv/ or action/, else its
+    children that do."""
     folder = Path(folder)
-    if (folder / "msg").is_dir() or (folder / "srv").is_dir():
+
+    def is_package(d: Path) -> bool:
+        return any((d / kind).is_dir() for kind in INTERFACE_KINDS)
+
+    if is_package(folder):
         return [folder]
     if not folder.is_dir():
         return []
-    return sorted(c for c in folder.iterdir()
-                  if c.is_dir() and ((c / "msg").is_dir() or (c / "srv").is_dir()))
+    return sorted(c for c in folder.iterdir() if c.is_dir() and is_package(c))
 
 
 def interface_files(package_dir: Path) -> list[Path]:
-    return sorted(p for sub in ("msg", "srv") for p in (Path(package_dir) / sub).glob(f"*.{sub}"))
+    return sorted(p for sub in INTERFACE_KINDS for p in (Path(package_dir) / sub).glob(f"*.{sub}"))
 
 
 def source_digest(package_dir: Path) -> str:
-    """Digest of a package's .msg/.srv files (names and bytes): the key of its build."""
+    """Digest of a package's .msg/.srv/.action files (names and bytes): the key of its build."""
     h = hashlib.sha256()
     for p in interface_files(package_dir):
         h.update(f"{p.parent.name}/{p.name}".encode() + b"\0" + p.read_bytes() + b"\0")
@@ -226,6 +233,8 @@ def _dependencies(files: list[Path], package: str) -> list[str]:
                 dep = first[0].split("/")[0]
                 if dep != package:
                     deps.add(dep)
+        if p.suffix == ".action":
+            deps.add("action_msgs")    # the generated action types use its GoalInfo, GoalStatus
     return sorted(deps)
 
 
@@ -238,7 +247,7 @@ def ensure_interfaces(folder: Path, cache: Path | None = None, quiet: bool = Tru
         return InterfaceEnv(package, None)
     files = interface_files(folder)
     if not files:
-        raise BuildError(f"{folder}: no msg/*.msg or srv/*.srv files")
+        raise BuildError(f"{folder}: no msg/*.msg, srv/*.srv or action/*.action files")
     # Packages of yours that this one uses (next to it) are built and activated first.
     deps = [ensure_interfaces(d, cache, quiet) for d in local_dependencies(folder)]
     work = build_dir(package, build_digest(folder), cache)

@@ -98,3 +98,22 @@ def test_ros_interfaces_builds_a_package_using_another_and_runs_a_program_with_t
                          timeout=380)
     assert res.returncode == 0, res.stdout + res.stderr
     assert res.stdout.strip().splitlines()[-1] == "12.5 ok"
+
+
+@pytest.mark.timeout(400)
+def test_ros_interfaces_builds_actions_too(tmp_path):
+    pkg = tmp_path / "ts_action_msgs" / "action"
+    pkg.mkdir(parents=True)
+    (pkg / "Rotate.action").write_text("float32 theta\n---\nfloat32 delta\n---\nfloat32 remaining\n")
+    code = ("import rclpy, ts_action_msgs.action as a\n"
+            "from rclpy.serialization import serialize_message, deserialize_message\n"
+            "g = deserialize_message(serialize_message(a.Rotate.Goal(theta=1.5)), a.Rotate.Goal)\n"
+            "print(g.theta)")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("LD_LIBRARY_PATH", "AMENT_PREFIX_PATH", "_ROS_WHEELS_BOOTSTRAP_COMPLETE")}
+    env["PYTHONPATH"] = str(ROOT)
+    res = subprocess.run([sys.executable, "-m", "uwgen.cli", "ros-interfaces", str(tmp_path), "--",
+                          sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         timeout=380)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "1.5"

@@ -26,7 +26,7 @@ EXIT_USAGE = 2
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("folders", nargs="+", type=Path, metavar="DIR",
-                        help="an interface package (with msg/ or srv/) or a folder of packages")
+                        help="an interface package (with msg/, srv/ or action/) or a folder of packages")
     parser.add_argument("--cache", type=Path, default=None, metavar="DIR",
                         help="cache folder (default: $UWGEN_CACHE, else $XDG_CACHE_HOME/uwgen, "
                              "else ~/.cache/uwgen)")
@@ -45,7 +45,7 @@ def ensure_folders(folders: list[Path], cache: Path | None = None, quiet: bool =
             raise BuildError(f"{folder}: no such folder")
         found = package_dirs(folder)
         if not found:
-            raise BuildError(f"{folder}: no interface package here (expected msg/ or srv/ in it "
+            raise BuildError(f"{folder}: no interface package here (expected msg/, srv/ or action/ in it "
                              "or in its sub-folders)")
         for package_dir in found:
             envs.append(ensure_interfaces(package_dir, cache, quiet))
