@@ -56,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", type=float, default=180.0,
                         help="give up if the operator has not finished after this many seconds")
     parser.add_argument("--quiet", dest="quiet_command", action="store_true",
-                        help="print only the report and problems: no relayed node logs, no INFO "
+                        help="print only the report and problems (node errors): no relayed node logs, no INFO "
                              "lines (same as `uwgen --quiet demo`)")
 
 
@@ -109,6 +109,9 @@ class Proc:
             self._fh.flush()
             if self._relay and self._interesting(line):
                 print(f"  [{self.name}] {_strip(line)}", flush=True)
+            elif not self._relay and ("ERROR" in line or "Traceback" in line):
+                # Quiet: only problems, on stderr.
+                print(f"  [{self.name}] {_strip(line)}", file=sys.stderr, flush=True)
 
     def _interesting(self, line: str) -> bool:
         if self.name == "operator":
