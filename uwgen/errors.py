@@ -41,6 +41,8 @@ class Collector:
 
     def add(self, error: Exception) -> None:
         for e in getattr(error, "errors", None) or [error]:
+            if any(str(e) == str(seen) for seen in self.errors):
+                continue   # one broken file named twice (by the folder and by the manifest)
             if len(self.errors) < self.limit:
                 self.errors.append(e)
             else:

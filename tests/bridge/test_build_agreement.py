@@ -141,3 +141,13 @@ def test_every_broken_definition_is_reported(tmp_path, capsys):
     assert uwgen_main(["build", str(tmp_path), "-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "A.msg:1:" in err and "B.msg:2:" in err and "C.msg" not in err and "2 errors" in err
+
+
+def test_a_broken_definition_the_manifest_names_is_reported_once(tmp_path, capsys, monkeypatch):
+    (tmp_path / "agree_msgs" / "msg").mkdir(parents=True)
+    (tmp_path / "agree_msgs" / "msg" / "Note.msg").write_text("int33 x\n")
+    (tmp_path / "uwgen.yaml").write_text(MANIFEST)
+    monkeypatch.chdir(tmp_path)
+    assert uwgen_main(["build", "."]) == 2
+    err = capsys.readouterr().err
+    assert err.count("Note.msg:1:") == 1, err
