@@ -85,3 +85,31 @@ def rebuild_hint(record: dict, manifest: Path, package_dir: Path) -> str:
     if package_dir != root / "generated" / package_dir.name:
         command += f" -o {shlex.quote(str(package_dir))}"
     return f"cd {shlex.quote(str(root))} && {command}"
+
+
+def stale_message(package, manifest: Path) -> str | None:
+    """Why the generated `package` (module) does not match `manifest` and the definitions
+    now, with the command that rebuilds it; None when it matches (or records nothing)."""
+    record = getattr(package, "BUILT_FROM", None)
+    if record is None:
+        return None
+    pkg_dir = Path(package.__file__).parent
+    reasons = stale_reasons(record, manifest)
+    if not reasons:
+        return None
+    shown = "; ".join(reasons[:5]) + (f"; and {len(reasons) - 5} more" if len(reasons) > 5 else "")
+    return (f"{pkg_dir} is stale: it was built from other files than these ({shown}). "
+            f"Build it again: {rebuild_hint(record, manifest, pkg_dir)}")
+
+
+def own_manifest(package) -> Path | None:
+    """The manifest a package in <root>/generated/<package> was built from, if it is there."""
+    source = getattr(getattr(package, "MANIFEST", None), "source", None)
+    if not source or getattr(package, "BUILT_FROM", None) is None:
+        return None
+    root = Path(package.__file__).resolve().parent.parent.parent
+    candidate = root / source
+    # The record says where the build ran relative to the manifest: both must agree.
+    if candidate.is_file() and (candidate.parent / package.BUILT_FROM.get("root", ".")).resolve() == root:
+        return candidate
+    return None

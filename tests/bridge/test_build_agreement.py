@@ -151,3 +151,16 @@ def test_a_broken_definition_the_manifest_names_is_reported_once(tmp_path, capsy
     assert uwgen_main(["build", "."]) == 2
     err = capsys.readouterr().err
     assert err.count("Note.msg:1:") == 1, err
+
+
+def test_generated_bridge_module_checks_itself_in_its_project(project):
+    import subprocess
+    root = Path(__file__).resolve().parents[2]
+    env = {**__import__("os").environ, "PYTHONPATH": f"{project / 'generated'}:{root}"}
+    run = lambda: subprocess.run([sys.executable, "-m", "uwgen_agree.bridge_vehicle", "--port", "0"],
+                                 cwd=project, capture_output=True, text=True, timeout=60, env=env)
+    fresh = run()
+    assert fresh.returncode == 2 and "not a TCP port" in fresh.stderr   # got past the check
+    (project / "interfaces" / "uwgen.yaml").write_text(MANIFEST.replace("id: 5", "id: 6"))
+    stale = run()
+    assert stale.returncode == 2 and "stale" in stale.stderr and "uwgen build interfaces" in stale.stderr

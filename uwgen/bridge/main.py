@@ -157,5 +157,12 @@ def main(package: str | ModuleType, side: str | None = None,
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    # In its project's generated/, the package checks itself against its manifest there.
+    from uwgen.buildinfo import own_manifest, stale_message
+    manifest = own_manifest(module)
+    problem = stale_message(module, manifest) if manifest is not None else None
+    if problem:
+        print(f"uwgen bridge: {problem}", file=sys.stderr)
+        return EXIT_USAGE
     # rclpy.init reads only the --ros-args sections of argv and leaves the rest alone.
     return run(module, side or args.side, args, argv)

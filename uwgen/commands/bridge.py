@@ -90,19 +90,15 @@ def find_package(name: str, manifest: Path, given: Path | None = None) -> Module
 
 def check_fresh(package: ModuleType, manifest: Path) -> None:
     """Refuse a package built from another version of the manifest or its definitions."""
-    from uwgen.buildinfo import rebuild_hint, stale_reasons
+    from uwgen.buildinfo import stale_message
 
-    record = getattr(package, "BUILT_FROM", None)
-    pkg_dir = Path(package.__file__).parent
-    if record is None:
+    if getattr(package, "BUILT_FROM", None) is None:
         log.warning("%s records no build inputs (built by an older uwgen): cannot check that it "
-                    "matches %s; rebuild it with `uwgen build`", pkg_dir, manifest)
+                    "matches %s; rebuild it with `uwgen build`", Path(package.__file__).parent, manifest)
         return
-    reasons = stale_reasons(record, manifest)
-    if reasons:
-        shown = "; ".join(reasons[:5]) + (f"; and {len(reasons) - 5} more" if len(reasons) > 5 else "")
-        raise PlanError(f"{pkg_dir} is stale: it was built from other files than these "
-                        f"({shown}). Build it again: {rebuild_hint(record, manifest, pkg_dir)}")
+    problem = stale_message(package, manifest)
+    if problem:
+        raise PlanError(problem)
 
 
 def run(args: argparse.Namespace) -> int:
