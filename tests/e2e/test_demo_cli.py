@@ -84,3 +84,13 @@ def test_demo_quiet_silences_in_process_info_logs(monkeypatch, argv):
     assert seen == {"info": False}
     main(["demo"])   # and without it, the emulator's INFO lines are on again
     assert logging.getLogger("uwgen.emulator").isEnabledFor(logging.INFO)
+
+
+def test_demo_says_when_the_given_desert_is_not_there(tmp_path):
+    import socket
+    with socket.socket() as s:          # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    res = uwgen("demo", "--desert", f"127.0.0.1:{port},127.0.0.1:{port}", "--out", str(tmp_path))
+    assert res.returncode == 1
+    assert f"cannot reach the DESERT node of surface at 127.0.0.1:{port}" in res.stderr

@@ -168,6 +168,16 @@ class _given_desert:
         return {}   # a real DESERT's counters are not ours to read
 
 
+def _unreachable(hp: tuple[str, int], timeout: float = 3.0) -> str | None:
+    """Why nothing accepts a TCP connection at `hp` (None: something does)."""
+    import socket
+    try:
+        with socket.create_connection(hp, timeout=timeout):
+            return None
+    except OSError as exc:
+        return exc.strerror or str(exc)
+
+
 def _endpoint(hp: tuple[str, int]) -> str:
     return f"{hp[0]}:{hp[1]}"
 
@@ -191,6 +201,13 @@ def run(args: argparse.Namespace) -> int:
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
         return EXIT_FAILED
+    if args.desert:
+        unreachable = [f"{side} at {_endpoint(hp)} ({why})" for side, hp in args.desert.items()
+                       if (why := _unreachable(hp))]
+        if unreachable:
+            print(f"uwgen demo: cannot reach the DESERT node of {'; '.join(unreachable)}: is DESERT "
+                  "running, with its UW/APPLICATION socket there?", file=sys.stderr)
+            return EXIT_FAILED
     where = "a running DESERT" if args.desert else "an emulated acoustic link"
     say(f"uwgen demo: a surface operator drives a simulated vehicle over {where}")
     try:
