@@ -387,3 +387,17 @@ def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: boo
                 raise BuildError(f"`{' '.join(cmd[:2])}` failed building {package} "
                                  f"(exit {res.returncode}); see {logfile}")
     (work / "stamp").write_text(f"{package} from {folder}\n")
+
+
+def prune(package_dir: Path, cache: Path | None = None) -> list[Path]:
+    """Remove the builds of this package other than the one of its current files."""
+    package = Path(package_dir).resolve().name
+    keep = build_dir(package, build_digest(package_dir), cache)
+    gone = []
+    root = interfaces_cache(cache)
+    with _locked(root):
+        for old in sorted(root.glob(f"{package}-*")):
+            if old != keep and old.is_dir() and old.name[len(package) + 1:].isalnum():
+                shutil.rmtree(old, ignore_errors=True)
+                gone.append(old)
+    return gone

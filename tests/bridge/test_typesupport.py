@@ -117,3 +117,17 @@ def test_ros_interfaces_builds_actions_too(tmp_path):
                          timeout=380)
     assert res.returncode == 0, res.stdout + res.stderr
     assert res.stdout.strip().splitlines()[-1] == "1.5"
+
+
+def test_prune_keeps_only_the_build_of_the_current_files(tmp_path, monkeypatch):
+    monkeypatch.setenv("UWGEN_CACHE", str(tmp_path / "cache"))
+    pkg = tmp_path / "pr_msgs"
+    (pkg / "msg").mkdir(parents=True)
+    (pkg / "msg" / "A.msg").write_text("int32 x\n")
+    current = build_dir("pr_msgs", build_digest(pkg))
+    old = build_dir("pr_msgs", "0123456789abcdef")
+    other = build_dir("pr_msgs_extra", "0123456789abcdef")   # another package, same prefix
+    for d in (current, old, other):
+        d.mkdir(parents=True)
+    assert typesupport.prune(pkg) == [old]
+    assert current.is_dir() and other.is_dir() and not old.exists()

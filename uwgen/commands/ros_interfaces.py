@@ -30,6 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache", type=Path, default=None, metavar="DIR",
                         help="cache folder (default: $UWGEN_CACHE, else $XDG_CACHE_HOME/uwgen, "
                              "else ~/.cache/uwgen)")
+    parser.add_argument("--prune", action="store_true",
+                        help="also remove the cached builds of earlier versions of these packages")
     parser.add_argument("--print-env", action="store_true",
                         help="print the environment a program needs to import them (sh syntax)")
     parser.epilog = "After `--`: a program to run with the packages importable, e.g. -- python3 talker.py"
@@ -60,6 +62,12 @@ def run(args: argparse.Namespace) -> int:
     except BuildError as exc:
         print(f"uwgen ros-interfaces: {exc}", file=sys.stderr)
         return EXIT_FAILED
+    if args.prune:
+        from uwgen.typesupport import package_dirs, prune
+        for folder in args.folders:
+            for package_dir in package_dirs(folder):
+                for gone in prune(package_dir, args.cache):
+                    print(f"removed {gone}", file=sys.stderr)
     env = dict(os.environ)
     for e in envs:
         env = e.child_env(env)
