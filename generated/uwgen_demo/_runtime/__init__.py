@@ -12,10 +12,10 @@ import sys as _sys
 
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
-    'model': ('uwgen.manifest.model', '8cfa9e852dd1aa43'),
+    'model': ('uwgen.manifest.model', 'af4f6bce0f8a89e1'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'codec': ('uwgen.runtime.codec', '26bca51745bec02f'),
-    'table': ('uwgen.runtime.table', '91dc6df7faf67a78'),
+    'table': ('uwgen.runtime.table', 'a81f425d50e1f8f2'),
 }
 
 
