@@ -34,6 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also remove the cached builds of earlier versions of these packages")
     parser.add_argument("--print-env", action="store_true",
                         help="print the environment a program needs to import them (sh syntax)")
+    parser.usage = ("uwgen ros-interfaces [-h] [--cache DIR] [--prune] [--print-env] DIR [DIR ...] "
+                    "[-- PROGRAM [ARG ...]]")
     parser.epilog = "After `--`: a program to run with the packages importable, e.g. -- python3 talker.py"
 
 
