@@ -131,3 +131,24 @@ def test_prune_keeps_only_the_build_of_the_current_files(tmp_path, monkeypatch):
         d.mkdir(parents=True)
     assert typesupport.prune(pkg) == [old]
     assert current.is_dir() and other.is_dir() and not old.exists()
+
+
+def test_broken_definitions_are_located_before_any_cmake_runs(tmp_path, capsys, monkeypatch):
+    from uwgen.cli import main as uwgen_main
+    monkeypatch.setenv("UWGEN_CACHE", str(tmp_path / "cache"))
+    (tmp_path / "bad_msgs" / "msg").mkdir(parents=True)
+    (tmp_path / "bad_msgs" / "msg" / "A.msg").write_text("int32 x\nint33 y\n")
+    (tmp_path / "bad_msgs" / "msg" / "B.msg").write_text("string[ z\n")
+    assert uwgen_main(["ros-interfaces", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "A.msg:2:" in err and "B.msg:1:" in err
+    assert not (tmp_path / "cache").exists()     # nothing was built
+
+
+def test_one_package_given_alone_still_sees_the_one_it_uses(tmp_path, monkeypatch):
+    from uwgen.commands.ros_interfaces import _check_definitions
+    from uwgen.typesupport import local_dependencies
+    root = two_packages(tmp_path / "interfaces")
+    report = root / "ts_report_msgs"
+    assert local_dependencies(report) == [root / "ts_base_msgs"]
+    _check_definitions([report, *local_dependencies(report)])   # no unknown-type error

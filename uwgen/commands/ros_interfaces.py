@@ -41,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def ensure_folders(folders: list[Path], cache: Path | None = None, quiet: bool = True):
     """Build (or reuse) every package in `folders`; returns their InterfaceEnvs."""
-    from uwgen.typesupport import BuildError, ensure_interfaces, package_dirs
+    from uwgen.typesupport import BuildError, ensure_interfaces, local_dependencies, package_dirs
 
     envs = []
     for folder in folders:
@@ -51,9 +51,32 @@ def ensure_folders(folders: list[Path], cache: Path | None = None, quiet: bool =
         if not found:
             raise BuildError(f"{folder}: no interface package here (expected msg/, srv/ or action/ in it "
                              "or in its sub-folders)")
+        with_deps = list(dict.fromkeys([*found, *(d for p in found for d in local_dependencies(p))]))
+        _check_definitions([d for d in with_deps if (d / "msg").is_dir() or (d / "srv").is_dir()])
         for package_dir in found:
             envs.append(ensure_interfaces(package_dir, cache, quiet))
     return envs
+
+
+def _check_definitions(package_dirs: list[Path]) -> None:
+    """uwgen's own parser first: broken definitions get `file:line:column` errors, not a CMake log."""
+    from uwgen.errors import Collector
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.idl.model import DefinitionError
+    from uwgen.typesupport import BuildError
+
+    errors = Collector()
+    try:
+        lib = InterfaceLibrary(package_dirs) if package_dirs else None
+        if lib is None:
+            return
+        for name in lib.local_names():
+            with errors.attempt(DefinitionError):
+                lib.get(name)
+    except DefinitionError as exc:
+        errors.add(exc)
+    if errors:
+        raise BuildError("\n".join(str(e) for e in errors.errors))
 
 
 def run(args: argparse.Namespace) -> int:
