@@ -35,8 +35,6 @@ from .turtlesim import srv as _turtlesim_srv
 
 CODECS = {
     ("builtin_interfaces/msg/Time", "native"): TypeCodec("builtin_interfaces/msg/Time", "native", _builtin_interfaces_msg.enc_Time, _builtin_interfaces_msg.dec_Time, PLAIN, ROS, "builtin_interfaces__Time"),
-    ("geometry_msgs/msg/Twist", "native"): TypeCodec("geometry_msgs/msg/Twist", "native", _geometry_msgs_msg.enc_Twist, _geometry_msgs_msg.dec_Twist, PLAIN, ROS, "geometry_msgs__Twist"),
-    ("geometry_msgs/msg/Vector3", "native"): TypeCodec("geometry_msgs/msg/Vector3", "native", _geometry_msgs_msg.enc_Vector3, _geometry_msgs_msg.dec_Vector3, PLAIN, ROS, "geometry_msgs__Vector3"),
     ("sensor_msgs/msg/BatteryState", "native"): TypeCodec("sensor_msgs/msg/BatteryState", "native", _sensor_msgs_msg.enc_BatteryState, _sensor_msgs_msg.dec_BatteryState, PLAIN, ROS, "sensor_msgs__BatteryState"),
     ("std_msgs/msg/Header", "native"): TypeCodec("std_msgs/msg/Header", "native", _std_msgs_msg.enc_Header, _std_msgs_msg.dec_Header, PLAIN, ROS, "std_msgs__Header"),
     ("std_msgs/msg/String", "native"): TypeCodec("std_msgs/msg/String", "native", _std_msgs_msg.enc_String, _std_msgs_msg.dec_String, PLAIN, ROS, "std_msgs__String"),
@@ -52,6 +50,13 @@ CODECS = {
     ("turtlesim/srv/TeleportAbsolute_Response", "native"): TypeCodec("turtlesim/srv/TeleportAbsolute_Response", "native", _turtlesim_srv.enc_TeleportAbsolute_Response, _turtlesim_srv.dec_TeleportAbsolute_Response, PLAIN, ROS, "turtlesim__TeleportAbsolute_Response"),
     ("turtlesim/srv/TeleportRelative_Request", "native"): TypeCodec("turtlesim/srv/TeleportRelative_Request", "native", _turtlesim_srv.enc_TeleportRelative_Request, _turtlesim_srv.dec_TeleportRelative_Request, PLAIN, ROS, "turtlesim__TeleportRelative_Request"),
     ("turtlesim/srv/TeleportRelative_Response", "native"): TypeCodec("turtlesim/srv/TeleportRelative_Response", "native", _turtlesim_srv.enc_TeleportRelative_Response, _turtlesim_srv.dec_TeleportRelative_Response, PLAIN, ROS, "turtlesim__TeleportRelative_Response"),
+    ("geometry_msgs/msg/Vector3", "packed"): TypeCodec("geometry_msgs/msg/Vector3", "packed", _geometry_msgs_msg.enc_pk_Vector3, _geometry_msgs_msg.dec_pk_Vector3, PLAIN, ROS, "geometry_msgs__Vector3"),
+}
+
+# Codecs with the manifest's field encodings, by variant: t<id> topic, q<id>/r<id> request/response.
+VARIANTS = {
+    "t4": TypeCodec("geometry_msgs/msg/Twist", "packed", _geometry_msgs_msg.enc_pk_t4_Twist, _geometry_msgs_msg.dec_pk_t4_Twist, PLAIN, ROS, "geometry_msgs__Twist"),
+    "t5": TypeCodec("turtlesim/msg/Pose", "packed", _turtlesim_msg.enc_pk_t5_Pose, _turtlesim_msg.dec_pk_t5_Pose, PLAIN, ROS, "turtlesim__Pose"),
 }
 
 
@@ -68,7 +73,7 @@ ROS_INTERFACES = {
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("449ba72e")
+SCHEMA_DIGEST = bytes.fromhex("cd91ef23")
 
 MANIFEST = ManifestInfo(
     network="demo",
@@ -86,7 +91,7 @@ MANIFEST = ManifestInfo(
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "fd659726c6844c23",
+    "manifest": "04c16fe3250e1b1c",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
@@ -109,29 +114,29 @@ BUILT_FROM = {
 TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
-        publisher="surface", profile="native",
-        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10),
+        publisher="surface", profile="packed",
+        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("geometry_msgs/msg/Twist", "native")],
-        fingerprint=bytes.fromhex("97341e79")),
+        codec=VARIANTS["t4"],
+        fingerprint=bytes.fromhex("92b9198b")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
-        publisher="vehicle", profile="native",
-        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5),
+        publisher="vehicle", profile="packed",
+        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("turtlesim/msg/Pose", "native")],
-        fingerprint=bytes.fromhex("570da0e1")),
+        codec=VARIANTS["t5"],
+        fingerprint=bytes.fromhex("29eb5926")),
     6: TopicCodec(
         id=6, name="/vehicle/battery", type_name="sensor_msgs/msg/BatteryState",
         publisher="vehicle", profile="native",
-        policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1),
+        policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("sensor_msgs/msg/BatteryState", "native")],
         fingerprint=bytes.fromhex("2bfcff5a")),
     7: TopicCodec(
         id=7, name="/vehicle/log", type_name="std_msgs/msg/String",
         publisher="vehicle", profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=8, ttl=60.0, priority=0),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=8, ttl=60.0, priority=0, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("std_msgs/msg/String", "native")],
         fingerprint=bytes.fromhex("8de1dd8e")),
@@ -141,7 +146,7 @@ SERVICES = {
     20: ServiceCodec(
         id=20, name="/turtle1/teleport_absolute", type_name="turtlesim/srv/TeleportAbsolute",
         server="vehicle", timeout=10.0, profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0),
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "native")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
@@ -149,7 +154,7 @@ SERVICES = {
     21: ServiceCodec(
         id=21, name="/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="vehicle", timeout=10.0, profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0),
         request=CODECS[("turtlesim/srv/SetPen_Request", "native")],
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),

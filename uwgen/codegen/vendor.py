@@ -28,6 +28,7 @@ CARRIED = {
     "model": "uwgen.manifest.model",
     "framing": "uwgen.runtime.framing",
     "codec": "uwgen.runtime.codec",
+    "bits": "uwgen.runtime.bits",
     "table": "uwgen.runtime.table",
 }
 FOLDER = "_runtime"

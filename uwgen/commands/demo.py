@@ -184,7 +184,7 @@ def _endpoint(hp: tuple[str, int]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from uwgen.typesupport import BuildError, ensure_interfaces
-    from uwgen.demo.report import build_report, format_report, plot_paths
+    from uwgen.demo.report import build_report, format_report, frame_sizes, plot_paths
     from uwgen.emulator import NodeSpec, Scenario, run_emulator
 
     quiet = args.quiet or getattr(args, "quiet_command", False)
@@ -262,6 +262,7 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.monotonic() - t0
     crashed = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
     report = build_report(out)
+    report.sizes = frame_sizes(ROOT / "msg_samples" / "uwgen.yaml", [ROOT / "msg_samples"])
     print()
     print(format_report(report))
     title = (f"uwgen demo: DESERT at {_endpoint(endpoints['surface'])} and {_endpoint(endpoints['vehicle'])}"

@@ -7,12 +7,16 @@ status) and `emulator.json` (the emulated DESERT nodes' counters).
 Columns, per topic (from the publishing side to the other):
   published  messages the application published
   taken      messages the sending bridge received from its local graph
+  sub drop   messages its local subscription reported lost before the bridge took them
   on link    messages the sending link put on the wire (whole or in fragments)
-  policy     messages the link policy dropped (superseded, overflow, expired, too large)
-  lost       messages put on the wire that the far bridge never received (packet loss)
+  policy     messages dropped by policy (superseded, overflow, expired, too large, encode
+             errors, echo guard), by reason in the bridges' status (`accounting`)
+  lost       messages put on the wire that the far bridge never received (packet loss);
+             (seen N): of those, N the far bridge knew were lost (fragmented messages)
   delivered  messages the far application received
   latency    from publication to delivery (median and 95th percentile), matched per message
-So `taken = on link + policy + still queued`, and `on link = received by the far bridge + lost`.
+So `taken = on link + policy + still queued`, and `on link = received by the far bridge + lost`
+(uwgen.bridge.ledger); a topic whose bridge counters do not add up is named under the table.
 """
 from __future__ import annotations
 
@@ -23,6 +27,7 @@ from pathlib import Path
 from statistics import median
 from typing import Iterable
 
+from uwgen.bridge import ledger
 from uwgen.demo.records import read_records
 from uwgen.runtime.scheduler import DROP_REASONS
 
@@ -47,7 +52,10 @@ class Row:
     policy: int = 0
     queued: int = 0
     lost: int = 0
+    lost_seen: int = 0
+    sub_dropped: int = 0
     delivered: int = 0
+    imbalances: list[str] = field(default_factory=list)
     latencies: list[float] = field(default_factory=list)
 
     @property
@@ -80,6 +88,21 @@ class Report:
     deviation_max: float | None
     end_error: float | None
     emulator: dict
+    sizes: list["FrameSize"] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class FrameSize:
+    """Bytes on the wire of one representative message of a topic."""
+    topic: str
+    native: int            # frame bytes in profile native without field encodings
+    sent: int              # frame bytes as the manifest sends it
+    how: str               # 'packed + field encodings', ...
+
+
+# The grid of the demo manifest's /turtle1/pose field encodings (tests/bridge checks they
+# agree): a published pose and the one received match when they round to the same point.
+POSE_KEY_STEPS = (("x", 0.01), ("y", 0.01), ("theta", 0.001), ("v", 0.01), ("w", 0.01))
 
 
 def _load_json(path: Path) -> dict:
@@ -109,6 +132,14 @@ def _topic_row(name: str, direction: str, sender: dict, receiver: dict) -> Row:
     out = sender.get("topics", {}).get(name, {})
     inc = receiver.get("topics", {}).get(name, {})
     link = out.get("link", {}) or {}
+    if "accounting" in out and "accounting" in inc:
+        acc, rx = out["accounting"], inc["accounting"]
+        row.taken, row.sub_dropped = acc["taken"], acc["dropped_by_subscription"]
+        row.policy, row.queued = sum(acc["dropped_by_policy"].values()), acc["queued"]
+        flow = ledger.across(acc, rx)
+        row.on_link, row.lost, row.lost_seen = flow["sent"], flow["lost"], flow["lost_on_link"]
+        row.imbalances = ledger.imbalances(acc) + ledger.imbalances(rx)
+        return row
     row.taken = out.get("taken", 0)
     row.policy = sum(int(link.get(r, 0)) for r in DROP_REASONS)
     row.queued = int(link.get("queued", 0))
@@ -137,7 +168,7 @@ def build_report(out_dir: Path) -> Report:
     rows.append(cmd)
 
     def pose_key(r):
-        return (r["x"], r["y"], r["theta"], r["v"], r["w"])
+        return tuple(round(r[k] / step) for k, step in POSE_KEY_STEPS)
     pose = _topic_row("/turtle1/pose", "vehicle → surface", vehicle, surface)
     pose.published = len(ev(veh, "pose"))
     pose.delivered = len(ev(op, "pose_rx"))
@@ -230,12 +261,16 @@ def _ms(x: float | None) -> str:
 
 def format_report(report: Report) -> str:
     lines = []
-    head = (f"{'topic':<20} {'direction':<18} {'published':>9} {'taken':>6} {'on link':>7} "
-            f"{'policy':>6} {'lost':>5} {'delivered':>9} {'latency p50':>11} {'p95':>8}")
+    head = (f"{'topic':<20} {'direction':<18} {'published':>9} {'taken':>6} {'sub drop':>8} "
+            f"{'on link':>7} {'policy':>6} {'lost (seen)':>11} {'delivered':>9} {'latency p50':>11} {'p95':>8}")
     lines += [head, "-" * len(head)]
     for r in report.topics:
-        lines.append(f"{r.name:<20} {r.direction:<18} {r.published:>9} {r.taken:>6} {r.on_link:>7} "
-                     f"{r.policy:>6} {r.lost:>5} {r.delivered:>9} {_ms(r.p50):>11} {_ms(r.p95):>8}")
+        lost = f"{r.lost} ({r.lost_seen})" if r.lost_seen else str(r.lost)
+        lines.append(f"{r.name:<20} {r.direction:<18} {r.published:>9} {r.taken:>6} {r.sub_dropped:>8} "
+                     f"{r.on_link:>7} {r.policy:>6} {lost:>11} {r.delivered:>9} {_ms(r.p50):>11} {_ms(r.p95):>8}")
+    for r in report.topics:
+        for problem in r.imbalances:
+            lines.append(f"  {r.name}: counters do not add up: {problem}")
     lines.append("")
     shead = (f"{'service':<28} {'calls':>5} {'ok':>4} {'failed':>6} {'policy':>6} "
              f"{'round trip p50':>14} {'p95':>8}")
@@ -249,6 +284,9 @@ def format_report(report: Report) -> str:
                      f"of the commanded square (mean {report.deviation_mean:.2f} m)"
                      + (f"; the vehicle ended {report.end_error:.2f} m from the commanded end point"
                         if report.end_error is not None else ""))
+    if report.sizes:
+        lines.append("frame sizes (one representative message): "
+                     + "; ".join(f"{z.topic} {z.sent} B with {z.how} (native {z.native} B)" for z in report.sizes))
     emu = report.emulator.get("nodes", {})
     for name, c in sorted(emu.items()):
         lost = {k: v for k, v in c.items() if k.startswith("lost_") and v}
@@ -257,6 +295,41 @@ def format_report(report: Report) -> str:
                      + (f"; lost on the way to it: {', '.join(f'{k[5:]} {v}' for k, v in sorted(lost.items()))}"
                         if lost else ""))
     return "\n".join(lines)
+
+
+def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
+    """Frame bytes of a representative /turtle1/cmd_vel and /turtle1/pose as `manifest`
+    sends them, next to the same messages in profile native without field encodings
+    (codecs built for the occasion, so the numbers follow the manifest)."""
+    import tempfile
+
+    from uwgen.codegen import generate
+    from uwgen.runtime.framing import OVERHEAD
+
+    samples = {
+        "/turtle1/cmd_vel": lambda cls: cls(linear=_vec(cls, 0.4), angular=_vec(cls, 0.0, z=0.3)),
+        "/turtle1/pose": lambda cls: cls(x=5.54, y=7.12, theta=1.571, linear_velocity=0.4, angular_velocity=0.0),
+    }
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        pkg = generate(Path(tmp), "uwgen_demo_sizes", folders=folders, manifest=manifest,
+                       names=["geometry_msgs/msg/Twist", "turtlesim/msg/Pose"])
+        for topic in pkg.TOPICS.values():
+            if topic.name not in samples:
+                continue
+            msg = samples[topic.name](topic.codec.plain_class())
+            native = pkg.codec(topic.type_name, "native").encode(msg, [0, topic.id])
+            encoded = any(c is topic.codec for c in getattr(pkg, "VARIANTS", {}).values())
+            how = topic.profile + (" + field encodings" if encoded else "")
+            out.append(FrameSize(topic.name, len(native) + OVERHEAD, len(topic.encode(msg)) + OVERHEAD, how))
+    return out
+
+
+def _vec(twist_cls, x: float, z: float = 0.0):
+    """A Vector3 of the plain Twist class's package (its default value's class)."""
+    v = type(twist_cls().linear)()
+    v.x, v.z = x, z
+    return v
 
 
 def plot_paths(report: Report, path: Path, title: str = "") -> Path:

@@ -38,6 +38,7 @@ from uwgen.manifest.model import (
     Side,
     Topic,
 )
+from uwgen.manifest.fields import FieldsReader
 from uwgen.manifest.nodes import ManifestError, Reader, compose
 
 __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
@@ -49,11 +50,13 @@ TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id"
             "defaults", "topics", "services")
 SIDE_KEYS = ("host", "port", "link")
 LINK_KEYS = ("max_read_length", "period")
-POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority")
+POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair")
+MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
-TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile")
-SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields")
+SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
+                "request_fields", "response_fields")
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
 SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -136,6 +139,7 @@ class _ManifestBuilder:
         self.r = reader
         self.lib = lib
         self.ids: dict[int, _IdUse] = {}
+        self.repair_nodes: dict[str, yaml.Node] = {}    # "topic /x" -> its repair: value node
 
     # -- top level -------------------------------------------------------------------
 
@@ -221,6 +225,7 @@ class _ManifestBuilder:
         )
         if manifest.uses_rmw_desert():
             self.check_rmw_reserved(manifest, top)
+        self.check_repair(manifest)
         return manifest
 
     # -- sides -----------------------------------------------------------------------
@@ -334,7 +339,8 @@ class _ManifestBuilder:
         policy = self.policy(entries, defaults, LinkPolicy(), label)
         qos = self.qos(entries["qos"][1], default_qos) if "qos" in entries else default_qos
         topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node))
+        fields = self.fields(entries, "fields", definition, label, topic_profile)
+        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields)
 
     def service(self, node: yaml.Node, sides: dict[str, Side], profile: str) -> Service:
         r = self.r
@@ -347,7 +353,20 @@ class _ManifestBuilder:
         base = Service.__dataclass_fields__["policy"].default_factory()
         policy = self.policy(entries, {}, base, label)
         service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node))
+        request_fields = self.fields(entries, "request_fields", definition.request, f"the request of {label}", service_profile)
+        response_fields = self.fields(entries, "response_fields", definition.response, f"the response of {label}", service_profile)
+        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node),
+                       request_fields, response_fields)
+
+    def fields(self, entries: dict, key: str, msg: MessageDef, label: str, profile: str) -> tuple:
+        """Field encodings under `key` (wire format section 8); never in profile rmw_desert."""
+        if key not in entries:
+            return ()
+        key_node, node = entries[key]
+        if profile == RMW_DESERT:
+            raise self.r.error(key_node, f"{key} of {label}: profile rmw_desert cannot carry field encodings "
+                                         "(an rmw_desert node could not read them); use profile native or packed")
+        return FieldsReader(self.r, self.lib.get).read(node, msg, label)
 
     def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""
@@ -361,6 +380,12 @@ class _ManifestBuilder:
             return None, False
 
         rate, ttl, priority, queue = base.rate, base.ttl, base.priority, base.queue
+        repair = base.repair
+        node, _ = pick("repair")
+        if node is not None:
+            repair = r.integer(node, f"repair of {label}", 0, MAX_REPAIR)
+            if repair:
+                self.repair_nodes.setdefault(label, node)
         node, _ = pick("rate")
         if node is not None:
             rate = r.optional_number(node, f"rate of {label}")
@@ -384,7 +409,7 @@ class _ManifestBuilder:
             depth = base.depth if base.queue == "fifo" else FIFO_DEFAULT_DEPTH
             if depth_node is not None:
                 depth = r.integer(depth_node, f"depth of {label}", 1)
-        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority)
+        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority, repair=repair)
 
     def qos(self, node: yaml.Node, base: Qos) -> Qos:
         r = self.r
@@ -415,6 +440,21 @@ class _ManifestBuilder:
             user = self.ids[ident]
             raise r.error(node, f"fragment_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
         return ident
+
+    def check_repair(self, manifest: Manifest) -> None:
+        """`repair` needs fragments: a fragment_id, and the native profile."""
+        for entry in (*manifest.topics, *manifest.services):
+            if not entry.policy.repair:
+                continue
+            kind = "topic" if entry in manifest.topics else "service"
+            node = self.repair_nodes[f"{kind} {entry.name}"]
+            if manifest.fragment_id is None:
+                raise self.r.error(node, f"repair of {kind} {entry.name} needs fragments: set fragment_id "
+                                   f"(repair fragments travel on it)")
+            if entry.profile == RMW_DESERT:
+                raise self.r.error(node, f"repair of {kind} {entry.name}: profile rmw_desert messages are "
+                                   f"never fragmented (rmw_desert nodes cannot reassemble them); use "
+                                   f"profile native or remove repair")
 
     def schema_id(self, node: yaml.Node, fragment_id: int | None) -> int | None:
         r = self.r

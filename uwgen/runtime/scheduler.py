@@ -19,7 +19,9 @@ where `queued` counts waiting messages including one being sent in fragments. `r
 informational: messages that were held back at least once by the rate limit while the link was free.
 
 Payloads over 255 bytes are split by a splitter (uwgen.runtime.fragment.Fragmenter.split) when
-they start to go out; their fragments then leave one per `next_payload` call, so a higher-priority
+they start to go out; on a channel whose policy asks for `repair` fragments, every payload longer
+than `fec_over` bytes (one packet's worth) is split, with that many repair fragments after its data
+fragments (wire format section 11); their fragments then leave one per `next_payload` call, so a higher-priority
 channel can still get in between. A message being sent in fragments is finished even if a newer
 one arrives (it is not superseded) or its ttl passes: abandoning it would waste what already went.
 """
@@ -166,6 +168,8 @@ class Channel:
     expiry: Expiry
     queue: deque[Message] = field(default_factory=deque)
     in_progress: deque[bytes] | None = None      # remaining fragments of the message being sent
+    split_over: int = MAX_PAYLOAD                # longer payloads are fragmented
+    max_message: int = MAX_PAYLOAD               # longer payloads are refused (too_large)
     counters: Counters = field(default_factory=lambda: Counters(CHANNEL_COUNTERS))
 
     @property
@@ -184,7 +188,7 @@ class Channel:
         return None
 
 
-Splitter = Callable[[bytes], list[bytes]]
+Splitter = Callable[..., list[bytes]]          # (payload) or (payload, repair)
 
 
 class LinkScheduler:
@@ -195,10 +199,13 @@ class LinkScheduler:
     """
 
     def __init__(self, clock: Clock = SYSTEM_CLOCK, *, splitter: Splitter | None = None,
-                 max_message: int = MAX_PAYLOAD, name: str = "link"):
+                 max_message: int = MAX_PAYLOAD, name: str = "link",
+                 fec_over: int = MAX_PAYLOAD, max_message_for: Callable[[int], int] | None = None):
         self.clock = clock
         self.splitter = splitter
         self.max_message = max_message if splitter is not None else MAX_PAYLOAD
+        self.fec_over = fec_over
+        self._max_message_for = max_message_for
         self.name = name
         self._channels: dict[int, Channel] = {}
         self._order: list[Channel] = []            # by priority (highest first), then key
@@ -211,7 +218,13 @@ class LinkScheduler:
         if key in self._channels:
             raise ValueError(f"channel {key} already added")
         ch = Channel(key=key, policy=policy, name=name or f"channel {key}", queue_kind=queue_for(policy),
-                     rate=rate_for(policy), expiry=expiry_for(policy))
+                     rate=rate_for(policy), expiry=expiry_for(policy), max_message=self.max_message)
+        if policy.repair:
+            if self.splitter is None:
+                raise ValueError(f"channel {key}: repair fragments need fragments (a fragment_id)")
+            ch.split_over = min(self.fec_over, MAX_PAYLOAD)
+            if self._max_message_for is not None:
+                ch.max_message = self._max_message_for(policy.repair)
         with self._lock:
             self._channels[key] = ch
             self._order = sorted(self._channels.values(), key=lambda c: (-c.priority, c.key))
@@ -230,9 +243,9 @@ class LinkScheduler:
                 log_count(log, logging.ERROR, c.inc("invalid"), "[%s] %s: refused an empty payload",
                           self.name, ch.name)
                 return False
-            if n > self.max_message:
+            if n > ch.max_message:
                 why = ("set fragment_id in the manifest to fragment it" if self.splitter is None
-                       else f"the most that can be fragmented is {self.max_message} bytes")
+                       else f"the most that can be fragmented is {ch.max_message} bytes")
                 log_count(log, logging.ERROR, c.inc("too_large"),
                           "[%s] %s: refused a %d-byte payload: a frame holds at most %d bytes; %s",
                           self.name, ch.name, n, MAX_PAYLOAD, why)
@@ -243,12 +256,19 @@ class LinkScheduler:
 
     # -- consumer side (the connection, when it may write) -------------------------------------
 
-    def next_payload(self, now: float | None = None) -> tuple[int, bytes] | None:
-        """The payload (at most 255 bytes) to send now, with its channel key; None if none may go."""
+    def next_payload(self, now: float | None = None, max_size: int | None = None,
+                     exclude: int | None = None) -> tuple[int, bytes] | None:
+        """The payload (at most 255 bytes) to send now, with its channel key; None if none may go.
+
+        With `max_size` (the room left in a packet-aligned write), only a channel whose next
+        payload is at most that long is served: the best such one, so the room is filled without
+        taking out a message that would have to wait, whole, for the next write. Channel
+        `exclude` is skipped (its next message is held for the next write: keep its order).
+        """
         now = self.clock.now() if now is None else now
         with self._lock:
             self._expire(now)
-            ch = self._pick(now)
+            ch = self._pick(now, max_size, exclude)
             if ch is None:
                 return None
             return ch.key, self._take(ch, now)
@@ -283,16 +303,17 @@ class LinkScheduler:
                 q.popleft()
                 ch.counters.inc("expired")
 
-    def _pick(self, now: float) -> Channel | None:
+    def _pick(self, now: float, max_size: int | None = None, exclude: int | None = None) -> Channel | None:
         best: list[Channel] = []
         for ch in self._order:
             if best and ch.priority < best[0].priority:
                 break
             t = ch.ready_at(now)
-            if t is None:
+            if t is None or ch.key == exclude:
                 continue
             if t <= now:
-                best.append(ch)
+                if max_size is None or self._next_size(ch) <= max_size:
+                    best.append(ch)
             elif not ch.queue[0].rate_held:
                 ch.queue[0].rate_held = True
                 ch.counters.inc("rate_limited")
@@ -303,16 +324,25 @@ class LinkScheduler:
         self._last_served[chosen.priority] = chosen.key
         return chosen
 
+    def _next_size(self, ch: Channel) -> int:
+        """Length of the payload `_take` would return for this channel (a message about to be
+        split: its first fragment, at most one packet's worth)."""
+        if ch.in_progress is not None:
+            return len(ch.in_progress[0])
+        n = len(ch.queue[0].payload)
+        return n if n <= ch.split_over else min(n, self.fec_over)
+
     def _take(self, ch: Channel, now: float) -> bytes:
         c = ch.counters
         if ch.in_progress is None:
             msg = ch.queue.popleft()
             ch.rate.took(now)
-            if len(msg.payload) <= MAX_PAYLOAD:
+            if len(msg.payload) <= ch.split_over:
                 c.inc("sent")
                 return msg.payload
             assert self.splitter is not None
-            ch.in_progress = deque(self.splitter(msg.payload))
+            repair = ch.policy.repair
+            ch.in_progress = deque(self.splitter(msg.payload, repair) if repair else self.splitter(msg.payload))
         part = ch.in_progress.popleft()
         c.inc("fragments_sent")
         if not ch.in_progress:
