@@ -86,8 +86,8 @@ class BridgeNode(Node):
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
                                  clock=clock, name=plan.side)
-        for key, policy, name in plan.channels():
-            self.link.add_channel(key, policy, name)
+        for key, policy, name, whole in plan.channels():
+            self.link.add_channel(key, policy, name, whole=whole)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery

@@ -58,6 +58,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", dest="quiet_command", action="store_true",
                         help="print only the report and problems (node errors): no relayed node logs, no INFO "
                              "lines (same as `uwgen --quiet demo`)")
+    away = parser.add_argument_group("drive away (uwgen.demo.drive_away)")
+    away.add_argument("--drive-away", action="store_true",
+                      help="the vehicle drives away from --distance until the link fades; plots "
+                           "delivery ratio and latency against distance (drive-away.png)")
+    away.add_argument("--drive-to", type=float, default=10000.0, metavar="M",
+                      help="with --drive-away: final distance in metres (default 10000)")
+    away.add_argument("--drive-time", type=float, default=75.0, metavar="S",
+                      help="with --drive-away: seconds the drive takes (default 75, time-lapse)")
+    away.add_argument("--wind", type=float, default=0.0, metavar="M_S",
+                      help="with --drive-away: wind speed of the SNR model (default 0)")
 
 
 def desert_endpoints(text: str) -> dict[str, tuple[str, int]]:
@@ -183,6 +193,11 @@ def _endpoint(hp: tuple[str, int]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "drive_away", False):
+        args.out = args.out or default_out()
+        args.quiet = args.quiet or getattr(args, "quiet_command", False)
+        from uwgen.demo import drive_away
+        return drive_away.run(args)
     from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.report import build_report, format_report, frame_sizes, plot_paths
     from uwgen.emulator import NodeSpec, Scenario, run_emulator
