@@ -17,6 +17,7 @@ COMMANDS = {
     "emulate": "uwgen.commands.emulate",
     "bridge": "uwgen.commands.bridge",
     "demo": "uwgen.commands.demo",
+    "ros-interfaces": "uwgen.commands.ros_interfaces",
     "rmw-config": "uwgen.commands.rmw_config",
 }
 
@@ -27,12 +28,25 @@ def _load(module_name: str):
     return importlib.import_module(module_name)
 
 
+def version() -> str:
+    """The installed distribution's version, else the package's own."""
+    try:
+        from importlib.metadata import PackageNotFoundError, version as dist_version
+        return dist_version("uwgen")
+    except PackageNotFoundError:
+        from uwgen import __version__
+        return __version__
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="uwgen",
         description="Generate CBOR codecs and bridge nodes that carry ROS 2 topics and "
                     "services over DESERT underwater acoustic links.")
+    parser.add_argument("--version", action="version", version=f"uwgen {version()}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug detail")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="log only warnings and errors (no INFO lines from any part)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in COMMANDS.items():
         if only is not None and name != only:
@@ -55,10 +69,21 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     first = next((a for a in argv if not a.startswith("-")), None)
     parser = build_parser(first if first in COMMANDS else None)
+    # A command that runs another program (`uwgen ros-interfaces DIR -- CMD ...`) gets
+    # everything after the first `--` untouched.
+    tail: list[str] = []
+    module = sys.modules.get(COMMANDS.get(first or "", ""))
+    if getattr(module, "TAKES_COMMAND", False) and "--" in argv:
+        cut = argv.index("--")
+        argv, tail = argv[:cut], argv[cut + 1:]
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO,
-        format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    args.command_line = tail
+    # A command's own --quiet (uwgen demo --quiet) is as quiet as the global one.
+    quiet = args.quiet or getattr(args, "quiet_command", False)
+    level = logging.DEBUG if args.verbose else logging.WARNING if quiet else logging.INFO
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+                        stream=sys.stderr)
+    logging.getLogger().setLevel(level)   # also when something configured logging before
     if not getattr(args, "_module", None):
         parser.print_help()
         return EXIT_USAGE

@@ -23,8 +23,8 @@ TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCo
 MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
 """
-from uwgen.runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
-from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
+from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
+from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 
 from ._classes import PLAIN, ROS
 from .builtin_interfaces import msg as _builtin_interfaces_msg
@@ -70,6 +70,13 @@ def codec(type_name, profile="native"):
     return CODECS[(type_name, profile)]
 
 
+# Interface packages of this build's own folders: package -> (folder, digest of its files).
+# `uwgen bridge` activates the rclpy type support `uwgen ros-interfaces` built of them.
+ROS_INTERFACES = {
+    "turtlesim": ("msg_samples/turtlesim", "e194acedeed80ae0"),
+}
+
+
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
 SCHEMA_DIGEST = bytes.fromhex("15b02242")
 
@@ -86,6 +93,29 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
 )
+
+# What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
+BUILT_FROM = {
+    "manifest": "542906a60020edba",
+    "sources": {
+        "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
+        "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
+        "share/geometry_msgs/msg/Vector3.msg": "d8b9ea9aad1f424f",
+        "share/sensor_msgs/msg/BatteryState.msg": "ce13430f3c107274",
+        "share/std_msgs/msg/Header.msg": "d2cea14630e39ed0",
+        "share/std_msgs/msg/String.msg": "2022b3f1c32b578f",
+        "turtlesim/action/RotateAbsolute.action": "f559ab5b32a954b2",
+        "turtlesim/msg/Color.msg": "9cd63f14c0afc12d",
+        "turtlesim/msg/Pose.msg": "d6acd5f43ab2f405",
+        "turtlesim/srv/Kill.srv": "bc91430b62e30789",
+        "turtlesim/srv/SetPen.srv": "95e6dc64b2c91cf1",
+        "turtlesim/srv/Spawn.srv": "d5119789329add3e",
+        "turtlesim/srv/TeleportAbsolute.srv": "7755c0adf8472ee7",
+        "turtlesim/srv/TeleportRelative.srv": "eebcb1ded19b604d",
+    },
+    "root": "..",
+    "command": "uwgen build msg_samples",
+}
 
 TOPICS = {
     4: TopicCodec(

@@ -17,7 +17,7 @@
 #   share/std_msgs/msg/Header.msg  d2cea14630e3
 #   share/std_msgs/msg/String.msg  2022b3f1c32b
 """The classes decoders build: the generated plain ones, or rclpy's (imported on first use)."""
-from uwgen.runtime.table import PlainClasses, RosClasses
+from ._runtime.table import PlainClasses, RosClasses
 
 from .builtin_interfaces import msg as _builtin_interfaces_msg
 from .geometry_msgs import msg as _geometry_msgs_msg

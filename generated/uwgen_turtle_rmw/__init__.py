@@ -19,8 +19,8 @@ TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCo
 MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
 """
-from uwgen.runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
-from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
+from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
+from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 
 from ._classes import PLAIN, ROS
 from .geometry_msgs import msg as _geometry_msgs_msg
@@ -57,6 +57,13 @@ def codec(type_name, profile="native"):
     return CODECS[(type_name, profile)]
 
 
+# Interface packages of this build's own folders: package -> (folder, digest of its files).
+# `uwgen bridge` activates the rclpy type support `uwgen ros-interfaces` built of them.
+ROS_INTERFACES = {
+    "turtlesim": ("msg_samples/turtlesim", "e194acedeed80ae0"),
+}
+
+
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
 SCHEMA_DIGEST = bytes.fromhex("c480352b")
 
@@ -73,6 +80,25 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
 )
+
+# What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
+BUILT_FROM = {
+    "manifest": "ec52507e1a5aa256",
+    "sources": {
+        "../turtlesim/action/RotateAbsolute.action": "f559ab5b32a954b2",
+        "../turtlesim/msg/Color.msg": "9cd63f14c0afc12d",
+        "../turtlesim/msg/Pose.msg": "d6acd5f43ab2f405",
+        "../turtlesim/srv/Kill.srv": "bc91430b62e30789",
+        "../turtlesim/srv/SetPen.srv": "95e6dc64b2c91cf1",
+        "../turtlesim/srv/Spawn.srv": "d5119789329add3e",
+        "../turtlesim/srv/TeleportAbsolute.srv": "7755c0adf8472ee7",
+        "../turtlesim/srv/TeleportRelative.srv": "eebcb1ded19b604d",
+        "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
+        "share/geometry_msgs/msg/Vector3.msg": "d8b9ea9aad1f424f",
+    },
+    "root": "../..",
+    "command": "uwgen build msg_samples -m msg_samples/rmw_desert/uwgen.yaml",
+}
 
 TOPICS = {
     4: TopicCodec(

@@ -13,7 +13,7 @@
 #   share/geometry_msgs/msg/Twist.msg  ed471ef861f6
 #   share/geometry_msgs/msg/Vector3.msg  d8b9ea9aad1f
 """The classes decoders build: the generated plain ones, or rclpy's (imported on first use)."""
-from uwgen.runtime.table import PlainClasses, RosClasses
+from ._runtime.table import PlainClasses, RosClasses
 
 from .geometry_msgs import msg as _geometry_msgs_msg
 from .turtlesim import action as _turtlesim_action

@@ -54,14 +54,21 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    from uwgen.codegen.vendor import foreign_runtime
+    problem = foreign_runtime(package)
+    if problem:
+        print(f"uwgen bridge: {problem}", file=sys.stderr)
+        return EXIT_USAGE
 
     import signal
     import threading
 
-    from uwgen.demo.interfaces import activate_built
-    built = activate_built()  # interfaces `uwgen demo` built (turtlesim), if any
-    if built:
-        log.info("using interfaces built in build/ros-interfaces: %s", ", ".join(built))
+    from uwgen.typesupport import BuildError, activate_recorded
+    try:  # the type support of the package's own interfaces (uwgen ros-interfaces builds it)
+        for env in activate_recorded(getattr(package, "ROS_INTERFACES", {})):
+            log.info("using the rclpy type support of %s built in %s", env.package, env.prefix)
+    except BuildError as exc:
+        log.error("%s; their topics and services are not bridged", exc)
 
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -158,6 +165,13 @@ def main(package: str | ModuleType, side: str | None = None,
         module = import_package(name) if isinstance(package, str) else package
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    # In its project's generated/, the package checks itself against its manifest there.
+    from uwgen.buildinfo import own_manifest, stale_message
+    manifest = own_manifest(module)
+    problem = stale_message(module, manifest) if manifest is not None else None
+    if problem:
+        print(f"uwgen bridge: {problem}", file=sys.stderr)
         return EXIT_USAGE
     # rclpy.init reads only the --ros-args sections of argv and leaves the rest alone.
     return run(module, side or args.side, args, argv)

@@ -21,9 +21,11 @@ from pathlib import Path
 
 import jinja2
 
+from uwgen.errors import Collector
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
 from uwgen.codegen.emit_packed import PackedLowering
 from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest
+from uwgen.codegen.vendor import runtime_files
 from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key, variant_name
 from uwgen.manifest.model import NATIVE, PACKED
 from uwgen.idl.loader import InterfaceLibrary, parts_of
@@ -105,6 +107,11 @@ class PackagePlan:
     skipped: list[str] = field(default_factory=list)   # types a profile can never carry (bulk builds)
     fingerprints: dict[tuple[str, int], bytes] = field(default_factory=dict)  # ('topic'|'service', id) -> fp
     schema_digest: bytes | None = None                # of every fingerprint (None without a manifest)
+    # Local interface packages used: (package, folder label, digest of its .msg/.srv files);
+    # bridges activate the rclpy type support built from exactly these (uwgen.typesupport).
+    ros_interfaces: list[tuple[str, str, str]] = field(default_factory=list)
+    source_paths: list[tuple[Path, bool]] = field(default_factory=list)   # (definition file, local)
+    built_from: dict | None = None     # uwgen.buildinfo record, set by `uwgen build`
 
 
 def source_label(path: Path | None, lib: InterfaceLibrary) -> str:
@@ -139,8 +146,20 @@ def plan_build(folders: list[Path], names: list[str] = (), manifest_path: Path |
     manifest's, then to uwgen_<first folder's name>."""
     from uwgen.manifest.loader import load_manifest   # yaml, only when a build runs
 
+    from uwgen.manifest.loader import ManifestError
+
     lib = InterfaceLibrary(folders, installed=installed)
-    manifest = load_manifest(Path(manifest_path), lib) if manifest_path else None
+    # Every broken definition of the folders and every broken manifest entry is reported
+    # (up to uwgen.errors.MAX_ERRORS), not only the first.
+    errors = Collector()
+    for name in lib.local_names():
+        with errors.attempt(DefinitionError):
+            lib.get(name)
+    manifest = None
+    if manifest_path:
+        with errors.attempt(ManifestError, DefinitionError):
+            manifest = load_manifest(Path(manifest_path), lib)
+    errors.raise_if_any()
     wanted = lib.all_names() if all_installed else [*lib.local_names(), *names]
     wanted = sorted({lib.normalize(n) or n for n in wanted})
     package = package or (manifest.package if manifest else None) \
@@ -177,13 +196,15 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
 
     codecs: dict[tuple[str, str, str], CodecType] = {}
     skipped: list[str] = []
+    errors = Collector()
     for msg, profile, header_items, required, fields, variant in wanted:
         try:
             check_profile_limits(builder.codec(msg, profile), header_items)
         except ProfileError as exc:
             if required:  # the manifest asks for it: refuse the build
-                raise
-            skipped.append(str(exc))  # a bulk build: leave out what this profile can never carry
+                errors.add(exc)
+            else:
+                skipped.append(str(exc))  # a bulk build: leave out what this profile can never carry
             continue
         for ct in builder.codecs_for(msg, profile):
             if variant and ct.full_name == msg.full_name:
@@ -191,6 +212,7 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
             codecs.setdefault((ct.full_name, profile, ""), ct)
         if variant:
             codecs[(msg.full_name, profile, variant)] = builder.codec(msg, profile, fields, variant)
+    errors.raise_if_any()
 
     definitions: dict[str, MessageDef] = {}
     for (full_name, _profile, _variant) in codecs:
@@ -256,6 +278,7 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
 
     # A service's request and response come from its one file: read each file once.
     files = {lib.source_of(n) for n in (*definitions, *services, *actions)}
+    local_files = {Path(lib.source_of(n)).resolve() for n in lib.local_names()}
     sources = sorted((source_label(f, lib), _digest(f)) for f in files)
     ordered = [modules[p] for p in sorted(modules)]
     ros_imports = sorted((type_key(n), *_ros_import(n)) for n in definitions)
@@ -263,7 +286,18 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     fingerprints = manifest_fingerprints(manifest, builder) if manifest is not None else {}
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
                        ros_imports, plain_keys, sorted(set(skipped)), fingerprints,
-                       package_digest(fingerprints) if manifest is not None else None)
+                       package_digest(fingerprints) if manifest is not None else None,
+                       ros_interfaces=_local_packages(lib, [*definitions, *services]),
+                       source_paths=sorted((Path(f), Path(f).resolve() in local_files)
+                                           for f in files if f is not None))
+
+
+def _local_packages(lib: InterfaceLibrary, used: list[str]) -> list[tuple[str, str, str]]:
+    from uwgen.typesupport import build_digest
+
+    local = set(lib.local_names())
+    dirs = {Path(lib.source_of(n)).parent.parent for n in used if n in local}
+    return sorted((d.name, source_label(d, lib), build_digest(d)) for d in dirs)
 
 
 # Helpers of uwgen.runtime.bits that generated modules may call (imported as _name).
@@ -424,6 +458,8 @@ def render_package(plan: PackagePlan) -> dict[str, str]:
         plain_keys=plan.plain_keys, ros_imports=plan.ros_imports)
     files["__init__.py"] = env.get_template("package_init.py.j2").render(
         header=header, plan=plan, manifest=_manifest_view(plan))
+    first_lines = env.get_template("_header.j2").render(header=header).splitlines(keepends=True)[:2]
+    files.update(runtime_files("".join(first_lines)))   # the marker line and the package
     if plan.manifest is not None and (TEMPLATES / "bridge.py.j2").exists():
         for side in sorted(plan.manifest.sides):
             files[f"bridge_{side}.py"] = env.get_template("bridge.py.j2").render(

@@ -5,14 +5,18 @@
         --ros-args -p period:=0.5
 
 The manifest names the generated package (`package:`, default `uwgen_<network>`), which
-is imported from --package-dir (default: ./generated, else the project's generated/).
-Same as `python -m <package>.bridge_<side>`.
+is imported from --package-dir, else from the `generated/` folder next to the manifest or
+above it (where `uwgen build` wrote it), else ./generated. A package built from another
+version of the manifest or of its definitions is refused, with the command that rebuilds
+it. Same as `python -m <package>.bridge_<side>` (which does not check).
 """
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import yaml
 
@@ -21,15 +25,15 @@ from uwgen.bridge.plan import PlanError, import_package
 
 HELP = "run the bridge node of one manifest side against its DESERT node"
 
-PROJECT_GENERATED = Path(__file__).resolve().parents[2] / "generated"
+log = logging.getLogger("uwgen.bridge")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-m", "--manifest", type=Path, required=True, help="the manifest (YAML)")
     parser.add_argument("--side", required=True, help="which side of the manifest to bridge")
     parser.add_argument("--package-dir", type=Path, default=None,
-                        help="folder holding the generated package (default ./generated, "
-                             "else the project's generated/)")
+                        help="folder holding the generated package (default: generated/ in the "
+                             "manifest's folder or a folder above it, else ./generated)")
     add_link_arguments(parser)
     parser.add_argument("--ros-args", nargs=argparse.REMAINDER, dest="ros_args", metavar="ARG",
                         help="everything after it goes to rclpy (e.g. --ros-args -p period:=0.5); "
@@ -55,18 +59,54 @@ def package_name(manifest: Path) -> str:
     return str(data.get("package") or f"uwgen_{data['network']}").replace("-", "_")
 
 
-def resolve_package_dir(given: Path | None) -> Path:
+def candidate_dirs(manifest: Path, given: Path | None) -> list[Path]:
+    """Where the generated package may be: --package-dir alone if given, else `generated/`
+    in the manifest's folder and each folder above it (the project `uwgen build` ran in),
+    then ./generated."""
     if given is not None:
-        return given
-    here = Path("generated")
-    return here if here.is_dir() else PROJECT_GENERATED
+        return [Path(given)]
+    folder = Path(manifest).resolve().parent
+    dirs = [d / "generated" for d in (folder, *folder.parents)]
+    here = (Path.cwd() / "generated").resolve()
+    return dirs + ([here] if here not in dirs else [])
+
+
+def find_package(name: str, manifest: Path, given: Path | None = None) -> ModuleType:
+    """Import the generated package `name` from the first candidate folder that holds it."""
+    dirs = candidate_dirs(manifest, given)
+    for d in dirs:
+        if (d / name / "__init__.py").is_file():
+            loaded = sys.modules.get(name)
+            if loaded is not None and Path(loaded.__file__).parent.parent != d.resolve():
+                for mod in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
+                    del sys.modules[mod]    # a package of that name from elsewhere
+            return import_package(name, d)
+    looked = ", ".join(str(d) for d in dirs[:4]) + (f" and {len(dirs) - 4} more up to /" if len(dirs) > 4 else "")
+    raise PlanError(f"generated package {name!r} not found: looked for {name}/ in {looked}; "
+                    f"run `uwgen build -m {manifest}` in your project folder first"
+                    if given is None else
+                    f"generated package {name!r} not found in {given}: run `uwgen build` first")
+
+
+def check_fresh(package: ModuleType, manifest: Path) -> None:
+    """Refuse a package built from another version of the manifest or its definitions."""
+    from uwgen.buildinfo import stale_message
+
+    if getattr(package, "BUILT_FROM", None) is None:
+        log.warning("%s records no build inputs (built by an older uwgen): cannot check that it "
+                    "matches %s; rebuild it with `uwgen build`", Path(package.__file__).parent, manifest)
+        return
+    problem = stale_message(package, manifest)
+    if problem:
+        raise PlanError(problem)
 
 
 def run(args: argparse.Namespace) -> int:
     from uwgen.bridge.main import run as run_bridge
     try:
         name = package_name(args.manifest)
-        package = import_package(name, resolve_package_dir(args.package_dir))
+        package = find_package(name, args.manifest, args.package_dir)
+        check_fresh(package, args.manifest)
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE

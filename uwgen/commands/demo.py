@@ -38,8 +38,13 @@ log = logging.getLogger("uwgen.demo")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=ROOT / "demo_output",
-                        help="folder for logs, records, stats and the plot (default demo_output/)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="folder for logs, records, stats and the plot (default demo_output/ "
+                             "in the checkout, or in uwgen's cache if the checkout is read-only)")
+    parser.add_argument("--desert", type=desert_endpoints, default=None, metavar="HOST:PORT,HOST:PORT",
+                        help="run against a running DESERT instead of the emulator: the surface "
+                             "node's and the vehicle's application sockets (the bridges use the "
+                             "manifest's link settings, 64 B every 0.2 s)")
     parser.add_argument("--docs", action="store_true",
                         help="also write the plot to docs/demo-path.png")
     parser.add_argument("--distance", type=float, default=300.0, help="metres between the nodes")
@@ -50,7 +55,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--laps", type=int, default=1, help="laps of the square")
     parser.add_argument("--timeout", type=float, default=180.0,
                         help="give up if the operator has not finished after this many seconds")
-    parser.add_argument("--quiet", action="store_true", help="do not relay the nodes' logs")
+    parser.add_argument("--quiet", dest="quiet_command", action="store_true",
+                        help="print only the report and problems (node errors): no relayed node logs, no INFO "
+                             "lines (same as `uwgen --quiet demo`)")
     away = parser.add_argument_group("drive away (uwgen.demo.drive_away)")
     away.add_argument("--drive-away", action="store_true",
                       help="the vehicle drives away from --distance until the link fades; plots "
@@ -61,6 +68,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="with --drive-away: seconds the drive takes (default 75, time-lapse)")
     away.add_argument("--wind", type=float, default=0.0, metavar="M_S",
                       help="with --drive-away: wind speed of the SNR model (default 0)")
+
+
+def desert_endpoints(text: str) -> dict[str, tuple[str, int]]:
+    """`HOST:PORT,HOST:PORT` -> {"surface": (host, port), "vehicle": (host, port)}."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected two HOST:PORT, the surface's then the vehicle's")
+    out = {}
+    for side, part in zip(("surface", "vehicle"), parts):
+        host, sep, port = part.rpartition(":")
+        if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise argparse.ArgumentTypeError(f"{part!r}: expected HOST:PORT with a port 1..65535")
+        out[side] = (host.strip("[]"), int(port))
+    return out
+
+
+def default_out() -> Path:
+    """demo_output/ in the checkout, or in uwgen's cache when the checkout is read-only."""
+    if os.access(ROOT, os.W_OK):
+        return ROOT / "demo_output"
+    from uwgen.typesupport import cache_root
+    return cache_root() / "demo_output"
 
 
 def domains() -> tuple[int, int]:
@@ -90,6 +119,9 @@ class Proc:
             self._fh.flush()
             if self._relay and self._interesting(line):
                 print(f"  [{self.name}] {_strip(line)}", flush=True)
+            elif not self._relay and ("ERROR" in line or "Traceback" in line):
+                # Quiet: only problems, on stderr.
+                print(f"  [{self.name}] {_strip(line)}", file=sys.stderr, flush=True)
 
     def _interesting(self, line: str) -> bool:
         if self.name == "operator":
@@ -130,22 +162,69 @@ def _env(domain: int, extra_paths: list[str], iface_env) -> dict:
     return iface_env.child_env(env)
 
 
+class _given_desert:
+    """Stands in for the emulator when the demo runs against a DESERT someone else started."""
+
+    def __init__(self, endpoints):
+        self.endpoints = endpoints
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def all_counters(self) -> dict:
+        return {}   # a real DESERT's counters are not ours to read
+
+
+def _unreachable(hp: tuple[str, int], timeout: float = 3.0) -> str | None:
+    """Why nothing accepts a TCP connection at `hp` (None: something does)."""
+    import socket
+    try:
+        with socket.create_connection(hp, timeout=timeout):
+            return None
+    except OSError as exc:
+        return exc.strerror or str(exc)
+
+
+def _endpoint(hp: tuple[str, int]) -> str:
+    return f"{hp[0]}:{hp[1]}"
+
+
 def run(args: argparse.Namespace) -> int:
     if getattr(args, "drive_away", False):
+        args.out = args.out or default_out()
+        args.quiet = args.quiet or getattr(args, "quiet_command", False)
         from uwgen.demo import drive_away
         return drive_away.run(args)
-    from uwgen.demo.interfaces import BuildError, ensure_interfaces
+    from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.report import build_report, format_report, frame_sizes, plot_paths
     from uwgen.emulator import NodeSpec, Scenario, run_emulator
 
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
+    quiet = args.quiet or getattr(args, "quiet_command", False)
+    say = (lambda *a, **k: None) if quiet else print
+    out: Path = args.out or default_out()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"uwgen demo: cannot write {out}: {exc.strerror}; give another folder with --out",
+              file=sys.stderr)
+        return EXIT_FAILED
     for old in out.glob("*.json*"):
         old.unlink()
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
         return EXIT_FAILED
-    print("uwgen demo: a surface operator drives a simulated vehicle over an emulated acoustic link")
+    if args.desert:
+        unreachable = [f"{side} at {_endpoint(hp)} ({why})" for side, hp in args.desert.items()
+                       if (why := _unreachable(hp))]
+        if unreachable:
+            print(f"uwgen demo: cannot reach the DESERT node of {'; '.join(unreachable)}: is DESERT "
+                  "running, with its UW/APPLICATION socket there?", file=sys.stderr)
+            return EXIT_FAILED
+    where = "a running DESERT" if args.desert else "an emulated acoustic link"
+    say(f"uwgen demo: a surface operator drives a simulated vehicle over {where}")
     try:
         iface = ensure_interfaces(ROOT / "msg_samples" / "turtlesim")
     except BuildError as exc:
@@ -159,26 +238,32 @@ def run(args: argparse.Namespace) -> int:
     py = sys.executable
     procs: list[Proc] = []
     t0 = time.monotonic()
-    with run_emulator(scen) as emu:
-        ports = {n: emu.port(n) for n in ("surface", "vehicle")}
-        print(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
-              f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, "
-              f"{scen.max_read_length} B every {scen.period:g} s at {scen.bitrate:g} bit/s, "
-              f"packet error rate {args.per:g} plus collisions")
-        print(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
+    with (_given_desert(args.desert) if args.desert else run_emulator(scen)) as emu:
+        endpoints = args.desert or {n: ("127.0.0.1", emu.port(n)) for n in ("surface", "vehicle")}
+        ports = {n: port for n, (_host, port) in endpoints.items()}
+        if args.desert:
+            say(f"  DESERT nodes: surface on {_endpoint(endpoints['surface'])}, vehicle on "
+                f"{_endpoint(endpoints['vehicle'])} (not started by uwgen)")
+        else:
+            say(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
+                f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, "
+                f"{scen.max_read_length} B every {scen.period:g} s at {scen.bitrate:g} bit/s, "
+                f"packet error rate {args.per:g} plus collisions")
+        say(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
         venv = _env(vdom, [str(GENERATED)], iface)
         senv = _env(sdom, [str(GENERATED)], iface)
         try:
             for side, env in (("vehicle", venv), ("surface", senv)):
                 procs.append(Proc(f"bridge_{side}", [
-                    py, "-m", f"{PACKAGE}.bridge_{side}", "--port", str(ports[side]),
+                    py, "-m", f"{PACKAGE}.bridge_{side}", "--host", endpoints[side][0],
+                    "--port", str(ports[side]),
                     "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5"],
-                    env, out, not args.quiet))
+                    env, out, not quiet))
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
-                                          str(out / "vehicle.jsonl")], venv, out, not args.quiet))
+                                          str(out / "vehicle.jsonl")], venv, out, not quiet))
             operator = Proc("operator", [py, "-m", "uwgen.demo.operator", "--record",
                                          str(out / "operator.jsonl"), "--side", str(args.side),
-                                         "--laps", str(args.laps)], senv, out, not args.quiet)
+                                         "--laps", str(args.laps)], senv, out, not quiet)
             procs.append(operator)
             try:
                 operator.proc.wait(args.timeout)
@@ -195,7 +280,9 @@ def run(args: argparse.Namespace) -> int:
     report.sizes = frame_sizes(ROOT / "msg_samples" / "uwgen.yaml", [ROOT / "msg_samples"])
     print()
     print(format_report(report))
-    title = (f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "
+    title = (f"uwgen demo: DESERT at {_endpoint(endpoints['surface'])} and {_endpoint(endpoints['vehicle'])}"
+             if args.desert else
+             f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "
              f"{scen.period:g} s, PER {args.per:g}")
     plot = plot_paths(report, out / "demo-path.png", title)
     if args.docs:

@@ -116,7 +116,7 @@ def scenario(start: float, end: float, duration: float, wind: float, seed: int):
 
 def run(args: argparse.Namespace) -> int:
     from uwgen.commands.demo import GENERATED, PACKAGE, Proc, _env, domains
-    from uwgen.demo.interfaces import BuildError, ensure_interfaces
+    from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.records import read_records
     from uwgen.demo.report import POSE_KEY_STEPS
     from uwgen.emulator import run_emulator

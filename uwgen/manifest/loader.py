@@ -17,7 +17,8 @@ import yaml
 
 from uwgen.idl import names as idl_names
 from uwgen.idl.loader import InterfaceLibrary
-from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
+from uwgen.errors import Collector, ErrorList
+from uwgen.idl.model import DefinitionError, MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import (
     DURABILITY,
     FIFO_DEFAULT_DEPTH,
@@ -65,6 +66,15 @@ SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 PYTHON_PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 HOSTNAME_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
 ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+class ManifestErrors(ManifestError, ErrorList):
+    """Several problems in one manifest (each in `errors`, located); str() has one per line."""
+
+    def __init__(self, errors: list[Exception], more: int = 0):
+        ErrorList.__init__(self, errors, more)
+        self.where = getattr(errors[0], "where", None)
+        self.message = str(self)
 
 
 def find_manifest(folder: Path) -> Path | None:
@@ -186,33 +196,42 @@ class _ManifestBuilder:
             if "qos" in defaults:
                 default_qos = self.qos(defaults["qos"][1], default_qos)
 
+        # Each entry is checked on its own: every broken one is reported, not just the first.
+        errors = Collector()
         topics = []
         if "topics" in top:
             for node in r.sequence(top["topics"][1], "topics"):
-                topics.append(self.topic(node, sides, defaults, default_qos, profile))
+                with errors.attempt(ManifestError, DefinitionError):
+                    topics.append(self.topic(node, sides, defaults, default_qos, profile))
         services = []
         if "services" in top:
             for node in r.sequence(top["services"][1], "services"):
-                services.append(self.service(node, sides, profile))
+                with errors.attempt(ManifestError, DefinitionError):
+                    services.append(self.service(node, sides, profile))
         actions = []
         if "actions" in top:
             for node in r.sequence(top["actions"][1], "actions"):
-                actions.append(self.action(node, sides))
-        self.unique_names(topics, "topic")
-        self.unique_names(services, "service")
-        self.unique_names(actions, "action")
+                with errors.attempt(ManifestError, DefinitionError):
+                    actions.append(self.action(node, sides))
+        for entries, kind in ((topics, "topic"), (services, "service"), (actions, "action")):
+            with errors.attempt(ManifestError):
+                self.unique_names(entries, kind)
 
         fragment_id = None
         if "fragment_id" in top:
-            fragment_id = self.fragment_id(top["fragment_id"][1])
+            with errors.attempt(ManifestError):
+                fragment_id = self.fragment_id(top["fragment_id"][1])
         schema_id = None
         if "schema_id" in top:
-            schema_id = self.schema_id(top["schema_id"][1], fragment_id)
+            with errors.attempt(ManifestError):
+                schema_id = self.schema_id(top["schema_id"][1], fragment_id)
         schema_period = SCHEMA_PERIOD_DEFAULT
         if "schema_period" in top:
             node = top["schema_period"][1]
             none = isinstance(node, yaml.ScalarNode) and r.value(node) is None
-            schema_period = None if none else r.number(node, "schema_period (seconds; null for none)")
+            with errors.attempt(ManifestError):
+                schema_period = None if none else r.number(node, "schema_period (seconds; null for none)")
+        errors.raise_if_any(ManifestErrors)
 
         manifest = Manifest(
             network=network,

@@ -7,9 +7,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from uwgen.idl.model import ActionDef, MessageDef, ServiceDef, SourceRef
 from uwgen.runtime.codec import ACTION_HANDLES  # goal handles 0..23: one CBOR byte each
+
+if TYPE_CHECKING:   # annotations only: this module stays stdlib-only (generated packages carry it)
+    from uwgen.idl.model import ActionDef, MessageDef, ServiceDef, SourceRef
 
 NATIVE = "native"            # uwgen's own compact encoding (wire format section 4)
 RMW_DESERT = "rmw_desert"    # what rmw_desert nodes send and decode (section 6)

@@ -20,7 +20,7 @@
 # ruff: noqa
 import struct as _struct
 
-from uwgen.runtime.codec import (
+from .._runtime.codec import (
     CodecError as _CodecError, DecodeError as _DecodeError, EncodeError as _EncodeError,
     INF as _INF, as_bool as _as_bool, as_list as _as_list, bad_item as _bad_item,
     bad_items as _bad_items, bools as _bools, byte_value as _byte_value,
