@@ -17,6 +17,7 @@ COMMANDS = {
     "bridge": "uwgen.commands.bridge",
     "demo": "uwgen.commands.demo",
     "rmw-config": "uwgen.commands.rmw_config",
+    "keygen": "uwgen.commands.keygen",
 }
 
 EXIT_USAGE = 2  # bad input: definitions, manifest, arguments

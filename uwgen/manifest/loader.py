@@ -32,25 +32,28 @@ from uwgen.manifest.model import (
     LinkPolicy,
     Manifest,
     Qos,
+    Security,
     Service,
     Side,
     Topic,
 )
 from uwgen.manifest.nodes import ManifestError, Reader, compose
+from uwgen.manifest.security import SecurityCheck, network_security, sender_id
 
 __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
 
 MANIFEST_NAME = "uwgen.yaml"
 ID_RANGE = (1, 255)
 
-TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "defaults", "topics", "services")
-SIDE_KEYS = ("host", "port", "link")
+TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "defaults", "topics", "services",
+            "security")
+SIDE_KEYS = ("host", "port", "link", "sender_id")
 LINK_KEYS = ("max_read_length", "period")
 POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority")
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
-TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile")
-SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "security")
+SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile", "security")
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
 SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -124,6 +127,8 @@ class _ManifestBuilder:
         self.r = reader
         self.lib = lib
         self.ids: dict[int, _IdUse] = {}
+        self.sec = SecurityCheck(reader)
+        self.senders: dict[str, int] = {}
 
     # -- top level -------------------------------------------------------------------
 
@@ -149,6 +154,14 @@ class _ManifestBuilder:
         if "profile" in top:
             profile = r.choice(top["profile"][1], "profile", PROFILES)
 
+        security = Security()
+        if "security" in top:
+            self.sec.block = top["security"][1]
+            security = network_security(r, self.sec.block)
+            if isinstance(self.sec.block, yaml.MappingNode):
+                self.sec.mode_node = next((v for k, v in self.sec.block.value if k.value == "mode"),
+                                          self.sec.block)
+
         sides_node = r.require(top, "sides", root, "the manifest")
         sides = self.sides(sides_node)
 
@@ -165,11 +178,11 @@ class _ManifestBuilder:
         topics = []
         if "topics" in top:
             for node in r.sequence(top["topics"][1], "topics"):
-                topics.append(self.topic(node, sides, defaults, default_qos, profile))
+                topics.append(self.topic(node, sides, defaults, default_qos, profile, security.mode))
         services = []
         if "services" in top:
             for node in r.sequence(top["services"][1], "services"):
-                services.append(self.service(node, sides, profile))
+                services.append(self.service(node, sides, profile, security.mode))
         self.unique_names(topics, "topic")
         self.unique_names(services, "service")
 
@@ -186,7 +199,9 @@ class _ManifestBuilder:
             topics=topics,
             services=services,
             fragment_id=fragment_id,
+            security=security,
         )
+        manifest = self.sec.finish(manifest, root, self.senders)
         if manifest.uses_rmw_desert():
             self.check_rmw_reserved(manifest, top)
         return manifest
@@ -219,6 +234,10 @@ class _ManifestBuilder:
             link = LinkConfig()
             if "link" in fields:
                 link = self.link(fields["link"][1], what)
+            self.sec.side_nodes[name] = value_node
+            if "sender_id" in fields:
+                self.sec.sender_nodes[name] = fields["sender_id"][1]
+                self.senders[name] = sender_id(r, fields["sender_id"][1], name)
             sides[name] = Side(name, host, port, link, r.where(value_node))
         return sides
 
@@ -294,7 +313,8 @@ class _ManifestBuilder:
             raise r.error(node, f"{key} '{side}' of {label} is not a declared side (sides: {declared})")
         return side
 
-    def topic(self, node: yaml.Node, sides: dict[str, Side], defaults: dict, default_qos: Qos, profile: str) -> Topic:
+    def topic(self, node: yaml.Node, sides: dict[str, Side], defaults: dict, default_qos: Qos, profile: str,
+              security: str = "off") -> Topic:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "topic", TOPIC_KEYS)
         type_name, definition = self.resolve(entries["type"][1], type_text, "msg", label)
@@ -302,9 +322,11 @@ class _ManifestBuilder:
         policy = self.policy(entries, defaults, LinkPolicy(), label)
         qos = self.qos(entries["qos"][1], default_qos) if "qos" in entries else default_qos
         topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node))
+        mode = self.sec.entry_mode(entries, label, name, security)
+        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node),
+                     security=mode)
 
-    def service(self, node: yaml.Node, sides: dict[str, Side], profile: str) -> Service:
+    def service(self, node: yaml.Node, sides: dict[str, Side], profile: str, security: str = "off") -> Service:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "service", SERVICE_KEYS)
         type_name, definition = self.resolve(entries["type"][1], type_text, "srv", label)
@@ -315,7 +337,9 @@ class _ManifestBuilder:
         base = Service.__dataclass_fields__["policy"].default_factory()
         policy = self.policy(entries, {}, base, label)
         service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node))
+        mode = self.sec.entry_mode(entries, label, name, security)
+        return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node),
+                       security=mode)
 
     def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""

@@ -16,6 +16,8 @@ QUEUE_KINDS = ("latest", "fifo")
 RELIABILITY = ("reliable", "best_effort")
 DURABILITY = ("volatile", "transient_local")
 FIFO_DEFAULT_DEPTH = 4   # queue depth of a fifo queue whose depth is not given
+SECURITY_MODES = ("off", "sign", "encrypt")   # docs/wire-format.md section 12
+MAX_SENDER_ID = 15       # sender ids of the secure link are 4 bits
 
 # Ids rmw_desert uses for its discovery topics; reserved while any profile is rmw_desert.
 RMW_DISCOVERY_ID = 1
@@ -74,6 +76,7 @@ class Topic:
     qos: Qos = field(default_factory=Qos)
     profile: str = NATIVE
     where: SourceRef | None = None
+    security: str = "off"       # off | sign | encrypt (the network's mode unless set here)
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,20 @@ class Service:
     policy: LinkPolicy = field(default_factory=lambda: LinkPolicy(queue="fifo", depth=FIFO_DEFAULT_DEPTH))
     profile: str = NATIVE
     where: SourceRef | None = None
+    security: str = "off"       # off | sign | encrypt (the network's mode unless set here)
+
+
+@dataclass(frozen=True)
+class Security:
+    """The network's `security:` block and the sides' sender ids (wire-format.md 12)."""
+
+    mode: str = "off"                      # default mode of topics and services
+    key_file: str | None = None            # as written in the manifest (relative: to its folder)
+    senders: dict[str, int] = field(default_factory=dict)   # side -> sender id (0..15)
+
+    def modes(self, entries) -> dict[int, str]:
+        """id -> mode of the protected entries among `entries`."""
+        return {e.id: e.security for e in entries if e.security != "off"}
 
 
 @dataclass
@@ -99,12 +116,17 @@ class Manifest:
     topics: list[Topic] = field(default_factory=list)
     services: list[Service] = field(default_factory=list)
     fragment_id: int | None = None               # reserved id for fragments of payloads > 255 bytes
+    security: Security = field(default_factory=Security)
 
     def entry(self, id: int) -> Topic | Service | None:
         for item in (*self.topics, *self.services):
             if item.id == id:
                 return item
         return None
+
+    def protected(self) -> bool:
+        """Whether any topic or service is signed or encrypted."""
+        return any(e.security != "off" for e in (*self.topics, *self.services))
 
     def uses_rmw_desert(self) -> bool:
         return any(t.profile == RMW_DESERT for t in (*self.topics, *self.services))
