@@ -366,6 +366,7 @@ def _manifest_view(manifest: Manifest | None):
     return {
         "network": manifest.network, "profile": manifest.profile,
         "fragment_id": manifest.fragment_id,
+        "security": repr(manifest.security_plan()) if manifest.protected() else None,
         "sides": [(name, repr(side_without_where(side))) for name, side in sorted(manifest.sides.items())],
         "topics": [dict(id=t.id, name=t.name, type_name=t.type_name, publisher=t.publisher,
                         policy=repr(t.policy), qos=repr(t.qos), profile=t.profile,

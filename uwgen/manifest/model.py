@@ -106,6 +106,15 @@ class Security:
         return {e.id: e.security for e in entries if e.security != "off"}
 
 
+@dataclass(frozen=True)
+class SecurityPlan:
+    """What a generated package keeps of the security set-up: the bridge needs nothing else."""
+
+    key_file: str                          # as in the manifest (relative: to its folder)
+    senders: dict[str, int]                # side -> sender id
+    modes: dict[int, str]                  # protected id -> sign | encrypt
+
+
 @dataclass
 class Manifest:
     network: str
@@ -123,6 +132,14 @@ class Manifest:
             if item.id == id:
                 return item
         return None
+
+    def security_plan(self) -> SecurityPlan | None:
+        """None when nothing is protected."""
+        if not self.protected():
+            return None
+        modes = self.security.modes((*self.topics, *self.services))
+        return SecurityPlan(self.security.key_file or "", dict(sorted(self.security.senders.items())),
+                            dict(sorted(modes.items())))
 
     def protected(self) -> bool:
         """Whether any topic or service is signed or encrypted."""

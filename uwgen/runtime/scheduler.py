@@ -22,6 +22,11 @@ Payloads over 255 bytes are split by a splitter (uwgen.runtime.fragment.Fragment
 they start to go out; their fragments then leave one per `next_payload` call, so a higher-priority
 channel can still get in between. A message being sent in fragments is finished even if a newer
 one arrives (it is not superseded) or its ttl passes: abandoning it would waste what already went.
+
+Security (uwgen.security.guard.LinkGuard): `protect(key, payload)` turns a whole message into its
+protected form when it starts to go out, before it is split, so sequence numbers are spent only on
+what is sent; `overhead(key)` is what protection may add, counted in the size check of `offer`. A
+message that cannot be protected is dropped (`protect_failed`), never sent in the clear.
 """
 from __future__ import annotations
 
@@ -40,8 +45,8 @@ from uwgen.runtime.stats import Counters, log_count
 log = logging.getLogger("uwgen.link.scheduler")
 
 CHANNEL_COUNTERS = ("offered", "sent", "superseded", "overflow", "expired", "too_large", "invalid",
-                    "rate_limited", "fragments_sent")
-DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid")
+                    "rate_limited", "fragments_sent", "protect_failed")
+DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid", "protect_failed")
 
 
 @dataclass
@@ -185,6 +190,7 @@ class Channel:
 
 
 Splitter = Callable[[bytes], list[bytes]]
+Protect = Callable[[int, bytes], bytes]
 
 
 class LinkScheduler:
@@ -195,9 +201,12 @@ class LinkScheduler:
     """
 
     def __init__(self, clock: Clock = SYSTEM_CLOCK, *, splitter: Splitter | None = None,
-                 max_message: int = MAX_PAYLOAD, name: str = "link"):
+                 max_message: int = MAX_PAYLOAD, name: str = "link",
+                 protect: Protect | None = None, overhead: Callable[[int], int] | None = None):
         self.clock = clock
         self.splitter = splitter
+        self.protect = protect
+        self.overhead = overhead
         self.max_message = max_message if splitter is not None else MAX_PAYLOAD
         self.name = name
         self._channels: dict[int, Channel] = {}
@@ -225,7 +234,7 @@ class LinkScheduler:
         with self._lock:
             c = ch.counters
             c.inc("offered")
-            n = len(payload)
+            n = len(payload) + (self.overhead(key) if self.overhead and payload else 0)
             if n == 0:
                 log_count(log, logging.ERROR, c.inc("invalid"), "[%s] %s: refused an empty payload",
                           self.name, ch.name)
@@ -248,10 +257,13 @@ class LinkScheduler:
         now = self.clock.now() if now is None else now
         with self._lock:
             self._expire(now)
-            ch = self._pick(now)
-            if ch is None:
-                return None
-            return ch.key, self._take(ch, now)
+            while True:
+                ch = self._pick(now)
+                if ch is None:
+                    return None
+                payload = self._take(ch, now)
+                if payload is not None:
+                    return ch.key, payload
 
     def next_ready_time(self, now: float | None = None) -> float | None:
         """When `next_payload` will next have something (>= now), or None if every queue is empty."""
@@ -303,16 +315,24 @@ class LinkScheduler:
         self._last_served[chosen.priority] = chosen.key
         return chosen
 
-    def _take(self, ch: Channel, now: float) -> bytes:
+    def _take(self, ch: Channel, now: float) -> bytes | None:
         c = ch.counters
         if ch.in_progress is None:
             msg = ch.queue.popleft()
             ch.rate.took(now)
-            if len(msg.payload) <= MAX_PAYLOAD:
+            payload = msg.payload
+            if self.protect is not None:
+                try:
+                    payload = self.protect(ch.key, payload)
+                except Exception as exc:  # SecurityError: no sequence number could be reserved
+                    log_count(log, logging.ERROR, c.inc("protect_failed"),
+                              "[%s] %s: message dropped, cannot be protected: %s", self.name, ch.name, exc)
+                    return None
+            if len(payload) <= MAX_PAYLOAD:
                 c.inc("sent")
-                return msg.payload
+                return payload
             assert self.splitter is not None
-            ch.in_progress = deque(self.splitter(msg.payload))
+            ch.in_progress = deque(self.splitter(payload))
         part = ch.in_progress.popleft()
         c.inc("fragments_sent")
         if not ch.in_progress:

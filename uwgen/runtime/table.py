@@ -204,3 +204,4 @@ class ManifestInfo:
     sides: dict[str, Side]
     fragment_id: int | None
     source: str
+    security: Any = None        # manifest.model.SecurityPlan when anything is protected
