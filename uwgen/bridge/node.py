@@ -58,6 +58,7 @@ from uwgen.bridge.counters import BridgeCounters, DropReporter, ServiceCounters,
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import (TIMEOUT_REPLY_DEFAULT, BridgeOptions, BridgePlan, PlanError,
                                is_rmw_desert)
+from uwgen.bridge.security import guard_for
 from uwgen.interop.beacons import (DISCOVERY_ID, DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC,
                                    DISCOVERY_TOPIC, BeaconError)
 from uwgen.manifest.model import Qos
@@ -138,9 +139,11 @@ class BridgeNode(Node):
         self._setup_services()
 
         link_cfg = self.options.link
+        self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
-                                 clock=clock, name=plan.side)
+                                 clock=clock, name=plan.side,
+                                 **({"guard": self.guard} if self.guard is not None else {}))
         for key, policy, name in plan.channels():
             self.link.add_channel(key, policy, name)
         self.discovery = self._setup_discovery(flush_timeout)
@@ -180,7 +183,8 @@ class BridgeNode(Node):
                                  max_read_length=get("max_read_length"), period=get("period"),
                                  status_period=float(get("status_period")),
                                  timeout_reply=get("service_timeout_reply"),
-                                 stats_file=opts.stats_file)
+                                 stats_file=opts.stats_file, key_file=opts.key_file,
+                                 security_state=opts.security_state)
 
     def _ros_class(self, codec: Any, service: bool = False) -> Any | None:
         """The rclpy class of an entry, or None (logged, reported) when rclpy has no type
@@ -573,7 +577,7 @@ class BridgeNode(Node):
                            "period": self.options.link.period},
                 "topics": topics, "services": services,
                 "bridge": asdict(self.counters), "echo_hazards": dict(self.echo_hazards),
-                "link": link_stats}
+                "link": link_stats, "security": link_stats.get("security")}
 
     def discovery_status(self) -> dict | None:
         """What this bridge announces to rmw_desert nodes and the remote graph it heard
@@ -655,6 +659,8 @@ class BridgeNode(Node):
             self.link.stop()
         except Exception as exc:
             self._log.warning(f"link did not stop cleanly: {exc}")
+        if self.guard is not None:
+            self.guard.close()                 # exact sequence numbers for the next start
         self.inbox.close()
         status = self.status()
         self._write_stats(json.dumps(status, sort_keys=True, default=str))

@@ -40,6 +40,8 @@ class BridgeOptions:
     status_period: float = 2.0      # seconds between ~/status messages (0: none)
     timeout_reply: str = TIMEOUT_REPLY_NONE
     stats_file: Path | None = None  # also write the status JSON here (periodically and at exit)
+    key_file: Path | None = None    # network key (default: the manifest's security key_file)
+    security_state: Path | None = None  # sequence state file (default: next to the key file)
 
     def check(self) -> "BridgeOptions":
         if not 0 < self.port < 65536:
@@ -67,6 +69,8 @@ class BridgePlan:
     served_services: list[Any]    # ServiceCodec served here: call the real local service
     fragment_id: int | None
     defaults: BridgeOptions
+    security: Any = None          # manifest.model.SecurityPlan, None when nothing is protected
+    manifest_source: str = ""     # the manifest as the build named it (relative key files)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str) -> "BridgePlan":
@@ -87,6 +91,8 @@ class BridgePlan:
             served_services=[s for s in services if s.server == side],
             fragment_id=getattr(manifest, "fragment_id", None),
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
+            security=getattr(manifest, "security", None),
+            manifest_source=getattr(manifest, "source", "") or "",
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str]]:

@@ -1,0 +1,188 @@
+"""Both bridges secured, over the emulator, with a third DESERT node whose client forges.
+
+The emulator serves one client per port, so the forger gets in as a third acoustic node
+(`forger`, sending to the vehicle): what it writes reaches the vehicle's DESERT node
+over the (emulated) water, exactly as a stranger's modem would. It writes the frame of
+issue 9 in the clear ([0, 4, Twist] with x = 1007), frames protected under another key
+while claiming the surface's sender id, frames with random tags, and replays of frames
+the surface really sent. None reaches ROS; the real commands do, each once.
+"""
+from __future__ import annotations
+
+import random
+import socket
+import time
+from contextlib import contextmanager
+
+import pytest
+from geometry_msgs.msg import Twist
+from std_srvs.srv import SetBool
+
+from uwgen.bridge.plan import import_package
+from uwgen.emulator import NodeSpec, Scenario, run_emulator
+from uwgen.runtime.codec import pack_items
+from uwgen.runtime.framing import encode_frame
+from uwgen.security.guard import GuardConfig, LinkGuard
+
+from bridge.fakes import wait_for
+from bridge.harness import ros_sides
+
+from .conftest import Net
+
+MANIFEST = """\
+network: e2esec
+package: uwgen_e2esec
+fragment_id: 250
+security: {mode: encrypt, key_file: net.key}
+sides:
+  surface: {port: 4000, sender_id: 1, link: {max_read_length: 64, period: 0.05}}
+  vehicle: {port: 4001, sender_id: 2, link: {max_read_length: 64, period: 0.05}}
+topics:
+  - {name: /cmd_vel, id: 4, type: geometry_msgs/msg/Twist, publisher: surface, queue: fifo, depth: 8}
+  - {name: /log, id: 7, type: std_msgs/msg/String, publisher: vehicle, security: sign}
+services:
+  - {name: /enable, id: 20, type: std_srvs/srv/SetBool, server: vehicle, timeout: 3}
+"""
+
+
+@pytest.fixture(scope="module")
+def secure_package(tmp_path_factory):
+    from uwgen.cli import main as uwgen_main
+    root = tmp_path_factory.mktemp("e2esec")
+    (root / "interfaces" / "sec_msgs" / "msg").mkdir(parents=True)
+    (root / "interfaces" / "sec_msgs" / "msg" / "Note.msg").write_text("string text\n")
+    manifest = root / "interfaces" / "uwgen.yaml"
+    manifest.write_text(MANIFEST)
+    assert uwgen_main(["keygen", str(root / "interfaces" / "net.key")]) == 0
+    rc = uwgen_main(["build", str(root / "interfaces"), "-m", str(manifest),
+                     "-o", str(root / "generated" / "uwgen_e2esec")])
+    assert rc == 0
+    return import_package("uwgen_e2esec", root / "generated")
+
+
+@contextmanager
+def secured_network(package):
+    scen = Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle"),
+                           NodeSpec("vehicle", position=(30.0, 0.0, 0.0), dest="surface"),
+                           NodeSpec("forger", position=(15.0, 10.0, 0.0), dest="vehicle")],
+                    period=0.05, max_read_length=64, bitrate=48000.0, seed=9)
+    with run_emulator(scen) as emu, ros_sides("surface", "vehicle") as sides:
+        net = Net(package, emu, sides, 0.05, 64)
+        net.start_bridge("surface")
+        net.start_bridge("vehicle")
+        yield net
+
+
+def tap(link) -> list[bytes]:
+    """Record every payload the link writes (what an eavesdropper on the water would hear)."""
+    heard: list[bytes] = []
+    original = link.scheduler.next_payload
+
+    def next_payload(now=None):
+        picked = original(now)
+        if picked is not None:
+            heard.append(picked[1])
+        return picked
+    link.scheduler.next_payload = next_payload
+    return heard
+
+
+def security(net, side):
+    return net.bridges[side].status()["security"]
+
+
+def test_forged_cmd_vel_never_reaches_ros(secure_package, tmp_path):
+    with secured_network(secure_package) as net:
+        got: list[Twist] = []
+        net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
+        pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
+        heard = tap(net.bridges["surface"].link)
+        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+                 and pub.get_subscription_count(), what="secured bridges up")
+
+        for k in range(5):                                # the real operator
+            pub.publish(Twist(linear=Twist().linear.__class__(x=0.1 * (k + 1))))
+            time.sleep(0.1)
+        wait_for(lambda: len(got) == 5, timeout=10, what="the real commands")
+        assert security(net, "vehicle")["verified"] == 5 and len(heard) == 5
+
+        rng = random.Random(5)
+        stranger = LinkGuard.for_key(bytes(range(32)), GuardConfig("e2esec", 1, {2: "vehicle"},
+                                                                   {4: "encrypt"}),
+                                     tmp_path / "stranger.state")
+        plain = pack_items([0, 4, 1007.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        forged = ([plain] * 5
+                  + [stranger.protect(4, plain) for _ in range(5)]      # another key, surface's id
+                  + [h[:-8] + rng.randbytes(8) for h in heard]         # random tags
+                  + list(heard))                                       # replays of real frames
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
+            for frame in forged:
+                forger.sendall(encode_frame(frame))
+                time.sleep(0.06)                             # about one packet per period
+            wait_for(lambda: security(net, "vehicle")["dropped"] >= len(forged), timeout=15,
+                     what="every forged frame counted")
+        time.sleep(0.3)                                      # anything published would be here by now
+        sec = security(net, "vehicle")
+        assert sec["dropped"] == len(forged) == 20
+        assert (sec["unprotected"], sec["replay"]) == (5, 5)
+        assert sec["bad_tag"] + sec["unsynced"] == 10
+        assert len(got) == 5 and all(m.linear.x < 1 for m in got)
+        assert net.bridges["vehicle"].status()["topics"]["/cmd_vel"]["published"] == 5
+
+
+def test_secured_service_is_answered_once_and_only_when_authentic(secure_package):
+    with secured_network(secure_package) as net:
+        calls = []
+
+        def serve(req, resp):
+            calls.append(req.data)
+            resp.success, resp.message = True, "ok"
+            return resp
+        net.vehicle.node("server").create_service(SetBool, "/enable", serve)
+        client = net.surface.node("caller").create_client(SetBool, "/enable")
+        assert client.wait_for_service(timeout_sec=5.0)
+        heard = tap(net.bridges["surface"].link)
+        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+                 and net.bridges["vehicle"]._served[20][1].service_is_ready(), what="server visible")
+        future = client.call_async(SetBool.Request(data=True))
+        wait_for(future.done, what="the secured response")
+        assert future.result().success and calls == [True]
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
+            forger.sendall(encode_frame(heard[0]))             # the request, replayed
+            forger.sendall(encode_frame(pack_items([2, 20, 99, True])))   # a request in the clear
+            wait_for(lambda: security(net, "vehicle")["dropped"] >= 2, what="forgeries counted")
+        time.sleep(0.3)
+        assert calls == [True]
+        sec = security(net, "vehicle")
+        assert (sec["replay"], sec["unprotected"]) == (1, 1)
+        assert net.bridges["vehicle"].status()["services"]["/enable"]["requests"] == 1
+
+
+def test_frames_replayed_after_a_bridge_restart_are_rejected(secure_package):
+    with secured_network(secure_package) as net:
+        got: list[Twist] = []
+        net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
+        pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
+        heard = tap(net.bridges["surface"].link)
+        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+                 and pub.get_subscription_count(), what="secured bridges up")
+        for k in range(3):
+            pub.publish(Twist(linear=Twist().linear.__class__(x=0.1 * (k + 1))))
+            time.sleep(0.1)
+        wait_for(lambda: len(got) == 3, what="the real commands")
+
+        old = net.bridges["vehicle"]                      # the vehicle's bridge restarts
+        net.vehicle.executor.remove_node(old)
+        old.close()
+        new = net.start_bridge("vehicle")
+        wait_for(lambda: new.link.stats()["connected"], what="restarted vehicle bridge up")
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
+            for frame in heard:
+                forger.sendall(encode_frame(frame))
+                time.sleep(0.06)
+            wait_for(lambda: new.status()["security"]["dropped"] >= 3, what="replays counted")
+        sec = new.status()["security"]
+        assert sec["replay"] + sec["too_old"] == 3 and sec["verified"] == 0
+        pub.publish(Twist(linear=Twist().linear.__class__(x=0.9)))   # the operator goes on
+        wait_for(lambda: len(got) == 4, what="a new command after the restart")
+        assert [round(m.linear.x, 2) for m in got] == [0.1, 0.2, 0.3, 0.9]
