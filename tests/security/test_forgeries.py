@@ -143,3 +143,26 @@ def test_the_schema_fingerprint_is_authenticated(tmp_path):
                                                       {4: bytes(8)}), tmp_path / "v.state")
     assert other_schema.unprotect(s.protect(4, twist())) is None
     assert other_schema.stats()["bad_tag"] == 1
+
+
+def test_a_flood_of_forgeries_logs_a_few_lines_not_one_per_frame(tmp_path, caplog):
+    import logging
+    from uwgen.runtime.clock import ManualClock
+    clock = ManualClock()
+    s, v = surface(tmp_path), vehicle(tmp_path, clock=clock)
+    good = s.protect(4, twist())
+    rng = random.Random(9)
+    with caplog.at_level(logging.WARNING, logger="uwgen.security"):
+        for k in range(10_000):
+            v.unprotect(good[:-8] + rng.randbytes(8))
+            v.unprotect(pack_items([0, 4, float(k), 0.0, 0.0, 0.0, 0.0, 0.0]))
+            clock.advance(0.05)                        # 500 s of forging, 20 frames a second
+    lines = [r.getMessage() for r in caplog.records
+             if r.name == "uwgen.security" and r.getMessage().startswith("[vehicle]")]
+    firsts = [m for m in lines if "first of its kind" in m]
+    summaries = [m for m in lines if "since last summary" in m]
+    assert len(firsts) == 2                            # bad_tag once, unprotected once
+    assert 7 <= len(summaries) <= 9                    # one per 60 s
+    assert len(lines) == len(firsts) + len(summaries)
+    assert v.stats()["bad_tag"] == 10_000 and v.stats()["unprotected"] == 10_000
+    assert "bad_tag" in summaries[0] and "unprotected" in summaries[0]
