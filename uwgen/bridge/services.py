@@ -1,0 +1,248 @@
+"""Bridged services of one side: stand-in services where the manifest's server is elsewhere
+(`StandIns`), a client of the real service where it is here (`Servers`).
+
+A call crosses as `[2, id, seq, ...]` and comes back as `[3, id, seq, ...]`; the seqs and
+deadlines of the calling side live in `uwgen.bridge.calls.CallTable`. Calls toward an
+rmw_desert-profile service use seqs 1..999; an rmw_desert server may answer only the
+latest of several outstanding requests, and the older calls then time out at their
+deadline like any unanswered call (counted).
+
+Failed bridged calls (see docs/demo.md, "Service calls"). ROS 2 services have no error
+reply and rclpy cannot hand an exception to a remote client's future. When a bridged call
+gets no response within the manifest timeout, or its request cannot be queued, the
+stand-in service by default sends **no response**: the caller's future stays pending,
+exactly as if the server had vanished, and its own timeout (`Client.call(timeout_sec=...)`
+returns None; `call_async` futures stay not done) detects the failure. The bridge logs an
+error naming the service and seq, and counts it (`timeouts`/`refused` in ~/status). With
+`service_timeout_reply:=default` it instead returns a default-constructed response, for
+callers that cannot live without a reply (indistinguishable from success for empty
+responses, hence not the default).
+"""
+from __future__ import annotations
+
+import random
+from dataclasses import asdict
+from typing import Any, Callable
+
+from rclpy.task import Future
+
+from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
+from uwgen.bridge.counters import ServiceCounters
+from uwgen.bridge.dispatch import Dispatcher
+from uwgen.bridge.plan import TIMEOUT_REPLY_DEFAULT, is_rmw_desert
+from uwgen.bridge.wiring import Wiring
+from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE
+
+
+class StandIns:
+    """Stand-in services for services served on another side: request out, response back."""
+
+    def __init__(self, wiring: Wiring, codecs: list[Any], counters: dict[int, ServiceCounters],
+                 rng: random.Random | None = None):
+        self.w = wiring
+        self.codecs = codecs
+        self.counters = counters
+        self.calls = CallTable(wiring.clock, rng=rng)
+        self.called: dict[int, Any] = {}     # id -> codec
+        self.services: list[Any] = []
+        for codec in codecs:
+            counters[codec.id] = ServiceCounters()
+            cls = wiring.ros_class(codec, "srv")
+            if cls is None:
+                continue
+            srv = wiring.node.create_service(cls, codec.name, self._standin(codec),
+                                             callback_group=wiring.service_group)
+            allow_no_response(srv)
+            self.services.append(srv)
+            self.called[codec.id] = codec
+            if is_rmw_desert(codec):
+                self.calls.set_seq_range(codec.id, *RMW_DESERT_SEQ_RANGE)
+
+    def register(self, dispatcher: Dispatcher) -> None:
+        for ident in self.called:
+            dispatcher.route(KIND_RESPONSE, ident, self.complete)
+            dispatcher.sends(KIND_REQUEST, ident)
+
+    def _standin(self, codec: Any) -> Callable:
+        counters = self.counters[codec.id]
+        log = self.w.log
+
+        async def call(request: Any, response: Any) -> Any:
+            counters.local_calls += 1
+            future = Future()
+            try:
+                pending = self.calls.begin(codec.id, codec.timeout, token=future)
+            except CallTableFull as exc:
+                counters.refused += 1
+                log.error(f"{codec.name}: call refused: {exc}")
+                return self._failed_reply(response)
+            try:
+                payload = codec.encode_request(pending.seq, request)
+            except ValueError as exc:
+                counters.encode_errors += 1
+                self.calls.abandon(codec.id, pending.seq)
+                log.error(f"{codec.name}: call failed, request cannot be encoded: {exc}")
+                return self._failed_reply(response)
+            if not self.w.send(codec.id, payload):
+                counters.refused += 1
+                self.calls.abandon(codec.id, pending.seq)
+                log.error(f"{codec.name}: call seq {pending.seq} failed: the link refused "
+                          "the request (queue full or too large; see ~/status)")
+                return self._failed_reply(response)
+            result = await future
+            if result is None:
+                return self._failed_reply(response)
+            counters.responses += 1
+            return result
+        return call
+
+    def _failed_reply(self, response: Any) -> Any:
+        # None: no response at all (see the module doc); the patched send_response skips it.
+        return response if self.w.options.timeout_reply == TIMEOUT_REPLY_DEFAULT else None
+
+    def complete(self, ident: int, payload: bytes) -> None:
+        codec = self.called[ident]
+        try:
+            seq, resp = codec.decode_response(payload)
+        except ValueError as exc:
+            self.counters[ident].decode_errors += 1
+            self.w.say_once(f"dresp{ident}",
+                            f"{codec.name}: response dropped, does not decode: {exc}")
+            return
+        pending = self.calls.complete(ident, seq)
+        if pending is not None and not pending.token.done():
+            pending.token.set_result(resp)
+
+    def expire(self) -> None:
+        for pending in self.calls.expire():
+            codec = self.called[pending.service_id]
+            self.counters[pending.service_id].timeouts += 1
+            self.w.log.error(f"{codec.name}: call seq {pending.seq} got no response within "
+                             f"{codec.timeout:g} s: failed"
+                             + ("" if self.w.options.timeout_reply == TIMEOUT_REPLY_DEFAULT
+                                else " (no response is sent to the caller)"))
+            if not pending.token.done():
+                pending.token.set_result(None)
+
+
+class Servers:
+    """Clients of the real services served on this side: request in, response out."""
+
+    def __init__(self, wiring: Wiring, codecs: list[Any], counters: dict[int, ServiceCounters]):
+        self.w = wiring
+        self.codecs = codecs
+        self.counters = counters
+        self.served: dict[int, tuple[Any, Any]] = {}   # id -> (codec, client)
+        self.serving: dict[int, dict[int, tuple[Future, float]]] = {}  # id -> seq -> call
+        for codec in codecs:
+            counters[codec.id] = ServiceCounters()
+            cls = wiring.ros_class(codec, "srv")
+            if cls is None:
+                continue
+            client = wiring.node.create_client(cls, codec.name, callback_group=wiring.main_group)
+            self.served[codec.id] = (codec, client)
+            self.serving[codec.id] = {}
+
+    def register(self, dispatcher: Dispatcher) -> None:
+        for ident in self.served:
+            dispatcher.route(KIND_REQUEST, ident, self.serve)
+            dispatcher.sends(KIND_RESPONSE, ident)
+
+    def serve(self, ident: int, payload: bytes) -> None:
+        codec, client = self.served[ident]
+        counters = self.counters[ident]
+        try:
+            seq, request = codec.decode_request(payload)
+        except ValueError as exc:
+            counters.decode_errors += 1
+            self.w.say_once(f"dreq{ident}", f"{codec.name}: request dropped, does not decode: {exc}")
+            return
+        counters.requests += 1
+        serving = self.serving[ident]
+        if seq in serving:
+            counters.duplicate_requests += 1
+            return
+        if not client.service_is_ready():
+            counters.no_server += 1
+            self.w.log.error(f"{codec.name}: request seq {seq} not served: no local server "
+                             "is available (the caller will time out)")
+            return
+        future = client.call_async(request)
+        serving[seq] = (future, self.w.clock.now() + codec.timeout)
+        future.add_done_callback(lambda f: self._reply(ident, seq, f))
+
+    def _reply(self, ident: int, seq: int, future: Future) -> None:
+        codec, _ = self.served[ident]
+        counters = self.counters[ident]
+        log = self.w.log
+        entry = self.serving[ident].get(seq)
+        if entry is None or entry[0] is not future:
+            return  # already timed out
+        del self.serving[ident][seq]
+        if future.cancelled():
+            return
+        exc = future.exception()
+        if exc is not None:
+            counters.server_errors += 1
+            log.error(f"{codec.name}: local call for seq {seq} failed: {exc}")
+            return
+        try:
+            payload = codec.encode_response(seq, future.result())
+        except ValueError as exc:
+            counters.server_errors += 1
+            log.error(f"{codec.name}: response for seq {seq} cannot be encoded: {exc}")
+            return
+        if self.w.send(ident, payload):
+            counters.replies += 1
+        else:
+            counters.reply_refused += 1
+            log.error(f"{codec.name}: response for seq {seq} refused by the link")
+
+    def expire(self) -> None:
+        now = self.w.clock.now()
+        for ident, serving in self.serving.items():
+            codec, client = self.served[ident]
+            for seq, (future, deadline) in list(serving.items()):
+                if deadline <= now:
+                    del serving[seq]
+                    client.remove_pending_request(future)
+                    future.cancel()
+                    self.counters[ident].server_timeouts += 1
+                    self.w.log.error(f"{codec.name}: local server did not answer seq {seq} "
+                                     f"within {codec.timeout:g} s")
+
+
+def service_status(standins: StandIns, servers: Servers, channels: dict[int, dict],
+                   unavailable: dict[str, str]) -> dict[str, dict]:
+    """The `services` section of ~/status."""
+    services = {}
+    call_stats = standins.calls.stats()
+    for codec, serving in ([(c, False) for c in standins.codecs]
+                           + [(c, True) for c in servers.codecs]):
+        counters = (servers if serving else standins).counters
+        entry = {"id": codec.id, "type": codec.type_name,
+                 "role": "server" if serving else "client",
+                 **asdict(counters[codec.id]), "link": channels.get(codec.id, {})}
+        if not serving:
+            entry["calls"] = call_stats.get(codec.id, {})
+            lat = sorted(standins.calls.stats_of(codec.id).latencies)
+            entry["latencies"] = [round(x, 4) for x in lat[-200:]]
+        if codec.name in unavailable:
+            entry["unavailable"] = unavailable[codec.name]
+        services[codec.name] = entry
+    return services
+
+
+def allow_no_response(srv: Any) -> None:
+    """Let a service callback return None to mean: send no response for this request.
+
+    rclpy's executor always calls `srv.send_response(result, header)` after the callback;
+    with None it would raise TypeError and stop the executor. An instance attribute shadows
+    the method for this one service object only.
+    """
+    original = srv.send_response
+
+    def send_response(response: Any, header: Any) -> None:
+        if response is not None:
+            original(response, header)
+    srv.send_response = send_response

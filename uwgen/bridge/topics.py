@@ -1,0 +1,147 @@
+"""Bridged topics of one side: local subscriptions that send, publishers of what arrives.
+
+Loops. A topic is outgoing (subscribed) on its publishing side only and incoming
+(published) everywhere else, so no bridge holds both a subscription and a publisher of
+one topic and none can take its own publication (rclpy's MessageInfo carries no
+publisher gid in Jazzy, so a per-message filter is not possible). The remaining hazard is
+two bridges of the same network sharing one ROS graph (same ROS_DOMAIN_ID): the
+receiving bridge's publications would reach the sending bridge's subscription and go
+back over the link. `check_graph()` watches the outgoing topics for publishers that
+belong to another uwgen bridge node and, while one exists, drops (and counts as
+`echo_guard`) what is taken on that topic, with one error in the log. Run each side in
+its own domain.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any, Callable
+
+from uwgen.bridge.counters import TopicCounters
+from uwgen.bridge.dispatch import Dispatcher
+from uwgen.bridge.wiring import Wiring, qos_profile
+from uwgen.runtime.codec import KIND_TOPIC
+
+BRIDGE_NODE_PREFIX = "uwgen_bridge_"
+
+
+class TopicBridge:
+    def __init__(self, wiring: Wiring, outgoing: list[Any], incoming: list[Any]):
+        self.w = wiring
+        self.outgoing_codecs, self.incoming_codecs = outgoing, incoming
+        self.counters: dict[int, TopicCounters] = {}
+        self.echo_hazards: dict[str, str] = {}         # outgoing topic -> foreign bridge node
+        self.echo_dropped: dict[int, int] = {}
+        self.outgoing: dict[int, Any] = {}              # id -> codec
+        self.incoming: dict[int, tuple[Any, Any]] = {}  # id -> (codec, publisher)
+        # Not `_subscriptions`: that is rclpy Node's own list, which destroy_node() empties.
+        self.subscriptions: list[Any] = []
+        node = wiring.node
+        for codec in outgoing:
+            self.counters[codec.id] = TopicCounters()
+            cls = wiring.ros_class(codec)
+            if cls is None:
+                continue
+            self.outgoing[codec.id] = codec
+            self.subscriptions.append(node.create_subscription(
+                cls, codec.name, self._taker(codec), qos_profile(codec.qos),
+                callback_group=wiring.main_group))
+        for codec in incoming:
+            self.counters[codec.id] = TopicCounters()
+            cls = wiring.ros_class(codec)
+            if cls is None:
+                continue
+            self.incoming[codec.id] = (codec, node.create_publisher(cls, codec.name,
+                                                                    qos_profile(codec.qos)))
+
+    def register(self, dispatcher: Dispatcher) -> None:
+        for ident in self.incoming:
+            dispatcher.route(KIND_TOPIC, ident, self.publish)
+        for ident in self.outgoing:
+            dispatcher.sends(KIND_TOPIC, ident)
+
+    # -- outgoing ----------------------------------------------------------------------
+
+    def _taker(self, codec: Any) -> Callable[[Any], None]:
+        counters = self.counters[codec.id]
+
+        def take(msg: Any) -> None:
+            counters.taken += 1
+            if self.echo_hazards and self._echo_blocked(codec):
+                return
+            try:
+                payload = codec.encode(msg)
+            except ValueError as exc:  # EncodeError: bounds, ranges, too long for the profile
+                counters.encode_errors += 1
+                self.w.say_once(f"enc{codec.id}{type(exc).__name__}",
+                                f"{codec.name}: message not sent, cannot encode: {exc}")
+                return
+            if self.w.send(codec.id, payload):
+                counters.offered += 1
+            else:
+                counters.refused += 1
+        return take
+
+    def _echo_blocked(self, codec: Any) -> bool:
+        if codec.name in self.echo_hazards:
+            self.echo_dropped[codec.id] = self.echo_dropped.get(codec.id, 0) + 1
+            return True
+        return False
+
+    def check_graph(self) -> None:
+        """Find other uwgen bridges publishing our outgoing topics in this ROS graph."""
+        node, log = self.w.node, self.w.log
+        me = (node.get_name(), node.get_namespace())
+        for codec in self.outgoing.values():
+            try:
+                infos = node.get_publishers_info_by_topic(codec.name)
+            except Exception:  # the context is shutting down
+                return
+            foreign = sorted({i.node_name for i in infos
+                              if i.node_name.startswith(BRIDGE_NODE_PREFIX)
+                              and (i.node_name, i.node_namespace) != me})
+            if foreign and codec.name not in self.echo_hazards:
+                self.echo_hazards[codec.name] = foreign[0]
+                log.error(
+                    f"{codec.name}: bridge node {foreign[0]} publishes this topic in the same ROS "
+                    f"graph, so what it receives would be sent back over the link; not sending "
+                    f"{codec.name} until it is gone (give each side its own ROS_DOMAIN_ID)")
+            elif not foreign and codec.name in self.echo_hazards:
+                del self.echo_hazards[codec.name]
+                log.info(f"{codec.name}: no other bridge publishes it any more; sending again")
+
+    # -- incoming ----------------------------------------------------------------------
+
+    def publish(self, ident: int, payload: bytes) -> None:
+        codec, pub = self.incoming[ident]
+        counters = self.counters[ident]
+        counters.received += 1
+        try:
+            msg = codec.decode(payload)
+        except ValueError as exc:  # DecodeError
+            counters.decode_errors += 1
+            self.w.say_once(f"dec{ident}", f"{codec.name}: payload dropped, does not decode: {exc}")
+            return
+        try:
+            pub.publish(msg)
+        except Exception as exc:  # a type mismatch between codec and rclpy class
+            counters.publish_errors += 1
+            self.w.say_once(f"pub{ident}", f"{codec.name}: cannot publish decoded message: {exc}")
+            return
+        counters.published += 1
+
+    # -- status ------------------------------------------------------------------------
+
+    def status(self, channels: dict[int, dict]) -> dict[str, dict]:
+        topics = {}
+        out_ids = {c.id for c in self.outgoing_codecs}
+        for codec in (*self.outgoing_codecs, *self.incoming_codecs):
+            out = codec.id in out_ids
+            entry = {"id": codec.id, "type": codec.type_name,
+                     "direction": "out" if out else "in", **asdict(self.counters[codec.id])}
+            if out:
+                entry["echo_guard"] = self.echo_dropped.get(codec.id, 0)
+                entry["link"] = channels.get(codec.id, {})
+            if codec.name in self.w.unavailable:
+                entry["unavailable"] = self.w.unavailable[codec.name]
+            topics[codec.name] = entry
+        return topics

@@ -1,0 +1,67 @@
+"""What every bridge part is given: the rclpy node to create entities on, the link to send
+on, the clock, the options, and the shared "said once" / "not bridged" bookkeeping.
+
+The parts (topics, services, discovery, status, actions) never reach into the node or
+into each other; the node builds one `Wiring` and hands it to each of them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from uwgen.bridge.plan import BridgeOptions
+from uwgen.manifest.model import Qos
+from uwgen.runtime.clock import Clock
+
+Send = Callable[[int, bytes], bool]
+
+
+def qos_profile(qos: Qos) -> QoSProfile:
+    """The manifest's QoS as an rclpy profile (keep-last history of `depth`)."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=max(1, int(qos.depth)),
+        reliability=(ReliabilityPolicy.BEST_EFFORT if qos.reliability == "best_effort"
+                     else ReliabilityPolicy.RELIABLE),
+        durability=(DurabilityPolicy.TRANSIENT_LOCAL if qos.durability == "transient_local"
+                    else DurabilityPolicy.VOLATILE))
+
+
+@dataclass
+class Wiring:
+    node: Any                      # the rclpy Node the parts create their entities on
+    send: Send                     # the link's offer(id, payload) -> accepted
+    clock: Clock
+    options: BridgeOptions
+    log: Any                       # the node's rclpy logger
+    main_group: Any                # mutually exclusive callback group (executor thread)
+    service_group: Any             # reentrant group: stand-in calls await futures
+    unavailable: dict[str, str] = field(default_factory=dict)  # entry name -> why not bridged
+    said: set[str] = field(default_factory=set)
+
+    def say_once(self, key: str, text: str) -> None:
+        """Log the first occurrence of a kind of problem; later ones are counted only."""
+        if key not in self.said:
+            self.said.add(key)
+            self.log.error(text + " (further ones are counted in ~/status)")
+
+    def ros_class(self, codec: Any, kind: str = "msg") -> Any | None:
+        """The rclpy class of an entry (`kind` msg, srv or action), or None (logged, and
+        reported in ~/status) when rclpy has no type support for it here (e.g. the codec
+        fell back to its generated plain class)."""
+        from rclpy.type_support import check_for_type_support
+        try:
+            cls = codec.ros_class()
+            check_for_type_support(cls)
+            if kind == "srv" and not hasattr(cls, "Request"):
+                raise TypeError(f"{cls!r} is not a service type")
+            if kind == "action" and not hasattr(cls, "Goal"):
+                raise TypeError(f"{cls!r} is not an action type")
+        except Exception as exc:  # ImportError, AttributeError, NoTypeSupportImportedException
+            why = f"{type(exc).__name__}: {exc}".split(" This might be a ROS 1")[0]
+            self.unavailable[codec.name] = why
+            self.log.error(f"{codec.name} ({codec.type_name}) is not bridged: rclpy has no type "
+                           f"support for it here ({why})")
+            return None
+        return cls
