@@ -70,3 +70,10 @@ def test_build_refuses_a_protected_rmw_desert_topic(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2
     assert "uwgen.yaml:2:" in err and "rmw_desert" in err and "cannot be signed or encrypted" in err
+
+
+def test_final_summary_names_the_security_counts():
+    from uwgen.bridge.main import _summary
+    line = _summary({"security": {"protected": 4, "verified": 7, "dropped": 25}})
+    assert line == "security: protected 4 verified 7 dropped 25"
+    assert "security" not in _summary({"security": None})

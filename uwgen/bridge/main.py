@@ -128,6 +128,10 @@ def _summary(status: dict) -> str:
             parts.append(f"{name} calls {s['local_calls']} ok {s['responses']} timeouts {s['timeouts']}")
         else:
             parts.append(f"{name} requests {s['requests']} replies {s['replies']}")
+    security = status.get("security")
+    if security:
+        parts.append(f"security: protected {security['protected']} verified {security['verified']} "
+                     f"dropped {security['dropped']}")
     discovery = status.get("discovery")
     if discovery:
         remote = discovery.get("remote", [])
