@@ -9,8 +9,9 @@ LinkGuard.unprotect and codec decode into rclpy instances, between two guards of
 network (sender and receiver state files in a temporary folder, so the fsync'd
 reservations, one per 256 frames sent and one per 16 accepted, are in the time; `us no
 disk` is the same with blocks so large that nothing is written: the cost of the crypto). Bytes
-are those of the usual frame; one frame in 32 (and the first 3 after a start) carries a
-sync word, 4 bytes more, which the `avg B` column spreads over all frames.
+are those of the usual frame; one frame in 32 (and the first 3 after a start, and one after 30 s
+without any) carries a sync word, 4 bytes more, which the `avg B` column spreads over all
+frames of a sender that sends at least one frame a second.
 """
 from __future__ import annotations
 

@@ -135,6 +135,19 @@ def test_overhead_is_ten_bytes_except_sync_frames(pair):
     assert sizes.count(14) == 3 + len([n for n in range(3, 200) if n % 32 == 0])
 
 
+def test_a_slow_sender_sends_a_sync_frame_at_least_every_30_s(tmp_path):
+    from uwgen.runtime.clock import ManualClock
+    clock = ManualClock()
+    s = surface(tmp_path, clock=clock)
+    sizes = []
+    for gap in [1.0] * 20 + [40.0] * 3 + [1.0] * 5:
+        clock.advance(gap)
+        sizes.append(len(s.protect(4, twist())) - len(twist()))
+    # 3 first, then none for 17 s of 1-s frames, then each frame after a 40-s silence
+    assert sizes[:3] == [14] * 3 and set(sizes[3:20]) == {10}
+    assert sizes[20:23] == [14] * 3 and set(sizes[23:]) == {10}
+
+
 def test_the_schema_fingerprint_is_authenticated(tmp_path):
     from uwgen.security.guard import GuardConfig, LinkGuard
     from .helpers import KEY, MODES

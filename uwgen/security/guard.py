@@ -33,7 +33,8 @@ DROP_REASONS = ("bad_tag", "replay", "too_old", "unknown_sender", "reflected", "
                 "unprotected", "truncated", "malformed", "state_error")
 COUNTERS = ("protected", "sync_sent", "verified", "protect_failed", *DROP_REASONS)
 SYNC_FIRST = 3          # the first frames after a start carry the full sequence number
-SYNC_EVERY = 32         # then every frame whose number is a multiple of this
+SYNC_EVERY = 32         # then every frame whose number is a multiple of this,
+SYNC_PERIOD = 30.0      # and the first frame after this many seconds without one
 SUMMARY_PERIOD = 60.0   # seconds between summary lines while drops go on
 
 WHY = {
@@ -77,6 +78,7 @@ class LinkGuard:
         self.state: State = store.load()
         self._seqs = SequenceSource(store, self.state, send_block)
         self._sent = 0
+        self._last_sync = float("-inf")
         self._recv_block = recv_block
         self._windows = {s: ReplayWindow.from_floor(f, window)
                          for s, f in self.state.floors.items() if s in config.peers}
@@ -111,10 +113,13 @@ class LinkGuard:
                     self._logged.add("protect_failed")
                     log.error("[%s] not sending: %s (further failures are counted)", self.name, exc)
                 raise
-            sync = self._sent < SYNC_FIRST or seq % SYNC_EVERY == 0
+            now = self.clock.now()
+            sync = (self._sent < SYNC_FIRST or seq % SYNC_EVERY == 0
+                    or now - self._last_sync >= SYNC_PERIOD)
             self._sent += 1
             self.counters.inc("protected")
             if sync:
+                self._last_sync = now
                 self.counters.inc("sync_sent")
         return wire.seal(self._aead[self.config.sender], mode, self.config.sender, seq, payload,
                          self.config.fingerprints.get(ident, b""), sync)
