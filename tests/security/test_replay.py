@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import random
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from uwgen.runtime.clock import ManualClock
 from uwgen.security.window import REPLAY, TOO_OLD, WINDOW, ReplayWindow
 
@@ -127,3 +130,22 @@ def test_a_fresh_receiver_waits_for_a_sync_frame(tmp_path):
     assert v.stats()["unsynced"] > 0
     first = next(k for k, g in enumerate(got) if g is not None)
     assert all(g is not None for g in got[first:])
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.integers(0, 600), max_size=200), st.sampled_from([64, 128]))
+def test_window_agrees_with_a_set_of_everything_seen(seqs, size):
+    w = ReplayWindow(size)
+    seen: set[int] = set()
+    for seq in seqs:
+        high = max(seen) if seen else None
+        if high is not None and seq <= high - size:
+            want = TOO_OLD
+        elif seq in seen:
+            want = REPLAY
+        else:
+            want = "new"
+        assert w.check(seq) == want
+        if want == "new":
+            w.accept(seq)
+            seen.add(seq)
