@@ -179,3 +179,13 @@ def test_a_flood_of_forgeries_logs_a_few_lines_not_one_per_frame(tmp_path, caplo
     assert len(lines) == len(firsts) + len(summaries)
     assert v.stats()["bad_tag"] == 10_000 and v.stats()["unprotected"] == 10_000
     assert "bad_tag" in summaries[0] and "unprotected" in summaries[0]
+
+
+@pytest.mark.parametrize("ident", [20, 4])
+def test_a_payload_without_fields_is_protected_too(pair, ident):
+    s, v = pair
+    empty = pack_items([2, 20, 5]) if ident == 20 else pack_items([0, 4])   # e.g. std_srvs/Empty
+    frame = s.protect(ident, empty)
+    assert len(frame) == len(empty) + wire.SYNC_OVERHEAD
+    assert v.unprotect(frame) == empty
+    assert v.unprotect(frame[:-1] + bytes([frame[-1] ^ 1])) is None
