@@ -19,7 +19,8 @@
 
 CODECS: (type name, profile) -> TypeCodec, for every generated type.
 TOPICS / SERVICES: manifest id -> TopicCodec / ServiceCodec.
-MANIFEST: the network's sides, profile and fragment id.
+MANIFEST: the network's sides, profile, fragment id and schema announcements.
+SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
 """
 from uwgen.runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
@@ -59,6 +60,9 @@ def codec(type_name, profile="native"):
     return CODECS[(type_name, profile)]
 
 
+# Schema fingerprint of the whole manifest (wire-format.md section 10).
+SCHEMA_DIGEST = bytes.fromhex("449ba72e")
+
 MANIFEST = ManifestInfo(
     network="demo",
     profile="native",
@@ -68,6 +72,9 @@ MANIFEST = ManifestInfo(
     },
     fragment_id=250,
     source="msg_samples/uwgen.yaml",
+    schema_id=249,
+    schema_period=600.0,
+    schema_digest=SCHEMA_DIGEST,
 )
 
 TOPICS = {
@@ -76,25 +83,29 @@ TOPICS = {
         publisher="surface", profile="native",
         policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("geometry_msgs/msg/Twist", "native")]),
+        codec=CODECS[("geometry_msgs/msg/Twist", "native")],
+        fingerprint=bytes.fromhex("97341e79")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="vehicle", profile="native",
         policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("turtlesim/msg/Pose", "native")]),
+        codec=CODECS[("turtlesim/msg/Pose", "native")],
+        fingerprint=bytes.fromhex("570da0e1")),
     6: TopicCodec(
         id=6, name="/vehicle/battery", type_name="sensor_msgs/msg/BatteryState",
         publisher="vehicle", profile="native",
         policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("sensor_msgs/msg/BatteryState", "native")]),
+        codec=CODECS[("sensor_msgs/msg/BatteryState", "native")],
+        fingerprint=bytes.fromhex("2bfcff5a")),
     7: TopicCodec(
         id=7, name="/vehicle/log", type_name="std_msgs/msg/String",
         publisher="vehicle", profile="native",
         policy=LinkPolicy(rate=None, queue='fifo', depth=8, ttl=60.0, priority=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("std_msgs/msg/String", "native")]),
+        codec=CODECS[("std_msgs/msg/String", "native")],
+        fingerprint=bytes.fromhex("8de1dd8e")),
 }
 
 SERVICES = {
@@ -104,12 +115,14 @@ SERVICES = {
         policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0),
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "native")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
-        ros_import=("turtlesim.srv", "TeleportAbsolute")),
+        ros_import=("turtlesim.srv", "TeleportAbsolute"),
+        fingerprint=bytes.fromhex("98b801eb")),
     21: ServiceCodec(
         id=21, name="/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="vehicle", timeout=10.0, profile="native",
         policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0),
         request=CODECS[("turtlesim/srv/SetPen_Request", "native")],
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
-        ros_import=("turtlesim.srv", "SetPen")),
+        ros_import=("turtlesim.srv", "SetPen"),
+        fingerprint=bytes.fromhex("3345d7b2")),
 }

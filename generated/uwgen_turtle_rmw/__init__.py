@@ -15,7 +15,8 @@
 
 CODECS: (type name, profile) -> TypeCodec, for every generated type.
 TOPICS / SERVICES: manifest id -> TopicCodec / ServiceCodec.
-MANIFEST: the network's sides, profile and fragment id.
+MANIFEST: the network's sides, profile, fragment id and schema announcements.
+SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
 """
 from uwgen.runtime.table import ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
@@ -51,6 +52,9 @@ def codec(type_name, profile="native"):
     return CODECS[(type_name, profile)]
 
 
+# Schema fingerprint of the whole manifest (wire-format.md section 10).
+SCHEMA_DIGEST = bytes.fromhex("c480352b")
+
 MANIFEST = ManifestInfo(
     network="turtle_rmw",
     profile="rmw_desert",
@@ -60,6 +64,9 @@ MANIFEST = ManifestInfo(
     },
     fragment_id=None,
     source="msg_samples/rmw_desert/uwgen.yaml",
+    schema_id=None,
+    schema_period=600.0,
+    schema_digest=SCHEMA_DIGEST,
 )
 
 TOPICS = {
@@ -68,13 +75,15 @@ TOPICS = {
         publisher="surface", profile="rmw_desert",
         policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("geometry_msgs/msg/Twist", "rmw_desert")]),
+        codec=CODECS[("geometry_msgs/msg/Twist", "rmw_desert")],
+        fingerprint=bytes.fromhex("97157f91")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="vehicle", profile="rmw_desert",
         policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=2.0, priority=5),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("turtlesim/msg/Pose", "rmw_desert")]),
+        codec=CODECS[("turtlesim/msg/Pose", "rmw_desert")],
+        fingerprint=bytes.fromhex("37820b11")),
 }
 
 SERVICES = {
@@ -84,5 +93,6 @@ SERVICES = {
         policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0),
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "rmw_desert")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "rmw_desert")],
-        ros_import=("turtlesim.srv", "TeleportAbsolute")),
+        ros_import=("turtlesim.srv", "TeleportAbsolute"),
+        fingerprint=bytes.fromhex("a49596a3")),
 }

@@ -25,6 +25,7 @@ PEER = Path(__file__).resolve().parents[1] / "peers" / "rmw_desert_peer.py"
 MANIFEST = """\
 network: interop
 profile: rmw_desert
+schema_id: 249       # the bridge announces fingerprints; the peer ignores them and never announces
 sides:
   surface: {port: 4000, link: {max_read_length: 64, period: 0.02}}
   vehicle: {port: 4001, link: {max_read_length: 64, period: 0.02}}
@@ -168,6 +169,9 @@ def test_messages_and_calls_cross_between_bridge_and_rmw_desert_peer(package):
             assert (future.result().success, future.result().message) == (True, "armed")
             wait_for(lambda: len(got) >= 3, what="/state messages")
             events = peer_events(peer)
+            schema = surface.bridge.status()["schema"]
+            # Announced to the peer, which ignores them; it never announces, so nothing is refused.
+            assert schema["payloads_sent"] >= 1 and schema["heard"] == {} and schema["refused"] == 0
         finally:
             surface.close()
 

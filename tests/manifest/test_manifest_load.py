@@ -36,6 +36,7 @@ def test_demo_manifest_is_exactly_the_contract():
     assert isinstance(m.services[1].type, ServiceDef) and m.services[1].type.full_name == "turtlesim/srv/SetPen"
     assert m.entry(20).name == "/turtle1/teleport_absolute" and m.entry(99) is None
     assert m.topics[0].where.line == 15 and m.source == SAMPLES / "uwgen.yaml"
+    assert m.schema_id == 249 and m.schema_period == 600.0
 
 
 def test_reference_manifest_loads():
@@ -145,3 +146,10 @@ def test_a_topic_and_a_service_may_share_a_name(tmp_path):
 def test_find_manifest_uses_the_uwgen_yaml_convention(tmp_path):
     assert find_manifest(SAMPLES) == SAMPLES / "uwgen.yaml"
     assert find_manifest(tmp_path) is None
+
+
+def test_schema_announcements_are_off_by_default_and_period_may_be_null(tmp_path):
+    m = load_text(tmp_path, SIDES)
+    assert m.schema_id is None and m.schema_period == 600.0
+    m = load_text(tmp_path, SIDES + "        schema_id: 249\n        schema_period: null\n")
+    assert m.schema_id == 249 and m.schema_period is None

@@ -25,6 +25,7 @@ class Dispatcher:
         self._routes: dict[tuple[int, int], Handler] = {}
         self._sent: set[tuple[int, int]] = set()
         self._known: set[int] = set()
+        self._screens: list[Callable[[int], bool]] = []
 
     def route(self, kind: int, ident: int, handler: Handler) -> None:
         """Payloads of (kind, ident) go to handler(ident, payload)."""
@@ -39,12 +40,20 @@ class Dispatcher:
         self._sent.add((kind, ident))
         self._known.add(ident)
 
+    def screen(self, admit: Callable[[int], bool]) -> None:
+        """Payloads of an id for which admit(id) is False are dropped before routing;
+        `admit` counts what it refuses (e.g. schema.SchemaGuard.accept)."""
+        self._screens.append(admit)
+
     def dispatch(self, payload: bytes) -> None:
         try:
             key = peek_header(payload)
         except DecodeError:
             self.counters.bad_header += 1
             return
+        for admit in self._screens:
+            if not admit(key[1]):
+                return
         handler = self._routes.get(key)
         if handler is not None:
             handler(key[1], payload)

@@ -28,6 +28,7 @@ from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import BridgeOptions, BridgePlan
+from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.security import guard_for
 from uwgen.bridge.services import Servers, StandIns, service_status
 from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
@@ -94,9 +95,12 @@ class BridgeNode(Node):
             from uwgen.bridge.discovery import RmwDiscovery
             self.rmw_discovery = RmwDiscovery(w, plan, self.link, flush_timeout)
             self.create_timer(LINK_TICK, self.rmw_discovery.check_link, callback_group=main_group)
+        self.schema = attach_schema(plan, self.link, clock, link_cfg, logger_say(self._log))
+        if self.schema is not None:   # SchemaGuard: fingerprints announced, mismatches refused
+            self.create_timer(SCHEMA_TICK, self.schema.tick, callback_group=main_group)
 
         self.dispatcher = Dispatcher(self.counters)
-        for part in (self.topics, self.standins, self.servers, self.rmw_discovery):
+        for part in (self.topics, self.standins, self.servers, self.rmw_discovery, self.schema):
             if part is not None:
                 part.register(self.dispatcher)
 
@@ -116,6 +120,8 @@ class BridgeNode(Node):
         until it connects). Called by the constructor unless `start_link=False`."""
         if self.discovery is not None:
             self.discovery.start()
+        if self.schema is not None:
+            self.schema.start()      # queued ahead of data until the link connects
         self.link.start()
 
     def _declare_parameters(self, opts: BridgeOptions) -> BridgeOptions:
@@ -195,6 +201,7 @@ class BridgeNode(Node):
         self.counters.inbox_overflow = self.inbox.overflow
         return self.reporter.snapshot(
             link_stats, discovery=self.discovery_status(),
+            schema=self.schema.stats() if self.schema is not None else None,
             topics=self.topics.status(channels),
             services=service_status(self.standins, self.servers, channels, self.unavailable),
             bridge=asdict(self.counters), echo_hazards=dict(self.echo_hazards),

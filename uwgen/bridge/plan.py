@@ -69,6 +69,9 @@ class BridgePlan:
     served_services: list[Any]    # ServiceCodec served here: call the real local service
     fragment_id: int | None
     defaults: BridgeOptions
+    schema_id: int | None = None          # reserved id of schema announcements (None: off)
+    schema_period: float | None = None    # seconds between periodic announcements
+    schema_digest: bytes = b""            # the generated package's SCHEMA_DIGEST
     security: Any = None          # manifest.model.SecurityPlan, None when nothing is protected
     manifest_source: str = ""     # the manifest as the build named it (relative key files)
 
@@ -91,6 +94,9 @@ class BridgePlan:
             served_services=[s for s in services if s.server == side],
             fragment_id=getattr(manifest, "fragment_id", None),
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
+            schema_id=getattr(manifest, "schema_id", None),
+            schema_period=getattr(manifest, "schema_period", None),
+            schema_digest=getattr(manifest, "schema_digest", b""),
             security=getattr(manifest, "security", None),
             manifest_source=getattr(manifest, "source", "") or "",
         )

@@ -21,6 +21,11 @@ from uwgen.codegen.ir import (
 from uwgen.idl.model import ArrayKind
 
 F32_MAX = "3.4028234663852886e+38"
+# A decoder builds its message in one expression, `C.A(b=C.B(c=...))`, one pair of
+# parentheses per nesting level; Python's parser refuses more than 200 nested ones
+# ("too many nested parentheses"). Every NEST_CHUNK levels the inner message is built
+# into a local first, so no expression nests deeper, whatever the type's depth.
+NEST_CHUNK = 32
 
 
 @dataclass
@@ -234,7 +239,8 @@ class Lowering:
             var = fresh()
             body.extend(self._decode_leaf(leaf, enc, var, ct.suffix))
             value_of[leaf.path] = self._ros_value(enc, var)
-        body.append(f"return {self._construct(ct.root, value_of)}, i")
+        made = self._construct(ct.root, value_of, body, 0, [0])
+        body.append(f"return {made}, i")
         return Function(func_name("dec", ct.name, ct.suffix), "v, i, C",
                         f"Read a {ct.full_name} ({ct.profile} profile) from items `v` at `i`; "
                         "return (message, next index).", body)
@@ -309,13 +315,21 @@ class Lowering:
             lines.append(f"_check_texts({var}, {p}, {enc.text.bound})")
         return lines
 
-    def _construct(self, node: Node, value_of: dict[str, str]) -> str:
+    def _construct(self, node: Node, value_of: dict[str, str], body: list[str], depth: int,
+                   temps: list[int]) -> str:
+        """The expression that builds `node`; nested messages NEST_CHUNK levels down are
+        built into locals (`t1 = ...` appended to `body`) first."""
         args = []
         for child in node.children:
             if child.children is not None:
-                args.append(f"{child.name}={self._construct(child, value_of)}")
+                args.append(f"{child.name}={self._construct(child, value_of, body, depth + 1, temps)}")
             elif isinstance(child.encoding, (Absent, Filler)):
                 continue
             else:
                 args.append(f"{child.name}={value_of[child.path]}")
-        return f"C.{node.class_key}({', '.join(args)})"
+        expr = f"C.{node.class_key}({', '.join(args)})"
+        if depth and depth % NEST_CHUNK == 0:
+            temps[0] += 1
+            body.append(f"t{temps[0]} = {expr}")
+            return f"t{temps[0]}"
+        return expr

@@ -21,6 +21,7 @@ from pathlib import Path
 import jinja2
 
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
+from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest
 from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
 from uwgen.manifest.model import NATIVE
 from uwgen.idl.loader import InterfaceLibrary
@@ -44,6 +45,7 @@ class PlainClass:
     full_name: str
     fields: list[PlainField]
     constants: list[tuple[str, str]]
+    me: str = "self"       # __init__'s instance parameter: '_self' when a field is named self
 
 
 @dataclass
@@ -89,6 +91,8 @@ class PackagePlan:
     ros_imports: list[tuple[str, str, str]]  # (class key, module, class name)
     plain_keys: list[tuple[str, str, str]]   # (class key, generated module, class name)
     skipped: list[str] = field(default_factory=list)   # types a profile can never carry (bulk builds)
+    fingerprints: dict[tuple[str, int], bytes] = field(default_factory=dict)  # ('topic'|'service', id) -> fp
+    schema_digest: bytes | None = None                # of every fingerprint (None without a manifest)
 
 
 def source_label(path: Path | None, lib: InterfaceLibrary) -> str:
@@ -138,6 +142,8 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
                  manifest_label: str | None = None) -> PackagePlan:
     """Decide what to generate: `names` in each of `profiles`, plus the manifest's topics
     and services in their own profiles, and every type those use."""
+    if manifest is not None and manifest_label is None:   # the package names its manifest
+        manifest_label = Path(manifest.source).name if manifest.source else "<manifest>"
     builder = IRBuilder(lambda n: _as_message(lib.get(n)))
     wanted: list[tuple[MessageDef, str, int, bool]] = []   # (type, profile, header items, required)
     for name in names:
@@ -217,8 +223,10 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     ordered = [modules[p] for p in sorted(modules)]
     ros_imports = sorted((type_key(n), _ros_module(n), n.split("/")[2]) for n in definitions)
     plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
+    fingerprints = manifest_fingerprints(manifest, builder) if manifest is not None else {}
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
-                       ros_imports, plain_keys, sorted(set(skipped)))
+                       ros_imports, plain_keys, sorted(set(skipped)), fingerprints,
+                       package_digest(fingerprints) if manifest is not None else None)
 
 
 def _python_safe(msg: MessageDef) -> MessageDef:
@@ -280,7 +288,9 @@ def _plain_class(msg: MessageDef, mod: ModulePlan) -> PlainClass:
     for f in msg.fields:
         fields.append(_plain_field(f, msg.package, mod))
     constants = [(c.name, _literal(c.value, c.type)) for c in msg.constants]
-    return PlainClass(msg.name, msg.full_name, fields, constants)
+    # Field names are __init__ parameters; none starts with '_' (see _python_safe).
+    me = "_self" if any(f.name == "self" for f in msg.fields) else "self"
+    return PlainClass(msg.name, msg.full_name, fields, constants, me)
 
 
 def _class_ref(full_name: str, package: str, mod: ModulePlan) -> str:
@@ -308,7 +318,8 @@ def _plain_field(f: Field, package: str, mod: ModulePlan) -> PlainField:
     if not t.is_primitive:
         cls = _class_ref(t.base, package, mod)
         if t.array is ArrayKind.FIXED:
-            return PlainField(f.name, "None", f"[{cls}() for _ in range({t.size})] if {f.name} is None else {f.name}")
+            # No builtin here: a field (an __init__ parameter) may be named `range`.
+            return PlainField(f.name, "None", f"[{cls}() for _ in [None] * {t.size}] if {f.name} is None else {f.name}")
         if t.is_array:
             return PlainField(f.name, "None", f"[] if {f.name} is None else {f.name}")
         return PlainField(f.name, "None", f"{cls}() if {f.name} is None else {f.name}")
@@ -351,7 +362,7 @@ def render_package(plan: PackagePlan) -> dict[str, str]:
         header=header, modules=[(m.package, m.namespace, module_alias(m.name)) for m in plan.modules],
         plain_keys=plan.plain_keys, ros_imports=plan.ros_imports)
     files["__init__.py"] = env.get_template("package_init.py.j2").render(
-        header=header, plan=plan, manifest=_manifest_view(plan.manifest))
+        header=header, plan=plan, manifest=_manifest_view(plan))
     if plan.manifest is not None and (TEMPLATES / "bridge.py.j2").exists():
         for side in sorted(plan.manifest.sides):
             files[f"bridge_{side}.py"] = env.get_template("bridge.py.j2").render(
@@ -359,24 +370,29 @@ def render_package(plan: PackagePlan) -> dict[str, str]:
     return files
 
 
-def _manifest_view(manifest: Manifest | None):
+def _manifest_view(plan: PackagePlan):
     """Python source for the manifest's parts the codec table keeps (reprs of dataclasses)."""
+    manifest = plan.manifest
     if manifest is None:
         return None
     return {
         "network": manifest.network, "profile": manifest.profile,
         "fragment_id": manifest.fragment_id,
+        "schema_id": manifest.schema_id, "schema_period": manifest.schema_period,
+        "schema_digest": plan.schema_digest.hex(),
         "security": repr(manifest.security_plan()) if manifest.protected() else None,
         "sides": [(name, repr(side_without_where(side))) for name, side in sorted(manifest.sides.items())],
         "topics": [dict(id=t.id, name=t.name, type_name=t.type_name, publisher=t.publisher,
                         policy=repr(t.policy), qos=repr(t.qos), profile=t.profile,
-                        key=type_key(t.type.full_name))
+                        key=type_key(t.type.full_name),
+                        fingerprint=plan.fingerprints[("topic", t.id)].hex())
                    for t in sorted(manifest.topics, key=lambda t: t.id)],
         "services": [dict(id=s.id, name=s.name, type_name=s.type_name, server=s.server,
                           timeout=s.timeout, policy=repr(s.policy), profile=s.profile,
                           request_key=type_key(s.type.request.full_name),
                           response_key=type_key(s.type.response.full_name),
-                          ros_module=f"{s.type.package}.srv", ros_name=s.type.name)
+                          ros_module=f"{s.type.package}.srv", ros_name=s.type.name,
+                          fingerprint=plan.fingerprints[("service", s.id)].hex())
                      for s in sorted(manifest.services, key=lambda s: s.id)],
     }
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Iterator
 
+from uwgen.codegen.shape import MAX_NESTING, NestingCheck
 from uwgen.idl.model import INTEGER_RANGES, OCTET_TYPES, ArrayKind, FieldType, MessageDef
 from uwgen.manifest.model import NATIVE, RMW_DESERT
 from uwgen.runtime.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES
@@ -211,15 +212,17 @@ def type_key(full_name: str) -> str:
 class IRBuilder:
     """Builds CodecTypes for message definitions, resolving nested types by name."""
 
-    def __init__(self, lookup):
+    def __init__(self, lookup, max_nesting: int = MAX_NESTING):
         """`lookup(full_name) -> MessageDef` resolves nested message types."""
         self._lookup = lookup
         self._cache: dict[tuple[str, str], CodecType] = {}
+        self._nesting = NestingCheck(lookup, max_nesting)   # recursive / too deep types: DefinitionError
 
     def codec(self, msg: MessageDef, profile: str) -> CodecType:
         key = (msg.full_name, profile)
         hit = self._cache.get(key)
         if hit is None:
+            self._nesting.check(msg)
             hit = self._cache[key] = self._build(msg, profile)
         return hit
 

@@ -28,6 +28,7 @@ from uwgen.manifest.model import (
     RMW_DESERT,
     RMW_DISCOVERY_ID,
     RMW_DISCOVERY_REQUEST_ID,
+    SCHEMA_PERIOD_DEFAULT,
     LinkConfig,
     LinkPolicy,
     Manifest,
@@ -45,8 +46,8 @@ __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "
 MANIFEST_NAME = "uwgen.yaml"
 ID_RANGE = (1, 255)
 
-TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "defaults", "topics", "services",
-            "security")
+TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id", "schema_period",
+            "defaults", "topics", "services", "security")
 SIDE_KEYS = ("host", "port", "link", "sender_id")
 LINK_KEYS = ("max_read_length", "period")
 POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority")
@@ -189,6 +190,14 @@ class _ManifestBuilder:
         fragment_id = None
         if "fragment_id" in top:
             fragment_id = self.fragment_id(top["fragment_id"][1])
+        schema_id = None
+        if "schema_id" in top:
+            schema_id = self.schema_id(top["schema_id"][1], fragment_id)
+        schema_period = SCHEMA_PERIOD_DEFAULT
+        if "schema_period" in top:
+            node = top["schema_period"][1]
+            none = isinstance(node, yaml.ScalarNode) and r.value(node) is None
+            schema_period = None if none else r.number(node, "schema_period (seconds; null for none)")
 
         manifest = Manifest(
             network=network,
@@ -199,6 +208,8 @@ class _ManifestBuilder:
             topics=topics,
             services=services,
             fragment_id=fragment_id,
+            schema_id=schema_id,
+            schema_period=schema_period,
             security=security,
         )
         manifest = self.sec.finish(manifest, root, self.senders)
@@ -408,6 +419,18 @@ class _ManifestBuilder:
             raise r.error(node, f"fragment_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
         return ident
 
+    def schema_id(self, node: yaml.Node, fragment_id: int | None) -> int | None:
+        r = self.r
+        if isinstance(node, yaml.ScalarNode) and r.value(node) is None:
+            return None
+        ident = r.integer(node, "schema_id", *ID_RANGE)
+        if ident in self.ids:
+            user = self.ids[ident]
+            raise r.error(node, f"schema_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
+        if ident == fragment_id:
+            raise r.error(node, f"schema_id {ident} is also the fragment_id; the two reserved ids must differ")
+        return ident
+
     def check_rmw_reserved(self, manifest: Manifest, top: dict) -> None:
         r = self.r
         user = next(t for t in (*manifest.topics, *manifest.services) if t.profile == RMW_DESERT)
@@ -419,3 +442,5 @@ class _ManifestBuilder:
                 raise r.error(use.node, f"id {ident} of {use.what} is reserved for rmw_desert's {topic} {reason}")
         if manifest.fragment_id in reserved:
             raise r.error(top["fragment_id"][1], f"fragment_id {manifest.fragment_id} is reserved for rmw_desert's {reserved[manifest.fragment_id]} {reason}")
+        if manifest.schema_id in reserved:
+            raise r.error(top["schema_id"][1], f"schema_id {manifest.schema_id} is reserved for rmw_desert's {reserved[manifest.schema_id]} {reason}")

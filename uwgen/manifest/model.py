@@ -16,6 +16,7 @@ QUEUE_KINDS = ("latest", "fifo")
 RELIABILITY = ("reliable", "best_effort")
 DURABILITY = ("volatile", "transient_local")
 FIFO_DEFAULT_DEPTH = 4   # queue depth of a fifo queue whose depth is not given
+SCHEMA_PERIOD_DEFAULT = 600.0   # seconds between schema announcements (besides connect and request)
 SECURITY_MODES = ("off", "sign", "encrypt")   # docs/wire-format.md section 12
 MAX_SENDER_ID = 15       # sender ids of the secure link are 4 bits
 
@@ -125,6 +126,8 @@ class Manifest:
     topics: list[Topic] = field(default_factory=list)
     services: list[Service] = field(default_factory=list)
     fragment_id: int | None = None               # reserved id for fragments of payloads > 255 bytes
+    schema_id: int | None = None                 # reserved id for schema announcements (wire format 10)
+    schema_period: float | None = SCHEMA_PERIOD_DEFAULT  # seconds between announcements; None: connect/request only
     security: Security = field(default_factory=Security)
 
     def entry(self, id: int) -> Topic | Service | None:

@@ -146,6 +146,7 @@ class TopicCodec:
     qos: Qos
     profile: str
     codec: TypeCodec
+    fingerprint: bytes = b""           # schema fingerprint of this id (wire format section 10)
 
     def ros_class(self) -> type:
         return self.codec.ros_class()
@@ -169,6 +170,7 @@ class ServiceCodec:
     request: TypeCodec
     response: TypeCodec
     ros_import: tuple[str, str]
+    fingerprint: bytes = b""           # schema fingerprint of this id (wire format section 10)
 
     def ros_class(self) -> type:
         module, name = self.ros_import
@@ -204,4 +206,7 @@ class ManifestInfo:
     sides: dict[str, Side]
     fragment_id: int | None
     source: str
+    schema_id: int | None = None       # reserved id of schema announcements (None: not announced)
+    schema_period: float | None = None  # seconds between periodic announcements (None: none)
+    schema_digest: bytes = b""         # fingerprint of the whole manifest (wire format section 10)
     security: Any = None        # manifest.model.SecurityPlan when anything is protected

@@ -1,0 +1,145 @@
+"""Schema fingerprints: one short hash per manifest id of everything that shapes its bytes.
+
+Two sides that disagree about an id's type, profile or field encodings misread each
+other silently; MAVLink guards against this with CRC_EXTRA, DCCL with its hash codec.
+uwgen computes, at build time, for every topic and service of the manifest:
+
+    fingerprint = SHA-256(canonical CBOR of the id's description)[:FINGERPRINT_BYTES]
+
+The description (wire-format.md section 10) is the CBOR array
+
+    ["uwgen-schema", 1, entry, kinds, id, profile, type name, roots, types]
+
+where `entry` is "topic" or "service", `kinds` the header kinds the id travels with
+([0], or [2, 3] for a service), `roots` the codec keys of the message(s) (request then
+response for a service) and `types` every codec type they reach (inlined or through
+arrays), sorted by key, each written generically: a dataclass becomes a map of its
+fields plus "@": its class name, an Enum its value, a list/tuple an array. Any IR node
+class added later is therefore covered without being named here.
+
+The canonical form is cbor2's `canonical=True` (RFC 7049 section 3.9: shortest integer
+and float forms, definite lengths, map keys sorted by length then bytes), so the same
+inputs give the same bytes on every machine and run.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from decimal import Decimal
+from enum import Enum
+from fractions import Fraction
+from typing import Any, Iterable
+
+import cbor2
+
+from uwgen.codegen.ir import CodecType
+from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+
+FINGERPRINT_BYTES = 4      # 2**-32 chance that two different schemas look alike (docs section 10)
+SCHEMA_MAGIC = "uwgen-schema"
+SCHEMA_VERSION = 1
+
+
+def canonical(value: Any, where: str = "") -> Any:
+    """`value` as plain CBOR-able data (dicts, lists, str, int, float, bytes, bool, None).
+
+    Raises TypeError for a value with no stable form (so a new kind of IR value is noticed
+    at build time instead of hashing something like an object address)."""
+    if value is None or isinstance(value, (bool, int, float, str, bytes)):
+        return value
+    if isinstance(value, Enum):
+        return canonical(value.value, where)
+    if isinstance(value, Fraction):
+        return {"@": "Fraction", "n": value.numerator, "d": value.denominator}
+    if isinstance(value, Decimal):
+        return {"@": "Decimal", "v": str(value)}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        out = {"@": type(value).__name__}
+        for f in dataclasses.fields(value):
+            out[f.name] = canonical(getattr(value, f.name), f"{where}.{f.name}")
+        return out
+    if isinstance(value, (list, tuple)):
+        return [canonical(v, f"{where}[{k}]") for k, v in enumerate(value)]
+    if isinstance(value, (set, frozenset)):
+        items = [canonical(v, where) for v in value]
+        return sorted(items, key=lambda v: cbor2.dumps(v, canonical=True))
+    if isinstance(value, dict):
+        return {canonical(k, where): canonical(v, f"{where}[{k!r}]") for k, v in value.items()}
+    raise TypeError(f"schema fingerprint: no canonical form for {type(value).__name__} at "
+                    f"{where or 'the root'}; teach uwgen.codegen.fingerprint.canonical about it")
+
+
+def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type_name: str,
+                roots: list[CodecType], codecs: dict[str, CodecType]) -> list:
+    """The CBOR-able description of one manifest id (see the module docstring).
+
+    `codecs` maps codec key -> CodecType for this profile; every type the roots reach
+    through `uses` (message arrays) is included, inlined types are part of each tree."""
+    reached: dict[str, CodecType] = {}
+    todo = list(roots)
+    while todo:
+        ct = todo.pop()
+        if ct.key in reached:
+            continue
+        reached[ct.key] = ct
+        todo.extend(codecs[key] for key in ct.uses)
+    types = [canonical(reached[key], key) for key in sorted(reached)]
+    return [SCHEMA_MAGIC, SCHEMA_VERSION, entry, list(kinds), ident, profile, type_name,
+            [ct.key for ct in roots], types]
+
+
+def digest(data: Any) -> bytes:
+    """SHA-256 of the canonical CBOR of `data`, truncated to FINGERPRINT_BYTES."""
+    return hashlib.sha256(cbor2.dumps(data, canonical=True)).digest()[:FINGERPRINT_BYTES]
+
+
+def topic_fingerprint(ident: int, profile: str, type_name: str, root: CodecType,
+                      codecs: dict[str, CodecType]) -> bytes:
+    return digest(description("topic", [KIND_TOPIC], ident, profile, type_name, [root], codecs))
+
+
+def service_fingerprint(ident: int, profile: str, type_name: str, request: CodecType,
+                        response: CodecType, codecs: dict[str, CodecType]) -> bytes:
+    return digest(description("service", [KIND_REQUEST, KIND_RESPONSE], ident, profile, type_name,
+                              [request, response], codecs))
+
+
+def package_digest(fingerprints: dict[tuple[str, int], bytes]) -> bytes:
+    """One fingerprint of a whole manifest: of the sorted (entry, id, fingerprint) triples."""
+    rows = [[entry, ident, fp] for (entry, ident), fp in sorted(fingerprints.items())]
+    return digest([SCHEMA_MAGIC, SCHEMA_VERSION, "package", rows])
+
+
+def entry_codecs(manifest: Any, builder: Any) -> dict[tuple[str, int], tuple[list[CodecType], dict[str, CodecType]]]:
+    """('topic' | 'service', id) -> (root codec types, every codec type they reach by key),
+    as `builder` (an IRBuilder) makes them for the manifest's entries.
+
+    These must be the codec types the entries' generated codecs are lowered from (a test
+    checks the encoder names): whoever gives an entry its own codec variant (e.g. field
+    encodings) picks it here too, so its fingerprint covers it."""
+    out = {}
+    for topic in manifest.topics:
+        codecs = {ct.key: ct for ct in builder.codecs_for(topic.type, topic.profile)}
+        out[("topic", topic.id)] = ([builder.codec(topic.type, topic.profile)], codecs)
+    for service in manifest.services:
+        codecs: dict[str, CodecType] = {}
+        for msg in (service.type.request, service.type.response):
+            codecs.update({ct.key: ct for ct in builder.codecs_for(msg, service.profile)})
+        roots = [builder.codec(service.type.request, service.profile),
+                 builder.codec(service.type.response, service.profile)]
+        out[("service", service.id)] = (roots, codecs)
+    return out
+
+
+def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], bytes]:
+    """('topic' | 'service', id) -> fingerprint for every entry of `manifest`."""
+    entries = {**{("topic", t.id): t for t in manifest.topics},
+               **{("service", s.id): s for s in manifest.services}}
+    out: dict[tuple[str, int], bytes] = {}
+    for key, (roots, codecs) in entry_codecs(manifest, builder).items():
+        entry = entries[key]
+        if key[0] == "topic":
+            out[key] = topic_fingerprint(entry.id, entry.profile, entry.type_name, roots[0], codecs)
+        else:
+            out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs)
+    return out
