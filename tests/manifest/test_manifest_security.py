@@ -78,3 +78,13 @@ def test_sender_ids_may_be_left_out_while_security_is_off(tmp_path):
         sides: {surface: {port: 4000}, vehicle: {port: 4001, sender_id: 3}}
     """)
     assert m.security.senders == {"vehicle": 3} and not m.protected()
+
+
+def test_schema_announcements_are_signed_when_security_is_on(tmp_path):
+    m = load_text(tmp_path, HEAD.replace("network: demo\n", "network: demo\n        schema_id: 249\n"))
+    plan = m.security_plan()
+    assert plan.modes == {4: "encrypt", 7: "sign", 20: "encrypt", 249: "sign"}
+    assert plan.key_file == "keys/demo.key" and plan.senders == {"surface": 1, "vehicle": 2}
+    off = load_text(tmp_path, HEAD.replace("mode: encrypt", "mode: off")
+                    .replace("security: sign}", "security: off}"))
+    assert off.security_plan() is None

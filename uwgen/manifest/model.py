@@ -141,6 +141,9 @@ class Manifest:
         if not self.protected():
             return None
         modes = self.security.modes((*self.topics, *self.services))
+        if self.schema_id is not None:
+            # Signed too: a forged announcement would make the far side refuse an id.
+            modes[self.schema_id] = "sign"
         return SecurityPlan(self.security.key_file or "", dict(sorted(self.security.senders.items())),
                             dict(sorted(modes.items())))
 
