@@ -13,7 +13,7 @@ channel (one topic or service id) has a LinkPolicy, turned into small policy obj
 `next_payload(now)` is called by the connection only when it may write (pull, not push). Every
 message offered is accounted for exactly once:
 
-    offered == sent + superseded + overflow + expired + too_large + invalid + queued
+    offered == sent + superseded + overflow + expired + too_large + invalid + protect_failed + queued
 
 where `queued` counts waiting messages including one being sent in fragments. `rate_limited` is
 informational: messages that were held back at least once by the rate limit while the link was free.
