@@ -20,10 +20,15 @@ def package(tmp_path, key_file="net.key"):
     return SimpleNamespace(MANIFEST=manifest, TOPICS={}, SERVICES={})
 
 
-def test_the_key_is_found_next_to_the_manifest_and_the_state_next_to_the_key(tmp_path):
+def test_the_key_is_found_next_to_the_manifest_and_the_state_next_to_the_key(tmp_path, caplog):
+    import logging
     assert main(["keygen", str(tmp_path / "net.key")]) == 0
     plan = BridgePlan.from_package(package(tmp_path), "vehicle")
-    guard = guard_for(plan, plan.options())
+    with caplog.at_level(logging.INFO, logger="uwgen.security"):
+        guard = guard_for(plan, plan.options())
+    start = [r.getMessage() for r in caplog.records if "secure link" in r.getMessage()]
+    assert len(start) == 1 and "sender 2" in start[0] and "4 (encrypt)" in start[0]
+    assert guard.state.key_id in start[0]
     assert guard.config.sender == 2 and guard.config.peers == {1: "surface"}
     assert guard.store.path.parent == tmp_path
     assert guard.store.path.name.startswith("net.key.demo.vehicle.")

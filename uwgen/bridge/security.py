@@ -8,11 +8,14 @@ if given, else `<key file>.<network>.<side>.<key id>.state` next to the key.
 """
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import Any
 
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+
+log = logging.getLogger("uwgen.security")
 
 
 def key_path(plan: BridgePlan, options: BridgeOptions) -> Path:
@@ -58,6 +61,11 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
             fingerprints={i: bytes(getattr(entries.get(i), "fingerprint", b"") or b"") for i in sec.modes})
         state = (Path(options.security_state) if options.security_state is not None
                  else default_state_path(path, plan.network, plan.side, key_id(master, plan.network)))
-        return LinkGuard.for_key(master, config, state, clock=clock, name=plan.side)
+        guard = LinkGuard.for_key(master, config, state, clock=clock, name=plan.side)
     except SecurityError as exc:
         raise PlanError(str(exc)) from None
+    protected = ", ".join(f"{i} ({m})" for i, m in sorted(sec.modes.items()))
+    log.info("[%s] secure link: sender %d; protects ids %s; key %s (key id %s, the same on every "
+             "side); state %s, next sequence number %d", plan.side, config.sender, protected, path,
+             key_id(master, plan.network), state, guard.stats()["next_seq"])
+    return guard
