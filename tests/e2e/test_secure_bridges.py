@@ -20,8 +20,9 @@ from std_srvs.srv import SetBool
 
 from uwgen.bridge.plan import import_package
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
-from uwgen.runtime.codec import pack_items
+from uwgen.runtime.codec import load_items, pack_items
 from uwgen.runtime.framing import encode_frame
+from uwgen.security import wire
 from uwgen.security.guard import GuardConfig, LinkGuard
 
 from bridge.fakes import wait_for
@@ -76,7 +77,8 @@ def schema_package(tmp_path_factory):
 def secured_network(package):
     scen = Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle"),
                            NodeSpec("vehicle", position=(30.0, 0.0, 0.0), dest="surface"),
-                           NodeSpec("forger", position=(15.0, 10.0, 0.0), dest="vehicle")],
+                           NodeSpec("forger", position=(15.0, 10.0, 0.0), dest="vehicle"),
+                           NodeSpec("forger_s", position=(15.0, -10.0, 0.0), dest="surface")],
                     period=0.05, max_read_length=64, bitrate=48000.0, seed=9)
     with run_emulator(scen) as emu, ros_sides("surface", "vehicle") as sides:
         net = Net(package, emu, sides, 0.05, 64)
@@ -228,3 +230,30 @@ def test_schema_announcements_are_signed_and_forged_ones_cannot_refuse_an_id(sch
         pub.publish(Twist(linear=Twist().linear.__class__(x=0.4)))
         wait_for(lambda: got, what="cmd_vel still flows")
         assert got[0].linear.x == 0.4
+
+
+def test_a_forged_response_never_completes_a_call(secure_package, tmp_path):
+    with secured_network(secure_package) as net:
+        client = net.surface.node("caller").create_client(SetBool, "/enable")
+        assert client.wait_for_service(timeout_sec=5.0)          # the surface's stand-in
+        requests = tap(net.bridges["surface"].link, REQUEST)
+        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle")),
+                 what="secured bridges up")
+        future = client.call_async(SetBool.Request(data=True))  # no server on the vehicle: no answer
+        wait_for(lambda: requests, what="the request on the water")
+        _, _, n = wire.header_length(requests[0])
+        seq = load_items(requests[0][:n])[2]                    # the header stays readable
+        stranger = LinkGuard.for_key(bytes(range(32)), GuardConfig("e2esec", 2, {1: "surface"},
+                                                                   {20: "encrypt"}),
+                                     tmp_path / "stranger.state")
+        plain = pack_items([3, 20, seq, True, "forged"])
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger_s"))) as forger:
+            for frame in (plain, stranger.protect(20, plain)):
+                forger.sendall(encode_frame(frame))
+                time.sleep(0.1)
+            wait_for(lambda: security(net, "surface")["dropped"] >= 2, what="forged responses counted")
+        surface = net.bridges["surface"]
+        wait_for(lambda: surface.service_counters[20].timeouts == 1, timeout=6, what="the call's timeout")
+        assert not future.done()                                # no forged success reached the caller
+        assert surface.service_counters[20].responses == 0
+        assert security(net, "surface")["verified"] == 0
