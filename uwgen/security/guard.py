@@ -40,7 +40,8 @@ SUMMARY_PERIOD = 60.0   # seconds between summary lines while drops go on
 WHY = {
     "bad_tag": "the tag does not verify (forged, corrupted, or another network's key)",
     "replay": "a number this sender already used (a replay)",
-    "too_old": "a number older than the replay window",
+    "too_old": "a number older than the replay window (an old frame replayed, or a sender that "
+               "lost its state file and started its numbers again: give the network a new key)",
     "unknown_sender": "a sender id no side of the manifest has",
     "reflected": "this side's own sender id (a frame sent back to us)",
     "unsynced": "no sequence state for this sender yet; waiting for one of its sync frames",
