@@ -13,6 +13,7 @@ import sys
 # name -> module; the order here is the order of `uwgen --help`.
 COMMANDS = {
     "build": "uwgen.commands.build",
+    "analyze": "uwgen.commands.analyze",
     "emulate": "uwgen.commands.emulate",
     "bridge": "uwgen.commands.bridge",
     "demo": "uwgen.commands.demo",

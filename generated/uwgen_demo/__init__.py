@@ -35,8 +35,6 @@ from .turtlesim import srv as _turtlesim_srv
 
 CODECS = {
     ("builtin_interfaces/msg/Time", "native"): TypeCodec("builtin_interfaces/msg/Time", "native", _builtin_interfaces_msg.enc_Time, _builtin_interfaces_msg.dec_Time, PLAIN, ROS, "builtin_interfaces__Time"),
-    ("geometry_msgs/msg/Twist", "native"): TypeCodec("geometry_msgs/msg/Twist", "native", _geometry_msgs_msg.enc_Twist, _geometry_msgs_msg.dec_Twist, PLAIN, ROS, "geometry_msgs__Twist"),
-    ("geometry_msgs/msg/Vector3", "native"): TypeCodec("geometry_msgs/msg/Vector3", "native", _geometry_msgs_msg.enc_Vector3, _geometry_msgs_msg.dec_Vector3, PLAIN, ROS, "geometry_msgs__Vector3"),
     ("sensor_msgs/msg/BatteryState", "native"): TypeCodec("sensor_msgs/msg/BatteryState", "native", _sensor_msgs_msg.enc_BatteryState, _sensor_msgs_msg.dec_BatteryState, PLAIN, ROS, "sensor_msgs__BatteryState"),
     ("std_msgs/msg/Header", "native"): TypeCodec("std_msgs/msg/Header", "native", _std_msgs_msg.enc_Header, _std_msgs_msg.dec_Header, PLAIN, ROS, "std_msgs__Header"),
     ("std_msgs/msg/String", "native"): TypeCodec("std_msgs/msg/String", "native", _std_msgs_msg.enc_String, _std_msgs_msg.dec_String, PLAIN, ROS, "std_msgs__String"),
@@ -52,6 +50,13 @@ CODECS = {
     ("turtlesim/srv/TeleportAbsolute_Response", "native"): TypeCodec("turtlesim/srv/TeleportAbsolute_Response", "native", _turtlesim_srv.enc_TeleportAbsolute_Response, _turtlesim_srv.dec_TeleportAbsolute_Response, PLAIN, ROS, "turtlesim__TeleportAbsolute_Response"),
     ("turtlesim/srv/TeleportRelative_Request", "native"): TypeCodec("turtlesim/srv/TeleportRelative_Request", "native", _turtlesim_srv.enc_TeleportRelative_Request, _turtlesim_srv.dec_TeleportRelative_Request, PLAIN, ROS, "turtlesim__TeleportRelative_Request"),
     ("turtlesim/srv/TeleportRelative_Response", "native"): TypeCodec("turtlesim/srv/TeleportRelative_Response", "native", _turtlesim_srv.enc_TeleportRelative_Response, _turtlesim_srv.dec_TeleportRelative_Response, PLAIN, ROS, "turtlesim__TeleportRelative_Response"),
+    ("geometry_msgs/msg/Vector3", "packed"): TypeCodec("geometry_msgs/msg/Vector3", "packed", _geometry_msgs_msg.enc_pk_Vector3, _geometry_msgs_msg.dec_pk_Vector3, PLAIN, ROS, "geometry_msgs__Vector3"),
+}
+
+# Codecs with the manifest's field encodings, by variant: t<id> topic, q<id>/r<id> request/response.
+VARIANTS = {
+    "t4": TypeCodec("geometry_msgs/msg/Twist", "packed", _geometry_msgs_msg.enc_pk_t4_Twist, _geometry_msgs_msg.dec_pk_t4_Twist, PLAIN, ROS, "geometry_msgs__Twist"),
+    "t5": TypeCodec("turtlesim/msg/Pose", "packed", _turtlesim_msg.enc_pk_t5_Pose, _turtlesim_msg.dec_pk_t5_Pose, PLAIN, ROS, "turtlesim__Pose"),
 }
 
 
@@ -61,7 +66,7 @@ def codec(type_name, profile="native"):
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("449ba72e")
+SCHEMA_DIGEST = bytes.fromhex("cd91ef23")
 
 MANIFEST = ManifestInfo(
     network="demo",
@@ -80,18 +85,18 @@ MANIFEST = ManifestInfo(
 TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
-        publisher="surface", profile="native",
+        publisher="surface", profile="packed",
         policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("geometry_msgs/msg/Twist", "native")],
-        fingerprint=bytes.fromhex("97341e79")),
+        codec=VARIANTS["t4"],
+        fingerprint=bytes.fromhex("92b9198b")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
-        publisher="vehicle", profile="native",
+        publisher="vehicle", profile="packed",
         policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("turtlesim/msg/Pose", "native")],
-        fingerprint=bytes.fromhex("570da0e1")),
+        codec=VARIANTS["t5"],
+        fingerprint=bytes.fromhex("29eb5926")),
     6: TopicCodec(
         id=6, name="/vehicle/battery", type_name="sensor_msgs/msg/BatteryState",
         publisher="vehicle", profile="native",

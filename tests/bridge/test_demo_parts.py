@@ -2,6 +2,7 @@
 import json
 import math
 import random
+from pathlib import Path
 
 import pytest
 
@@ -130,3 +131,45 @@ def test_recorder_writes_lines_and_reader_skips_a_torn_tail(tmp_path):
     with (tmp_path / "r.jsonl").open("a") as fh:
         fh.write('{"t": 1, "ev": "tor')
     assert [r["k"] for r in read_records(tmp_path / "r.jsonl")] == [1, 2]
+
+
+def test_pose_key_steps_are_the_demo_manifests_pose_encodings():
+    from uwgen.demo.report import POSE_KEY_STEPS
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.manifest.loader import load_manifest
+    root = Path(__file__).resolve().parents[2] / "msg_samples"
+    manifest = load_manifest(root / "uwgen.yaml", InterfaceLibrary([root], installed=True))
+    pose = next(t for t in manifest.topics if t.name == "/turtle1/pose")
+    steps = {f.path: float(f.step) for f in pose.fields}
+    names = {"x": "x", "y": "y", "theta": "theta", "v": "linear_velocity", "w": "angular_velocity"}
+    assert {names[k]: step for k, step in POSE_KEY_STEPS} == steps
+
+
+def test_quantized_poses_still_match_their_publication(tmp_path):
+    t = 1000.0
+    veh, op = [], []
+    for i in range(4):
+        sent = {"x": f32(1.0 + i * 0.2037), "y": f32(2.0), "theta": f32(0.7854), "v": f32(0.4), "w": 0.0}
+        got = {"x": round(sent["x"], 2), "y": 2.0, "theta": 0.785, "v": 0.4, "w": 0.0}   # as the grid decodes
+        veh.append({"t": t + i, "ev": "pose", **sent})
+        op.append({"t": t + i + 0.3, "ev": "pose_rx", **got})
+    write(tmp_path / "operator.jsonl", op)
+    write(tmp_path / "vehicle.jsonl", veh)
+    pose = build_report(tmp_path).topics[1]
+    assert pose.delivered == 4 and pose.p50 == pytest.approx(0.3)
+
+
+def test_demo_report_shows_encoded_frame_sizes_next_to_native(tmp_path):
+    from uwgen.demo.report import frame_sizes
+    root = Path(__file__).resolve().parents[2] / "msg_samples"
+    sizes = {z.topic: z for z in frame_sizes(root / "uwgen.yaml", [root])}
+    assert set(sizes) == {"/turtle1/cmd_vel", "/turtle1/pose"}
+    for z in sizes.values():
+        assert z.sent < z.native and z.how == "packed + field encodings"
+    cmd = sizes["/turtle1/cmd_vel"]
+    assert cmd.sent == 4 + 2 + 1 + 5   # frame, header, string head, 9 + 16 + 9 bits of x, z (command number), yaw
+    write(tmp_path / "operator.jsonl", [])
+    write(tmp_path / "vehicle.jsonl", [])
+    report = build_report(tmp_path)
+    report.sizes = list(sizes.values())
+    assert f"/turtle1/cmd_vel 12 B with packed + field encodings (native {cmd.native} B)" in format_report(report)

@@ -116,7 +116,9 @@ print(payload.hex())
     result = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True,
                             env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=60)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == "0004f94000f90000f90000f90000f90000fb3ffccccccccccccd"
+    # The demo sends cmd_vel packed with field encodings (wire format section 9): a 5-byte
+    # string of linear.x 400 (9 bits), linear.z 0 (16 bits), angular.z 500 (9 bits), 6 pad bits.
+    assert result.stdout.strip() == "0004" + "45" + "c800003e80"
 
 
 def test_a_profile_only_build_leaves_out_services_whose_part_it_cannot_carry(tmp_path):

@@ -12,11 +12,13 @@ bounds and the expression that builds the decoded message. The templates in
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from uwgen.codegen.ir import (
-    Absent, Bool, BoolArray, ByteScalar, CodecType, Filler, MessageArray, Node, Number,
-    NumberArray, NumberRun, Octets, Text, TextArray, segments,
+    Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, MessageArray, Node, Number,
+    NumberArray, NumberRun, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
+    segments,
 )
 from uwgen.idl.model import ArrayKind
 
@@ -39,6 +41,14 @@ class Constants:
 
     def names(self, names: tuple[str, ...]) -> str:
         return self._add(repr(names), "_N")
+
+    def values(self, values: tuple) -> str:
+        """An enum's values, by index."""
+        return self._add(repr(tuple(values)), "_V")
+
+    def table(self, values: tuple) -> str:
+        """An enum's value -> index table."""
+        return self._add(repr({v: k for k, v in enumerate(values)}), "_E")
 
     def _add(self, expr: str, prefix: str) -> str:
         name = self._names.get(expr)
@@ -109,7 +119,7 @@ class Lowering:
                 body.append(f"out += _numbers({st}, ({values},), {names})")
             else:
                 expr = access(seg.path, seg.name) if seg.name else ""
-                body.extend(self._encode_leaf(seg, seg.encoding, expr, ct.suffix))
+                body.extend(self._encode_leaf(seg, seg.encoding, expr, ct.profile_suffix))
         return Function(func_name("enc", ct.name, ct.suffix), "m, out",
                         f"Append the CBOR items of a {ct.full_name} ({ct.profile} profile) to `out`.",
                         body or ["pass"])
@@ -120,6 +130,26 @@ class Lowering:
             return ["out.append(0)  # a message with no fields is one unsigned 0"]
         if isinstance(enc, Absent):
             return [f"# {leaf.path}: not sent ({enc.why})"]
+        if isinstance(enc, Static):
+            return [f"# {leaf.path}: not sent (static {enc.value!r})"]
+        if isinstance(enc, TimeOfDay):
+            return [f"out.append(_time_of_day({expr}, {enc.step_ns}, {enc.count}, {p}))"]
+        if isinstance(enc, TimeSinceEpoch):
+            return [f"out.append(_time_since({expr}, {enc.epoch_ns}, {enc.step_ns}, {enc.nmax}, {p}))"]
+        if isinstance(enc, Quantized) and enc.array is ArrayKind.NONE:
+            return [*quantize_lines(enc, expr, p), "out.append(n)"]
+        if isinstance(enc, (Quantized, Enumerated)):
+            if isinstance(enc, Quantized):
+                args = f"{enc.a}, {enc.b}, {enc.d}, {enc.nmax}, {enc.clamp}, {p}"
+                one, many = f"_quantize({{}}, {args})", f"_quantize_all(x, {args}, {enc.fast})"
+            else:
+                table = self.consts.table(enc.values)
+                one, many = f"_enum_index({{}}, {table}, {p})", f"_enum_indices(x, {table}, {p})"
+            if enc.array is ArrayKind.NONE:
+                return [f"out.append({one.format(expr)})"]
+            return [f"x = _as_list({expr}, {p})",
+                    *self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED),
+                    f"out += {many}"]
         if isinstance(enc, Bool):
             item = "x" if enc.cbor_bool else "1 if x else 0"
             return [f"x = {expr}",
@@ -236,8 +266,11 @@ class Lowering:
             if isinstance(enc, Absent):
                 body.append(f"# {leaf.path}: not on the wire ({enc.why})")
                 continue
+            if isinstance(enc, Static):
+                value_of[leaf.path] = static_value(enc)
+                continue
             var = fresh()
-            body.extend(self._decode_leaf(leaf, enc, var, ct.suffix))
+            body.extend(self._decode_leaf(leaf, enc, var, ct.profile_suffix))
             value_of[leaf.path] = self._ros_value(enc, var)
         made = self._construct(ct.root, value_of, body, 0, [0])
         body.append(f"return {made}, i")
@@ -260,6 +293,12 @@ class Lowering:
             return take + [f"if type({var}) is not int or {var} != 0: raise _bad_item({p}, 'the unsigned 0 of an empty message', {var})"]
         if isinstance(enc, Bool):
             return take + [f"if {var} is not True and {var} is not False: {var} = _item_bool({var}, {p})"]
+        if isinstance(enc, (TimeOfDay, TimeSinceEpoch, Quantized, Enumerated)) and \
+                getattr(enc, "array", ArrayKind.NONE) is ArrayKind.NONE:
+            top = index_max(enc)
+            return take + [f"if type({var}) is not int or not 0 <= {var} <= {top}: "
+                           f"raise _bad_item({p}, 'an index 0..{top}', {var})",
+                           f"{var} = {self.index_value(enc, var, p)}"]
         if isinstance(enc, ByteScalar):
             return take + [f"if type({var}) is not int or not 0 <= {var} <= 255: raise _bad_item({p}, 'a byte', {var})"]
         if isinstance(enc, Text):
@@ -311,9 +350,28 @@ class Lowering:
                     lines.append(f"if not _float32_ok({var}): raise _bad_items({p}, 'float32', {var})")
         elif isinstance(enc, BoolArray):
             lines.append(f"{var} = _item_bools({var}, {p})")
+        elif isinstance(enc, (Quantized, Enumerated)):
+            top = index_max(enc)
+            lines.append(f"if not _ints_in({var}, 0, {top}): raise _bad_items({p}, 'index 0..{top}', {var})")
+            lines.append(f"{var} = [{self.index_value(enc, 'n', p)} for n in {var}]")
         elif isinstance(enc, TextArray):
             lines.append(f"_check_texts({var}, {p}, {enc.text.bound})")
         return lines
+
+    def index_value(self, enc, n: str, p: str) -> str:
+        """The expression of the field value that index `n` stands for."""
+        if isinstance(enc, Quantized):
+            value = n if enc.b == 1 else f"{n} * {enc.b}"
+            if enc.a:
+                value = f"({enc.a} + {value})" if enc.a > 0 else f"({value} - {-enc.a})"
+            if enc.d == 1:
+                return value if not enc.is_float else f"float({value})"
+            return f"{value} {'/' if enc.is_float else '//'} {enc.d}"
+        if isinstance(enc, Enumerated):
+            return f"{self.consts.values(enc.values)}[{n}]"
+        if isinstance(enc, TimeOfDay):
+            return f"_from_time_of_day({n}, {enc.step_ns}, C.{enc.class_key}, {p})"
+        return f"_from_time_since({n}, {enc.epoch_ns}, {enc.step_ns}, C.{enc.class_key})"
 
     def _construct(self, node: Node, value_of: dict[str, str], body: list[str], depth: int,
                    temps: list[int]) -> str:
@@ -333,3 +391,43 @@ class Lowering:
             body.append(f"t{temps[0]} = {expr}")
             return f"t{temps[0]}"
         return expr
+
+
+def index_max(enc) -> int:
+    """The largest index an index-sent encoding (quantized, enum, time) may carry."""
+    if isinstance(enc, Enumerated):
+        return len(enc.values) - 1
+    if isinstance(enc, TimeOfDay):
+        return enc.count - 1
+    return enc.nmax
+
+
+def static_value(enc: Static) -> str:
+    """The expression a decoder fills a static field with (a fresh list each time)."""
+    if enc.octets == "byte":
+        return f"C.octet_list({bytes(enc.value)!r})"
+    if enc.octets is not None:
+        return f"C.uint8_list({bytes(enc.value)!r})"
+    return repr(enc.value)
+
+
+def quantize_lines(enc: Quantized, expr: str, p: str) -> list[str]:
+    """Statements that set `n` to the index of `expr` on the grid of `enc`: the float
+    estimate where it is provably the exact answer, else the exact integer computation."""
+    exact = f"_quantize(x, {enc.a}, {enc.b}, {enc.d}, {enc.nmax}, {enc.clamp}, {p})"
+    if enc.fast is None:
+        return [f"x = {expr}", f"n = {exact}"]
+    lo, inv, tol = enc.fast
+    tol = 10.0 ** math.ceil(math.log10(tol))      # a round bound above the error bound
+    scaled = offset(lo) if inv == 1.0 else f"{offset(lo)} * {inv!r}"
+    return [f"x = {expr}",
+            f"e = {scaled} if type(x) is float else -1.0",
+            f"if 0.0 <= e <= {enc.nmax} and {tol!r} < (e + 0.5) % 1.0 < 1 - {tol!r}: n = int(e + 0.5)",
+            f"else: n = {exact}  # outside the grid or near a rounding boundary: exact"]
+
+
+def offset(lo: float) -> str:
+    """`x - lo` as a reader would write it."""
+    if lo == 0:
+        return "x"
+    return f"(x - {lo!r})" if lo > 0 else f"(x + {-lo!r})"

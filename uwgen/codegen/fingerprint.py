@@ -14,8 +14,9 @@ where `entry` is "topic" or "service", `kinds` the header kinds the id travels w
 ([0], or [2, 3] for a service), `roots` the codec keys of the message(s) (request then
 response for a service) and `types` every codec type they reach (inlined or through
 arrays), sorted by key, each written generically: a dataclass becomes a map of its
-fields plus "@": its class name, an Enum its value, a list/tuple an array. Any IR node
-class added later is therefore covered without being named here.
+fields plus "@": its class name (leaving out fields marked `metadata={"schema": False}`,
+which name generated code and not bytes), an Enum its value, a list/tuple an array. Any IR
+node class added later is therefore covered without being named here.
 
 The canonical form is cbor2's `canonical=True` (RFC 7049 section 3.9: shortest integer
 and float forms, definite lengths, map keys sorted by length then bytes), so the same
@@ -32,7 +33,7 @@ from typing import Any, Iterable
 
 import cbor2
 
-from uwgen.codegen.ir import CodecType
+from uwgen.codegen.ir import CodecType, variant_name
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 
 FINGERPRINT_BYTES = 4      # 2**-32 chance that two different schemas look alike (docs section 10)
@@ -56,6 +57,8 @@ def canonical(value: Any, where: str = "") -> Any:
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         out = {"@": type(value).__name__}
         for f in dataclasses.fields(value):
+            if f.metadata.get("schema") is False:   # names code, not bytes (CodecType.variant)
+                continue
             out[f.name] = canonical(getattr(value, f.name), f"{where}.{f.name}")
         return out
     if isinstance(value, (list, tuple)):
@@ -120,13 +123,16 @@ def entry_codecs(manifest: Any, builder: Any) -> dict[tuple[str, int], tuple[lis
     out = {}
     for topic in manifest.topics:
         codecs = {ct.key: ct for ct in builder.codecs_for(topic.type, topic.profile)}
-        out[("topic", topic.id)] = ([builder.codec(topic.type, topic.profile)], codecs)
+        root = builder.codec(topic.type, topic.profile, topic.fields, variant_name("t", topic.id, topic.fields))
+        out[("topic", topic.id)] = ([root], codecs)
     for service in manifest.services:
         codecs: dict[str, CodecType] = {}
         for msg in (service.type.request, service.type.response):
             codecs.update({ct.key: ct for ct in builder.codecs_for(msg, service.profile)})
-        roots = [builder.codec(service.type.request, service.profile),
-                 builder.codec(service.type.response, service.profile)]
+        roots = [builder.codec(service.type.request, service.profile, service.request_fields,
+                               variant_name("q", service.id, service.request_fields)),
+                 builder.codec(service.type.response, service.profile, service.response_fields,
+                               variant_name("r", service.id, service.response_fields))]
         out[("service", service.id)] = (roots, codecs)
     return out
 

@@ -13,6 +13,7 @@ the inputs: the same definitions and manifest give the same bytes.
 from __future__ import annotations
 
 import hashlib
+import json
 import keyword
 import shutil
 from dataclasses import dataclass, field, replace
@@ -21,9 +22,10 @@ from pathlib import Path
 import jinja2
 
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
+from uwgen.codegen.emit_packed import PackedLowering
 from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest
-from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key
-from uwgen.manifest.model import NATIVE
+from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key, variant_name
+from uwgen.manifest.model import NATIVE, PACKED
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import OCTET_TYPES, ArrayKind, DefinitionError, Field, MessageDef, ServiceDef, SourceRef
 from uwgen.manifest.model import Manifest
@@ -63,6 +65,7 @@ class ModulePlan:
     services: list[ServiceHolder] = field(default_factory=list)
     functions: list[Function] = field(default_factory=list)
     constants: list[str] = field(default_factory=list)
+    bits_imports: list[str] = field(default_factory=list)    # uwgen.runtime.bits helpers used
 
 
     @property
@@ -78,6 +81,7 @@ class CodecEntry:
     module: str       # alias of its module: '_geometry_msgs_msg'
     enc: str
     dec: str
+    variant: str = ""  # '' or the name of a manifest field-encoding variant ('t4', 'q21', 'r21')
 
 
 @dataclass
@@ -145,22 +149,25 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     if manifest is not None and manifest_label is None:   # the package names its manifest
         manifest_label = Path(manifest.source).name if manifest.source else "<manifest>"
     builder = IRBuilder(lambda n: _as_message(lib.get(n)))
-    wanted: list[tuple[MessageDef, str, int, bool]] = []   # (type, profile, header items, required)
+    # (type, profile, header items, required, field encodings, variant)
+    wanted: list[tuple[MessageDef, str, int, bool, tuple, str]] = []
     for name in names:
         definition = lib.get(name)
         for profile in profiles:
             for msg in _messages_of(definition):
-                wanted.append((msg, profile, 3 if isinstance(definition, ServiceDef) else 2, False))
+                wanted.append((msg, profile, 3 if isinstance(definition, ServiceDef) else 2, False, (), ""))
     if manifest is not None:
         for topic in manifest.topics:
-            wanted.append((topic.type, topic.profile, 2, True))
+            wanted.append((topic.type, topic.profile, 2, True, topic.fields, variant_name("t", topic.id, topic.fields)))
         for service in manifest.services:
-            wanted += [(service.type.request, service.profile, 3, True),
-                       (service.type.response, service.profile, 3, True)]
+            wanted += [(service.type.request, service.profile, 3, True, service.request_fields,
+                        variant_name("q", service.id, service.request_fields)),
+                       (service.type.response, service.profile, 3, True, service.response_fields,
+                        variant_name("r", service.id, service.response_fields))]
 
-    codecs: dict[tuple[str, str], CodecType] = {}
+    codecs: dict[tuple[str, str, str], CodecType] = {}
     skipped: list[str] = []
-    for msg, profile, header_items, required in wanted:
+    for msg, profile, header_items, required, fields, variant in wanted:
         try:
             check_profile_limits(builder.codec(msg, profile), header_items)
         except ProfileError as exc:
@@ -169,10 +176,14 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
             skipped.append(str(exc))  # a bulk build: leave out what this profile can never carry
             continue
         for ct in builder.codecs_for(msg, profile):
-            codecs.setdefault((ct.full_name, profile), ct)
+            if variant and ct.full_name == msg.full_name:
+                continue   # the entry uses its own variant; only what that uses is needed
+            codecs.setdefault((ct.full_name, profile, ""), ct)
+        if variant:
+            codecs[(msg.full_name, profile, variant)] = builder.codec(msg, profile, fields, variant)
 
     definitions: dict[str, MessageDef] = {}
-    for (full_name, _profile) in codecs:
+    for (full_name, _profile, _variant) in codecs:
         definitions[full_name] = _python_safe(_as_message(lib.get(full_name)))
     services: dict[str, ServiceDef] = {}
     for name in names:
@@ -204,18 +215,25 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
 
     module_of = {ct.key: ct.module for ct in codecs.values()}
     entries: list[CodecEntry] = []
-    for (full_name, profile) in sorted(codecs, key=lambda k: (k[1] != NATIVE, k[1], k[0])):
-        ct = codecs[(full_name, profile)]
+    for key in sorted(codecs, key=lambda k: (k[1] != NATIVE, k[1], k[2], k[0])):
+        ct = codecs[key]
         mod = module(ct.package, ct.namespace)
-        low = Lowering(ct.module, consts[ct.module], module_of)
-        enc, dec = low.encoder(ct), low.decoder(ct)
-        mod.functions += [enc, dec]
+        if ct.profile == PACKED:
+            functions = PackedLowering(ct.module, consts[ct.module], module_of).packed_functions(ct)
+        else:
+            low = Lowering(ct.module, consts[ct.module], module_of)
+            functions = [low.encoder(ct), low.decoder(ct)]
+        mod.functions += functions
+        enc, dec = (f for f in functions if f.name.startswith(("enc", "dec")))
         for used in ct.uses:
             _need_import(mod, module_of[used])
-        entries.append(CodecEntry(full_name, profile, ct.key, module_alias(ct.module), enc.name, dec.name))
+        entries.append(CodecEntry(ct.full_name, ct.profile, ct.key, module_alias(ct.module), enc.name, dec.name,
+                                  ct.variant))
     for name, mod in modules.items():
         mod.constants = consts[name].lines
         mod.imports.sort()
+        text = "\n".join(line for fn in mod.functions for line in fn.body)
+        mod.bits_imports = [h for h in BITS_HELPERS if f"_{h}(" in text]
 
     # A service's request and response come from its one file: read each file once.
     files = {lib.source_of(n) for n in (*definitions, *services)}
@@ -227,6 +245,16 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
                        ros_imports, plain_keys, sorted(set(skipped)), fingerprints,
                        package_digest(fingerprints) if manifest is not None else None)
+
+
+# Helpers of uwgen.runtime.bits that generated modules may call (imported as _name).
+BITS_HELPERS = (
+    "end", "enum_index", "enum_indices", "finish", "from_time_of_day", "from_time_since", "get_bools",
+    "get_bytes", "get_count", "get_float", "get_floats", "get_indices", "get_text", "get_texts",
+    "get_uints", "put_bools", "put_bytes", "put_count", "put_float", "put_floats", "put_indices",
+    "put_text", "put_uint", "put_uints", "quantize", "quantize_all", "start", "time_of_day", "time_since",
+    "bshort",
+)
 
 
 def _python_safe(msg: MessageDef) -> MessageDef:
@@ -385,16 +413,28 @@ def _manifest_view(plan: PackagePlan):
         "topics": [dict(id=t.id, name=t.name, type_name=t.type_name, publisher=t.publisher,
                         policy=repr(t.policy), qos=repr(t.qos), profile=t.profile,
                         key=type_key(t.type.full_name),
+                        codec=_codec_ref(t.type_name, t.profile, variant_name("t", t.id, t.fields)),
                         fingerprint=plan.fingerprints[("topic", t.id)].hex())
                    for t in sorted(manifest.topics, key=lambda t: t.id)],
         "services": [dict(id=s.id, name=s.name, type_name=s.type_name, server=s.server,
                           timeout=s.timeout, policy=repr(s.policy), profile=s.profile,
                           request_key=type_key(s.type.request.full_name),
                           response_key=type_key(s.type.response.full_name),
+                          request=_codec_ref(s.type_name + "_Request", s.profile,
+                                             variant_name("q", s.id, s.request_fields)),
+                          response=_codec_ref(s.type_name + "_Response", s.profile,
+                                              variant_name("r", s.id, s.response_fields)),
                           ros_module=f"{s.type.package}.srv", ros_name=s.type.name,
                           fingerprint=plan.fingerprints[("service", s.id)].hex())
                      for s in sorted(manifest.services, key=lambda s: s.id)],
     }
+
+
+def _codec_ref(type_name: str, profile: str, variant: str) -> str:
+    """How the codec table names the codec of a manifest entry."""
+    if variant:
+        return f"VARIANTS[{json.dumps(variant)}]"
+    return f"CODECS[({json.dumps(type_name)}, {json.dumps(profile)})]"
 
 
 def side_without_where(side):

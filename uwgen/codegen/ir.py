@@ -13,11 +13,15 @@ messages refer to the element type's own codec by name.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from fractions import Fraction
 from typing import Iterator
 
 from uwgen.codegen.shape import MAX_NESTING, NestingCheck
 from uwgen.idl.model import INTEGER_RANGES, OCTET_TYPES, ArrayKind, FieldType, MessageDef
-from uwgen.manifest.model import NATIVE, RMW_DESERT
+from uwgen.manifest.model import (
+    ENUM, MAX_COUNT, MAX_LENGTH, NATIVE, OMIT, PACKED, QUANTIZE, RMW_DESERT, STATIC, TIME_OF_DAY,
+    TIME_SINCE_EPOCH, FieldEncoding,
+)
 from uwgen.runtime.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES
 from uwgen.runtime.framing import MAX_PAYLOAD
 
@@ -133,8 +137,108 @@ class Filler:
     kind: str = "filler"
 
 
+# --- field encodings from the manifest (wire format section 8) -----------------------
+# Everything is precomputed here: the decoder's value is (a + n*b) / d with integers.
+
+@dataclass(frozen=True)
+class Quantized:
+    """A number on the grid min, min+step, ..., max, sent as the index n (0..nmax).
+    The value of index n is exactly (a + n*b) / d (min = a/d, step = b/d)."""
+    prim: str
+    a: int
+    b: int
+    d: int
+    nmax: int
+    clamp: bool = field(metadata={"schema": False})   # the sender's choice; the bytes mean the same
+    array: ArrayKind = ArrayKind.NONE    # cell_voltage[]: every element on the grid
+    size: int | None = None
+    kind: str = "quantized"
+
+    @property
+    def bits(self) -> int:
+        return self.nmax.bit_length()
+
+    @property
+    def is_float(self) -> bool:
+        return self.prim in ("float32", "float64")
+
+    @property
+    def fast(self) -> tuple[float, float, float] | None:
+        """(min, 1/step, tolerance) for the float estimate e = (v - min) * (1/step) of the
+        index, or None where floats cannot estimate it. |e - exact| < tolerance, so
+        int(e + 0.5) is the exact answer unless e + 0.5 is within tolerance of an integer;
+        encoders check that and fall back to the exact integer computation."""
+        if not self.is_float:
+            return None
+        tol = (abs(Fraction(self.a, self.b)) + self.nmax + 1) * Fraction(1, 2 ** 49) + Fraction(1, 2 ** 40)
+        if tol > Fraction(1, 64):
+            return None
+        return float(Fraction(self.a, self.d)), float(Fraction(self.d, self.b)), float(tol)
+
+    @property
+    def low(self) -> Fraction:
+        return Fraction(self.a, self.d)
+
+    @property
+    def high(self) -> Fraction:
+        return Fraction(self.a + self.nmax * self.b, self.d)
+
+
+@dataclass(frozen=True)
+class Enumerated:
+    """One of `values`, sent as its index."""
+    prim: str
+    values: tuple
+    array: ArrayKind = ArrayKind.NONE
+    size: int | None = None
+    kind: str = "enum"
+
+    @property
+    def bits(self) -> int:
+        return (len(self.values) - 1).bit_length()
+
+
+@dataclass(frozen=True)
+class Static:
+    """Not sent: the decoder fills `value` (a Python literal of the field's type)."""
+    value: object
+    octets: str | None = None    # 'byte' / 'uint8' arrays: how the value is held
+    kind: str = "static"
+
+
+@dataclass(frozen=True)
+class TimeOfDay:
+    """A builtin_interfaces/Time as the step index within its UTC day; the receiver puts
+    it back within +-12 h of its own clock."""
+    step_ns: int
+    count: int                   # indices per day: 86400 s / step
+    class_key: str
+    kind: str = "time_of_day"
+
+    @property
+    def bits(self) -> int:
+        return (self.count - 1).bit_length()
+
+
+@dataclass(frozen=True)
+class TimeSinceEpoch:
+    """A builtin_interfaces/Time as the step index after `epoch_ns` (0..nmax)."""
+    epoch_ns: int
+    step_ns: int
+    nmax: int
+    class_key: str
+    kind: str = "time_since_epoch"
+
+    @property
+    def bits(self) -> int:
+        return self.nmax.bit_length()
+
+
 Encoding = (Number | Bool | ByteScalar | Text | Octets | NumberArray | BoolArray | TextArray
-            | MessageArray | Absent | Filler)
+            | MessageArray | Absent | Filler | Quantized | Enumerated | Static | TimeOfDay
+            | TimeSinceEpoch)
+
+TIME_TYPE = "builtin_interfaces/msg/Time"
 
 
 @dataclass
@@ -168,6 +272,9 @@ class CodecType:
     fixed_items: int | None     # item count when the type has no variable part
     min_bytes: int              # fewest payload bytes (header excluded)
     uses: list[str] = field(default_factory=list)   # keys of types referenced by arrays
+    # '' or the name of a manifest entry's own codec with field encodings: 't4' (topic 4),
+    # 'q21'/'r21'. It names functions only, so the schema fingerprint leaves it out.
+    variant: str = field(default="", metadata={"schema": False})
 
     @property
     def module(self) -> str:
@@ -175,8 +282,16 @@ class CodecType:
         return f"{self.package}.{self.namespace}"
 
     @property
+    def profile_suffix(self) -> str:
+        """What names the profile in function names (types used by arrays share it)."""
+        return PROFILE_SUFFIX[self.profile]
+
+    @property
     def suffix(self) -> str:
-        return "" if self.profile == NATIVE else "_rmw"
+        return self.profile_suffix + (f"_{self.variant}" if self.variant else "")
+
+
+PROFILE_SUFFIX = {NATIVE: "", RMW_DESERT: "_rmw", PACKED: "_pk"}
 
 
 @dataclass(frozen=True)
@@ -202,6 +317,12 @@ def segments(root: Node) -> list[NumberRun | Node]:
     return out
 
 
+def variant_name(letter: str, ident: int, fields: tuple) -> str:
+    """The name of a manifest entry's own codec when it has field encodings: 't4' for
+    topic 4, 'q21' / 'r21' for the request / response of service 21; '' without."""
+    return f"{letter}{ident}" if fields else ""
+
+
 def type_key(full_name: str) -> str:
     pkg, _ns, name = full_name.split("/")
     return f"{pkg}__{name}"
@@ -215,16 +336,25 @@ class IRBuilder:
     def __init__(self, lookup, max_nesting: int = MAX_NESTING):
         """`lookup(full_name) -> MessageDef` resolves nested message types."""
         self._lookup = lookup
-        self._cache: dict[tuple[str, str], CodecType] = {}
+        self._cache: dict[tuple[str, str, str], CodecType] = {}
         self._nesting = NestingCheck(lookup, max_nesting)   # recursive / too deep types: DefinitionError
 
-    def codec(self, msg: MessageDef, profile: str) -> CodecType:
-        key = (msg.full_name, profile)
+    def codec(self, msg: MessageDef, profile: str, fields: tuple[FieldEncoding, ...] = (),
+              variant: str = "") -> CodecType:
+        """The codec of `msg`; with manifest `fields`, a variant named `variant`."""
+        key = (msg.full_name, profile, variant)
         hit = self._cache.get(key)
         if hit is None:
             self._nesting.check(msg)
-            hit = self._cache[key] = self._build(msg, profile)
+            hit = self._cache[key] = self._build(msg, profile, {f.path: f for f in fields}, variant)
         return hit
+
+    def by_key(self, key: str, profile: str) -> CodecType:
+        """The plain codec (no field encodings) already built for type `key` in `profile`."""
+        for (_name, prof, variant), ct in self._cache.items():
+            if ct.key == key and prof == profile and not variant:
+                return ct
+        raise KeyError((key, profile))
 
     def codecs_for(self, msg: MessageDef, profile: str) -> list[CodecType]:
         """This type's codec and those of every type it uses, dependencies first."""
@@ -244,15 +374,21 @@ class IRBuilder:
 
     # ---
 
-    def _build(self, msg: MessageDef, profile: str) -> CodecType:
+    def _build(self, msg: MessageDef, profile: str, fields: dict[str, FieldEncoding], variant: str) -> CodecType:
         uses: list[str] = []
-        root = Node(name="", path="", children=self._fields(msg, profile, "", uses),
-                    class_key=type_key(msg.full_name))
+        outer, self._encodings = self._encodings, fields   # element types of arrays have none
+        try:
+            root = Node(name="", path="", children=self._fields(msg, profile, "", uses),
+                        class_key=type_key(msg.full_name))
+        finally:
+            self._encodings = outer
         size = self._size(root)
         return CodecType(
             key=type_key(msg.full_name), full_name=msg.full_name, package=msg.package,
             namespace=msg.namespace, name=msg.name, profile=profile, root=root, min_items=size.items,
-            fixed_items=size.fixed, min_bytes=size.bytes, uses=uses)
+            fixed_items=size.fixed, min_bytes=size.bytes, uses=uses, variant=variant)
+
+    _encodings: dict[str, FieldEncoding] = {}
 
     def _fields(self, msg: MessageDef, profile: str, prefix: str, uses: list[str]) -> list[Node]:
         if not msg.fields:
@@ -265,6 +401,16 @@ class IRBuilder:
 
     def _field(self, name: str, ftype: FieldType, profile: str, path: str, uses: list[str]) -> Node:
         rmw = profile == RMW_DESERT
+        fe = self._encodings.get(path)
+        if fe is not None and fe.kind not in (MAX_COUNT, MAX_LENGTH):
+            return Node(name, path, field_encoding(fe, ftype))
+        if fe is not None and fe.kind == MAX_COUNT:
+            ftype = FieldType(ftype.base, ArrayKind.BOUNDED, fe.bound, ftype.string_bound)
+        elem = self._encodings.get(path + "[]") if ftype.is_array else None
+        if fe is not None and fe.kind == MAX_LENGTH or elem is not None and elem.kind == MAX_LENGTH:
+            ftype = FieldType(ftype.base, ftype.array, ftype.size, (fe or elem).bound)
+        elif elem is not None:
+            return Node(name, path, field_encoding(elem, ftype.element(), ftype.array, ftype.size))
         if not ftype.is_primitive:
             sub = self._lookup(ftype.base)
             if ftype.is_array:
@@ -312,8 +458,14 @@ class IRBuilder:
             return sum((self._size(c) for c in node.children), _Size(0, 0, 0))
         enc = node.encoding
         fixed_array = getattr(enc, "array", None) is ArrayKind.FIXED
-        if isinstance(enc, Absent):
+        if isinstance(enc, (Absent, Static)):
             return _Size(0, 0, 0)
+        if isinstance(enc, (TimeOfDay, TimeSinceEpoch)) or getattr(enc, "array", None) is ArrayKind.NONE:
+            return _Size(1, 1, 1)
+        if isinstance(enc, (Quantized, Enumerated)):
+            if not fixed_array:
+                return _Size(1, None, 1)
+            return _Size(enc.size, enc.size, enc.size)
         if isinstance(enc, Number):
             return _Size(1, 1, 3 if enc.is_float else 1)
         if isinstance(enc, (Bool, ByteScalar, Text, Filler)):
@@ -330,6 +482,38 @@ class IRBuilder:
             fixed = None if enc.elem_fixed_items is None else enc.size * enc.elem_fixed_items
             return _Size(enc.size * enc.elem_min_items, fixed, enc.size * enc.elem_min_bytes)
         raise AssertionError(enc)
+
+
+def field_encoding(fe: FieldEncoding, ftype: FieldType, array: ArrayKind = ArrayKind.NONE,
+                   size: int | None = None) -> Encoding:
+    """The IR node of a manifest field encoding on a field of type `ftype` (the element
+    type when `array` says the encoding applies to every element)."""
+    if fe.kind == OMIT:
+        return Absent("omitted by the manifest; the receiver keeps the default")
+    if fe.kind == STATIC:
+        octets = ftype.base if ftype.is_array and ftype.base in OCTET_TYPES else None
+        value = list(fe.value) if isinstance(fe.value, tuple) else fe.value
+        if ftype.base == "byte" and not ftype.is_array:
+            value = bytes((value,))
+        return Static(value, octets)
+    if fe.kind == QUANTIZE:
+        d = fe.min.denominator * fe.step.denominator // _gcd(fe.min.denominator, fe.step.denominator)
+        a, b = int(fe.min * d), int(fe.step * d)
+        return Quantized(ftype.base, a, b, d, fe.count - 1, fe.clamp, array, size)
+    if fe.kind == ENUM:
+        return Enumerated(ftype.base, tuple(fe.values), array, size)
+    step_ns = int(fe.step * 10 ** 9)
+    if fe.kind == TIME_OF_DAY:
+        return TimeOfDay(step_ns, fe.count, type_key(TIME_TYPE))
+    if fe.kind == TIME_SINCE_EPOCH:
+        return TimeSinceEpoch(fe.epoch * 10 ** 9, step_ns, fe.count - 1, type_key(TIME_TYPE))
+    raise AssertionError(fe.kind)
+
+
+def _gcd(x: int, y: int) -> int:
+    while y:
+        x, y = y, x % y
+    return x
 
 
 @dataclass(frozen=True)

@@ -122,7 +122,7 @@ def _env(domain: int, extra_paths: list[str], iface_env) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from uwgen.demo.interfaces import BuildError, ensure_interfaces
-    from uwgen.demo.report import build_report, format_report, plot_paths
+    from uwgen.demo.report import build_report, format_report, frame_sizes, plot_paths
     from uwgen.emulator import NodeSpec, Scenario, run_emulator
 
     out: Path = args.out
@@ -179,6 +179,7 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.monotonic() - t0
     crashed = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
     report = build_report(out)
+    report.sizes = frame_sizes(ROOT / "msg_samples" / "uwgen.yaml", [ROOT / "msg_samples"])
     print()
     print(format_report(report))
     title = (f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "

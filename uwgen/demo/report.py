@@ -80,6 +80,21 @@ class Report:
     deviation_max: float | None
     end_error: float | None
     emulator: dict
+    sizes: list["FrameSize"] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class FrameSize:
+    """Bytes on the wire of one representative message of a topic."""
+    topic: str
+    native: int            # frame bytes in profile native without field encodings
+    sent: int              # frame bytes as the manifest sends it
+    how: str               # 'packed + field encodings', ...
+
+
+# The grid of the demo manifest's /turtle1/pose field encodings (tests/bridge checks they
+# agree): a published pose and the one received match when they round to the same point.
+POSE_KEY_STEPS = (("x", 0.01), ("y", 0.01), ("theta", 0.001), ("v", 0.01), ("w", 0.01))
 
 
 def _load_json(path: Path) -> dict:
@@ -137,7 +152,7 @@ def build_report(out_dir: Path) -> Report:
     rows.append(cmd)
 
     def pose_key(r):
-        return (r["x"], r["y"], r["theta"], r["v"], r["w"])
+        return tuple(round(r[k] / step) for k, step in POSE_KEY_STEPS)
     pose = _topic_row("/turtle1/pose", "vehicle → surface", vehicle, surface)
     pose.published = len(ev(veh, "pose"))
     pose.delivered = len(ev(op, "pose_rx"))
@@ -249,6 +264,9 @@ def format_report(report: Report) -> str:
                      f"of the commanded square (mean {report.deviation_mean:.2f} m)"
                      + (f"; the vehicle ended {report.end_error:.2f} m from the commanded end point"
                         if report.end_error is not None else ""))
+    if report.sizes:
+        lines.append("frame sizes (one representative message): "
+                     + "; ".join(f"{z.topic} {z.sent} B with {z.how} (native {z.native} B)" for z in report.sizes))
     emu = report.emulator.get("nodes", {})
     for name, c in sorted(emu.items()):
         lost = {k: v for k, v in c.items() if k.startswith("lost_") and v}
@@ -257,6 +275,41 @@ def format_report(report: Report) -> str:
                      + (f"; lost on the way to it: {', '.join(f'{k[5:]} {v}' for k, v in sorted(lost.items()))}"
                         if lost else ""))
     return "\n".join(lines)
+
+
+def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
+    """Frame bytes of a representative /turtle1/cmd_vel and /turtle1/pose as `manifest`
+    sends them, next to the same messages in profile native without field encodings
+    (codecs built for the occasion, so the numbers follow the manifest)."""
+    import tempfile
+
+    from uwgen.codegen import generate
+    from uwgen.runtime.framing import OVERHEAD
+
+    samples = {
+        "/turtle1/cmd_vel": lambda cls: cls(linear=_vec(cls, 0.4), angular=_vec(cls, 0.0, z=0.3)),
+        "/turtle1/pose": lambda cls: cls(x=5.54, y=7.12, theta=1.571, linear_velocity=0.4, angular_velocity=0.0),
+    }
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        pkg = generate(Path(tmp), "uwgen_demo_sizes", folders=folders, manifest=manifest,
+                       names=["geometry_msgs/msg/Twist", "turtlesim/msg/Pose"])
+        for topic in pkg.TOPICS.values():
+            if topic.name not in samples:
+                continue
+            msg = samples[topic.name](topic.codec.plain_class())
+            native = pkg.codec(topic.type_name, "native").encode(msg, [0, topic.id])
+            encoded = any(c is topic.codec for c in getattr(pkg, "VARIANTS", {}).values())
+            how = topic.profile + (" + field encodings" if encoded else "")
+            out.append(FrameSize(topic.name, len(native) + OVERHEAD, len(topic.encode(msg)) + OVERHEAD, how))
+    return out
+
+
+def _vec(twist_cls, x: float, z: float = 0.0):
+    """A Vector3 of the plain Twist class's package (its default value's class)."""
+    v = type(twist_cls().linear)()
+    v.x, v.z = x, z
+    return v
 
 
 def plot_paths(report: Report, path: Path, title: str = "") -> Path:

@@ -38,6 +38,7 @@ from uwgen.manifest.model import (
     Side,
     Topic,
 )
+from uwgen.manifest.fields import FieldsReader
 from uwgen.manifest.nodes import ManifestError, Reader, compose
 from uwgen.manifest.security import SecurityCheck, network_security, sender_id
 
@@ -53,8 +54,9 @@ LINK_KEYS = ("max_read_length", "period")
 POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority")
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
-TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "security")
-SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile", "security")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security")
+SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
+                "request_fields", "response_fields", "security")
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
 SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -333,8 +335,9 @@ class _ManifestBuilder:
         policy = self.policy(entries, defaults, LinkPolicy(), label)
         qos = self.qos(entries["qos"][1], default_qos) if "qos" in entries else default_qos
         topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
+        fields = self.fields(entries, "fields", definition, label, topic_profile)
         mode = self.sec.entry_mode(entries, label, name, security)
-        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node),
+        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields,
                      security=mode)
 
     def service(self, node: yaml.Node, sides: dict[str, Side], profile: str, security: str = "off") -> Service:
@@ -348,9 +351,21 @@ class _ManifestBuilder:
         base = Service.__dataclass_fields__["policy"].default_factory()
         policy = self.policy(entries, {}, base, label)
         service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
+        request_fields = self.fields(entries, "request_fields", definition.request, f"the request of {label}", service_profile)
+        response_fields = self.fields(entries, "response_fields", definition.response, f"the response of {label}", service_profile)
         mode = self.sec.entry_mode(entries, label, name, security)
         return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node),
-                       security=mode)
+                       request_fields, response_fields, security=mode)
+
+    def fields(self, entries: dict, key: str, msg: MessageDef, label: str, profile: str) -> tuple:
+        """Field encodings under `key` (wire format section 8); never in profile rmw_desert."""
+        if key not in entries:
+            return ()
+        key_node, node = entries[key]
+        if profile == RMW_DESERT:
+            raise self.r.error(key_node, f"{key} of {label}: profile rmw_desert cannot carry field encodings "
+                                         "(an rmw_desert node could not read them); use profile native or packed")
+        return FieldsReader(self.r, self.lib.get).read(node, msg, label)
 
     def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""

@@ -5,13 +5,15 @@ Every key of the YAML is documented in `msg_samples/manifest-reference.yaml`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from fractions import Fraction
 from pathlib import Path
 
 from uwgen.idl.model import MessageDef, ServiceDef, SourceRef
 
 NATIVE = "native"            # uwgen's own compact encoding (wire format section 4)
 RMW_DESERT = "rmw_desert"    # what rmw_desert nodes send and decode (section 6)
-PROFILES = (NATIVE, RMW_DESERT)
+PACKED = "packed"            # one bit-packed CBOR byte string after the header (section 9)
+PROFILES = (NATIVE, RMW_DESERT, PACKED)
 QUEUE_KINDS = ("latest", "fifo")
 RELIABILITY = ("reliable", "best_effort")
 DURABILITY = ("volatile", "transient_local")
@@ -66,6 +68,51 @@ class Side:
     where: SourceRef | None = None
 
 
+# Kinds of field encodings (wire format section 8; manifest key `fields:`).
+QUANTIZE = "quantize"                  # min, max, step: an unsigned index on a grid
+STATIC = "static"                      # not sent; the decoder fills `value`
+OMIT = "omit"                          # not sent; the decoder leaves the type's default
+TIME_OF_DAY = "time_of_day"            # builtin_interfaces/Time as seconds of the day
+TIME_SINCE_EPOCH = "time_since_epoch"  # builtin_interfaces/Time as an offset from `epoch`
+ENUM = "enum"                          # one of `values`, sent as its index
+MAX_LENGTH = "max_length"              # a string bound tighter than the .msg's
+MAX_COUNT = "max_count"                # a sequence bound tighter than the .msg's
+
+
+@dataclass(frozen=True)
+class FieldEncoding:
+    """How one field (or every element of an array, path ending in `[]`) is sent.
+
+    Numbers are exact: `min`, `max` and `step` are Fractions of the decimal values the
+    manifest wrote (0.1 is 1/10, not the binary float nearest to it).
+    """
+
+    path: str                          # 'linear.x', 'header.stamp', 'cell_voltage[]'
+    kind: str                          # one of the kinds above
+    min: Fraction | None = None        # QUANTIZE
+    max: Fraction | None = None        # QUANTIZE; TIME_SINCE_EPOCH: the span in seconds
+    step: Fraction | None = None       # QUANTIZE; TIME_*: the resolution in seconds
+    clamp: bool = False                # QUANTIZE: saturate out-of-range values instead of refusing
+    value: object = None               # STATIC
+    values: tuple = ()                 # ENUM
+    bound: int | None = None           # MAX_LENGTH, MAX_COUNT
+    epoch: int | None = None           # TIME_SINCE_EPOCH: unix seconds
+    where: SourceRef | None = None
+
+    @property
+    def count(self) -> int | None:
+        """How many codes the wire carries (nmax + 1), for the kinds that send an index."""
+        if self.kind == QUANTIZE:
+            return int((self.max - self.min) / self.step) + 1
+        if self.kind == TIME_OF_DAY:
+            return int(86400 / self.step)
+        if self.kind == TIME_SINCE_EPOCH:
+            return int(self.max / self.step) + 1
+        if self.kind == ENUM:
+            return len(self.values)
+        return None
+
+
 @dataclass(frozen=True)
 class Topic:
     name: str                   # ROS name, e.g. /turtle1/cmd_vel
@@ -77,6 +124,7 @@ class Topic:
     qos: Qos = field(default_factory=Qos)
     profile: str = NATIVE
     where: SourceRef | None = None
+    fields: tuple[FieldEncoding, ...] = ()   # field encodings (manifest `fields:`)
     security: str = "off"       # off | sign | encrypt (the network's mode unless set here)
 
 
@@ -91,6 +139,8 @@ class Service:
     policy: LinkPolicy = field(default_factory=lambda: LinkPolicy(queue="fifo", depth=FIFO_DEFAULT_DEPTH))
     profile: str = NATIVE
     where: SourceRef | None = None
+    request_fields: tuple[FieldEncoding, ...] = ()    # manifest `request_fields:`
+    response_fields: tuple[FieldEncoding, ...] = ()   # manifest `response_fields:`
     security: str = "off"       # off | sign | encrypt (the network's mode unless set here)
 
 

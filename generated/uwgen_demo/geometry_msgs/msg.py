@@ -28,11 +28,16 @@ from uwgen.runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from uwgen.runtime.bits import (
+    end as _end,
+    finish as _finish,
+    get_float as _get_float,
+    put_float as _put_float,
+    quantize as _quantize,
+    start as _start,
+    short as _bshort,
+)
 
-_S0 = _struct.Struct('<dddddd')
-_N1 = ('linear.x', 'linear.y', 'linear.z', 'angular.x', 'angular.y', 'angular.z')
-_S2 = _struct.Struct('<ddd')
-_N3 = ('x', 'y', 'z')
 
 
 class Vector3:
@@ -68,38 +73,87 @@ class Twist:
         return f"geometry_msgs.msg.Twist(linear={self.linear!r}, angular={self.angular!r})"
 
 
-def enc_Twist(m, out):
-    """Append the CBOR items of a geometry_msgs/msg/Twist (native profile) to `out`."""
+def put_pk_Vector3(m, a):
+    """Append the fields of a geometry_msgs/msg/Vector3 to bit accumulator `a` (packed profile)."""
+    a = _put_float(a, m.x, False, 'x')
+    a = _put_float(a, m.y, False, 'y')
+    a = _put_float(a, m.z, False, 'z')
+    return a
+
+
+def get_pk_Vector3(r, p, C):
+    """Read a geometry_msgs/msg/Vector3 from the top `p` bits of `r` (packed profile); return (message, bits left)."""
+    x1, p = _get_float(r, p, 'x')
+    x2, p = _get_float(r, p, 'y')
+    x3, p = _get_float(r, p, 'z')
+    return C.geometry_msgs__Vector3(x=x1, y=x2, z=x3), p
+
+
+def enc_pk_Vector3(m, out):
+    """Append the one byte string of a geometry_msgs/msg/Vector3 (packed profile) to `out`."""
+    out.append(_finish(put_pk_Vector3(m, 1)))
+
+
+def dec_pk_Vector3(v, i, C):
+    """Read a geometry_msgs/msg/Vector3 (packed profile) from items `v` at `i`; return (message, next index)."""
+    r, p, i = _start(v, i, '')
+    x, p = get_pk_Vector3(r, p, C)
+    _end(r, p, '')
+    return x, i
+
+
+def put_pk_t4_Twist(m, a):
+    """Append the fields of a geometry_msgs/msg/Twist to bit accumulator `a` (packed profile)."""
     m1 = m.linear
     m2 = m.angular
-    out += _numbers(_S0, (m1.x, m1.y, m1.z, m2.x, m2.y, m2.z,), _N1)
+    x = m1.x
+    e = (x + 2.0) * 100.0 if type(x) is float else -1.0
+    if 0.0 <= e <= 400 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, -200, 1, 100, 400, True, 'linear.x')  # outside the grid or near a rounding boundary: exact
+    a = (a << 9) | n
+    # linear.y: not sent (static 0.0)
+    x = m1.z
+    e = x if type(x) is float else -1.0
+    if 0.0 <= e <= 65535 and 1e-09 < (e + 0.5) % 1.0 < 1 - 1e-09: n = int(e + 0.5)
+    else: n = _quantize(x, 0, 1, 1, 65535, True, 'linear.z')  # outside the grid or near a rounding boundary: exact
+    a = (a << 16) | n
+    # angular.x: not sent (static 0.0)
+    # angular.y: not sent (static 0.0)
+    x = m2.z
+    e = (x + 3.2) * 100.0 if type(x) is float else -1.0
+    if 0.0 <= e <= 640 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, -320, 1, 100, 640, True, 'angular.z')  # outside the grid or near a rounding boundary: exact
+    a = (a << 10) | n
+    return a
 
 
-def dec_Twist(v, i, C):
-    """Read a geometry_msgs/msg/Twist (native profile) from items `v` at `i`; return (message, next index)."""
-    if len(v) - i < 6: raise _short('linear.x')
-    x1, x2, x3, x4, x5, x6 = v[i:i + 6]
-    i += 6
-    if type(x1) is not float: raise _bad_item('linear.x', 'a float', x1)
-    if type(x2) is not float: raise _bad_item('linear.y', 'a float', x2)
-    if type(x3) is not float: raise _bad_item('linear.z', 'a float', x3)
-    if type(x4) is not float: raise _bad_item('angular.x', 'a float', x4)
-    if type(x5) is not float: raise _bad_item('angular.y', 'a float', x5)
-    if type(x6) is not float: raise _bad_item('angular.z', 'a float', x6)
-    return C.geometry_msgs__Twist(linear=C.geometry_msgs__Vector3(x=x1, y=x2, z=x3), angular=C.geometry_msgs__Vector3(x=x4, y=x5, z=x6)), i
+def get_pk_t4_Twist(r, p, C):
+    """Read a geometry_msgs/msg/Twist from the top `p` bits of `r` (packed profile); return (message, bits left)."""
+    if p < 9: raise _bshort('linear.x')
+    p -= 9
+    x1 = ((r >> p) & 0x1ff)
+    if x1 > 400: raise _DecodeError('linear.x', f'index {x1} is over 400')
+    x1 = (x1 - 200) / 100
+    if p < 16: raise _bshort('linear.z')
+    p -= 16
+    x2 = ((r >> p) & 0xffff)
+    x2 = float(x2)
+    if p < 10: raise _bshort('angular.z')
+    p -= 10
+    x3 = ((r >> p) & 0x3ff)
+    if x3 > 640: raise _DecodeError('angular.z', f'index {x3} is over 640')
+    x3 = (x3 - 320) / 100
+    return C.geometry_msgs__Twist(linear=C.geometry_msgs__Vector3(x=x1, y=0.0, z=x2), angular=C.geometry_msgs__Vector3(x=0.0, y=0.0, z=x3)), p
 
 
-def enc_Vector3(m, out):
-    """Append the CBOR items of a geometry_msgs/msg/Vector3 (native profile) to `out`."""
-    out += _numbers(_S2, (m.x, m.y, m.z,), _N3)
+def enc_pk_t4_Twist(m, out):
+    """Append the one byte string of a geometry_msgs/msg/Twist (packed profile) to `out`."""
+    out.append(_finish(put_pk_t4_Twist(m, 1)))
 
 
-def dec_Vector3(v, i, C):
-    """Read a geometry_msgs/msg/Vector3 (native profile) from items `v` at `i`; return (message, next index)."""
-    if len(v) - i < 3: raise _short('x')
-    x1, x2, x3 = v[i:i + 3]
-    i += 3
-    if type(x1) is not float: raise _bad_item('x', 'a float', x1)
-    if type(x2) is not float: raise _bad_item('y', 'a float', x2)
-    if type(x3) is not float: raise _bad_item('z', 'a float', x3)
-    return C.geometry_msgs__Vector3(x=x1, y=x2, z=x3), i
+def dec_pk_t4_Twist(v, i, C):
+    """Read a geometry_msgs/msg/Twist (packed profile) from items `v` at `i`; return (message, next index)."""
+    r, p, i = _start(v, i, '')
+    x, p = get_pk_t4_Twist(r, p, C)
+    _end(r, p, '')
+    return x, i

@@ -28,6 +28,13 @@ from uwgen.runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from uwgen.runtime.bits import (
+    end as _end,
+    finish as _finish,
+    quantize as _quantize,
+    start as _start,
+    short as _bshort,
+)
 
 _S0 = _struct.Struct('<BBB')
 _N1 = ('r', 'g', 'b')
@@ -108,3 +115,76 @@ def dec_Pose(v, i, C):
     if abs(x4) > 3.4028234663852886e+38 and abs(x4) != _INF: raise _bad_item('linear_velocity', 'a float32', x4)
     if abs(x5) > 3.4028234663852886e+38 and abs(x5) != _INF: raise _bad_item('angular_velocity', 'a float32', x5)
     return C.turtlesim__Pose(x=x1, y=x2, theta=x3, linear_velocity=x4, angular_velocity=x5), i
+
+
+def put_pk_t5_Pose(m, a):
+    """Append the fields of a turtlesim/msg/Pose to bit accumulator `a` (packed profile)."""
+    x = m.x
+    e = x * 100.0 if type(x) is float else -1.0
+    if 0.0 <= e <= 1200 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, 0, 1, 100, 1200, True, 'x')  # outside the grid or near a rounding boundary: exact
+    a = (a << 11) | n
+    x = m.y
+    e = x * 100.0 if type(x) is float else -1.0
+    if 0.0 <= e <= 1200 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, 0, 1, 100, 1200, True, 'y')  # outside the grid or near a rounding boundary: exact
+    a = (a << 11) | n
+    x = m.theta
+    e = (x + 3.142) * 1000.0 if type(x) is float else -1.0
+    if 0.0 <= e <= 6284 and 1e-10 < (e + 0.5) % 1.0 < 1 - 1e-10: n = int(e + 0.5)
+    else: n = _quantize(x, -3142, 1, 1000, 6284, True, 'theta')  # outside the grid or near a rounding boundary: exact
+    a = (a << 13) | n
+    x = m.linear_velocity
+    e = (x + 2.0) * 100.0 if type(x) is float else -1.0
+    if 0.0 <= e <= 400 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, -200, 1, 100, 400, True, 'linear_velocity')  # outside the grid or near a rounding boundary: exact
+    a = (a << 9) | n
+    x = m.angular_velocity
+    e = (x + 3.2) * 100.0 if type(x) is float else -1.0
+    if 0.0 <= e <= 640 and 1e-11 < (e + 0.5) % 1.0 < 1 - 1e-11: n = int(e + 0.5)
+    else: n = _quantize(x, -320, 1, 100, 640, True, 'angular_velocity')  # outside the grid or near a rounding boundary: exact
+    a = (a << 10) | n
+    return a
+
+
+def get_pk_t5_Pose(r, p, C):
+    """Read a turtlesim/msg/Pose from the top `p` bits of `r` (packed profile); return (message, bits left)."""
+    if p < 11: raise _bshort('x')
+    p -= 11
+    x1 = ((r >> p) & 0x7ff)
+    if x1 > 1200: raise _DecodeError('x', f'index {x1} is over 1200')
+    x1 = x1 / 100
+    if p < 11: raise _bshort('y')
+    p -= 11
+    x2 = ((r >> p) & 0x7ff)
+    if x2 > 1200: raise _DecodeError('y', f'index {x2} is over 1200')
+    x2 = x2 / 100
+    if p < 13: raise _bshort('theta')
+    p -= 13
+    x3 = ((r >> p) & 0x1fff)
+    if x3 > 6284: raise _DecodeError('theta', f'index {x3} is over 6284')
+    x3 = (x3 - 3142) / 1000
+    if p < 9: raise _bshort('linear_velocity')
+    p -= 9
+    x4 = ((r >> p) & 0x1ff)
+    if x4 > 400: raise _DecodeError('linear_velocity', f'index {x4} is over 400')
+    x4 = (x4 - 200) / 100
+    if p < 10: raise _bshort('angular_velocity')
+    p -= 10
+    x5 = ((r >> p) & 0x3ff)
+    if x5 > 640: raise _DecodeError('angular_velocity', f'index {x5} is over 640')
+    x5 = (x5 - 320) / 100
+    return C.turtlesim__Pose(x=x1, y=x2, theta=x3, linear_velocity=x4, angular_velocity=x5), p
+
+
+def enc_pk_t5_Pose(m, out):
+    """Append the one byte string of a turtlesim/msg/Pose (packed profile) to `out`."""
+    out.append(_finish(put_pk_t5_Pose(m, 1)))
+
+
+def dec_pk_t5_Pose(v, i, C):
+    """Read a turtlesim/msg/Pose (packed profile) from items `v` at `i`; return (message, next index)."""
+    r, p, i = _start(v, i, '')
+    x, p = get_pk_t5_Pose(r, p, C)
+    _end(r, p, '')
+    return x, i

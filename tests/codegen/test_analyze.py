@@ -1,0 +1,124 @@
+"""`uwgen analyze`: its sizes are the sizes the codecs produce, and the link budget warns
+when the configured traffic cannot fit."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import Twist
+
+from uwgen.analyze import air_time, analyze
+from uwgen.codegen import generate
+from uwgen.idl.loader import InterfaceLibrary
+from uwgen.manifest.loader import load_manifest
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLES = ROOT / "msg_samples"
+
+TIGHT = """
+network: tight
+sides:
+  surface: {port: 4000, link: {max_read_length: 8, period: 1.0}}
+  vehicle: {port: 4001}
+topics:
+  - name: /cmd_vel
+    id: 4
+    type: geometry_msgs/msg/Twist
+    publisher: surface
+    rate: 5
+"""
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "uwgen.cli", "analyze", *map(str, args)], capture_output=True,
+                          text=True, cwd=ROOT, timeout=60, env={**os.environ, "PYTHONPATH": str(ROOT)})
+
+
+@pytest.fixture(scope="module")
+def demo():
+    lib = InterfaceLibrary([SAMPLES], installed=True)
+    manifest = load_manifest(SAMPLES / "uwgen.yaml", lib)
+    return manifest, analyze(manifest, lib.get, 4800.0)
+
+
+@pytest.fixture(scope="module")
+def demo_pkg(tmp_path_factory):
+    return generate(tmp_path_factory.mktemp("an"), "uwgen_analyze_demo", folders=[SAMPLES],
+                    manifest=SAMPLES / "uwgen.yaml", names=["geometry_msgs/msg/Twist"])
+
+
+def entry(analysis, kind, name):
+    return next(e for e in analysis.entries if e.kind == kind and e.name == name)
+
+
+def test_packed_sizes_are_what_the_codec_sends(demo, demo_pkg):
+    _manifest, a = demo
+    cmd = entry(a, "topic", "/turtle1/cmd_vel").configured
+    assert cmd.label == "packed + fields" and cmd.payload.min == cmd.payload.max
+    t = Twist()
+    t.linear.x, t.linear.z, t.angular.z = 0.4, 1234.0, -0.3
+    assert len(demo_pkg.TOPICS[4].encode(t)) == cmd.payload.typical == 8
+    pose = entry(a, "topic", "/turtle1/pose").configured
+    p = demo_pkg.TOPICS[5].codec.plain_class()(x=5.5, y=7.1, theta=1.2, linear_velocity=0.4, angular_velocity=0.1)
+    assert len(demo_pkg.TOPICS[5].encode(p)) == pose.payload.typical == 10
+
+
+def test_native_typical_and_worst_bracket_real_messages(demo, demo_pkg):
+    _manifest, a = demo
+    native = next(p for p in entry(a, "topic", "/turtle1/cmd_vel").profiles if p.label == "native")
+    codec = demo_pkg.codec("geometry_msgs/msg/Twist", "native")
+    t = Twist()
+    t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z = 0.4, 0.1, 0.7, 0.2, 0.9, 0.3
+    assert len(codec.encode(t, [0, 4])) == native.payload.typical == native.payload.max == 56
+    assert len(codec.encode(Twist(), [0, 4])) == native.payload.min == 20
+
+
+def test_field_bits_are_listed_per_field(demo):
+    _manifest, a = demo
+    bits = {f.path: f.bits.max for f in entry(a, "topic", "/turtle1/cmd_vel").fields}
+    assert bits == {"linear.x": 9, "linear.y": 0, "linear.z": 16, "angular.x": 0, "angular.y": 0, "angular.z": 10}
+
+
+def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
+    _manifest, a = demo
+    surface = next(b for b in a.budgets if b.side == "surface")
+    # 5 cmd_vel frames of 12 bytes per second, plus the schema announcement of the 6 ids
+    # (a 40-byte payload: 00 18 F9 00, then id + 44 + 4 bytes each; a 44-byte frame) every 600 s
+    assert surface.schema == pytest.approx(44 / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * 12 + 44 / 600)
+    assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
+    assert not any("cannot fit" in w for w in a.warnings())
+
+
+def test_traffic_that_cannot_fit_is_a_clear_warning_and_strict_fails(tmp_path):
+    (tmp_path / "uwgen.yaml").write_text(TIGHT)
+    res = run_cli("-m", tmp_path / "uwgen.yaml", "--strict")
+    assert res.returncode == 1, res.stderr
+    assert "WARNING: side surface: configured traffic needs 300.0 B/s" in res.stdout   # 5/s x 60-byte frames
+    assert "DOES NOT FIT" in res.stdout
+
+
+def test_json_output_for_tools(tmp_path):
+    (tmp_path / "uwgen.yaml").write_text(TIGHT)
+    res = run_cli("-m", tmp_path / "uwgen.yaml", "--json", "--bitrate", "200")
+    data = json.loads(res.stdout)
+    assert data["bitrate"] == 200.0
+    (cmd,) = data["entries"]
+    assert cmd["name"] == "/cmd_vel" and {p["label"] for p in cmd["profiles"]} == {"native", "packed"}
+    assert data["budgets"][0]["capacity"] == 8.0 and data["warnings"]
+
+
+def test_a_broken_manifest_is_a_located_error(tmp_path):
+    (tmp_path / "uwgen.yaml").write_text(TIGHT.replace("rate: 5", "rate: 5\n    fields: {linear.w: {static: 0}}"))
+    res = run_cli("-m", tmp_path / "uwgen.yaml")
+    assert res.returncode == 2
+    assert "uwgen.yaml:12:14:" in res.stderr and "has no field 'w'" in res.stderr
+
+
+def test_air_time_counts_desert_packet_overhead():
+    assert air_time(20, 200.0, 64) == pytest.approx((20 + 4) * 8 / 200)
+    assert air_time(130, 4800.0, 64) == pytest.approx((130 + 3 * 4) * 8 / 4800)
