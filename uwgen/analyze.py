@@ -298,14 +298,15 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     entries: list[EntryCost] = []
     for t in manifest.topics:
         entries.append(_entry(builder, sizer, "topic", t.name, t.id, t.type_name, t.publisher, t.policy.rate,
-                              t.type, t.profile, t.fields, variant_name("t", t.id, t.fields), 2))
+                              t.type, t.profile, t.fields, variant_name("t", t.id, t.fields), 2,
+                              _security(t)))
     for s in manifest.services:
         entries.append(_entry(builder, sizer, "request", s.name, s.id, s.type_name, "*", s.policy.rate,
                               s.type.request, s.profile, s.request_fields,
-                              variant_name("q", s.id, s.request_fields), 3))
+                              variant_name("q", s.id, s.request_fields), 3, _security(s)))
         entries.append(_entry(builder, sizer, "response", s.name, s.id, s.type_name, s.server, s.policy.rate,
                               s.type.response, s.profile, s.response_fields,
-                              variant_name("r", s.id, s.response_fields), 3))
+                              variant_name("r", s.id, s.response_fields), 3, _security(s)))
     budgets = []
     schema = _schema_rate(manifest)
     for side in manifest.sides.values():
@@ -335,7 +336,17 @@ def _schema_rate(manifest: Manifest) -> float:
     from uwgen.codegen.fingerprint import FINGERPRINT_BYTES
     ids = sorted({e.id for e in (*manifest.topics, *manifest.services)})
     payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids], request=False)
-    return sum(len(p) + FRAME_OVERHEAD for p in payloads) / period
+    signed = _SECURED.typical if manifest.protected() else 0   # signed with security on
+    return sum(len(p) + FRAME_OVERHEAD + signed for p in payloads) / period
+
+
+# What the secure link adds to a frame (wire format section 12): 10 bytes, 14 on sync frames.
+_SECURED = Size(10, 10, 14)
+_UNSECURED = Size(0, 0, 0)
+
+
+def _security(entry) -> Size:
+    return _UNSECURED if getattr(entry, "security", "off") == "off" else _SECURED
 
 
 def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
@@ -343,7 +354,7 @@ def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
 
 
 def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, profile, fields, variant,
-           header_items) -> EntryCost:
+           header_items, security: Size = _UNSECURED) -> EntryCost:
     head = Size(2, 2, 2) if ident < 24 else Size(3, 3, 3)
     if header_items == 3:
         head = head + Size(1, 2, 9)   # the seq: any unsigned, typically under 256
@@ -362,7 +373,7 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
         if prof == PACKED:
             body = Size(*(None if b is None else _packed_bytes(b) for b in (body.min, body.typical, body.max)))
         payload = head + body
-        frame = payload + Size(FRAME_OVERHEAD, FRAME_OVERHEAD, FRAME_OVERHEAD)
+        frame = payload + security + Size(FRAME_OVERHEAD, FRAME_OVERHEAD, FRAME_OVERHEAD)
         costs.append(ProfileCost(label, ct is configured, payload, frame))
     leaves = []
     for leaf in configured.root.leaves():

@@ -20,6 +20,7 @@ topics:
     id: 4
     type: geometry_msgs/msg/Twist
     publisher: surface
+    rate: 2
     profile: packed
     fields:
       linear.x: {min: -2, max: 2, precision: 2}
@@ -64,3 +65,24 @@ def test_packed_and_encoded_fields_travel_protected(pkg, tmp_path):
         assert type(decoded) is type(msg)
     assert pkg.TOPICS[4].decode(rx.unprotect(tx.protect(4, pkg.TOPICS[4].encode(twist)))).linear.x == 1.25
     assert rx.stats()["dropped"] == 0
+
+
+def test_analyze_counts_the_security_overhead_in_every_protected_frame(tmp_path):
+    from uwgen.analyze import analyze
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.manifest.loader import load_manifest
+    lib = InterfaceLibrary([], installed=True)
+    (tmp_path / "on").mkdir()
+    (tmp_path / "off").mkdir()
+    (tmp_path / "on" / "uwgen.yaml").write_text(MANIFEST)
+    (tmp_path / "off" / "uwgen.yaml").write_text(MANIFEST.replace("mode: encrypt", "mode: off")
+                                                 .replace("security: sign", "security: off"))
+    on = analyze(load_manifest(tmp_path / "on" / "uwgen.yaml", lib), lib.get)
+    off = analyze(load_manifest(tmp_path / "off" / "uwgen.yaml", lib), lib.get)
+    for a, b in zip(on.entries, off.entries):
+        fa, fb = a.configured.frame, b.configured.frame
+        assert fa.typical - fb.typical == 10
+        assert fa.max is fb.max is None or fa.max - fb.max == 14      # None: unbounded (a string)
+        assert a.configured.payload == b.configured.payload       # the codec's bytes are the same
+    surface_on, surface_off = (next(x for x in r.budgets if x.side == "surface") for r in (on, off))
+    assert surface_on.typical - surface_off.typical == 2 * 10       # 2 frames a second
