@@ -145,6 +145,10 @@ class FakeLink:
                 self.peer._q.put((time.monotonic() + self.delay, payload))
         return True
 
+    def queued(self, key: int) -> int:
+        """Nothing waits: an offer is handed to the peer at once."""
+        return 0
+
     def inject(self, payload: bytes) -> None:
         """Deliver `payload` to this side's bridge as if it came over the link."""
         self._q.put((0.0, payload))

@@ -133,6 +133,24 @@ def test_recorder_writes_lines_and_reader_skips_a_torn_tail(tmp_path):
     assert [r["k"] for r in read_records(tmp_path / "r.jsonl")] == [1, 2]
 
 
+def test_report_reads_the_bridges_accounting_and_names_what_does_not_add_up(tmp_path):
+    write(tmp_path / "operator.jsonl", [{"t": 1.0, "ev": "start", "x": 0.0, "y": 0.0, "theta": 0.0}])
+    write(tmp_path / "vehicle.jsonl", [])
+    out = {"published": 12, "taken": 10, "dropped_by_subscription": 2,
+           "dropped_by_policy": {"superseded": 3, "overflow": 0, "encode_error": 1}, "queued": 0, "sent": 6}
+    inc = {"received": 4, "lost_on_link": 1, "delivered": 3,
+           "dropped_on_receive": {"decode_error": 0, "publish_error": 0}}
+    (tmp_path / "bridge_surface.json").write_text(json.dumps({"topics": {"/turtle1/cmd_vel": {
+        "accounting": out}}}))
+    (tmp_path / "bridge_vehicle.json").write_text(json.dumps({"topics": {"/turtle1/cmd_vel": {
+        "accounting": inc}}}))
+    cmd = build_report(tmp_path).topics[0]
+    assert (cmd.taken, cmd.sub_dropped, cmd.on_link, cmd.policy, cmd.lost, cmd.lost_seen) == (10, 2, 6, 4, 2, 1)
+    text = format_report(build_report(tmp_path))
+    assert "2 (1)" in text
+    assert "counters do not add up: received 4 != delivered 3 + dropped on receive 0" in text
+
+
 def test_pose_key_steps_are_the_demo_manifests_pose_encodings():
     from uwgen.demo.report import POSE_KEY_STEPS
     from uwgen.idl.loader import InterfaceLibrary

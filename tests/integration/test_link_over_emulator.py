@@ -98,9 +98,9 @@ def test_payloads_arrive_with_the_configured_delay_and_loss_and_every_intact_fra
         try:
             assert wait_for(lambda: rcv.connected, 5)
             for p in sent:                 # all queued before the first write: every write
-                assert tx.offer(KEY, p)    # but the last is a full 64-byte packet
+                assert tx.offer(KEY, p)    # holds two whole 25-byte frames (packet-aligned)
             tx.start()
-            # 160 frames of 25 bytes = 63 packets, one per 0.05 s: about 3.2 s.
+            # 160 frames of 25 bytes = 80 packets, one per 0.05 s: about 4.2 s.
             assert wait_for(lambda: emu.counters("surface")["bytes_in"] == 160 * 25
                               and emu.counters("surface")["queue_bytes"] == 0, 15)
             time.sleep(0.3)
@@ -110,7 +110,7 @@ def test_payloads_arrive_with_the_configured_delay_and_loss_and_every_intact_fra
         finally:
             tx.stop(), rcv.stop()
     # Loss: the configured packet error rate, and nothing else.
-    assert sent_packets == -(-160 * 25 // MRL)
+    assert sent_packets == 160 // (MRL // 25)
     assert counters["lost_per"] + counters["packets_delivered"] == sent_packets
     assert counters["lost_per"] / sent_packets == pytest.approx(per, abs=0.1)
     assert counters["lost_collision"] == counters["lost_snr"] == counters["lost_no_client"] == 0

@@ -130,3 +130,32 @@ def test_policies_queue_two_rounds_of_beacons():
     policies = discovery_policies(5)
     assert policies[1].queue == "fifo" and policies[1].depth == 10
     assert policies[2].queue == "latest"
+
+
+def test_a_request_heard_while_a_whole_round_waits_in_the_link_adds_no_round(rmw_manifest):
+    send = Recorder()
+    waiting = {"n": 0}
+    agent = DiscoveryAgent(bridge_beacons(rmw_manifest, "vehicle"), send, clock=ManualClock(),
+                           queued=lambda: waiting["n"])
+    agent.start()
+    waiting["n"] = 3                      # the start-up round has not left yet (link not up)
+    agent.handle(b"\x00\x02")
+    agent.announce(request=True)          # a reconnect: the request goes, the round is not doubled
+    assert [k for k, _ in send.sent] == [2, 1, 1, 1, 2]
+    assert agent.stats()["rounds_skipped"] == 2
+
+
+def test_a_request_heard_after_part_of_the_round_left_gets_a_full_round(rmw_manifest):
+    send = Recorder()
+    agent = DiscoveryAgent(bridge_beacons(rmw_manifest, "vehicle"), send, clock=ManualClock(),
+                           queued=lambda: 2)  # one beacon of the round already went out
+    agent.handle(b"\x00\x02")
+    assert [k for k, _ in send.sent] == [1, 1, 1]
+
+
+def test_derived_gids_cost_one_cbor_byte_per_gid_byte(rmw_manifest):
+    for beacon in bridge_beacons(rmw_manifest, "vehicle"):
+        assert all(b < 24 for b in beacon.gid)
+        payload = encode_beacon(beacon)
+        gid_items = bytes([0x10]) + beacon.gid           # count 16, then 16 one-byte integers
+        assert gid_items in payload

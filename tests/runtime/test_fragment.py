@@ -282,3 +282,15 @@ def test_with_random_fragment_loss_only_complete_messages_arrive_once(messages, 
     assert delivered == expected
     assert r.pending == 0 and r.buffered_bytes == 0
     assert r.stats["timed_out"] + r.stats["evicted"] == sum(lose for _, lose in messages)
+
+
+def test_a_message_lost_on_the_link_is_attributed_to_its_id_when_fragment_0_came():
+    clock = ManualClock()
+    reasm = Reassembler(FID, clock, timeout=5.0)
+    first = Fragmenter(FID, rng=random.Random(1)).split(b"\x00\x07" + big(600))
+    other = Fragmenter(FID, rng=random.Random(2)).split(b"\x02\x18\x2a\x05" + big(600))
+    reasm.feed(first[0])                   # topic 7: fragment 0 came, the rest never did
+    reasm.feed(other[1])                   # its fragment 0 was lost: whose message is unknown
+    clock.advance(5.0)
+    assert reasm.expire() == 2
+    assert reasm.lost_by_id == {7: 1} and reasm.lost_unattributed == 1

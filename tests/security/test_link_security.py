@@ -38,7 +38,8 @@ def test_a_long_payload_is_protected_whole_then_fragmented(tmp_path):
     long_log = log_line("x" * 600)
     assert s.offer(7, long_log) and s.offer(4, twist(2.0))
     frames = carry(s, v)
-    assert len(frames) == 4                              # 3 fragments + cmd_vel
+    fragments = [f for f in frames if f.startswith(bytes([0, 0x18, 250]))]
+    assert len(frames) == len(fragments) + 1 and len(fragments) >= 3     # fragments + cmd_vel
     assert all(len(f) <= 255 for f in frames)
     assert got == [long_log, twist(2.0)] or got == [twist(2.0), long_log]
     assert v.stats()["security"]["verified"] == 2
@@ -85,3 +86,36 @@ def test_size_check_counts_the_overhead(tmp_path):
     assert link.stats()["channels"][7]["too_large"] == 1
     assert link.offer(7, log_line("z" * 230))
     assert isinstance(g, LinkGuard)
+
+
+def test_packet_aligned_writes_weigh_the_protected_size(tmp_path):
+    s, v, got = links(tmp_path)
+    payload = twist(1.5)                                   # 20 bytes; 34 protected (a sync frame)
+    assert s.offer(4, payload)
+    assert s.scheduler.next_payload(0.0, max_size=len(payload) + 13) is None   # would not fit
+    key, frame = s.scheduler.next_payload(0.0, max_size=len(payload) + 14)
+    assert key == 4 and len(frame) == len(payload) + 14
+    v._on_frame(frame)
+    assert got == [payload]
+
+
+def test_repair_fragments_of_a_protected_message_rebuild_it(tmp_path):
+    from uwgen.security.guard import LinkGuard
+    clock = ManualClock()
+    got: list[bytes] = []
+    sg = LinkGuard.for_key(KEY, config(1, 2, "vehicle"), tmp_path / "s.state", clock=clock)
+    s = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="surface", guard=sg)
+    v = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="vehicle",
+             guard=vehicle(tmp_path, clock=clock), on_payload=got.append)
+    s.add_channel(7, LinkPolicy(queue="fifo", depth=4, repair=2))
+    long_log = log_line("r" * 300)
+    assert s.offer(7, long_log)
+    frames = []
+    while (picked := s.scheduler.next_payload(0.0)) is not None:
+        frames.append(picked[1])
+    assert len(frames) >= 4
+    for k, f in enumerate(frames):
+        if k not in (0, 2):                                # two fragments lost on the water
+            v._on_frame(f)
+    assert got == [long_log]
+    assert v.stats()["security"]["verified"] == 1

@@ -47,7 +47,8 @@ class RmwDiscovery:
             raise PlanError(f"cannot announce this side to rmw_desert nodes: {exc}") from None
         for key, policy in discovery_policies(len(beacons)).items():
             link.add_channel(key, policy, names.get(key))
-        self.agent = DiscoveryAgent(beacons, send=wiring.send, clock=wiring.clock)
+        self.agent = DiscoveryAgent(beacons, send=wiring.send, clock=wiring.clock,
+                                    queued=lambda: link.queued(DISCOVERY_ID))
         self.flush_timeout = (self._default_flush_timeout(beacons)
                               if flush_timeout is None else float(flush_timeout))
         self._link_connects = 0

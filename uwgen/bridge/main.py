@@ -119,10 +119,14 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
 def _summary(status: dict) -> str:
     parts = []
     for name, t in status.get("topics", {}).items():
+        acc = t.get("accounting") or {}
         if t["direction"] == "out":
-            parts.append(f"{name} taken {t['taken']} offered {t['offered']}")
+            dropped = sum(acc.get("dropped_by_policy", {}).values())
+            parts.append(f"{name} published {acc.get('published', '?')} taken {t['taken']} sent "
+                         f"{acc.get('sent', '?')} dropped {dropped} queued {acc.get('queued', '?')}")
         else:
-            parts.append(f"{name} received {t['received']} published {t['published']}")
+            parts.append(f"{name} received {t['received']} lost on link {acc.get('lost_on_link', 0)} "
+                         f"delivered {t['published']}")
     for name, s in status.get("services", {}).items():
         if s["role"] == "client":
             parts.append(f"{name} calls {s['local_calls']} ok {s['responses']} timeouts {s['timeouts']}")

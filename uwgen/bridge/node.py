@@ -24,6 +24,7 @@ from typing import Any, Callable
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 
+from uwgen.bridge import ledger
 from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
@@ -186,6 +187,7 @@ class BridgeNode(Node):
         self.dispatcher.dispatch(payload)
 
     def _expire(self) -> None:
+        self.wiring.throttle.tick()
         self.standins.expire()
         self.servers.expire()
 
@@ -202,7 +204,7 @@ class BridgeNode(Node):
         return self.reporter.snapshot(
             link_stats, discovery=self.discovery_status(),
             schema=self.schema.stats() if self.schema is not None else None,
-            topics=self.topics.status(channels),
+            topics=self.topics.status(channels, ledger.lost_on_link(link_stats)),
             services=service_status(self.standins, self.servers, channels, self.unavailable),
             bridge=asdict(self.counters), echo_hazards=dict(self.echo_hazards),
             security=link_stats.get("security") if isinstance(link_stats, dict) else None)

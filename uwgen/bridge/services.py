@@ -117,10 +117,11 @@ class StandIns:
         for pending in self.calls.expire():
             codec = self.called[pending.service_id]
             self.counters[pending.service_id].timeouts += 1
-            self.w.log.error(f"{codec.name}: call seq {pending.seq} got no response within "
-                             f"{codec.timeout:g} s: failed"
-                             + ("" if self.w.options.timeout_reply == TIMEOUT_REPLY_DEFAULT
-                                else " (no response is sent to the caller)"))
+            self.w.throttle.report(f"timeout{pending.service_id}",
+                                   f"{codec.name}: call seq {pending.seq} got no response within "
+                                   f"{codec.timeout:g} s: failed"
+                                   + ("" if self.w.options.timeout_reply == TIMEOUT_REPLY_DEFAULT
+                                      else " (no response is sent to the caller)"))
             if not pending.token.done():
                 pending.token.set_result(None)
 
@@ -164,8 +165,8 @@ class Servers:
             return
         if not client.service_is_ready():
             counters.no_server += 1
-            self.w.log.error(f"{codec.name}: request seq {seq} not served: no local server "
-                             "is available (the caller will time out)")
+            self.w.throttle.report(f"noserver{ident}", f"{codec.name}: request seq {seq} not served: "
+                                   "no local server is available (the caller will time out)")
             return
         future = client.call_async(request)
         serving[seq] = (future, self.w.clock.now() + codec.timeout)
@@ -184,19 +185,19 @@ class Servers:
         exc = future.exception()
         if exc is not None:
             counters.server_errors += 1
-            log.error(f"{codec.name}: local call for seq {seq} failed: {exc}")
+            self.w.throttle.report(f"srverr{ident}", f"{codec.name}: local call for seq {seq} failed: {exc}")
             return
         try:
             payload = codec.encode_response(seq, future.result())
         except ValueError as exc:
             counters.server_errors += 1
-            log.error(f"{codec.name}: response for seq {seq} cannot be encoded: {exc}")
+            self.w.throttle.report(f"srvenc{ident}", f"{codec.name}: response for seq {seq} cannot be encoded: {exc}")
             return
         if self.w.send(ident, payload):
             counters.replies += 1
         else:
             counters.reply_refused += 1
-            log.error(f"{codec.name}: response for seq {seq} refused by the link")
+            self.w.throttle.report(f"srvref{ident}", f"{codec.name}: response for seq {seq} refused by the link")
 
     def expire(self) -> None:
         now = self.w.clock.now()
@@ -208,8 +209,8 @@ class Servers:
                     client.remove_pending_request(future)
                     future.cancel()
                     self.counters[ident].server_timeouts += 1
-                    self.w.log.error(f"{codec.name}: local server did not answer seq {seq} "
-                                     f"within {codec.timeout:g} s")
+                    self.w.throttle.report(f"srvtimeout{ident}", f"{codec.name}: local server did not "
+                                           f"answer seq {seq} within {codec.timeout:g} s")
 
 
 def service_status(standins: StandIns, servers: Servers, channels: dict[int, dict],

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any, Callable
 
+from uwgen.bridge import ledger
 from uwgen.bridge.counters import TopicCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.wiring import Wiring, qos_profile
@@ -35,6 +36,7 @@ class TopicBridge:
         self.incoming: dict[int, tuple[Any, Any]] = {}  # id -> (codec, publisher)
         # Not `_subscriptions`: that is rclpy Node's own list, which destroy_node() empties.
         self.subscriptions: list[Any] = []
+        self.sub_losses = ledger.SubscriptionLosses()
         node = wiring.node
         for codec in outgoing:
             self.counters[codec.id] = TopicCounters()
@@ -43,8 +45,8 @@ class TopicBridge:
                 continue
             self.outgoing[codec.id] = codec
             self.subscriptions.append(node.create_subscription(
-                cls, codec.name, self._taker(codec), qos_profile(codec.qos),
-                callback_group=wiring.main_group))
+                cls, codec.name, self._taker(codec), qos_profile(ledger.subscription_qos(codec)),
+                callback_group=wiring.main_group, event_callbacks=self.sub_losses.callbacks(codec.id)))
         for codec in incoming:
             self.counters[codec.id] = TopicCounters()
             cls = wiring.ros_class(codec)
@@ -131,7 +133,10 @@ class TopicBridge:
 
     # -- status ------------------------------------------------------------------------
 
-    def status(self, channels: dict[int, dict]) -> dict[str, dict]:
+    def status(self, channels: dict[int, dict], link_lost: dict[int, int] | None = None) -> dict[str, dict]:
+        """Per topic: the counters, and the `accounting` that adds up (uwgen.bridge.ledger);
+        `link_lost`: messages the link knows were lost, by id."""
+        link_lost = link_lost or {}
         topics = {}
         out_ids = {c.id for c in self.outgoing_codecs}
         for codec in (*self.outgoing_codecs, *self.incoming_codecs):
@@ -141,6 +146,10 @@ class TopicBridge:
             if out:
                 entry["echo_guard"] = self.echo_dropped.get(codec.id, 0)
                 entry["link"] = channels.get(codec.id, {})
+            entry["accounting"] = (ledger.outgoing(self.counters[codec.id], channels.get(codec.id, {}),
+                                                   self.sub_losses.lost.get(codec.id, 0),
+                                                   self.echo_dropped.get(codec.id, 0)) if out
+                                   else ledger.incoming(self.counters[codec.id], link_lost.get(codec.id, 0)))
             if codec.name in self.w.unavailable:
                 entry["unavailable"] = self.w.unavailable[codec.name]
             topics[codec.name] = entry

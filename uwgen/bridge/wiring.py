@@ -12,6 +12,7 @@ from typing import Any, Callable
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from uwgen.bridge.plan import BridgeOptions
+from uwgen.bridge.throttle import LogThrottle
 from uwgen.manifest.model import Qos
 from uwgen.runtime.clock import Clock
 
@@ -39,6 +40,10 @@ class Wiring:
     service_group: Any             # reentrant group: stand-in calls await futures
     unavailable: dict[str, str] = field(default_factory=dict)  # entry name -> why not bridged
     said: set[str] = field(default_factory=set)
+    throttle: LogThrottle = field(init=False)  # error lines a remote peer can cause: bounded
+
+    def __post_init__(self) -> None:
+        self.throttle = LogThrottle(self.log.error, self.clock)
 
     def say_once(self, key: str, text: str) -> None:
         """Log the first occurrence of a kind of problem; later ones are counted only."""

@@ -7,12 +7,16 @@ status) and `emulator.json` (the emulated DESERT nodes' counters).
 Columns, per topic (from the publishing side to the other):
   published  messages the application published
   taken      messages the sending bridge received from its local graph
+  sub drop   messages its local subscription reported lost before the bridge took them
   on link    messages the sending link put on the wire (whole or in fragments)
-  policy     messages the link policy dropped (superseded, overflow, expired, too large)
-  lost       messages put on the wire that the far bridge never received (packet loss)
+  policy     messages dropped by policy (superseded, overflow, expired, too large, encode
+             errors, echo guard), by reason in the bridges' status (`accounting`)
+  lost       messages put on the wire that the far bridge never received (packet loss);
+             (seen N): of those, N the far bridge knew were lost (fragmented messages)
   delivered  messages the far application received
   latency    from publication to delivery (median and 95th percentile), matched per message
-So `taken = on link + policy + still queued`, and `on link = received by the far bridge + lost`.
+So `taken = on link + policy + still queued`, and `on link = received by the far bridge + lost`
+(uwgen.bridge.ledger); a topic whose bridge counters do not add up is named under the table.
 """
 from __future__ import annotations
 
@@ -23,6 +27,7 @@ from pathlib import Path
 from statistics import median
 from typing import Iterable
 
+from uwgen.bridge import ledger
 from uwgen.demo.records import read_records
 from uwgen.runtime.scheduler import DROP_REASONS
 
@@ -47,7 +52,10 @@ class Row:
     policy: int = 0
     queued: int = 0
     lost: int = 0
+    lost_seen: int = 0
+    sub_dropped: int = 0
     delivered: int = 0
+    imbalances: list[str] = field(default_factory=list)
     latencies: list[float] = field(default_factory=list)
 
     @property
@@ -124,6 +132,14 @@ def _topic_row(name: str, direction: str, sender: dict, receiver: dict) -> Row:
     out = sender.get("topics", {}).get(name, {})
     inc = receiver.get("topics", {}).get(name, {})
     link = out.get("link", {}) or {}
+    if "accounting" in out and "accounting" in inc:
+        acc, rx = out["accounting"], inc["accounting"]
+        row.taken, row.sub_dropped = acc["taken"], acc["dropped_by_subscription"]
+        row.policy, row.queued = sum(acc["dropped_by_policy"].values()), acc["queued"]
+        flow = ledger.across(acc, rx)
+        row.on_link, row.lost, row.lost_seen = flow["sent"], flow["lost"], flow["lost_on_link"]
+        row.imbalances = ledger.imbalances(acc) + ledger.imbalances(rx)
+        return row
     row.taken = out.get("taken", 0)
     row.policy = sum(int(link.get(r, 0)) for r in DROP_REASONS)
     row.queued = int(link.get("queued", 0))
@@ -245,12 +261,16 @@ def _ms(x: float | None) -> str:
 
 def format_report(report: Report) -> str:
     lines = []
-    head = (f"{'topic':<20} {'direction':<18} {'published':>9} {'taken':>6} {'on link':>7} "
-            f"{'policy':>6} {'lost':>5} {'delivered':>9} {'latency p50':>11} {'p95':>8}")
+    head = (f"{'topic':<20} {'direction':<18} {'published':>9} {'taken':>6} {'sub drop':>8} "
+            f"{'on link':>7} {'policy':>6} {'lost (seen)':>11} {'delivered':>9} {'latency p50':>11} {'p95':>8}")
     lines += [head, "-" * len(head)]
     for r in report.topics:
-        lines.append(f"{r.name:<20} {r.direction:<18} {r.published:>9} {r.taken:>6} {r.on_link:>7} "
-                     f"{r.policy:>6} {r.lost:>5} {r.delivered:>9} {_ms(r.p50):>11} {_ms(r.p95):>8}")
+        lost = f"{r.lost} ({r.lost_seen})" if r.lost_seen else str(r.lost)
+        lines.append(f"{r.name:<20} {r.direction:<18} {r.published:>9} {r.taken:>6} {r.sub_dropped:>8} "
+                     f"{r.on_link:>7} {r.policy:>6} {lost:>11} {r.delivered:>9} {_ms(r.p50):>11} {_ms(r.p95):>8}")
+    for r in report.topics:
+        for problem in r.imbalances:
+            lines.append(f"  {r.name}: counters do not add up: {problem}")
     lines.append("")
     shead = (f"{'service':<28} {'calls':>5} {'ok':>4} {'failed':>6} {'policy':>6} "
              f"{'round trip p50':>14} {'p95':>8}")

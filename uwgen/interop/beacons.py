@@ -30,6 +30,7 @@ DISCOVERY_TOPIC = "/discovery"
 DISCOVERY_REQUEST_TOPIC = "/discovery_request"
 
 GID_SIZE = 16               # rmw's RMW_GID_STORAGE_SIZE in Jazzy
+GID_BASE = 24               # derived gid bytes are 0..23: one CBOR byte each
 
 # The whole request payload: kind 0 (topic message), id 2, no fields.
 DISCOVERY_REQUEST_PAYLOAD = bytes([KIND_TOPIC, DISCOVERY_REQUEST_ID])
@@ -287,7 +288,15 @@ def derive_gid(network: str, side: str, entity: Entity, name: str) -> bytes:
     Stable across restarts (so a restarted bridge re-announces the same entities and a
     disconnect beacon from before the restart still matches), distinct per network,
     side, entity kind and name. rmw gids from real nodes are random-looking, so a
-    hash is as good a namespace as any; collisions are 2^-64 for a birthday pair.
+    hash is as good a namespace as any. Each gid byte is one base-24 digit of the hash
+    (0..23): a beacon carries the gid as 16 CBOR integers, and values under 24 take one
+    byte each instead of two, so a beacon is 14 bytes shorter (it then fits a 64-byte
+    DESERT packet more often). 24^16 is about 2^73: collisions are 2^-36 for a birthday pair.
     """
-    key = "\x00".join(("uwgen-gid-v1", network, side, str(int(Entity(entity))), name))
-    return hashlib.sha256(key.encode("utf-8")).digest()[:GID_SIZE]
+    key = "\x00".join(("uwgen-gid-v2", network, side, str(int(Entity(entity))), name))
+    n = int.from_bytes(hashlib.sha256(key.encode("utf-8")).digest(), "big")
+    digits = []
+    for _ in range(GID_SIZE):
+        n, d = divmod(n, GID_BASE)
+        digits.append(d)
+    return bytes(digits)

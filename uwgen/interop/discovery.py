@@ -6,7 +6,9 @@ service server for each service its side serves and a client for each it calls a
 the link. rmw_desert nodes see those only through beacons, so the bridge
 
 - sends one discovery request and all its beacons when it starts (`start()`),
-- re-sends all its beacons for every discovery request it hears (`handle()`),
+- re-sends all its beacons for every discovery request it hears (`handle()`), unless a
+  whole round of them is still waiting in the link's queue (that round answers it: a
+  request heard while the start-up round waits for the link costs no second round),
 - records the beacons it hears in a RemoteGraph (`handle()`),
 - sends a disconnect beacon for each entity when it stops (`stop()`).
 
@@ -104,18 +106,20 @@ class DiscoveryAgent:
     """Announces a bridge's beacons and listens to everyone else's (see module doc)."""
 
     def __init__(self, beacons: list[Beacon], send: Send, graph: RemoteGraph | None = None,
-                 clock: Clock = SYSTEM_CLOCK):
+                 clock: Clock = SYSTEM_CLOCK, queued: Callable[[], int] | None = None):
+        """`queued()` (optional): beacons still waiting in the link's queue (key 1)."""
         self._beacons = list(beacons)
         self._payloads = [encode_beacon(b) for b in self._beacons]
         self._goodbyes = [encode_beacon(b.gone()) for b in self._beacons]
         self._send = send
+        self._queued = queued
         self.graph = graph if graph is not None else RemoteGraph(
             clock=clock, own_gids=frozenset(b.gid for b in self._beacons))
         self._lock = threading.Lock()
         self._stopped = False
         self._warned_malformed = False
         self._stats = Counters(("requests_sent", "requests_heard", "beacons_sent", "refused",
-                                "beacons_heard", "malformed"))
+                                "beacons_heard", "malformed", "rounds_skipped"))
 
     @property
     def beacons(self) -> list[Beacon]:
@@ -138,6 +142,11 @@ class DiscoveryAgent:
             return
         if request:
             self._offer(DISCOVERY_REQUEST_ID, encode_discovery_request(), "requests_sent")
+        if self._payloads and self._queued is not None and self._queued() >= len(self._payloads):
+            # Rounds are queued whole, in order: the last len(beacons) waiting are a full round
+            # that has not left yet, so whoever asked will hear it. Another would be air time lost.
+            self._count("rounds_skipped")
+            return
         for payload in self._payloads:
             self._offer(DISCOVERY_ID, payload, "beacons_sent")
 

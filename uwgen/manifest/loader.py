@@ -51,7 +51,8 @@ TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id"
             "defaults", "topics", "services", "security")
 SIDE_KEYS = ("host", "port", "link", "sender_id")
 LINK_KEYS = ("max_read_length", "period")
-POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority")
+POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair")
+MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
 TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security")
@@ -130,6 +131,7 @@ class _ManifestBuilder:
         self.r = reader
         self.lib = lib
         self.ids: dict[int, _IdUse] = {}
+        self.repair_nodes: dict[str, yaml.Node] = {}    # "topic /x" -> its repair: value node
         self.sec = SecurityCheck(reader)
         self.senders: dict[str, int] = {}
 
@@ -217,6 +219,7 @@ class _ManifestBuilder:
         manifest = self.sec.finish(manifest, root, self.senders)
         if manifest.uses_rmw_desert():
             self.check_rmw_reserved(manifest, top)
+        self.check_repair(manifest)
         return manifest
 
     # -- sides -----------------------------------------------------------------------
@@ -379,6 +382,12 @@ class _ManifestBuilder:
             return None, False
 
         rate, ttl, priority, queue = base.rate, base.ttl, base.priority, base.queue
+        repair = base.repair
+        node, _ = pick("repair")
+        if node is not None:
+            repair = r.integer(node, f"repair of {label}", 0, MAX_REPAIR)
+            if repair:
+                self.repair_nodes.setdefault(label, node)
         node, _ = pick("rate")
         if node is not None:
             rate = r.optional_number(node, f"rate of {label}")
@@ -402,7 +411,7 @@ class _ManifestBuilder:
             depth = base.depth if base.queue == "fifo" else FIFO_DEFAULT_DEPTH
             if depth_node is not None:
                 depth = r.integer(depth_node, f"depth of {label}", 1)
-        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority)
+        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority, repair=repair)
 
     def qos(self, node: yaml.Node, base: Qos) -> Qos:
         r = self.r
@@ -433,6 +442,21 @@ class _ManifestBuilder:
             user = self.ids[ident]
             raise r.error(node, f"fragment_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
         return ident
+
+    def check_repair(self, manifest: Manifest) -> None:
+        """`repair` needs fragments: a fragment_id, and the native profile."""
+        for entry in (*manifest.topics, *manifest.services):
+            if not entry.policy.repair:
+                continue
+            kind = "topic" if entry in manifest.topics else "service"
+            node = self.repair_nodes[f"{kind} {entry.name}"]
+            if manifest.fragment_id is None:
+                raise self.r.error(node, f"repair of {kind} {entry.name} needs fragments: set fragment_id "
+                                   f"(repair fragments travel on it)")
+            if entry.profile == RMW_DESERT:
+                raise self.r.error(node, f"repair of {kind} {entry.name}: profile rmw_desert messages are "
+                                   f"never fragmented (rmw_desert nodes cannot reassemble them); use "
+                                   f"profile native or remove repair")
 
     def schema_id(self, node: yaml.Node, fragment_id: int | None) -> int | None:
         r = self.r

@@ -36,6 +36,7 @@ class LinkPolicy:
     depth: int = 1              # queue depth (always 1 for "latest")
     ttl: float | None = None    # seconds; older messages are dropped, never sent stale
     priority: int = 0           # higher is served first when the link is busy
+    repair: int = 0             # repair fragments per fragmented message (erasure code; 0: none)
 
 
 @dataclass(frozen=True)

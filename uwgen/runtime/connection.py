@@ -1,9 +1,12 @@
 """The TCP client for one DESERT node's application socket (wire format section 1).
 
 DESERT starts listening only when its scenario starts, serves one client at a time and may be
-restarted, so the client connects, and reconnects with bounded exponential backoff (with jitter)
-whenever the port is not listening or the connection drops, without crashing and without SIGPIPE
-(writes use MSG_NOSIGNAL and every socket error is a disconnect, not an exception out of the thread).
+restarted, so the client connects, and reconnects with bounded exponential backoff (with jitter,
+capped at one period or 1 s: DESERT drops what arrives for a node with no client) whenever the port
+is not listening or the connection drops, without crashing and without SIGPIPE (writes use
+MSG_NOSIGNAL and every socket error is a disconnect, not an exception out of the thread). A fresh
+connection is reported and counted as connected, and written to, only once it has proved itself
+(uwgen.runtime.probation); a proven one that never receives anything draws one warning.
 
 Writes are paced (uwgen.runtime.pacing): one write of at most `max_read_length` bytes per `period`,
 filled by *pulling* payloads from `source` only when a write is allowed, so what waits, waits in the
@@ -26,8 +29,9 @@ from collections.abc import Callable
 
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.framing import FrameDecoder, FrameError, encode_frame
-from uwgen.runtime.pacing import DEFAULT_MARGIN, Outbox, Pacer
+from uwgen.runtime.framing import OVERHEAD, FrameDecoder, FrameError, encode_frame
+from uwgen.runtime.pacing import DEFAULT_MARGIN, MIN_FRAME, Outbox, Pacer
+from uwgen.runtime.probation import Event, Probation, reconnect_cap
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link")
@@ -63,6 +67,8 @@ class Backoff:
 
 CONNECTION_COUNTERS = (
     "connects", "reconnects", "connect_failures", "disconnects",
+    "unproven",           # connections accepted and closed before they proved themselves
+    "unserved_warnings",  # proven connections on which nothing ever arrived (one warning each)
     "frames_received", "bytes_received",
     "unframeable",        # payloads the source gave that cannot be framed (dropped)
     "callback_errors",    # on_frame raised (the frame is lost; the link goes on)
@@ -92,12 +98,17 @@ class DesertConnection:
                  on_tick: Callable[[float], None] | None = None,
                  connect_timeout: float = 2.0, write_timeout: float = 5.0,
                  stable_after: float = 1.0, pace_margin: float = DEFAULT_MARGIN,
-                 bitrate: float | None = None):
+                 bitrate: float | None = None, probation: float = 0.3,
+                 unserved_after: float | None = None,
+                 source_fit: Callable[[float, int], bytes | None] | None = None):
         self.host, self.port, self.config, self.name = host, port, config, name
         self.clock = clock
         self._source, self._on_frame = source, on_frame
+        self._source_fit = source_fit     # (now, max payload size) -> payload that fits, or None
         self._next_ready, self._on_tick = next_ready, on_tick
-        self.backoff = backoff or Backoff()
+        self.backoff = backoff or Backoff(maximum=reconnect_cap(config.period))
+        self.proof = Probation(probation, unserved_after if unserved_after is not None
+                               else max(30.0, 50 * config.period))
         # A frame's chunks arrive about one period apart; far longer silence means its tail was lost.
         self.stall_timeout = stall_timeout if stall_timeout is not None else 4 * config.period + 1.0
         self.connect_timeout, self.write_timeout, self.stable_after = connect_timeout, write_timeout, stable_after
@@ -130,7 +141,7 @@ class DesertConnection:
 
     @property
     def connected(self) -> bool:
-        return self._sock is not None
+        return self._sock is not None and self.proof.proven
 
     def start(self) -> None:
         if self._thread is not None:
@@ -178,6 +189,8 @@ class DesertConnection:
             "connects": c["connects"],
             "connect_failures": c["connect_failures"],
             "disconnects": c["disconnects"],
+            "unproven": c["unproven"],
+            "unserved_warnings": c["unserved_warnings"],
             "bytes_sent": o.bytes_sent,
             "bytes_received": c["bytes_received"],
             "bytes_discarded": d.bytes_discarded,
@@ -213,7 +226,7 @@ class DesertConnection:
         sock = self._sock
         assert sock is not None
         now = self.clock.now()
-        batch = self.outbox.take(now, self._pull)
+        batch = self.outbox.take(now, self._pull, self._fit) if self.proof.proven else b""
         if batch:
             try:
                 sock.sendall(batch, socket.MSG_NOSIGNAL)
@@ -221,7 +234,8 @@ class DesertConnection:
                 self.outbox.abandon()
                 raise
             self.outbox.sent(now)
-            self._maybe_more = len(batch) == self.pacer.max_bytes
+            self.proof.wrote()
+            self._maybe_more = self.outbox.pending or len(batch) > self.pacer.max_bytes - MIN_FRAME
         readable, _, _ = select.select([sock, self._wake_r], [], [], self._wait_time(self.clock.now()))
         if self._wake_r in readable:
             try:
@@ -240,10 +254,12 @@ class DesertConnection:
             if not data:
                 raise _Closed("closed by the DESERT side")
             self._last_rx = now
+            self._proof_event(self.proof.received(now))
             self.counters.inc("bytes_received", len(data))
             self._deliver(self.decoder.feed(data))
         elif self.decoder.buffered and now - self._last_rx >= self.stall_timeout:
             self._deliver(self.decoder.flush())
+        self._proof_event(self.proof.tick(now))
         if self._on_tick is not None:
             self._on_tick(now)
 
@@ -260,11 +276,16 @@ class DesertConnection:
             deadline = min(deadline, write_at)
         if self.decoder.buffered:
             deadline = min(deadline, self._last_rx + self.stall_timeout)
+        proof_at = self.proof.deadline()
+        if proof_at is not None:
+            deadline = min(deadline, proof_at)
         return max(0.0, deadline - now)
 
-    def _pull(self) -> bytes | None:
+    def _pull(self, room: int | None = None) -> bytes | None:
         while True:
-            payload = self._source(self.clock.now())
+            now = self.clock.now()
+            payload = (self._source(now) if room is None or self._source_fit is None
+                       else self._source_fit(now, room - OVERHEAD))
             if payload is None:
                 return None
             try:
@@ -272,6 +293,10 @@ class DesertConnection:
             except FrameError as e:
                 log_count(log, logging.ERROR, self.counters.inc("unframeable"),
                           "[%s] dropped a payload that cannot be framed: %s", self.name, e)
+
+    def _fit(self, room: int) -> bytes | None:
+        """A frame of at most `room` bytes from `source_fit`, or None."""
+        return self._pull(room) if self._source_fit is not None and room > OVERHEAD else None
 
     def _deliver(self, payloads: list[bytes]) -> None:
         for p in payloads:
@@ -300,13 +325,25 @@ class DesertConnection:
         self._sock = sock
         now = self.clock.now()
         self._connected_at = self._last_rx = now
-        if self.counters.inc("connects") > 1:
-            self.counters.inc("reconnects")
-        after = f" after {self._failures_in_outage} failed attempts" if self._failures_in_outage else ""
-        if not self._quiet:
-            log.info("[%s] connected to DESERT at %s%s", self.name, self.address, after)
-        self._failures_in_outage = 0
+        self.proof.opened(now)
         return True
+
+    def _proof_event(self, event: Event | None) -> None:
+        if event is Event.PROVEN:
+            if self.counters.inc("connects") > 1:
+                self.counters.inc("reconnects")
+            after = f" after {self._failures_in_outage} failed attempts" if self._failures_in_outage else ""
+            if not self._quiet:
+                log.info("[%s] connected to DESERT at %s%s", self.name, self.address, after)
+            self._failures_in_outage = 0
+        elif event is Event.UNSERVED:
+            self.counters.inc("unserved_warnings")
+            log.warning("[%s] connected to DESERT at %s for %.0f s and nothing has arrived although we "
+                        "sent: DESERT serves one client per port, so if another client (a second "
+                        "bridge, a stale process) holds this port, this one waits unserved and what it "
+                        "sends goes nowhere. Stop the other client or give this one the node's own "
+                        "port. If the far side simply has not sent anything yet, ignore this.",
+                        self.name, self.address, self.proof.unserved_after)
 
     def _retry_delay(self) -> float:
         delay = self.backoff.next_delay()
@@ -324,6 +361,16 @@ class DesertConnection:
         lost = self.outbox.abandon()
         self.decoder.reset()
         self._close_socket()
+        if not self.proof.proven:
+            # Accepted and closed at once: a DESERT shutting down or restarting. Never reported as
+            # connected, so not as disconnected either; retry after a backoff delay.
+            self._hold_off = True
+            self._failures_in_outage += 1
+            self._last_error = f"accepted, then {reason}"
+            log_count(log, logging.INFO, self.counters.inc("unproven"),
+                      "[%s] DESERT at %s accepted the connection and closed it before it proved itself "
+                      "(%s; shutting down or restarting?); retrying", self.name, self.address, reason)
+            return
         self.counters.inc("disconnects")
         cut = f"; {lost} frame(s) cut" if lost else ""
         if self.clock.now() - self._connected_at >= self.stable_after:

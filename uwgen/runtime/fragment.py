@@ -14,7 +14,15 @@ docs/wire-format.md, section 7):
 - `chunk` (byte string, at least 1 byte): chunks 0..count-2 have the same length, the last one is no
   longer; the original payload (which starts with its own kind and id) is their concatenation.
 
-Every fragment payload is at most 255 bytes, so every fragment frame is at most 259 bytes.
+Repair fragments (wire format section 11): a message of k data fragments may be followed by r repair
+fragments, `0, fragment_id, transfer, index, count, chunk, size` with index k..k+r-1 (so an older
+receiver refuses them as malformed and still rebuilds from the data fragments), each chunk a block
+of a systematic erasure code (uwgen.runtime.fec) over the data chunks, the last padded with zeros,
+and `size` the length of the original payload. Any k of the k + r fragments rebuild the message.
+
+Every fragment payload is at most `max_payload` bytes (255, or less so that a fragment frame fits one
+DESERT packet: the Link passes `max_read_length - 4`, see `fragment_payload_for`), so a lost packet
+costs whole fragments only.
 """
 from __future__ import annotations
 
@@ -24,8 +32,9 @@ import zlib
 from collections import deque
 from dataclasses import dataclass, field
 
+from uwgen.runtime import fec
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.framing import MAX_PAYLOAD
+from uwgen.runtime.framing import MAX_PAYLOAD, OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.fragment")
@@ -33,6 +42,7 @@ log = logging.getLogger("uwgen.link.fragment")
 FRAGMENT_KIND = 0
 MAX_TRANSFER = 255
 MAX_COUNT = 255
+SIZE_ITEM = 3              # a repair fragment's `size` item: CBOR unsigned up to 65535
 
 
 class FragmentError(ValueError):
@@ -76,8 +86,13 @@ def _read_head(buf: bytes, pos: int, major: int, what: str) -> tuple[int, int]:
 class Fragment:
     transfer: int
     index: int
-    count: int
+    count: int                 # data fragments of the message (k)
     chunk: bytes
+    size: int | None = None    # repair fragments only: length of the whole message
+
+    @property
+    def is_repair(self) -> bool:
+        return self.index >= self.count
 
 
 def is_fragment(payload: bytes, fragment_id: int | None) -> bool:
@@ -104,69 +119,110 @@ def parse_fragment(payload: bytes, fragment_id: int) -> Fragment:
         raise FragmentError(f"fragment: transfer {transfer} out of range 0..{MAX_TRANSFER}")
     if not 1 <= count <= MAX_COUNT:
         raise FragmentError(f"fragment: count {count} out of range 1..{MAX_COUNT}")
-    if index >= count:
-        raise FragmentError(f"fragment: index {index} not below count {count}")
     if size == 0:
         raise FragmentError("fragment: empty chunk")
-    if pos + size != len(payload):
+    if pos + size > len(payload) or (index < count and pos + size != len(payload)):
         raise FragmentError(f"fragment: chunk of {size} bytes but {len(payload) - pos} bytes follow")
-    return Fragment(transfer, index, count, bytes(payload[pos:]))
+    chunk, pos = bytes(payload[pos:pos + size]), pos + size
+    if index < count:
+        return Fragment(transfer, index, count, chunk)
+    # A repair fragment: index count..count+r-1, then the message size.
+    if index >= fec.MAX_BLOCKS:
+        raise FragmentError(f"fragment: repair index {index} out of range {count}..{fec.MAX_BLOCKS - 1}")
+    if pos == len(payload):
+        raise FragmentError(f"fragment: index {index} not below count {count}, and no size item after "
+                            f"the chunk (a repair fragment has one)")
+    total, pos = _read_head(payload, pos, 0, "size of a repair fragment")
+    if pos != len(payload):
+        raise FragmentError(f"fragment: {len(payload) - pos} bytes after the size of a repair fragment")
+    if not (count - 1) * size < total <= count * size:
+        raise FragmentError(f"fragment: size {total} cannot be {count} chunks of at most {size} bytes")
+    return Fragment(transfer, index, count, chunk, total)
 
 
 def encode_fragment(fragment_id: int, f: Fragment) -> bytes:
-    return b"".join((_uint(FRAGMENT_KIND), _uint(fragment_id), _uint(f.transfer), _uint(f.index),
-                     _uint(f.count), _uint(len(f.chunk), 2), f.chunk))
+    parts = [_uint(FRAGMENT_KIND), _uint(fragment_id), _uint(f.transfer), _uint(f.index),
+             _uint(f.count), _uint(len(f.chunk), 2), f.chunk]
+    if f.size is not None:
+        parts.append(_uint(f.size))
+    return b"".join(parts)
 
 
 # -- sender ------------------------------------------------------------------------------------
 
+MIN_FRAGMENT_PAYLOAD = 24     # below this a fragment would be mostly header: cut the frame instead
+
+
+def fragment_payload_for(max_read_length: int) -> int:
+    """The largest fragment payload whose frame fits one DESERT packet (within 24..255 bytes)."""
+    return max(MIN_FRAGMENT_PAYLOAD, min(MAX_PAYLOAD, max_read_length - OVERHEAD))
+
+
 class Fragmenter:
-    """Splits payloads over 255 bytes into fragment payloads of at most 255 bytes each."""
+    """Splits payloads over 255 bytes into fragment payloads of at most `max_payload` bytes each."""
 
     def __init__(self, fragment_id: int, *, rng: random.Random | None = None,
-                 max_fragments: int = MAX_COUNT):
+                 max_fragments: int = MAX_COUNT, max_payload: int = MAX_PAYLOAD):
         if not 1 <= fragment_id <= 255:
             raise ValueError(f"fragment_id must be 1..255, got {fragment_id}")
         if not 2 <= max_fragments <= MAX_COUNT:
             raise ValueError(f"max_fragments must be 2..{MAX_COUNT}, got {max_fragments}")
+        if not MIN_FRAGMENT_PAYLOAD <= max_payload <= MAX_PAYLOAD:
+            raise ValueError(f"max_payload must be {MIN_FRAGMENT_PAYLOAD}..{MAX_PAYLOAD}, got {max_payload}")
         self.fragment_id = fragment_id
         self.max_fragments = max_fragments
+        self.max_payload = max_payload
         self._next_transfer = (rng or random.Random()).randrange(MAX_TRANSFER + 1)
-        self.max_message_size = self._chunk_size(max_fragments) * max_fragments
+        self.max_message_size = self.max_message_for(0)
 
-    def _chunk_size(self, count: int) -> int:
-        """Largest chunk such that the fragment with the widest header still fits 255 bytes."""
+    def max_message_for(self, repair: int) -> int:
+        """The largest payload that can be split with `repair` repair fragments."""
+        k = self.max_fragments - repair
+        return self._chunk_size(k, repair) * k if k >= 1 else 0
+
+    def _chunk_size(self, count: int, repair: int = 0) -> int:
+        """Largest chunk such that the fragment with the widest header still fits max_payload."""
         head = (1 + len(_uint(self.fragment_id)) + len(_uint(MAX_TRANSFER))
-                + len(_uint(count - 1)) + len(_uint(count)))
-        size = MAX_PAYLOAD - head - 2            # byte string head: 2 bytes for 24..255
+                + len(_uint(count + repair - 1)) + len(_uint(count)))
+        size = self.max_payload - head - 2       # byte string head: at most 2 bytes up to 255
+        if repair:
+            size -= SIZE_ITEM
         return size
 
-    def plan(self, size: int) -> tuple[int, int]:
+    def plan(self, size: int, repair: int = 0) -> tuple[int, int]:
         """(count, chunk size) for a payload of `size` bytes; FragmentError if too large."""
+        most = self.max_fragments - repair
         count = 2
         while True:
-            chunk = self._chunk_size(count)
+            chunk = self._chunk_size(count, repair)
             need = -(-size // chunk)
             if need <= count:
                 count = max(need, 1)
                 break
             count = need
-            if count > self.max_fragments:
+            if count > most:
                 raise FragmentError(
-                    f"payload of {size} bytes needs more than {self.max_fragments} fragments "
-                    f"(at most {self.max_message_size} bytes can be fragmented)")
+                    f"payload of {size} bytes needs more than {most} fragments "
+                    f"(at most {self.max_message_for(repair)} bytes can be fragmented"
+                    + (f" with {repair} repair fragments)" if repair else ")"))
         return count, chunk
 
-    def split(self, payload: bytes) -> list[bytes]:
-        """Fragment payloads for one message (a new transfer number each call)."""
+    def split(self, payload: bytes, repair: int = 0) -> list[bytes]:
+        """Fragment payloads for one message (a new transfer number each call): the data
+        fragments in order, then `repair` repair fragments."""
         if len(payload) == 0:
             raise FragmentError("cannot fragment an empty payload")
-        count, chunk = self.plan(len(payload))
+        count, chunk = self.plan(len(payload), repair)
         transfer = self._next_transfer
         self._next_transfer = (transfer + 1) % (MAX_TRANSFER + 1)
-        out = [encode_fragment(self.fragment_id, Fragment(transfer, i, count, payload[i * chunk:(i + 1) * chunk]))
-               for i in range(count)]
-        assert all(len(p) <= MAX_PAYLOAD for p in out)
+        chunks = [payload[i * chunk:(i + 1) * chunk] for i in range(count)]
+        out = [encode_fragment(self.fragment_id, Fragment(transfer, i, count, c)) for i, c in enumerate(chunks)]
+        if repair:
+            width = len(chunks[0])
+            blocks = fec.repair_blocks([c.ljust(width, b"\0") for c in chunks], repair)
+            out += [encode_fragment(self.fragment_id, Fragment(transfer, count + j, count, b, len(payload)))
+                    for j, b in enumerate(blocks)]
+        assert all(len(p) <= self.max_payload for p in out)
         return out
 
 
@@ -174,10 +230,67 @@ class Fragmenter:
 
 @dataclass
 class _Partial:
-    count: int
-    chunks: dict[int, bytes] = field(default_factory=dict)
-    size: int = 0
+    """The fragments held for one transfer, and the rules they must agree on."""
+
+    count: int                                                  # data fragments (k)
+    chunks: dict[int, bytes] = field(default_factory=dict)      # data, by index
+    repairs: dict[int, bytes] = field(default_factory=dict)     # repair blocks, by index (>= count)
+    message_size: int | None = None                             # known from any repair fragment
+    size: int = 0                                               # bytes held
     last_seen: float = 0.0
+
+    @property
+    def held(self) -> int:
+        return len(self.chunks) + len(self.repairs)
+
+    def conflict(self, f: Fragment) -> str | None:
+        """Why `f` cannot belong with these fragments ("duplicate" if it is one already held)."""
+        if f.count != self.count:
+            return f"count {f.count} after {self.count}"
+        held = (self.repairs if f.is_repair else self.chunks).get(f.index)
+        if held is not None:
+            return "duplicate" if held == f.chunk else f"other bytes for fragment {f.index}"
+        if f.is_repair and self.message_size is not None and f.size != self.message_size:
+            return f"message size {f.size} after {self.message_size}"
+        # Chunks 0..count-2 and every repair block share one length; the last chunk is no longer,
+        # and exactly message_size - (count - 1) * that length when the size is known.
+        full = {len(c) for i, c in self.chunks.items() if i < self.count - 1}
+        full |= {len(c) for c in self.repairs.values()}
+        last = self.chunks.get(self.count - 1)
+        size = f.size if f.is_repair else self.message_size
+        if f.is_repair or f.index < self.count - 1:
+            if full and len(f.chunk) not in full:
+                return f"chunk length {len(f.chunk)}, others {min(full)}"
+            if last is not None and len(last) > len(f.chunk):
+                return f"chunk length {len(f.chunk)} shorter than the last chunk"
+            if f.is_repair and last is not None and len(last) != size - (self.count - 1) * len(f.chunk):
+                return f"message size {size} disagrees with the last chunk"
+        else:
+            if full and len(f.chunk) > min(full):
+                return f"last chunk of {len(f.chunk)} bytes longer than the others"
+            if size is not None and full and len(f.chunk) != size - (self.count - 1) * min(full):
+                return f"last chunk of {len(f.chunk)} bytes disagrees with message size {size}"
+        return None
+
+    def add(self, f: Fragment) -> None:
+        if f.is_repair:
+            self.repairs[f.index] = f.chunk
+            self.message_size = f.size
+        else:
+            self.chunks[f.index] = f.chunk
+        self.size += len(f.chunk)
+
+    def message(self) -> tuple[bytes, bool] | None:
+        """(the whole message, whether repair blocks were needed), once enough fragments are held."""
+        if len(self.chunks) == self.count:
+            return b"".join(self.chunks[i] for i in range(self.count)), False
+        if self.message_size is None or self.held < self.count:
+            return None
+        width = len(next(iter(self.repairs.values())))
+        blocks = {i: c.ljust(width, b"\0") for i, c in self.chunks.items()}
+        blocks.update(self.repairs)
+        data = fec.rebuild(self.count, max(self.repairs) - self.count + 1, blocks)
+        return b"".join(data)[:self.message_size], True
 
 
 REASSEMBLER_COUNTERS = (
@@ -186,6 +299,8 @@ REASSEMBLER_COUNTERS = (
     "malformed",      # not a well-formed fragment
     "inconsistent",   # disagreed with the fragments already held for its transfer (partial dropped)
     "duplicate",      # a fragment already held, or of a message already delivered
+    "rebuilt",        # messages completed with the help of repair fragments (also in completed)
+    "surplus_repair", # repair fragments of a message already delivered (not needed: no loss)
     "timed_out",      # partial messages dropped because a fragment never came
     "evicted",        # partial messages dropped to stay within the memory bounds
     "oversized",      # messages that could never fit the memory bound
@@ -219,6 +334,8 @@ class Reassembler:
         self.stats = Counters(REASSEMBLER_COUNTERS)
         self._partial: dict[int, _Partial] = {}
         self._bytes = 0
+        self.lost_by_id: dict[int, int] = {}     # messages lost on the link, by their topic/service id
+        self.lost_unattributed = 0               # ... whose fragment 0 never came
         self._recent: deque[tuple[float, int, int, int]] = deque(maxlen=16)  # (time, transfer, count, crc)
 
     @property
@@ -242,8 +359,11 @@ class Reassembler:
             return None
 
         p = self._partial.get(f.transfer)
+        if p is None and f.is_repair and self._just_delivered(f, now):
+            self.stats.inc("surplus_repair")      # its message came whole: nothing was lost
+            return None
         if p is not None:
-            problem = self._conflict(p, f)
+            problem = p.conflict(f)
             if problem == "duplicate":
                 self.stats.inc("duplicate")
                 p.last_seen = now
@@ -251,16 +371,16 @@ class Reassembler:
             if problem:
                 log_count(log, logging.WARNING, self.stats.inc("inconsistent"),
                           "[%s] transfer %d: %s; dropped its %d fragments", self.name, f.transfer, problem,
-                          len(p.chunks))
-                self._drop(f.transfer)
+                          p.held)
+                self._lose(f.transfer)
                 p = None
-        if f.index < f.count - 1 and f.count * len(f.chunk) > self.max_bytes:
+        if (f.is_repair or f.index < f.count - 1) and f.count * len(f.chunk) > self.max_bytes:
             # Every chunk but the last has this length: the whole message can never be held.
             log_count(log, logging.WARNING, self.stats.inc("oversized"),
                       "[%s] transfer %d: %d fragments of %d bytes exceed the %d-byte reassembly bound",
                       self.name, f.transfer, f.count, len(f.chunk), self.max_bytes)
             if p is not None:
-                self._drop(f.transfer)
+                self._lose(f.transfer)
             return None
         if p is None:
             p = _Partial(count=f.count)
@@ -268,21 +388,23 @@ class Reassembler:
             self._partial[f.transfer] = p
         else:
             self._make_room(len(f.chunk), new_transfer=False, keep=f.transfer)
-        p.chunks[f.index] = f.chunk
-        p.size += len(f.chunk)
+        p.add(f)
         p.last_seen = now
         self._bytes += len(f.chunk)
-        if len(p.chunks) < p.count:
+        done = p.message()
+        if done is None:
             return None
 
         self._drop(f.transfer)
-        message = b"".join(p.chunks[i] for i in range(p.count))
+        message, rebuilt = done
         key = (f.transfer, p.count, zlib.crc32(message))
         if any(r[1:] == key and now - r[0] <= self.timeout for r in self._recent):
             self.stats.inc("duplicate")
             return None
         self._recent.append((now, *key))
         self.stats.inc("completed")
+        if rebuilt:
+            self.stats.inc("rebuilt")
         return message
 
     def expire(self, now: float | None = None) -> int:
@@ -293,34 +415,31 @@ class Reassembler:
             p = self._partial[t]
             log_count(log, logging.WARNING, self.stats.inc("timed_out"),
                       "[%s] transfer %d: %d of %d fragments after %.1f s; dropped (a fragment was lost)",
-                      self.name, t, len(p.chunks), p.count, self.timeout)
-            self._drop(t)
+                      self.name, t, p.held, p.count, self.timeout)
+            self._lose(t)
         return len(old)
 
     # -- internals -----------------------------------------------------------------------------
 
-    @staticmethod
-    def _conflict(p: _Partial, f: Fragment) -> str | None:
-        if f.count != p.count:
-            return f"count {f.count} after {p.count}"
-        held = p.chunks.get(f.index)
-        if held is not None:
-            return "duplicate" if held == f.chunk else f"other bytes for fragment {f.index}"
-        # Chunks 0..count-2 share one length; the last is no longer.
-        full = {len(c) for i, c in p.chunks.items() if i < p.count - 1}
-        last = p.chunks.get(p.count - 1)
-        if f.index < p.count - 1:
-            if full and len(f.chunk) not in full:
-                return f"chunk length {len(f.chunk)}, others {min(full)}"
-            if last is not None and len(last) > len(f.chunk):
-                return f"chunk length {len(f.chunk)} shorter than the last chunk"
-        elif full and len(f.chunk) > min(full):
-            return f"last chunk of {len(f.chunk)} bytes longer than the others"
-        return None
+    def _just_delivered(self, f: Fragment, now: float) -> bool:
+        return any(r[1] == f.transfer and r[2] == f.count and now - r[0] <= self.timeout for r in self._recent)
 
     def _drop(self, transfer: int) -> None:
         p = self._partial.pop(transfer)
         self._bytes -= p.size
+
+    def _lose(self, transfer: int) -> None:
+        """Drop a partial message that will never complete, and say whose message it was: chunk 0
+        starts with the payload's own kind and id (unknown when chunk 0 never came)."""
+        chunk0 = self._partial[transfer].chunks.get(0)
+        self._drop(transfer)
+        try:
+            _, pos = _read_head(chunk0 or b"", 0, 0, "kind")
+            ident, _ = _read_head(chunk0 or b"", pos, 0, "id")
+        except FragmentError:
+            self.lost_unattributed += 1
+            return
+        self.lost_by_id[ident] = self.lost_by_id.get(ident, 0) + 1
 
     def _make_room(self, size: int, new_transfer: bool, keep: int | None = None) -> None:
         while self._partial and (
@@ -333,5 +452,5 @@ class Reassembler:
             p = self._partial[oldest]
             log_count(log, logging.WARNING, self.stats.inc("evicted"),
                       "[%s] transfer %d: %d of %d fragments evicted to bound reassembly memory",
-                      self.name, oldest, len(p.chunks), p.count)
-            self._drop(oldest)
+                      self.name, oldest, p.held, p.count)
+            self._lose(oldest)

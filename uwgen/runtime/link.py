@@ -26,9 +26,10 @@ from typing import Any
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.connection import Backoff, DesertConnection
-from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, is_fragment
+from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
 from uwgen.runtime.framing import MAX_PAYLOAD
 from uwgen.runtime.pacing import DEFAULT_MARGIN
+from uwgen.runtime.probation import reconnect_cap
 from uwgen.runtime.scheduler import LinkScheduler
 from uwgen.runtime.stats import Counters
 
@@ -58,12 +59,15 @@ class Link:
         self._on_payload = on_payload
         self.guard = guard
         self.counters = Counters(LINK_COUNTERS)
+        self._pulled_key: int | None = None       # channel of the payload pulled last
         rng = rng or random.Random()
 
         self.fragmenter: Fragmenter | None = None
         self.reassembler: Reassembler | None = None
         if fragment_id is not None:
-            self.fragmenter = Fragmenter(fragment_id, rng=rng, max_fragments=max_fragments)
+            # A fragment frame fits one DESERT packet, so a lost packet costs whole fragments only.
+            self.fragmenter = Fragmenter(fragment_id, rng=rng, max_fragments=max_fragments,
+                                         max_payload=fragment_payload_for(self.config.max_read_length))
             # Fragments of one message may be spread out by higher-priority traffic: be patient;
             # memory stays bounded by max_partial_* whatever the timeout.
             timeout = fragment_timeout if fragment_timeout is not None else max(30.0, 60 * self.config.period)
@@ -74,13 +78,16 @@ class Link:
             clock, name=name,
             splitter=self.fragmenter.split if self.fragmenter else None,
             max_message=self.fragmenter.max_message_size if self.fragmenter else MAX_PAYLOAD,
+            fec_over=self.fragmenter.max_payload if self.fragmenter else MAX_PAYLOAD,
+            max_message_for=self.fragmenter.max_message_for if self.fragmenter else None,
             protect=guard.protect if guard is not None else None,
             overhead=guard.overhead if guard is not None else None)
         self.connection = DesertConnection(
             host, port, self.config, source=self._source, on_frame=self._on_frame, clock=clock,
-            name=name, backoff=backoff or Backoff(rng=rng), stall_timeout=stall_timeout,
+            name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
+            stall_timeout=stall_timeout,
             next_ready=self.scheduler.next_ready_time, on_tick=self._tick, pace_margin=pace_margin,
-            bitrate=bitrate)
+            bitrate=bitrate, source_fit=self._source_fit)
 
     # -- contract API --------------------------------------------------------------------------
 
@@ -96,6 +103,10 @@ class Link:
         if ok:
             self.connection.wake()
         return ok
+
+    def queued(self, key: int) -> int:
+        """Messages waiting on channel `key` (one being sent in fragments included)."""
+        return self.scheduler.stats()[key]["queued"]
 
     def start(self) -> None:
         self.connection.start()
@@ -113,6 +124,8 @@ class Link:
         frag = None
         if self.reassembler is not None:
             frag = {**self.reassembler.stats.as_dict(), "pending": self.reassembler.pending,
+                    "lost_by_id": dict(self.reassembler.lost_by_id),
+                    "lost_unattributed": self.reassembler.lost_unattributed,
                     "buffered_bytes": self.reassembler.buffered_bytes,
                     "nested": self.counters["nested_fragments"]}
         return {
@@ -129,6 +142,15 @@ class Link:
 
     def _source(self, now: float) -> bytes | None:
         picked = self.scheduler.next_payload(now)
+        if picked is None:
+            return None
+        self._pulled_key = picked[0]
+        return picked[1]
+
+    def _source_fit(self, now: float, max_size: int) -> bytes | None:
+        # The frame pulled last did not fit and is held: its channel must not overtake it.
+        held = self._pulled_key if self.connection.outbox.pending else None
+        picked = self.scheduler.next_payload(now, max_size, exclude=held)
         return None if picked is None else picked[1]
 
     def _on_frame(self, payload: bytes) -> None:

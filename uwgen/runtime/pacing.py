@@ -9,10 +9,19 @@ acoustic packet and sends one packet every `period`; its queue is unbounded. Two
   one 60-byte write is one.
 
 So the pacer allows one write of at most `max_read_length` bytes per `period` (never two writes
-less than a period apart), and the Outbox fills each write as full as it can by *pulling* frames
-from the scheduler at that moment. Several small frames share one packet; a frame longer than the
-room left is cut and its remainder starts the next write. DESERT's queue then holds about one
-packet, i.e. one period of data; everything else waits in the scheduler's queues.
+less than a period apart), and the Outbox fills each write by *pulling* frames from the scheduler at
+that moment. DESERT's queue then holds about one packet, i.e. one period of data; everything else
+waits in the scheduler's queues.
+
+Writes are packet-aligned: each write holds whole frames only, so each DESERT packet starts with a
+frame and a lost packet costs exactly the frames in it (wire format, sections 1 and 11). A frame
+that does not fit the room left waits, whole, for the next write (it goes before anything else), and the room left is filled
+with the best frames of other channels that fit (`take(..., fit=...)`; the Link passes one).
+Only a frame longer than a packet (an rmw_desert-profile payload over `max_read_length - 4` bytes;
+native fragments are sized to fit a packet) is cut: it starts a write of its own, and its pieces
+fill the following writes alone. The old cut-and-fill mode (`aligned=False`: the last frame of a
+write is cut and its rest starts the next write) is kept for benchmarks only: one lost packet then
+destroys up to two frames, and an rmw_desert receiver, which cannot resync inside a frame, loses more.
 
 A write opportunity that finds nothing to send costs nothing: the next frame goes out as soon as
 it is offered (low latency when the link is idle).
@@ -32,9 +41,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from uwgen.manifest.model import LinkConfig
+from uwgen.runtime.framing import OVERHEAD
 
 
 DEFAULT_MARGIN = 0.05
+MIN_FRAME = OVERHEAD + 1  # the shortest frame: nothing shorter fits the room left
 PACKET_HEADER = 4        # bytes DESERT adds to each packet on the air (UDP and IP headers)
 
 
@@ -92,30 +103,77 @@ class Outbox:
 
     Use: `batch = take(now, pull)`; if non-empty, write it, then `sent(now)` on success or
     `abandon()` on failure. `abandon()` is also called when the connection is lost between writes,
-    which cuts the frame whose remainder was waiting.
+    which cuts the long frame whose remaining pieces were waiting. A whole frame pulled but not yet
+    written (it did not fit) survives a disconnect and goes first on the next connection.
     """
 
-    def __init__(self, pacer: Pacer):
+    def __init__(self, pacer: Pacer, aligned: bool = True):
         self.pacer = pacer
+        self.aligned = aligned
         self.stats = OutboxStats()
-        self._rest = b""             # unwritten tail of the frame cut by the last write
+        self._rest = b""             # unwritten pieces of the frame cut by the last write
+        self._held = b""             # a whole frame pulled that did not fit the last write
         self._batch_frames = 0       # frames the pending batch completes
         self._batch_len = 0
 
     @property
     def pending(self) -> bool:
-        """A cut frame is waiting for the next write (it must go before anything else)."""
-        return bool(self._rest)
+        """A frame (a cut one's rest, or a whole one that did not fit) waits for the next write."""
+        return bool(self._rest or self._held)
 
-    def take(self, now: float, pull: Callable[[], bytes | None]) -> bytes:
+    def take(self, now: float, pull: Callable[[], bytes | None],
+             fit: Callable[[int], bytes | None] | None = None) -> bytes:
         """The next write, or b"" if it is not time yet or there is nothing to send.
 
         `pull()` returns the next whole frame, or None; it is called only while there is room.
+        `fit(room)` (optional) returns the next frame of at most `room` bytes, or None (and never
+        one of the channel whose frame is held): with it, the room left when the next frame in
+        priority order does not fit is filled with the best frames that do.
         """
         if self._batch_len:
             raise RuntimeError("take() before the previous batch was sent() or abandon()ed")
         if not self.pacer.may_write(now):
             return b""
+        if self.aligned:
+            parts, frames = self._aligned(pull, fit)
+        else:
+            parts, frames = self._cut_and_fill(pull)
+        batch = b"".join(parts)
+        self._batch_frames = frames
+        self._batch_len = len(batch)
+        return batch
+
+    def _aligned(self, pull: Callable[[], bytes | None],
+                 fit: Callable[[int], bytes | None] | None) -> tuple[list[bytes], int]:
+        room = self.pacer.max_bytes
+        if self._rest:               # the next piece of a frame longer than a packet, alone
+            piece, self._rest = self._rest[:room], self._rest[room:]
+            return [piece], 0 if self._rest else 1
+        parts: list[bytes] = []
+        while room >= MIN_FRAME or not parts:
+            frame, self._held = (self._held or pull()), b""
+            if not frame:
+                break
+            if len(frame) <= room:
+                parts.append(frame)
+                room -= len(frame)
+            elif parts:
+                self._held = frame          # whole, at the start of the next write
+                break
+            else:                           # longer than a packet: cut, in writes of its own
+                self._rest = frame[room:]
+                return [frame[:room]], 0
+        # The next frame in priority order did not fit (it goes first next time, so nothing
+        # starves): fill what is left with frames that fit, from the other channels.
+        while fit is not None and parts and room >= MIN_FRAME:
+            frame = fit(room)
+            if not frame:
+                break
+            parts.append(frame)
+            room -= len(frame)
+        return parts, len(parts)
+
+    def _cut_and_fill(self, pull: Callable[[], bytes | None]) -> tuple[list[bytes], int]:
         room = self.pacer.max_bytes
         parts: list[bytes] = []
         frames = 0
@@ -136,10 +194,7 @@ class Outbox:
             if not rest:
                 frames += 1
         self._rest = rest
-        batch = b"".join(parts)
-        self._batch_frames = frames
-        self._batch_len = len(batch)
-        return batch
+        return parts, frames
 
     def sent(self, now: float) -> None:
         """The batch from take() was written."""
@@ -150,7 +205,10 @@ class Outbox:
         self._clear_batch()
 
     def abandon(self) -> int:
-        """The connection failed: drop the pending batch and the cut frame; return frames dropped."""
+        """The connection failed: drop the pending batch and the cut frame; return frames dropped.
+
+        A whole frame held back for the next write is kept: none of its bytes went out.
+        """
         lost = self._batch_frames + (1 if self._rest else 0)
         self.stats.frames_abandoned += lost
         self._rest = b""

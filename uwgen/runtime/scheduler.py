@@ -19,14 +19,17 @@ where `queued` counts waiting messages including one being sent in fragments. `r
 informational: messages that were held back at least once by the rate limit while the link was free.
 
 Payloads over 255 bytes are split by a splitter (uwgen.runtime.fragment.Fragmenter.split) when
-they start to go out; their fragments then leave one per `next_payload` call, so a higher-priority
+they start to go out; on a channel whose policy asks for `repair` fragments, every payload longer
+than `fec_over` bytes (one packet's worth) is split, with that many repair fragments after its data
+fragments (wire format section 11); their fragments then leave one per `next_payload` call, so a higher-priority
 channel can still get in between. A message being sent in fragments is finished even if a newer
 one arrives (it is not superseded) or its ttl passes: abandoning it would waste what already went.
 
-Security (uwgen.security.guard.LinkGuard): `protect(key, payload)` turns a whole message into its
-protected form when it starts to go out, before it is split, so sequence numbers are spent only on
-what is sent; `overhead(key)` is what protection may add, counted in the size check of `offer`. A
-message that cannot be protected is dropped (`protect_failed`), never sent in the clear.
+Security (uwgen.security.guard.LinkGuard): `protect(key, payload)` turns a channel's next message
+into its protected form when the channel is ready to send it, once, before its size is weighed or
+it is split, so sequence numbers are spent only on what is about to go and the size is exact;
+`overhead(key)` is the most protection may add, counted in the size check of `offer`. A message that
+cannot be protected is dropped (`protect_failed`), never sent in the clear.
 """
 from __future__ import annotations
 
@@ -54,6 +57,7 @@ class Message:
     payload: bytes
     offered_at: float
     rate_held: bool = False
+    sealed: bool = False        # protected already (or nothing to protect)
 
 
 # -- policy objects (one of each per channel; add new kinds here, not if-chains below) -----------
@@ -171,6 +175,8 @@ class Channel:
     expiry: Expiry
     queue: deque[Message] = field(default_factory=deque)
     in_progress: deque[bytes] | None = None      # remaining fragments of the message being sent
+    split_over: int = MAX_PAYLOAD                # longer payloads are fragmented
+    max_message: int = MAX_PAYLOAD               # longer payloads are refused (too_large)
     counters: Counters = field(default_factory=lambda: Counters(CHANNEL_COUNTERS))
 
     @property
@@ -189,7 +195,7 @@ class Channel:
         return None
 
 
-Splitter = Callable[[bytes], list[bytes]]
+Splitter = Callable[..., list[bytes]]          # (payload) or (payload, repair)
 Protect = Callable[[int, bytes], bytes]
 
 
@@ -202,12 +208,15 @@ class LinkScheduler:
 
     def __init__(self, clock: Clock = SYSTEM_CLOCK, *, splitter: Splitter | None = None,
                  max_message: int = MAX_PAYLOAD, name: str = "link",
+                 fec_over: int = MAX_PAYLOAD, max_message_for: Callable[[int], int] | None = None,
                  protect: Protect | None = None, overhead: Callable[[int], int] | None = None):
         self.clock = clock
         self.splitter = splitter
         self.protect = protect
         self.overhead = overhead
         self.max_message = max_message if splitter is not None else MAX_PAYLOAD
+        self.fec_over = fec_over
+        self._max_message_for = max_message_for
         self.name = name
         self._channels: dict[int, Channel] = {}
         self._order: list[Channel] = []            # by priority (highest first), then key
@@ -220,7 +229,13 @@ class LinkScheduler:
         if key in self._channels:
             raise ValueError(f"channel {key} already added")
         ch = Channel(key=key, policy=policy, name=name or f"channel {key}", queue_kind=queue_for(policy),
-                     rate=rate_for(policy), expiry=expiry_for(policy))
+                     rate=rate_for(policy), expiry=expiry_for(policy), max_message=self.max_message)
+        if policy.repair:
+            if self.splitter is None:
+                raise ValueError(f"channel {key}: repair fragments need fragments (a fragment_id)")
+            ch.split_over = min(self.fec_over, MAX_PAYLOAD)
+            if self._max_message_for is not None:
+                ch.max_message = self._max_message_for(policy.repair)
         with self._lock:
             self._channels[key] = ch
             self._order = sorted(self._channels.values(), key=lambda c: (-c.priority, c.key))
@@ -239,9 +254,9 @@ class LinkScheduler:
                 log_count(log, logging.ERROR, c.inc("invalid"), "[%s] %s: refused an empty payload",
                           self.name, ch.name)
                 return False
-            if n > self.max_message:
+            if n > ch.max_message:
                 why = ("set fragment_id in the manifest to fragment it" if self.splitter is None
-                       else f"the most that can be fragmented is {self.max_message} bytes")
+                       else f"the most that can be fragmented is {ch.max_message} bytes")
                 log_count(log, logging.ERROR, c.inc("too_large"),
                           "[%s] %s: refused a %d-byte payload: a frame holds at most %d bytes; %s",
                           self.name, ch.name, n, MAX_PAYLOAD, why)
@@ -252,18 +267,22 @@ class LinkScheduler:
 
     # -- consumer side (the connection, when it may write) -------------------------------------
 
-    def next_payload(self, now: float | None = None) -> tuple[int, bytes] | None:
-        """The payload (at most 255 bytes) to send now, with its channel key; None if none may go."""
+    def next_payload(self, now: float | None = None, max_size: int | None = None,
+                     exclude: int | None = None) -> tuple[int, bytes] | None:
+        """The payload (at most 255 bytes) to send now, with its channel key; None if none may go.
+
+        With `max_size` (the room left in a packet-aligned write), only a channel whose next
+        payload is at most that long is served: the best such one, so the room is filled without
+        taking out a message that would have to wait, whole, for the next write. Channel
+        `exclude` is skipped (its next message is held for the next write: keep its order).
+        """
         now = self.clock.now() if now is None else now
         with self._lock:
             self._expire(now)
-            while True:
-                ch = self._pick(now)
-                if ch is None:
-                    return None
-                payload = self._take(ch, now)
-                if payload is not None:
-                    return ch.key, payload
+            ch = self._pick(now, max_size, exclude)
+            if ch is None:
+                return None
+            return ch.key, self._take(ch, now)
 
     def next_ready_time(self, now: float | None = None) -> float | None:
         """When `next_payload` will next have something (>= now), or None if every queue is empty."""
@@ -295,16 +314,19 @@ class LinkScheduler:
                 q.popleft()
                 ch.counters.inc("expired")
 
-    def _pick(self, now: float) -> Channel | None:
+    def _pick(self, now: float, max_size: int | None = None, exclude: int | None = None) -> Channel | None:
         best: list[Channel] = []
         for ch in self._order:
             if best and ch.priority < best[0].priority:
                 break
             t = ch.ready_at(now)
-            if t is None:
+            if t is None or ch.key == exclude:
                 continue
             if t <= now:
-                best.append(ch)
+                if self.protect is not None and not self._seal_head(ch):
+                    continue                   # its messages could not be protected (counted)
+                if max_size is None or self._next_size(ch) <= max_size:
+                    best.append(ch)
             elif not ch.queue[0].rate_held:
                 ch.queue[0].rate_held = True
                 ch.counters.inc("rate_limited")
@@ -315,24 +337,41 @@ class LinkScheduler:
         self._last_served[chosen.priority] = chosen.key
         return chosen
 
-    def _take(self, ch: Channel, now: float) -> bytes | None:
+    def _seal_head(self, ch: Channel) -> bool:
+        """Protect the channel's next message (once); False when nothing is left to send. A
+        message that cannot be protected is dropped and counted, never sent in the clear."""
+        if ch.in_progress is not None:
+            return True
+        while ch.queue and not ch.queue[0].sealed:
+            msg = ch.queue[0]
+            try:
+                msg.payload = self.protect(ch.key, msg.payload)
+                msg.sealed = True
+            except Exception as exc:  # SecurityError: no sequence number could be reserved
+                ch.queue.popleft()
+                log_count(log, logging.ERROR, ch.counters.inc("protect_failed"),
+                          "[%s] %s: message dropped, cannot be protected: %s", self.name, ch.name, exc)
+        return bool(ch.queue)
+
+    def _next_size(self, ch: Channel) -> int:
+        """Length of the payload `_take` would return for this channel (a message about to be
+        split: its first fragment, at most one packet's worth)."""
+        if ch.in_progress is not None:
+            return len(ch.in_progress[0])
+        n = len(ch.queue[0].payload)
+        return n if n <= ch.split_over else min(n, self.fec_over)
+
+    def _take(self, ch: Channel, now: float) -> bytes:
         c = ch.counters
         if ch.in_progress is None:
             msg = ch.queue.popleft()
             ch.rate.took(now)
-            payload = msg.payload
-            if self.protect is not None:
-                try:
-                    payload = self.protect(ch.key, payload)
-                except Exception as exc:  # SecurityError: no sequence number could be reserved
-                    log_count(log, logging.ERROR, c.inc("protect_failed"),
-                              "[%s] %s: message dropped, cannot be protected: %s", self.name, ch.name, exc)
-                    return None
-            if len(payload) <= MAX_PAYLOAD:
+            if len(msg.payload) <= ch.split_over:
                 c.inc("sent")
-                return payload
+                return msg.payload
             assert self.splitter is not None
-            ch.in_progress = deque(self.splitter(payload))
+            repair = ch.policy.repair
+            ch.in_progress = deque(self.splitter(msg.payload, repair) if repair else self.splitter(msg.payload))
         part = ch.in_progress.popleft()
         c.inc("fragments_sent")
         if not ch.in_progress:

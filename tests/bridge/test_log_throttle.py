@@ -1,0 +1,67 @@
+"""Error lines a remote peer can cause are bounded: once, then counted, then a periodic summary."""
+from __future__ import annotations
+
+import logging
+
+from geometry_msgs.msg import Twist
+from test_msgs.srv import BasicTypes
+
+from uwgen.bridge.throttle import LogThrottle
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.fragment import Reassembler
+
+from .fakes import FakeServiceCodec, FakeTopicCodec, LinkPair, fake_package, wait_for
+from .harness import ros_sides, start_bridge
+
+SLOW = FakeServiceCodec(21, "/slow", BasicTypes, "vehicle", timeout=0.4)
+CMD = FakeTopicCodec(4, "/cmd", Twist, "surface")
+
+
+def test_first_occurrence_is_logged_then_counted_then_summarised():
+    clock, lines = ManualClock(), []
+    t = LogThrottle(lines.append, clock, every=60.0)
+    for seq in range(500):
+        t.report("noserver21", f"/slow: request seq {seq} not served")
+    assert lines == ["/slow: request seq 0 not served (further ones are counted, summarised every 60 s)"]
+    t.tick()
+    assert len(lines) == 1                      # not time yet
+    clock.advance(60.0)
+    t.tick()
+    assert lines[1].startswith("499 more since the last summary (500 in all) like: /slow: request seq 0")
+    clock.advance(60.0)
+    t.tick()
+    assert len(lines) == 2                      # nothing new: no summary line
+    assert t.totals == {"noserver21": 500}
+
+
+def test_kinds_are_throttled_separately():
+    lines = []
+    t = LogThrottle(lines.append, ManualClock())
+    t.report("a", "A happened")
+    t.report("b", "B happened")
+    t.report("a", "A again")
+    assert [line.split(" (")[0] for line in lines] == ["A happened", "B happened"]
+
+
+def test_a_flood_of_requests_for_a_service_without_server_logs_one_line():
+    package = fake_package([CMD], [SLOW])
+    links = LinkPair()
+    with ros_sides("vehicle") as (vehicle,):
+        bridge = start_bridge(vehicle, package, links.factory)
+        lines: list[str] = []
+        bridge.wiring.throttle._emit = lines.append
+        for seq in range(1000):               # a peer (or a forger) sending requests nobody serves
+            links.links["vehicle"].inject(SLOW.encode_request(seq % 65536, BasicTypes.Request()))
+        wait_for(lambda: bridge.service_counters[SLOW.id].no_server == 1000, timeout=20.0,
+                 what="every request counted")
+    assert len(lines) == 1 and "not served" in lines[0]
+    assert bridge.wiring.throttle.totals == {f"noserver{SLOW.id}": 1000}
+
+
+def test_a_flood_of_forged_fragments_logs_a_logarithmic_number_of_lines(caplog):
+    reasm = Reassembler(250, ManualClock())
+    with caplog.at_level(logging.WARNING, logger="uwgen.link.fragment"):
+        for i in range(10_000):
+            reasm.feed(bytes([0x00, 0x18, 0xFA, i % 256, 0x05, 0x02]))    # index 5 of count 2, no chunk
+    assert reasm.stats["malformed"] == 10_000
+    assert len(caplog.records) <= 5                # the 1st, 10th, 100th, 1000th, 10000th

@@ -1,0 +1,47 @@
+"""Log lines a remote peer can cause, bounded: once, then counted, then a periodic summary.
+
+A peer (or a forger) can send a request per packet; one error line per request would let it
+flood the log (1,280 lines in 40 ms were seen). Each kind of event (`key`, e.g. "no_server
+/enable") is logged in full the first time, then only counted; every `every` seconds one
+summary line per kind says how many more happened since. The counts also live in ~/status.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+
+SUMMARY_EVERY = 60.0
+
+
+class LogThrottle:
+    """`report(key, text)` from the bridge's thread; `tick()` now and then (a timer)."""
+
+    def __init__(self, emit: Callable[[str], None], clock: Clock = SYSTEM_CLOCK,
+                 every: float = SUMMARY_EVERY):
+        self._emit = emit
+        self._clock = clock
+        self.every = every
+        self._first: dict[str, str] = {}           # key -> the text logged the first time
+        self._since: dict[str, int] = {}           # key -> occurrences not yet summarised
+        self.totals: dict[str, int] = {}           # key -> every occurrence
+        self._next = clock.now() + every
+
+    def report(self, key: str, text: str) -> None:
+        self.totals[key] = self.totals.get(key, 0) + 1
+        if key not in self._first:
+            self._first[key] = text
+            self._emit(f"{text} (further ones are counted, summarised every {self.every:g} s)")
+            return
+        self._since[key] = self._since.get(key, 0) + 1
+
+    def tick(self) -> None:
+        now = self._clock.now()
+        if now < self._next:
+            return
+        self._next = now + self.every
+        for key, n in sorted(self._since.items()):
+            if n:
+                self._emit(f"{n} more since the last summary ({self.totals[key]} in all) like: "
+                           f"{self._first[key]}")
+        self._since.clear()
