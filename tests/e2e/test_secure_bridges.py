@@ -93,8 +93,8 @@ def tap(link, prefix: bytes) -> list[bytes]:
     heard: list[bytes] = []
     original = link.scheduler.next_payload
 
-    def next_payload(now=None):
-        picked = original(now)
+    def next_payload(*args, **kwargs):
+        picked = original(*args, **kwargs)
         if picked is not None and picked[1].startswith(prefix):
             heard.append(picked[1])
         return picked
