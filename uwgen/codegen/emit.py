@@ -13,6 +13,7 @@ bounds and the expression that builds the decoded message. The templates in
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from uwgen.codegen.ir import (
@@ -76,6 +77,26 @@ def func_name(kind: str, ct_key_name: str, suffix: str) -> str:
     return f"{kind}{suffix}_{ct_key_name}"
 
 
+def field_access(root: Node, body: list[str]) -> Callable[[Node], str]:
+    """Name each nested message of `root` once (`m1 = m.linear`, appended to `body`) and
+    return how a leaf is read: `access(leaf) -> 'm1.x'`."""
+    var_of = {"": "m"}
+
+    def access(node: Node) -> str:
+        parent = node.path.rsplit(".", 1)[0] if "." in node.path else ""
+        return f"{var_of[parent]}.{node.name}"
+
+    def declare(node: Node) -> None:
+        for child in node.children or ():
+            if child.children is not None:
+                var_of[child.path] = var = f"m{len(var_of)}"
+                body.append(f"{var} = {access(child)}")
+                declare(child)
+
+    declare(root)
+    return access
+
+
 class Lowering:
     """Lowers the codec types of one generated module."""
 
@@ -94,31 +115,15 @@ class Lowering:
 
     def encoder(self, ct: CodecType) -> Function:
         body: list[str] = []
-        var_of = {"": "m"}
-        counter = [0]
-
-        def access(node_path: str, name: str) -> str:
-            parent = node_path.rsplit(".", 1)[0] if "." in node_path else ""
-            return f"{var_of[parent]}.{name}"
-
-        def declare(node: Node) -> None:
-            for child in node.children or ():
-                if child.children is not None:
-                    counter[0] += 1
-                    var = f"m{counter[0]}"
-                    var_of[child.path] = var
-                    body.append(f"{var} = {access(child.path, child.name)}")
-                    declare(child)
-
-        declare(ct.root)
+        access = field_access(ct.root, body)
         for seg in segments(ct.root):
             if isinstance(seg, NumberRun):
                 st = self.consts.struct("<" + "".join(n.encoding.code for n in seg.leaves))
                 names = self.consts.names(tuple(n.path for n in seg.leaves))
-                values = ", ".join(access(n.path, n.name) for n in seg.leaves)
+                values = ", ".join(access(n) for n in seg.leaves)
                 body.append(f"out += _numbers({st}, ({values},), {names})")
             else:
-                expr = access(seg.path, seg.name) if seg.name else ""
+                expr = access(seg) if seg.name else ""
                 body.extend(self._encode_leaf(seg, seg.encoding, expr, ct.profile_suffix))
         return Function(func_name("enc", ct.name, ct.suffix), "m, out",
                         f"Append the CBOR items of a {ct.full_name} ({ct.profile} profile) to `out`.",

@@ -13,7 +13,7 @@ what cannot be written as one expression (floats, strings, loops over arrays).
 """
 from __future__ import annotations
 
-from uwgen.codegen.emit import F32_MAX, Function, Lowering, func_name, index_max, quantize_lines, static_value
+from uwgen.codegen.emit import F32_MAX, Function, Lowering, field_access, func_name, index_max, quantize_lines, static_value
 from uwgen.codegen.ir import (
     Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, MessageArray, Node, Number,
     NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
@@ -56,23 +56,7 @@ class PackedLowering(Lowering):
 
     def putter(self, ct: CodecType) -> Function:
         body: list[str] = []
-        var_of = {"": "m"}
-        counter = [0]
-
-        def access(node: Node) -> str:
-            parent = node.path.rsplit(".", 1)[0] if "." in node.path else ""
-            return f"{var_of[parent]}.{node.name}"
-
-        def declare(node: Node) -> None:
-            for child in node.children or ():
-                if child.children is not None:
-                    counter[0] += 1
-                    var = f"m{counter[0]}"
-                    var_of[child.path] = var
-                    body.append(f"{var} = {access(child)}")
-                    declare(child)
-
-        declare(ct.root)
+        access = field_access(ct.root, body)
         for leaf in ct.root.leaves():
             expr = access(leaf) if leaf.name else ""
             body.extend(self._put_leaf(leaf, leaf.encoding, expr, ct.profile_suffix))
