@@ -7,12 +7,13 @@ fixed packet error rate), messages offered back to back on a fifo channel so tha
 always waiting (the case where cut-and-fill cuts frames across packets):
 
 - "1-frame": 40-byte payloads (44-byte frames; they fit a packet, so repair does not apply);
-- "4-frag": 180-byte payloads: with repair, 4 data fragments of at most 48 bytes; without,
-  one 184-byte frame over 3 packets (a payload under 256 bytes is not fragmented then).
+- "4-frag": 180-byte payloads: 4 data fragments of at most 51 bytes (48 with repair), or,
+  before issue 10, one 184-byte frame over 3 packets (payloads under 256 bytes were not
+  fragmented then).
 
-Configurations: "before" = cut-and-fill writes, no repair (the code before issue 10);
-"aligned" = packet-aligned writes, no repair; "repair 2" = aligned + 2 repair fragments per
-message. Reference columns: (1-p)^4 (four fragments, no repair) and P(>= 4 of 6 arrive).
+Configurations: "before" = cut-and-fill writes, no repair, no fragments under 256 bytes (the
+code before issue 10); "aligned" = packet-aligned writes, fragments, no repair; "repair 2" =
+aligned + 2 repair fragments per message. Reference columns: (1-p)^4 (four fragments, no repair) and P(>= 4 of 6 arrive).
 """
 from __future__ import annotations
 
@@ -27,20 +28,21 @@ from uwgen.manifest.model import LinkPolicy
 
 FID = 250
 PERS = (0.0, 0.05, 0.10, 0.15, 0.20, 0.25, 0.30)
-CONFIGS = {"before": (False, 0), "aligned": (True, 0), "repair 2": (True, 2)}
+CONFIGS = {"before": (False, 0, True), "aligned": (True, 0, False), "repair 2": (True, 2, False)}
 SIZES = {"1-frame": 40, "4-frag": 180}
 
 
-def delivery(size: int, aligned: bool, repair: int, per: float, messages: int, seed: int) -> float:
+def delivery(size: int, aligned: bool, repair: int, whole: bool, per: float, messages: int,
+             seed: int) -> float:
     scenario = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),
                                NodeSpec("b", position=(300, 0, 0), dest="a")],
                         period=0.2, max_read_length=64, per=per, seed=seed, bitrate=4800.0)
     sim = LinkSim(scenario, "a", "b", aligned=aligned, fragment_id=FID, rng=random.Random(seed),
                   fragment_timeout=30.0)
-    sim.sender.add_channel(7, LinkPolicy(queue="fifo", depth=messages, repair=repair))
+    sim.sender.add_channel(7, LinkPolicy(queue="fifo", depth=messages, repair=repair), whole=whole)
     for i in range(messages):
         sim.at(0.0, lambda i=i: sim.sender.offer(7, b"\x00\x07" + i.to_bytes(4, "big") + bytes(size - 6)))
-    packets = messages * (-(-(size + 4) // 64) + (4 + repair - 3 if repair else 0)) + 10
+    packets = messages * (-(-(size + 4) // 64) + 1 + repair) + 10      # room for every fragment
     sim.run(packets * 0.2 * 1.1 + 40)
     got = {p for _, p in sim.received if len(p) == size}
     return len(got) / messages
@@ -55,8 +57,8 @@ def main() -> None:
     logging.disable(logging.WARNING)          # the receiver logs every lost transfer
     results: dict[tuple[str, str], list[float]] = {}
     for kind, size in SIZES.items():
-        for name, (aligned, repair) in CONFIGS.items():
-            results[kind, name] = [delivery(size, aligned, repair, p, a.messages, a.seed + i)
+        for name, (aligned, repair, whole) in CONFIGS.items():
+            results[kind, name] = [delivery(size, aligned, repair, whole, p, a.messages, a.seed + i)
                                    for i, p in enumerate(PERS)]
     print(f"delivery ratio vs packet error rate, {a.messages} messages per point, "
           "64 B packets every 0.2 s, through the emulator core")

@@ -118,6 +118,7 @@ class FakeLink:
         self.on_payload = on_payload
         self.fragment_id = fragment_id
         self.channels: dict[int, LinkPolicy] = {}
+        self.whole: dict[int, bool] = {}   # channels added whole (never fragmented)
         self.offers: list[tuple[int, bytes]] = []
         self.peer: FakeLink | None = None
         self.accept = True
@@ -131,8 +132,10 @@ class FakeLink:
         self._thread = threading.Thread(target=self._deliver_loop, name=f"fakelink-{name}",
                                         daemon=True)
 
-    def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None) -> None:
+    def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None, *,
+                    whole: bool = False) -> None:
         self.channels[key] = policy
+        self.whole[key] = whole
 
     def offer(self, key: int, payload: bytes) -> bool:
         if key not in self.channels or not self.accept:

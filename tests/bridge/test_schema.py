@@ -271,7 +271,7 @@ def test_reply_interval_keeps_replies_under_five_percent_of_a_slow_link():
     entries = [SimpleNamespace(id=i, name=f"/t{i}", fingerprint=bytes(4)) for i in (3, 4, 5)]
     plan = SimpleNamespace(schema_id=SID, schema_period=None, schema_digest=b"\x01\x02\x03\x04",
                            topics=entries, services=[],
-                           channels=lambda: [(e.id, LinkPolicy(priority=7), e.name) for e in entries])
+                           channels=lambda: [(e.id, LinkPolicy(priority=7), e.name, False) for e in entries])
     link = Link()
     logs = []
     slow = attach_schema(plan, link, ManualClock(), LinkConfig(max_read_length=32, period=1.0),

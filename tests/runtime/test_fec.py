@@ -192,14 +192,14 @@ def lossy_run(repair: int, per: float = 0.2, messages: int = 300, seed: int = 7)
     for i in range(messages):
         sim.at(i * spacing, lambda i=i: sim.sender.offer(7, i.to_bytes(4, "big") + bytes(size - 4)))
     sim.run(messages * spacing + 5)
-    # With repair: 4 data + `repair` repair fragments; without, one 184-byte frame over 3 packets.
-    assert sim.sender.scheduler.stats()[7]["fragments_sent"] == (messages * (4 + repair) if repair else 0)
+    # 4 data fragments (a payload longer than a packet never travels as one frame) + `repair`.
+    assert sim.sender.scheduler.stats()[7]["fragments_sent"] == messages * (4 + repair)
     return len(sim.received) / messages
 
 
 def test_a_four_fragment_message_survives_20_percent_packet_loss_with_two_repairs():
-    # Exactly: P(at least 4 of 6 arrive) = 0.901 at PER 0.2; without repair the message is one
-    # frame over three packets: 0.8^3 = 0.51 (as four fragments it would be 0.8^4 = 0.41).
+    # Exactly: P(at least 4 of 6 arrive) = 0.901 at PER 0.2; without repair all four fragments
+    # must arrive: 0.8^4 = 0.41.
     with_repair = lossy_run(repair=2)
     without = lossy_run(repair=0)
     assert with_repair > 0.86

@@ -46,7 +46,7 @@ class RmwDiscovery:
         except BeaconError as exc:
             raise PlanError(f"cannot announce this side to rmw_desert nodes: {exc}") from None
         for key, policy in discovery_policies(len(beacons)).items():
-            link.add_channel(key, policy, names.get(key))
+            link.add_channel(key, policy, names.get(key), whole=True)   # rmw_desert reads them
         self.agent = DiscoveryAgent(beacons, send=wiring.send, clock=wiring.clock,
                                     queued=lambda: link.queued(DISCOVERY_ID))
         self.flush_timeout = (self._default_flush_timeout(beacons)

@@ -89,8 +89,8 @@ class BridgeNode(Node):
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
                                  clock=clock, name=plan.side,
                                  **({"guard": self.guard} if self.guard is not None else {}))
-        for key, policy, name in plan.channels():
-            self.link.add_channel(key, policy, name)
+        for key, policy, name, whole in plan.channels():
+            self.link.add_channel(key, policy, name, whole=whole)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery

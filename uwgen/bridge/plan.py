@@ -101,12 +101,13 @@ class BridgePlan:
             manifest_source=getattr(manifest, "source", "") or "",
         )
 
-    def channels(self) -> list[tuple[int, LinkPolicy, str]]:
-        """Link channels this side sends on, as (id, policy, name): its outgoing topics, and
-        every service it takes part in (requests from the calling side, responses from the
-        serving side)."""
-        chans = [(t.id, t.policy, t.name) for t in self.outgoing_topics]
-        chans += [(s.id, s.policy, s.name) for s in (*self.called_services, *self.served_services)]
+    def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
+        """Link channels this side sends on, as (id, policy, name, whole): its outgoing topics,
+        and every service it takes part in (requests from the calling side, responses from the
+        serving side). `whole`: an rmw_desert entry, never fragmented."""
+        chans = [(t.id, t.policy, t.name, is_rmw_desert(t)) for t in self.outgoing_topics]
+        chans += [(s.id, s.policy, s.name, is_rmw_desert(s))
+                  for s in (*self.called_services, *self.served_services)]
         return sorted(chans, key=lambda c: c[0])
 
     @property

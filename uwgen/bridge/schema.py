@@ -368,7 +368,7 @@ def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
     air = sum(len(p) + OVERHEAD for p in guard.payloads(False)) / link_config.bytes_per_second
     guard.min_reply_interval = max(MIN_REPLY_INTERVAL, air / REPLY_AIR_SHARE)
     link.add_channel(schema_id, channel_policy(len(guard.payloads(True)),
-                                               [p.priority for _, p, _ in channels]),
+                                               [p.priority for _, p, _, _ in channels]),
                      "schema announcements")
     say("info", f"schema announcements on id {schema_id}: this side's schema digest is "
                 f"{guard.digest.hex() or '-'}; announcing ids {guard.sends or 'none'}")

@@ -51,6 +51,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", type=float, default=180.0,
                         help="give up if the operator has not finished after this many seconds")
     parser.add_argument("--quiet", action="store_true", help="do not relay the nodes' logs")
+    away = parser.add_argument_group("drive away (uwgen.demo.drive_away)")
+    away.add_argument("--drive-away", action="store_true",
+                      help="the vehicle drives away from --distance until the link fades; plots "
+                           "delivery ratio and latency against distance (drive-away.png)")
+    away.add_argument("--drive-to", type=float, default=10000.0, metavar="M",
+                      help="with --drive-away: final distance in metres (default 10000)")
+    away.add_argument("--drive-time", type=float, default=75.0, metavar="S",
+                      help="with --drive-away: seconds the drive takes (default 75, time-lapse)")
+    away.add_argument("--wind", type=float, default=0.0, metavar="M_S",
+                      help="with --drive-away: wind speed of the SNR model (default 0)")
 
 
 def domains() -> tuple[int, int]:
@@ -121,6 +131,9 @@ def _env(domain: int, extra_paths: list[str], iface_env) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "drive_away", False):
+        from uwgen.demo import drive_away
+        return drive_away.run(args)
     from uwgen.demo.interfaces import BuildError, ensure_interfaces
     from uwgen.demo.report import build_report, format_report, frame_sizes, plot_paths
     from uwgen.emulator import NodeSpec, Scenario, run_emulator

@@ -1,6 +1,7 @@
 """`uwgen emulate`: run emulated DESERT nodes on 127.0.0.1, or print the PDR sweep.
 
     uwgen emulate msg_samples/scenarios/two-nodes.yaml
+    uwgen emulate -m msg_samples/uwgen.yaml [scenario.yaml]     # sides, ports, links from the manifest
     uwgen emulate --nodes 2 --ports 4000 4001 --distance 1500 --period 0.2 --wind 5
     uwgen emulate --pdr-sweep --wind 0 5 10 --plot docs/pdr-sweep.png
 
@@ -30,6 +31,10 @@ COUNTER_COLUMNS = ("bytes_in", "packets_queued", "packets_sent", "packets_delive
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", nargs="?", type=Path,
                         help="YAML scenario (msg_samples/scenarios/*.yaml); flags override it")
+    parser.add_argument("-m", "--manifest", type=Path, default=None,
+                        help="uwgen manifest: one node per side, named after it, with its port "
+                             "and link settings; a scenario file then only adds physics "
+                             "(positions, waypoints, snr, tdma, seed, ...)")
     g = parser.add_argument_group("nodes (without a scenario file)")
     g.add_argument("--nodes", type=int, default=None, metavar="N",
                    help="number of nodes, on a line, each sending to the next (default 2)")
@@ -56,6 +61,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run_g = parser.add_argument_group("running")
     run_g.add_argument("--duration", type=float, default=None, metavar="S",
                        help="stop after S seconds (default: until Ctrl-C / SIGTERM)")
+    run_g.add_argument("--crash-every", type=float, default=None, metavar="S",
+                       help="make DESERT crash at random, on average every S seconds (every "
+                            "client disconnected, queues lost), as real DESERT does under load")
+    run_g.add_argument("--crash-down", type=float, default=1.0, metavar="S",
+                       help="with --crash-every: seconds DESERT stays down (default 1)")
     sweep = parser.add_argument_group("PDR sweep (simulated, no sockets)")
     sweep.add_argument("--pdr-sweep", action="store_true",
                        help="print the delivery ratio against distance for each --wind")
@@ -78,7 +88,10 @@ def run(args: argparse.Namespace) -> int:
     except ScenarioError as exc:
         print(f"uwgen emulate: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    return _serve(scenario, args.duration)
+    if args.crash_every is not None and not (args.crash_every > 0 and args.crash_down >= 0):
+        print("uwgen emulate: --crash-every must be > 0 and --crash-down >= 0", file=sys.stderr)
+        return EXIT_USAGE
+    return _serve(scenario, args.duration, args.crash_every, args.crash_down)
 
 
 def build_scenario(args: argparse.Namespace):
@@ -92,7 +105,18 @@ def build_scenario(args: argparse.Namespace):
     if args.wind is not None and len(args.wind) != 1:
         raise ScenarioError("--wind takes one value when running nodes "
                             "(several only with --pdr-sweep)")
-    base = load_scenario(args.scenario) if args.scenario else None
+    if args.manifest is not None:
+        from uwgen.emulator.from_manifest import scenario_from_manifest
+        if args.nodes is not None or args.ports is not None:
+            raise ScenarioError("--nodes and --ports come from the manifest's sides with -m")
+        spacing = args.distance if args.distance is not None else 1000.0
+        base = scenario_from_manifest(args.manifest, args.scenario, spacing)
+        args = argparse.Namespace(**{**vars(args), "distance": None,
+                                     "period": _refuse(args.period, "--period"),
+                                     "max_read_length": _refuse(args.max_read_length,
+                                                                "--max-read-length")})
+    else:
+        base = load_scenario(args.scenario) if args.scenario else None
     changes: dict = {}
     for key in ("period", "max_read_length", "bitrate", "per", "seed"):
         value = getattr(args, key)
@@ -136,7 +160,15 @@ def build_scenario(args: argparse.Namespace):
     return replace(base, **changes)
 
 
-def _serve(scenario, duration: float | None) -> int:
+def _refuse(value, flag: str):
+    from uwgen.emulator.scenario import ScenarioError
+    if value is not None:
+        raise ScenarioError(f"{flag} comes from the manifest's link settings with -m")
+    return None
+
+
+def _serve(scenario, duration: float | None, crash_every: float | None = None,
+           crash_down: float = 1.0) -> int:
     from uwgen.emulator.server import Emulator, EmulatorError
 
     emu = Emulator(scenario)
@@ -145,12 +177,29 @@ def _serve(scenario, duration: float | None) -> int:
     except EmulatorError as exc:
         print(f"uwgen emulate: {exc}", file=sys.stderr)
         return EXIT_FAILED
+    feeds = None
+    if any(n.pose_topic is not None for n in scenario.nodes):
+        from uwgen.emulator.ros_pose import PoseFeedError, PoseFeeds
+        try:
+            feeds = PoseFeeds(emu, scenario).start()
+        except PoseFeedError as exc:
+            emu.stop()
+            print(f"uwgen emulate: {exc}", file=sys.stderr)
+            return EXIT_FAILED
+    crasher = None
+    if crash_every is not None:
+        from uwgen.emulator.chaos import Crasher
+        crasher = Crasher(emu, crash_every, crash_down, scenario.seed).start()
+        log.info("emulator: DESERT will crash at random, every %.3g s on average, down %.3g s",
+                 crash_every, crash_down)
     mode = "TDMA" if scenario.tdma else "CSMA-ALOHA"
     channel = (f"SNR model (wind {scenario.snr.wind:g} m/s)" if scenario.snr else "no SNR losses")
-    log.info("emulating %d DESERT nodes: period %.3g s, max_read_length %d, %g bit/s, %s, "
-             "%s, per %.3g, seed %d", len(scenario.nodes), scenario.period,
-             scenario.max_read_length, scenario.bitrate, mode, channel, scenario.per,
-             scenario.seed)
+    periods = sorted({scenario.period_of(n) for n in scenario.names()})
+    lengths = sorted({scenario.max_read_length_of(n) for n in scenario.names()})
+    log.info("emulating %d DESERT nodes (%s): period %s s, max_read_length %s, %g bit/s, %s, "
+             "%s, per %.3g, seed %d", len(scenario.nodes), ", ".join(scenario.names()),
+             "/".join(f"{p:.3g}" for p in periods), "/".join(map(str, lengths)),
+             scenario.bitrate, mode, channel, scenario.per, scenario.seed)
     stop = threading.Event()
     previous = {}
 
@@ -172,8 +221,14 @@ def _serve(scenario, duration: float | None) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        if crasher is not None:
+            crasher.stop()
+        if feeds is not None:
+            feeds.stop()
         emu.stop()
     print(format_counters(emu.all_counters()), flush=True)
+    if crasher is not None:
+        print(f"DESERT crashed {crasher.crashes} times (simulated, --crash-every)", flush=True)
     return 0
 
 

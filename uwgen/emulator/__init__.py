@@ -13,13 +13,13 @@ delivery-ratio-against-distance study. See docs/emulator.md.
 """
 from uwgen.emulator.core import LOSS_CAUSES, Delivery, EmulatorCore
 from uwgen.emulator.physics import SnrModel
-from uwgen.emulator.scenario import (MAX_READ_LENGTH_LIMIT, NodeSpec, Scenario, ScenarioError,
+from uwgen.emulator.scenario import (BROADCAST, MAX_READ_LENGTH_LIMIT, NodeSpec, Scenario, ScenarioError,
                                      TdmaSpec, load_scenario)
 from uwgen.emulator.server import Emulator, EmulatorError, run_emulator
 from uwgen.emulator.sweep import SweepPoint, pdr_sweep
 
 __all__ = [
-    "Delivery", "Emulator", "EmulatorCore", "EmulatorError", "LOSS_CAUSES",
+    "BROADCAST", "Delivery", "Emulator", "EmulatorCore", "EmulatorError", "LOSS_CAUSES",
     "MAX_READ_LENGTH_LIMIT", "NodeSpec", "Scenario", "ScenarioError", "SnrModel", "SweepPoint",
     "TdmaSpec", "load_scenario", "pdr_sweep", "run_emulator",
 ]

@@ -13,18 +13,26 @@ and UW/PHYSICAL):
   the queue is unbounded, as in DESERT;
 - every `period` seconds (ticks on a fixed grid from the node's start) one queued packet
   goes down to the MAC;
-- CSMA-ALOHA: the MAC waits until it hears no carrier, listens for `listen_time`, and
-  transmits unless a carrier appeared meanwhile (then it waits and listens again).
+- CSMA-ALOHA: the MAC's only carrier sense is the PHY's lock (DESERT's Phy2MacStartRx: a
+  packet the receiver acquired). It waits while it sends or is locked on a packet, listens
+  for `listen_time` (+ jitter) and transmits when the listen ends, unless it is locked on a
+  packet by then: then it listens again once that reception ends. A packet that began
+  arriving while the node was sending is never acquired, so the MAC does not hear it;
   TDMA: it transmits only inside its own slot, and only if the packet ends before the
   guard time;
 - a packet is on the air for (bytes + header) * 8 / bitrate seconds and reaches every other
-  node after distance / sound speed;
-- a receiver locks onto the first packet it can hear; a packet that arrives while it is
+  node after distance / sound speed, the distance (and the SNR) taken when it is sent:
+  nodes may move along waypoints or be placed live by `set_position` (uwgen.emulator.motion);
+- a receiver locks onto the first packet it can acquire; a packet that arrives while it is
   transmitting or already locked is lost, and a transmission starting during a reception
   kills that reception (half duplex); the locked packet is lost if the interference of
-  overlapping packets pushes it under the threshold (an ALOHA channel: "collision");
+  overlapping packets makes it draw bit errors ("collision"): the interference is each
+  overlapping packet's power weighted by the fraction of the reception it overlaps
+  (DESERT's MEANPOWER model), and the bit errors are BPSK's at that SINR;
 - with an SNR model, a packet whose faded SNR is under the acquisition threshold, or that
   draws BPSK bit errors, is lost ("snr"); then the fixed packet error rate applies ("per");
+- a packet's destination is one node or every other node (`dest: "*"`, broadcast, as
+  DESERT's IP broadcast address): each addressee receives, or loses, its own copy;
 - an intact packet for this node is written to its client, or dropped ("no_client") when
   none is connected.
 """
@@ -38,8 +46,9 @@ import random
 from collections import deque
 from dataclasses import dataclass, field
 
+from uwgen.emulator.motion import Geometry
 from uwgen.emulator.physics import bpsk_per
-from uwgen.emulator.scenario import NodeSpec, Scenario
+from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario
 from uwgen.runtime.stats import Counters
 
 log = logging.getLogger(__name__)
@@ -101,8 +110,7 @@ class _Arrival:
     end: float
     power: float                 # mean received power, linear (1.0 without SNR model)
     snr_db: float                # faded SNR (inf without SNR model)
-    audible: bool                # does it raise the receiver's carrier sense?
-    interference: float = 0.0    # summed power of the packets that overlapped it
+    interference: float = 0.0    # mean power of the packets that overlapped it (MEANPOWER)
     fail: str | None = None      # cause fixed at its start (not locked onto)
 
 
@@ -119,11 +127,9 @@ class _Node:
     max_queue_bytes: int = 0
     tick_pending: bool = False
     mac_state: str = _IDLE
-    listen_start: float = 0.0
     tx_end: float = -math.inf
     rx: list = field(default_factory=list)      # arrivals in progress
-    locked: _Arrival | None = None
-    last_carrier: float = -math.inf             # start of the latest audible arrival
+    locked: _Arrival | None = None              # the reception the PHY is synchronised on
     client: bool = False
     counters: Counters = field(default_factory=lambda: Counters(NODE_COUNTERS))
 
@@ -150,24 +156,10 @@ class EmulatorCore:
         s = scenario
         self._nodes = {spec.name: self._fresh_node(spec, start) for spec in s.nodes}
         self._order = list(self._nodes)
-        # Per ordered pair: propagation delay, mean received power and SNR.
-        self._delay: dict[tuple[str, str], float] = {}
-        self._power: dict[tuple[str, str], float] = {}
-        self._snr: dict[tuple[str, str], float] = {}
         snr = s.snr
-        self._noise = 10 ** (snr.noise_db() / 10) if snr else 0.0
-        for a in self._order:
-            for b in self._order:
-                if a == b:
-                    continue
-                d = s.distance(a, b)
-                self._delay[a, b] = d / s.sound_speed
-                if snr:
-                    self._power[a, b] = 10 ** (snr.received_db(d) / 10)
-                    self._snr[a, b] = snr.snr_db(d)
-                else:
-                    self._power[a, b] = 1.0
-                    self._snr[a, b] = math.inf
+        # Where nodes are, and what a packet between two of them meets (motion.Geometry).
+        self.geometry = Geometry(s, start)
+        self._noise = 10 ** (self.geometry.noise_db / 10) if snr else 0.0
 
     # ------------------------------------------------------------------ inputs
     def client_attached(self, node: str, t: float) -> None:
@@ -180,6 +172,18 @@ class EmulatorCore:
     def client_detached(self, node: str, t: float) -> None:
         self._run_until(t)
         self._node(node).client = False
+
+    def set_position(self, node: str, t: float, position) -> None:
+        """From `t` on, `node` is at `position` (x, y, z metres): a live pose overrides its
+        waypoints and fixed position. Packets sent from then on use it."""
+        self._run_until(t)
+        self._node(node)
+        self.geometry.set_position(node, position)
+
+    def position(self, node: str, t: float | None = None) -> tuple[float, float, float]:
+        """Where `node` is at `t` (default: now)."""
+        self._node(node)
+        return self.geometry.position(node, self.now if t is None else t)
 
     def client_data(self, node: str, t: float, data: bytes) -> int:
         """Bytes read from `node`'s client at `t`: cut and queued. Returns packets queued."""
@@ -207,13 +211,13 @@ class EmulatorCore:
         self._run_until(t)
         for n in self._nodes.values():
             n.counters.inc("dropped_restart", len(n.app_queue) + len(n.mac_queue))
-        # Packets on their way to their destination: arriving, or still propagating (each
-        # packet has exactly one arrival at its destination).
+        # Packets on their way: arriving, or still propagating (counted once each, a
+        # broadcast too).
         in_flight = [arr for n in self._nodes.values() for arr in n.rx]
         in_flight += [args for _, _, _, kind, args in self._events if kind == _RX_START]
-        for arr in in_flight:
-            if arr.receiver == arr.packet.dest:
-                self._nodes[arr.packet.source].counters.inc("dropped_restart")
+        for uid, source in {(a.packet.uid, a.packet.source) for a in in_flight
+                            if a.packet.dest in (a.receiver, BROADCAST)}:
+            self._nodes[source].counters.inc("dropped_restart")
         self._events.clear()
         for spec in self.scenario.nodes:
             old = self._nodes[spec.name]
@@ -323,24 +327,27 @@ class EmulatorCore:
             self._push(busy, _MAC, n)
             return
         n.mac_state = _LISTENING
-        n.listen_start = t
         listen = s.listen_time
         if s.listen_jitter:
             listen += s.listen_jitter * self._listen_rng.random()
         self._push(t + listen, _LISTEN_END, n)
 
     def _listen_end(self, n: _Node, t: float) -> None:
-        if n.last_carrier >= n.listen_start or self._busy_until(n, t) > t:
-            n.mac_state = _IDLE          # carrier heard: wait for silence and listen again
+        if n.locked is not None:
+            # The listen ran out during a reception: DESERT listens again once it ends
+            # (a reception that began and ended inside the listen changes nothing).
+            n.mac_state = _IDLE
             self._mac_try(n, t)
             return
         self._tx_start(n, t)
 
     def _busy_until(self, n: _Node, t: float) -> float:
+        """When the MAC may start listening: after its own transmission and after the
+        reception its PHY is locked on. Packets the PHY did not acquire (they arrived while
+        it was sending or locked, or too weak) are not carrier for DESERT's MAC."""
         until = max(t, n.tx_end)
-        for arr in n.rx:
-            if arr.audible:
-                until = max(until, arr.end)
+        if n.locked is not None:
+            until = max(until, n.locked.end)
         return until
 
     def _slot_start(self, n: _Node, t: float, duration: float) -> float:
@@ -375,18 +382,17 @@ class EmulatorCore:
         for r in self._order:
             if r == n.name:
                 continue
-            start = t + self._delay[n.name, r]
-            mean_snr = self._snr[n.name, r]
+            delay, power, mean_snr = self.geometry.link(n.name, r, t)
+            start = t + delay
             if snr is not None:
                 faded = mean_snr + (self._fading_rng.gauss(0.0, snr.fading_db) if snr.fading_db else 0.0)
-                audible = mean_snr >= snr.threshold_db
             else:
-                faded, audible = math.inf, True
+                faded = math.inf
             # The end is the sender's tx_end plus the delay: the same expression as the start
             # of a packet it sends right after, so back-to-back packets never overlap by a
             # rounding error.
-            end = n.tx_end + self._delay[n.name, r]
-            arr = _Arrival(pkt, r, start, end, self._power[n.name, r], faded, audible)
+            end = n.tx_end + delay
+            arr = _Arrival(pkt, r, start, end, power, faded)
             self._push(start, _RX_START, arr)
         self._push(n.tx_end, _TX_END, n)
         if log.isEnabledFor(logging.DEBUG):
@@ -400,11 +406,13 @@ class EmulatorCore:
     # -- PHY: reception --------------------------------------------------------------
     def _rx_start(self, arr: _Arrival, t: float) -> None:
         r = self._nodes[arr.receiver]
+        # MEANPOWER: each overlapping pair adds the other's power times the share of the
+        # reception it overlaps (every pair meets here once, when the later one starts).
         for other in r.rx:
-            other.interference += arr.power
-            arr.interference += other.power
-        if arr.audible:
-            r.last_carrier = t
+            overlap = min(other.end, arr.end) - t
+            if overlap > 0:
+                other.interference += arr.power * overlap / (other.end - other.start)
+                arr.interference += other.power * overlap / (arr.end - arr.start)
         if r.mac_state == _SENDING:
             arr.fail = "collision"          # half duplex: deaf while sending
         elif r.locked is not None:
@@ -425,7 +433,7 @@ class EmulatorCore:
         else:
             cause = arr.fail
         pkt = arr.packet
-        if pkt.dest != r.name:
+        if pkt.dest != r.name and pkt.dest != BROADCAST:
             return                          # overheard: it only interfered
         if cause is None and self.scenario.per > 0 and self._per_rng.random() < self.scenario.per:
             cause = "per"
@@ -457,9 +465,13 @@ class EmulatorCore:
         if snr.bpsk_errors and u < bpsk_per(snr_lin, nbits):
             return "snr"
         if arr.interference > 0:
+            # DESERT draws the bit errors of noise plus interference with the same number;
+            # without bit errors, a SINR under the threshold is a collision.
             signal = snr_lin * self._noise
             sinr = signal / (self._noise + arr.interference)
-            if 10 * math.log10(sinr) < snr.threshold_db or (
-                    snr.bpsk_errors and u < bpsk_per(sinr, nbits)):
+            if snr.bpsk_errors:
+                if u < bpsk_per(sinr, nbits):
+                    return "collision"
+            elif 10 * math.log10(sinr) < snr.threshold_db:
                 return "collision"
         return None

@@ -8,15 +8,17 @@ reports mistakes as `file:line:column: message`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from uwgen.emulator.motion import PoseFeed, Position, Track, check_waypoints
 from uwgen.emulator.physics import SnrModel
 
 MAX_READ_LENGTH_LIMIT = 4096  # DESERT crashes above this (measured on DESERT 4.0.0)
+BROADCAST = "*"               # a node's dest: every other node (DESERT's IP broadcast)
 
 
 class ScenarioError(ValueError):
@@ -36,16 +38,21 @@ class NodeSpec:
     period / max_read_length default to the scenario's.  slot is its TDMA slot (default:
     its index among the nodes).  phase shifts its send ticks (DESERT nodes of one scenario
     start together, so by default every node ticks at the same instants).
+    waypoints, if given, move the node: (t, x, y, z) points it passes in straight lines
+    (uwgen.emulator.motion); pose_topic drives it live from a ROS topic instead (its
+    position until the first message is `position`, or the waypoints').
     """
 
     name: str
     port: int = 0                                   # 0: an ephemeral port (see Emulator.port)
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)   # metres
-    dest: str | None = None                         # default: the next node (a ring)
+    dest: str | None = None                         # default: the next node (a ring); "*": all
     period: float | None = None
     max_read_length: int | None = None
     slot: int | None = None
     phase: float = 0.0
+    waypoints: tuple = ()
+    pose_topic: PoseFeed | None = None
 
 
 @dataclass(frozen=True)
@@ -110,8 +117,20 @@ class Scenario:
         assert self.tdma is not None
         return self.tdma.slots if self.tdma.slots is not None else len(self.nodes)
 
-    def distance(self, a: str, b: str) -> float:
-        return math.dist(self.node(a).position, self.node(b).position)
+    def distance(self, a: str, b: str, t: float = 0.0) -> float:
+        return math.dist(self.position_at(a, t), self.position_at(b, t))
+
+    def position_at(self, name: str, t: float) -> Position:
+        """Where `name` is `t` seconds after the start (its waypoints, else its position)."""
+        spec = self.node(name)
+        if spec.waypoints:
+            return Track(spec.waypoints).at(t)
+        return spec.position
+
+    def moves(self, name: str) -> bool:
+        """Does `name` move (waypoints or a live pose topic)?"""
+        spec = self.node(name)
+        return bool(spec.waypoints) or spec.pose_topic is not None
 
     def tx_time(self, payload_bytes: int) -> float:
         """Seconds on the air for a packet carrying `payload_bytes` (plus DESERT's header)."""
@@ -126,8 +145,8 @@ def _validate(s: Scenario) -> None:
         bad(f"a scenario needs at least 2 nodes, got {len(s.nodes)}")
     names = [n.name for n in s.nodes]
     for n in s.nodes:
-        if not isinstance(n.name, str) or not n.name:
-            bad(f"node name must be a non-empty string, got {n.name!r}")
+        if not isinstance(n.name, str) or not n.name or n.name == BROADCAST:
+            bad(f"node name must be a non-empty string other than {BROADCAST!r}, got {n.name!r}")
     dup = {x for x in names if names.count(x) > 1}
     if dup:
         bad(f"node names must be unique: {', '.join(sorted(dup))} repeated")
@@ -158,7 +177,7 @@ def _validate(s: Scenario) -> None:
             bad(f"{where}: port must be 0..65535, got {n.port!r}")
         if len(n.position) != 3 or not all(_finite(c) for c in n.position):
             bad(f"{where}: position must be three numbers (x, y, z in metres), got {n.position!r}")
-        if n.dest is not None:
+        if n.dest is not None and n.dest != BROADCAST:
             if n.dest not in names:
                 bad(f"{where}: dest {n.dest!r} is not a node (nodes: {', '.join(names)})")
             if n.dest == n.name:
@@ -169,6 +188,12 @@ def _validate(s: Scenario) -> None:
             _check_read_length(n.max_read_length, f"{where}: max_read_length", bad)
         if not _finite(n.phase) or n.phase < 0:
             bad(f"{where}: phase must be >= 0, got {n.phase!r}")
+        if n.waypoints:
+            problem = check_waypoints(n.waypoints)
+            if problem:
+                bad(f"{where}: waypoints: {problem}")
+        if n.pose_topic is not None and not isinstance(n.pose_topic, PoseFeed):
+            bad(f"{where}: pose_topic must be a PoseFeed, got {n.pose_topic!r}")
     if s.tdma is not None:
         t = s.tdma
         if not _finite(t.frame) or t.frame <= 0:
@@ -209,6 +234,7 @@ _TOP_KEYS = {f.name for f in fields(Scenario)}
 _NODE_KEYS = {f.name for f in fields(NodeSpec)}
 _TDMA_KEYS = {f.name for f in fields(TdmaSpec)}
 _SNR_KEYS = {f.name for f in fields(SnrModel)}
+_POSE_KEYS = {f.name for f in fields(PoseFeed)}
 
 
 class _Doc:
@@ -249,8 +275,12 @@ class _Doc:
         return f"{self.path}:{mark.line + 1}:{mark.column + 1}"
 
 
-def load_scenario(path: Path | str) -> Scenario:
-    """Read a YAML scenario; raise ScenarioError (`file:line:column: message`) on any mistake."""
+def load_scenario(path: Path | str, base_nodes: list[NodeSpec] | None = None) -> Scenario:
+    """Read a YAML scenario; raise ScenarioError (`file:line:column: message`) on any mistake.
+
+    With `base_nodes` (a manifest's sides) the file only adds to them: its `nodes` are
+    optional, each must name a base node, and may not change a base node's port, period
+    or max_read_length (`uwgen emulate -m`)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -266,10 +296,14 @@ def load_scenario(path: Path | str) -> Scenario:
     if root is None:
         raise ScenarioError("the scenario is empty", str(path))
     data = doc.build(root)
-    return scenario_from_dict(data, doc)
+    return scenario_from_dict(data, doc, base_nodes)
 
 
-def scenario_from_dict(data: Any, doc: _Doc | None = None) -> Scenario:
+FIXED_BY_BASE = ("port", "period", "max_read_length")
+
+
+def scenario_from_dict(data: Any, doc: _Doc | None = None,
+                       base_nodes: list[NodeSpec] | None = None) -> Scenario:
     """Build a Scenario from the YAML structure (a dict); errors name the offending key."""
     def where(*key_path) -> str | None:
         return doc.where(tuple(key_path)) if doc else None
@@ -286,6 +320,8 @@ def scenario_from_dict(data: Any, doc: _Doc | None = None) -> Scenario:
             continue
         kwargs[key] = value
     nodes_raw = data.get("nodes")
+    if base_nodes is not None and nodes_raw is None:
+        nodes_raw = []
     if not isinstance(nodes_raw, list):
         raise fail("`nodes` must be a list of nodes (each with at least a name)", "nodes")
     nodes = []
@@ -305,10 +341,38 @@ def scenario_from_dict(data: Any, doc: _Doc | None = None) -> Scenario:
                 raise fail("position is a list of up to three numbers [x, y, z] in metres",
                            "nodes", i, "position")
             node_kwargs["position"] = tuple(list(pos) + [0.0] * (3 - len(pos)))
+        if "waypoints" in node_kwargs:
+            wps = node_kwargs["waypoints"]
+            problem = check_waypoints(wps)
+            if problem:
+                raise fail(problem, "nodes", i, "waypoints")
+            node_kwargs["waypoints"] = tuple(tuple(w) for w in wps)
+        if node_kwargs.get("pose_topic") is not None:
+            feed = node_kwargs["pose_topic"]
+            if not isinstance(feed, dict):
+                raise fail("pose_topic is a mapping: topic, type, scale, offset",
+                           "nodes", i, "pose_topic")
+            _reject_unknown(feed, _POSE_KEYS, ("nodes", i, "pose_topic"), fail)
+            if "offset" in feed:
+                off = feed["offset"]
+                if not isinstance(off, list) or len(off) not in (1, 2, 3):
+                    raise fail("offset is a list of up to three numbers [x, y, z] in metres",
+                               "nodes", i, "pose_topic", "offset")
+                feed = {**feed, "offset": tuple(list(off) + [0.0] * (3 - len(off)))}
+            try:
+                node_kwargs["pose_topic"] = PoseFeed(**feed)
+            except (TypeError, ValueError) as exc:
+                raise fail(str(exc), "nodes", i, "pose_topic") from None
+        if base_nodes is not None:
+            nodes.append(_onto_base(node_kwargs, base_nodes, ("nodes", i), fail))
+            continue
         try:
             nodes.append(NodeSpec(**node_kwargs))
         except TypeError as exc:
             raise fail(str(exc), "nodes", i) from None
+    if base_nodes is not None:
+        merged = {n.name: n for n in nodes}
+        nodes = [merged.get(b.name, b) for b in base_nodes]
     kwargs["nodes"] = nodes
     for key, cls, known in (("snr", SnrModel, _SNR_KEYS), ("tdma", TdmaSpec, _TDMA_KEYS)):
         if key not in data or data[key] is None:
@@ -330,6 +394,26 @@ def scenario_from_dict(data: Any, doc: _Doc | None = None) -> Scenario:
         raise ScenarioError(exc.message, _locate(exc.message, data, where)) from None
     except TypeError as exc:
         raise fail(str(exc)) from None
+
+
+def _onto_base(node_kwargs: dict, base_nodes: list[NodeSpec], key_path: tuple,
+               fail) -> NodeSpec:
+    """A scenario node laid onto the base node of the same name (see load_scenario)."""
+    base = {b.name: b for b in base_nodes}
+    name = node_kwargs["name"]
+    if name not in base:
+        raise fail(f"node {name} is not a side of the manifest (sides: {', '.join(base)})",
+                   *key_path, "name")
+    spec = base[name]
+    for key in FIXED_BY_BASE:
+        if key in node_kwargs and node_kwargs[key] not in (None, getattr(spec, key)):
+            raise fail(f"node {name}: {key} {node_kwargs[key]!r} contradicts the manifest "
+                       f"({getattr(spec, key)!r}): leave {key} to the manifest",
+                       *key_path, key)
+    try:
+        return replace(spec, **{k: v for k, v in node_kwargs.items() if k != "name"})
+    except TypeError as exc:
+        raise fail(str(exc), *key_path) from None
 
 
 def _reject_unknown(raw: dict, known: set[str], key_path: tuple, fail) -> None:

@@ -146,6 +146,21 @@ class Emulator:
         with self._lock:
             return self._core.all_counters()
 
+    def set_position(self, node: str, position) -> None:
+        """Move `node` to `position` (x, y, z metres) now; packets it sends or receives from
+        now on use it (thread-safe; a live pose, see uwgen.emulator.ros_pose)."""
+        self._socket(node)
+        loop = self._require_loop()
+        with self._lock:
+            self._core.set_position(node, self._now(), position)
+        loop.call_soon_threadsafe(self._pump)     # deliveries due by now go out at once
+
+    def position(self, node: str) -> tuple[float, float, float]:
+        """Where `node` is now (fixed, on its waypoints, or its latest live position)."""
+        self._socket(node)
+        with self._lock:
+            return self._core.position(node, self._now() if self._loop else 0.0)
+
     def deliveries(self, node: str | None = None) -> list[Delivery]:
         """Every packet written to a client so far (to `node`'s, or to any), in order. Kept only
         when the emulator was made with record=True (tests use it to know what was lost)."""

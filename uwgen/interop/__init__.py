@@ -15,7 +15,7 @@ How a bridge uses discovery (profile rmw_desert on any of its entries):
 
     beacons = bridge_beacons(manifest, side)          # refuses over-long names at start
     for key, policy in discovery_policies(len(beacons)).items():
-        link.add_channel(key, policy)                 # keys 1 and 2
+        link.add_channel(key, policy, whole=True)     # keys 1 and 2, never fragmented
     agent = DiscoveryAgent(beacons, send=link.offer, clock=clock)
     agent.start()                                     # request + beacons (and on reconnect:
                                                       # agent.announce(request=True))

@@ -91,11 +91,15 @@ class Link:
 
     # -- contract API --------------------------------------------------------------------------
 
-    def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None) -> None:
-        """One channel per topic/service id; `name` (e.g. the topic) only makes logs clearer."""
+    def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None, *,
+                    whole: bool = False) -> None:
+        """One channel per topic/service id; `name` (e.g. the topic) only makes logs clearer.
+        `whole`: never fragmented (rmw_desert entries and beacons); other payloads longer than
+        a packet are fragmented when the link has a fragment_id."""
         if key == self.fragment_id:
             raise ValueError(f"[{self.name}] channel {key} is the reserved fragment_id")
-        self.scheduler.add_channel(key, policy, name=f"channel {key} ({name})" if name else None)
+        self.scheduler.add_channel(key, policy, name=f"channel {key} ({name})" if name else None,
+                                   whole=whole)
 
     def offer(self, key: int, payload: bytes) -> bool:
         """Queue an unframed payload; False (and a counted, logged drop) if it can never be sent."""

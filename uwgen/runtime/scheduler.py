@@ -18,10 +18,12 @@ message offered is accounted for exactly once:
 where `queued` counts waiting messages including one being sent in fragments. `rate_limited` is
 informational: messages that were held back at least once by the rate limit while the link was free.
 
-Payloads over 255 bytes are split by a splitter (uwgen.runtime.fragment.Fragmenter.split) when
-they start to go out; on a channel whose policy asks for `repair` fragments, every payload longer
-than `fec_over` bytes (one packet's worth) is split, with that many repair fragments after its data
-fragments (wire format section 11); their fragments then leave one per `next_payload` call, so a higher-priority
+With a splitter (uwgen.runtime.fragment.Fragmenter.split), every payload longer than `fec_over`
+bytes (one packet's worth) is split when it starts to go out, so that no frame crosses a packet
+(a lost packet then never damages a frame outside it); a channel added `whole` (rmw_desert
+entries, which its nodes must read unsplit) is never split. On a channel whose policy asks for
+`repair` fragments, that many repair fragments follow the data fragments (wire format section
+11). Fragments then leave one per `next_payload` call, so a higher-priority
 channel can still get in between. A message being sent in fragments is finished even if a newer
 one arrives (it is not superseded) or its ttl passes: abandoning it would waste what already went.
 
@@ -225,14 +227,19 @@ class LinkScheduler:
 
     # -- configuration -------------------------------------------------------------------------
 
-    def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None) -> None:
+    def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None, *,
+                    whole: bool = False) -> None:
+        """`whole`: never fragment this channel's payloads (rmw_desert peers read them as they
+        are); otherwise, with a splitter, a payload longer than one packet is fragmented so
+        that no frame crosses a packet."""
         if key in self._channels:
             raise ValueError(f"channel {key} already added")
         ch = Channel(key=key, policy=policy, name=name or f"channel {key}", queue_kind=queue_for(policy),
                      rate=rate_for(policy), expiry=expiry_for(policy), max_message=self.max_message)
-        if policy.repair:
-            if self.splitter is None:
-                raise ValueError(f"channel {key}: repair fragments need fragments (a fragment_id)")
+        if policy.repair and (self.splitter is None or whole):
+            raise ValueError(f"channel {key}: repair fragments need fragments (a fragment_id) "
+                             "and a channel that may be fragmented")
+        if self.splitter is not None and not whole:
             ch.split_over = min(self.fec_over, MAX_PAYLOAD)
             if self._max_message_for is not None:
                 ch.max_message = self._max_message_for(policy.repair)

@@ -1,0 +1,48 @@
+"""An emulated network from a uwgen manifest: one DESERT node per side.
+
+`uwgen emulate -m uwgen.yaml [scenario.yaml]`: the manifest says which nodes exist (its
+sides, by name), their ports and their link settings (max_read_length, period); a
+scenario file may add the physics (positions, waypoints, SNR model, TDMA, seed, ...) but
+not contradict the manifest. Sides without a position in the scenario are placed on a
+line, `spacing` metres apart. With two sides each sends to the other; with more, each
+broadcasts (every other node receives what it sends).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario, ScenarioError, load_scenario
+
+LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def scenario_from_manifest(manifest: Path, physics: Path | None = None,
+                           spacing: float = 1000.0) -> Scenario:
+    """The scenario of `manifest`'s sides, with the scenario file `physics` laid on top.
+    Raises ScenarioError (a bad manifest's ManifestError text is kept, file:line:column)."""
+    from uwgen.manifest.loader import load_sides
+    from uwgen.manifest.nodes import ManifestError
+
+    try:
+        _network, sides = load_sides(manifest)
+    except ManifestError as exc:
+        raise ScenarioError(str(exc)) from None
+    except OSError as exc:
+        raise ScenarioError(f"cannot read manifest: {exc.strerror or exc}", str(manifest)) from None
+    if len(sides) < 2:
+        raise ScenarioError(f"the manifest has {len(sides)} side: an emulated network needs "
+                            "at least 2", str(manifest))
+    for side in sides.values():
+        if side.host not in LOCAL_HOSTS:
+            where = (f"{side.where.path}:{side.where.line}:{side.where.column}"
+                     if side.where else str(manifest))
+            raise ScenarioError(f"side {side.name}'s DESERT node is at {side.host}: the "
+                                "emulator serves 127.0.0.1 only (use a real DESERT there, or "
+                                "host 127.0.0.1)", where)
+    dest = None if len(sides) == 2 else BROADCAST
+    base = [NodeSpec(side.name, port=side.port, position=(i * spacing, 0.0, 0.0), dest=dest,
+                     period=side.link.period, max_read_length=side.link.max_read_length)
+            for i, side in enumerate(sides.values())]
+    if physics is None:
+        return Scenario(nodes=base)
+    return load_scenario(physics, base_nodes=base)
