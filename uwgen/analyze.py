@@ -301,24 +301,25 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     entries: list[EntryCost] = []
     for t in manifest.topics:
         entries.append(_entry(builder, sizer, "topic", t.name, t.id, t.type_name, t.publisher, t.policy.rate,
-                              t.type, t.profile, t.fields, variant_name("t", t.id, t.fields), 2))
+                              t.type, t.profile, t.fields, variant_name("t", t.id, t.fields), 2,
+                              _security(t)))
     for s in manifest.services:
         entries.append(_entry(builder, sizer, "request", s.name, s.id, s.type_name, "*", s.policy.rate,
                               s.type.request, s.profile, s.request_fields,
-                              variant_name("q", s.id, s.request_fields), 3))
+                              variant_name("q", s.id, s.request_fields), 3, _security(s)))
         entries.append(_entry(builder, sizer, "response", s.name, s.id, s.type_name, s.server, s.policy.rate,
                               s.type.response, s.profile, s.response_fields,
-                              variant_name("r", s.id, s.response_fields), 3))
+                              variant_name("r", s.id, s.response_fields), 3, _security(s)))
     for a in getattr(manifest, "actions", ()):
         # Goals (and the 3-byte cancels) from every client side; answers (4 bytes), results
         # and latest-only feedback from the server side.
         entries.append(_entry(builder, sizer, "goal", a.name, a.id, a.type_name, "*", a.policy.rate,
-                              a.type.goal, a.profile, (), "", 3))
+                              a.type.goal, a.profile, (), "", 3, _security(a)))
         entries.append(_entry(builder, sizer, "result", a.name, a.id, a.type_name, a.server,
-                              a.policy.rate, a.type.result, a.profile, (), "", 4))
+                              a.policy.rate, a.type.result, a.profile, (), "", 4, _security(a)))
         if a.feedback is not None:
             entries.append(_entry(builder, sizer, "feedback", a.name, a.id, a.type_name, a.server,
-                                  a.feedback.rate, a.type.feedback, a.profile, (), "", 3))
+                                  a.feedback.rate, a.type.feedback, a.profile, (), "", 3, _security(a)))
     budgets = []
     schema = _schema_rate(manifest)
     for side in manifest.sides.values():
@@ -349,7 +350,17 @@ def _schema_rate(manifest: Manifest) -> float:
     ids = sorted({e.id for e in (*manifest.topics, *manifest.services,
                                  *getattr(manifest, "actions", ()))})
     payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids], request=False)
-    return sum(len(p) + FRAME_OVERHEAD for p in payloads) / period
+    signed = _SECURED.typical if manifest.protected() else 0   # signed with security on
+    return sum(len(p) + FRAME_OVERHEAD + signed for p in payloads) / period
+
+
+# What the secure link adds to a frame (wire format section 12): 10 bytes, 14 on sync frames.
+_SECURED = Size(10, 10, 14)
+_UNSECURED = Size(0, 0, 0)
+
+
+def _security(entry) -> Size:
+    return _UNSECURED if getattr(entry, "security", "off") == "off" else _SECURED
 
 
 def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
@@ -358,7 +369,7 @@ def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
 
 
 def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, profile, fields, variant,
-           header_items) -> EntryCost:
+           header_items, security: Size = _UNSECURED) -> EntryCost:
     head = Size(2, 2, 2) if ident < 24 else Size(3, 3, 3)
     if kind in ACTION_KINDS:
         head = head + Size(header_items - 2, header_items - 2, header_items - 2)  # handle (+ status)
@@ -379,7 +390,7 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
         if prof == PACKED:
             body = Size(*(None if b is None else _packed_bytes(b) for b in (body.min, body.typical, body.max)))
         payload = head + body
-        frame = payload + Size(FRAME_OVERHEAD, FRAME_OVERHEAD, FRAME_OVERHEAD)
+        frame = payload + security + Size(FRAME_OVERHEAD, FRAME_OVERHEAD, FRAME_OVERHEAD)
         costs.append(ProfileCost(label, ct is configured, payload, frame))
     leaves = []
     for leaf in configured.root.leaves():

@@ -19,6 +19,7 @@ COMMANDS = {
     "demo": "uwgen.commands.demo",
     "ros-interfaces": "uwgen.commands.ros_interfaces",
     "rmw-config": "uwgen.commands.rmw_config",
+    "keygen": "uwgen.commands.keygen",
 }
 
 EXIT_USAGE = 2  # bad input: definitions, manifest, arguments

@@ -16,6 +16,7 @@ from types import ModuleType
 from typing import Any, Sequence
 
 from uwgen.bridge.plan import TIMEOUT_REPLIES, BridgePlan, PlanError, import_package
+from uwgen.bridge.security import check_security
 
 EXIT_USAGE = 2
 log = logging.getLogger("uwgen.bridge")
@@ -37,12 +38,20 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
                              "default (a default-constructed response)")
     parser.add_argument("--stats-file", type=Path, metavar="PATH",
                         help="also write the status JSON to this file (periodically and at exit)")
+    parser.add_argument("--key-file", type=Path, metavar="PATH",
+                        help="network key of the secure link (default: the manifest's security "
+                             "key_file)")
+    parser.add_argument("--security-state", type=Path, metavar="PATH",
+                        help="file keeping this side's sequence numbers across restarts (default: "
+                             "next to the key file)")
 
 
 def options_from_args(plan: BridgePlan, args: argparse.Namespace):
     return plan.options(host=args.host, port=args.port, max_read_length=args.max_read_length,
                         period=args.period, status_period=args.status_period,
-                        timeout_reply=args.timeout_reply, stats_file=args.stats_file)
+                        timeout_reply=args.timeout_reply, stats_file=args.stats_file,
+                        key_file=getattr(args, "key_file", None),
+                        security_state=getattr(args, "security_state", None))
 
 
 def run(package: ModuleType, side: str, args: argparse.Namespace,
@@ -51,6 +60,7 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
     try:
         plan = BridgePlan.from_package(package, side)
         options = options_from_args(plan, args)
+        check_security(plan, options)
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -134,6 +144,10 @@ def _summary(status: dict) -> str:
             parts.append(f"{name} goals {a['goals']} accepted {a['accepted']} results {a['results']}")
         else:
             parts.append(f"{name} goals {a['goal_requests']} results {a['results_sent']}")
+    security = status.get("security")
+    if security:
+        parts.append(f"security: protected {security['protected']} verified {security['verified']} "
+                     f"dropped {security['dropped']}")
     discovery = status.get("discovery")
     if discovery:
         remote = discovery.get("remote", [])

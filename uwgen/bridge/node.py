@@ -33,6 +33,7 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import BridgeOptions, BridgePlan
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
+from uwgen.bridge.security import guard_for
 from uwgen.bridge.services import Servers, StandIns, service_status
 from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
 from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
@@ -90,9 +91,11 @@ class BridgeNode(Node):
         self._wake = self.create_guard_condition(self._drain_inbox, callback_group=main_group)
         self.inbox = Inbox(self._wake.trigger)
         link_cfg = self.options.link
+        self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
-                                 clock=clock, name=plan.side)
+                                 clock=clock, name=plan.side,
+                                 **({"guard": self.guard} if self.guard is not None else {}))
         for key, policy, name, whole in plan.channels():
             self.link.add_channel(key, policy, name, whole=whole)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
@@ -145,7 +148,8 @@ class BridgeNode(Node):
                                  max_read_length=get("max_read_length"), period=get("period"),
                                  status_period=float(get("status_period")),
                                  timeout_reply=get("service_timeout_reply"),
-                                 stats_file=opts.stats_file)
+                                 stats_file=opts.stats_file, key_file=opts.key_file,
+                                 security_state=opts.security_state)
 
     # -- the parts' state, under the names the node has always had ------------------------
 
@@ -214,7 +218,8 @@ class BridgeNode(Node):
             services=service_status(self.standins, self.servers, channels, self.unavailable),
             actions=action_status(self.action_standins, self.action_servers, channels,
                                   self.unavailable),
-            bridge=asdict(self.counters), echo_hazards=dict(self.echo_hazards))
+            bridge=asdict(self.counters), echo_hazards=dict(self.echo_hazards),
+            security=link_stats.get("security") if isinstance(link_stats, dict) else None)
 
     def discovery_status(self) -> dict | None:
         """What this bridge announces to rmw_desert nodes and the remote graph it heard
@@ -237,6 +242,8 @@ class BridgeNode(Node):
             self.link.stop()
         except Exception as exc:
             self._log.warning(f"link did not stop cleanly: {exc}")
+        if self.guard is not None:
+            self.guard.close()                 # exact sequence numbers for the next start
         self.inbox.close()
         status = self.status()
         self.reporter.write(json.dumps(status, sort_keys=True, default=str))

@@ -46,6 +46,8 @@ class BridgeOptions:
     status_period: float = 2.0      # seconds between ~/status messages (0: none)
     timeout_reply: str = TIMEOUT_REPLY_NONE
     stats_file: Path | None = None  # also write the status JSON here (periodically and at exit)
+    key_file: Path | None = None    # network key (default: the manifest's security key_file)
+    security_state: Path | None = None  # sequence state file (default: next to the key file)
 
     def check(self) -> "BridgeOptions":
         if not 0 < self.port < 65536:
@@ -79,6 +81,8 @@ class BridgePlan:
     schema_id: int | None = None          # reserved id of schema announcements (None: off)
     schema_period: float | None = None    # seconds between periodic announcements
     schema_digest: bytes = b""            # the generated package's SCHEMA_DIGEST
+    security: Any = None          # manifest.model.SecurityPlan, None when nothing is protected
+    manifest_source: str = ""     # the manifest as the build named it (relative key files)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str) -> "BridgePlan":
@@ -107,6 +111,8 @@ class BridgePlan:
             schema_id=getattr(manifest, "schema_id", None),
             schema_period=getattr(manifest, "schema_period", None),
             schema_digest=getattr(manifest, "schema_digest", b""),
+            security=getattr(manifest, "security", None),
+            manifest_source=getattr(manifest, "source", "") or "",
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:

@@ -477,6 +477,7 @@ def _manifest_view(plan: PackagePlan):
         "fragment_id": manifest.fragment_id,
         "schema_id": manifest.schema_id, "schema_period": manifest.schema_period,
         "schema_digest": plan.schema_digest.hex(),
+        "security": repr(manifest.security_plan()) if manifest.protected() else None,
         "sides": [(name, repr(side_without_where(side))) for name, side in sorted(manifest.sides.items())],
         "topics": [dict(id=t.id, name=t.name, type_name=t.type_name, publisher=t.publisher,
                         policy=repr(t.policy), qos=repr(t.qos), profile=t.profile,

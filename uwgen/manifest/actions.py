@@ -16,13 +16,13 @@ from uwgen.manifest.model import (ACTION_HANDLES, MAX_GOALS_LIMIT, NATIVE, PROFI
                                   LinkPolicy, Side)
 
 ACTION_KEYS = ("name", "id", "type", "server", "accept_timeout", "result_timeout", "max_goals",
-               "rate", "queue", "depth", "ttl", "priority", "feedback", "profile")
+               "rate", "queue", "depth", "ttl", "priority", "feedback", "profile", "security")
 FEEDBACK_KEYS = ("rate", "ttl", "priority")
 
 
-def read_action(b: Any, node: yaml.Node, sides: dict[str, Side]) -> Action:
+def read_action(b: Any, node: yaml.Node, sides: dict[str, Side], security: str = "off") -> Action:
     """One entry of `actions:`, read with the manifest builder `b` (ids, names, sides and
-    link policy keys as for services)."""
+    link policy keys as for services; `security` is the network's default mode)."""
     r = b.r
     entries, name, ident, type_text, label = b.common(node, "action", ACTION_KEYS)
     type_name, definition = resolve_action(b, entries["type"][1], type_text, label)
@@ -58,8 +58,9 @@ def read_action(b: Any, node: yaml.Node, sides: dict[str, Side]) -> Action:
         if r.choice(profile_node, f"profile of {label}", PROFILES) != NATIVE:
             raise r.error(profile_node, f"{label}: actions are carried in profile native only "
                                         "(rmw_desert nodes have no actions)")
+    mode = b.sec.entry_mode(entries, label, name, security)
     return Action(name, ident, type_name, definition, server, accept_timeout, result_timeout,
-                  max_goals, policy, feedback, NATIVE, r.where(node))
+                  max_goals, policy, feedback, NATIVE, r.where(node), security=mode)
 
 
 def resolve_action(b: Any, type_node: yaml.Node, type_text: str, label: str) -> tuple[str, ActionDef]:

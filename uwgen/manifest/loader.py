@@ -35,6 +35,7 @@ from uwgen.manifest.model import (
     LinkPolicy,
     Manifest,
     Qos,
+    Security,
     Service,
     Side,
     Topic,
@@ -42,6 +43,7 @@ from uwgen.manifest.model import (
 from uwgen.manifest.actions import ACTION_KEYS, FEEDBACK_KEYS, read_action  # noqa: F401 (keys re-exported)
 from uwgen.manifest.fields import FieldsReader
 from uwgen.manifest.nodes import ManifestError, Reader, compose
+from uwgen.manifest.security import SecurityCheck, network_security, sender_id
 
 __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
 
@@ -49,16 +51,16 @@ MANIFEST_NAME = "uwgen.yaml"
 ID_RANGE = (1, 255)
 
 TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id", "schema_period",
-            "defaults", "topics", "services", "actions")
-SIDE_KEYS = ("host", "port", "link")
+            "defaults", "topics", "services", "actions", "security")
+SIDE_KEYS = ("host", "port", "link", "sender_id")
 LINK_KEYS = ("max_read_length", "period")
 POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair")
 MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
-TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security")
 SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
-                "request_fields", "response_fields")
+                "request_fields", "response_fields", "security")
 
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
@@ -158,6 +160,8 @@ class _ManifestBuilder:
         self.lib = lib
         self.ids: dict[int, _IdUse] = {}
         self.repair_nodes: dict[str, yaml.Node] = {}    # "topic /x" -> its repair: value node
+        self.sec = SecurityCheck(reader)
+        self.senders: dict[str, int] = {}
 
     # -- top level -------------------------------------------------------------------
 
@@ -183,6 +187,14 @@ class _ManifestBuilder:
         if "profile" in top:
             profile = r.choice(top["profile"][1], "profile", PROFILES)
 
+        security = Security()
+        if "security" in top:
+            self.sec.block = top["security"][1]
+            security = network_security(r, self.sec.block)
+            if isinstance(self.sec.block, yaml.MappingNode):
+                self.sec.mode_node = next((v for k, v in self.sec.block.value if k.value == "mode"),
+                                          self.sec.block)
+
         sides_node = r.require(top, "sides", root, "the manifest")
         sides = self.sides(sides_node)
 
@@ -202,17 +214,17 @@ class _ManifestBuilder:
         if "topics" in top:
             for node in r.sequence(top["topics"][1], "topics"):
                 with errors.attempt(ManifestError, DefinitionError):
-                    topics.append(self.topic(node, sides, defaults, default_qos, profile))
+                    topics.append(self.topic(node, sides, defaults, default_qos, profile, security.mode))
         services = []
         if "services" in top:
             for node in r.sequence(top["services"][1], "services"):
                 with errors.attempt(ManifestError, DefinitionError):
-                    services.append(self.service(node, sides, profile))
+                    services.append(self.service(node, sides, profile, security.mode))
         actions = []
         if "actions" in top:
             for node in r.sequence(top["actions"][1], "actions"):
                 with errors.attempt(ManifestError, DefinitionError):
-                    actions.append(self.action(node, sides))
+                    actions.append(self.action(node, sides, security.mode))
         for entries, kind in ((topics, "topic"), (services, "service"), (actions, "action")):
             with errors.attempt(ManifestError):
                 self.unique_names(entries, kind)
@@ -245,7 +257,9 @@ class _ManifestBuilder:
             fragment_id=fragment_id,
             schema_id=schema_id,
             schema_period=schema_period,
+            security=security,
         )
+        manifest = self.sec.finish(manifest, root, self.senders)
         if manifest.uses_rmw_desert():
             self.check_rmw_reserved(manifest, top)
         self.check_repair(manifest)
@@ -279,6 +293,10 @@ class _ManifestBuilder:
             link = LinkConfig()
             if "link" in fields:
                 link = self.link(fields["link"][1], what)
+            self.sec.side_nodes[name] = value_node
+            if "sender_id" in fields:
+                self.sec.sender_nodes[name] = fields["sender_id"][1]
+                self.senders[name] = sender_id(r, fields["sender_id"][1], name)
             sides[name] = Side(name, host, port, link, r.where(value_node))
         return sides
 
@@ -354,7 +372,8 @@ class _ManifestBuilder:
             raise r.error(node, f"{key} '{side}' of {label} is not a declared side (sides: {declared})")
         return side
 
-    def topic(self, node: yaml.Node, sides: dict[str, Side], defaults: dict, default_qos: Qos, profile: str) -> Topic:
+    def topic(self, node: yaml.Node, sides: dict[str, Side], defaults: dict, default_qos: Qos, profile: str,
+              security: str = "off") -> Topic:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "topic", TOPIC_KEYS)
         type_name, definition = self.resolve(entries["type"][1], type_text, "msg", label)
@@ -363,9 +382,11 @@ class _ManifestBuilder:
         qos = self.qos(entries["qos"][1], default_qos) if "qos" in entries else default_qos
         topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
         fields = self.fields(entries, "fields", definition, label, topic_profile)
-        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields)
+        mode = self.sec.entry_mode(entries, label, name, security)
+        return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields,
+                     security=mode)
 
-    def service(self, node: yaml.Node, sides: dict[str, Side], profile: str) -> Service:
+    def service(self, node: yaml.Node, sides: dict[str, Side], profile: str, security: str = "off") -> Service:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "service", SERVICE_KEYS)
         type_name, definition = self.resolve(entries["type"][1], type_text, "srv", label)
@@ -378,8 +399,9 @@ class _ManifestBuilder:
         service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
         request_fields = self.fields(entries, "request_fields", definition.request, f"the request of {label}", service_profile)
         response_fields = self.fields(entries, "response_fields", definition.response, f"the response of {label}", service_profile)
+        mode = self.sec.entry_mode(entries, label, name, security)
         return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node),
-                       request_fields, response_fields)
+                       request_fields, response_fields, security=mode)
 
     def fields(self, entries: dict, key: str, msg: MessageDef, label: str, profile: str) -> tuple:
         """Field encodings under `key` (wire format section 8); never in profile rmw_desert."""
@@ -391,8 +413,8 @@ class _ManifestBuilder:
                                          "(an rmw_desert node could not read them); use profile native or packed")
         return FieldsReader(self.r, self.lib.get).read(node, msg, label)
 
-    def action(self, node: yaml.Node, sides: dict[str, Side]) -> Action:
-        return read_action(self, node, sides)   # uwgen.manifest.actions: the `actions:` section
+    def action(self, node: yaml.Node, sides: dict[str, Side], security: str = "off") -> Action:
+        return read_action(self, node, sides, security)   # uwgen.manifest.actions: the `actions:` section
 
     def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
         """Link policy from `entries`, falling back to `defaults`, then to `base`."""

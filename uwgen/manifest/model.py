@@ -23,6 +23,8 @@ RELIABILITY = ("reliable", "best_effort")
 DURABILITY = ("volatile", "transient_local")
 FIFO_DEFAULT_DEPTH = 4   # queue depth of a fifo queue whose depth is not given
 SCHEMA_PERIOD_DEFAULT = 600.0   # seconds between schema announcements (besides connect and request)
+SECURITY_MODES = ("off", "sign", "encrypt")   # docs/wire-format.md section 12
+MAX_SENDER_ID = 15       # sender ids of the secure link are 4 bits
 
 # Ids rmw_desert uses for its discovery topics; reserved while any profile is rmw_desert.
 RMW_DISCOVERY_ID = 1
@@ -128,6 +130,7 @@ class Topic:
     profile: str = NATIVE
     where: SourceRef | None = None
     fields: tuple[FieldEncoding, ...] = ()   # field encodings (manifest `fields:`)
+    security: str = "off"       # off | sign | encrypt (the network's mode unless set here)
 
 
 @dataclass(frozen=True)
@@ -143,6 +146,29 @@ class Service:
     where: SourceRef | None = None
     request_fields: tuple[FieldEncoding, ...] = ()    # manifest `request_fields:`
     response_fields: tuple[FieldEncoding, ...] = ()   # manifest `response_fields:`
+    security: str = "off"       # off | sign | encrypt (the network's mode unless set here)
+
+
+@dataclass(frozen=True)
+class Security:
+    """The network's `security:` block and the sides' sender ids (wire-format.md 12)."""
+
+    mode: str = "off"                      # default mode of topics and services
+    key_file: str | None = None            # as written in the manifest (relative: to its folder)
+    senders: dict[str, int] = field(default_factory=dict)   # side -> sender id (0..15)
+
+    def modes(self, entries) -> dict[int, str]:
+        """id -> mode of the protected entries among `entries`."""
+        return {e.id: e.security for e in entries if e.security != "off"}
+
+
+@dataclass(frozen=True)
+class SecurityPlan:
+    """What a generated package keeps of the security set-up: the bridge needs nothing else."""
+
+    key_file: str                          # as in the manifest (relative: to its folder)
+    senders: dict[str, int]                # side -> sender id
+    modes: dict[int, str]                  # protected id -> sign | encrypt
 
 
 MAX_GOALS_LIMIT = ACTION_HANDLES // 2   # goals in flight per action, at most
@@ -175,6 +201,7 @@ class Action:
     feedback: LinkPolicy | None = field(default_factory=lambda: LinkPolicy(rate=0.2))  # latest only; None: not sent
     profile: str = NATIVE
     where: SourceRef | None = None
+    security: str = "off"       # off | sign | encrypt: every payload on this id (wire format 12)
 
 
 @dataclass
@@ -190,12 +217,28 @@ class Manifest:
     fragment_id: int | None = None               # reserved id for fragments of payloads > 255 bytes
     schema_id: int | None = None                 # reserved id for schema announcements (wire format 10)
     schema_period: float | None = SCHEMA_PERIOD_DEFAULT  # seconds between announcements; None: connect/request only
+    security: Security = field(default_factory=Security)
 
     def entry(self, id: int) -> Topic | Service | Action | None:
         for item in (*self.topics, *self.services, *self.actions):
             if item.id == id:
                 return item
         return None
+
+    def security_plan(self) -> SecurityPlan | None:
+        """None when nothing is protected."""
+        if not self.protected():
+            return None
+        modes = self.security.modes((*self.topics, *self.services, *self.actions))
+        if self.schema_id is not None:
+            # Signed too: a forged announcement would make the far side refuse an id.
+            modes[self.schema_id] = "sign"
+        return SecurityPlan(self.security.key_file or "", dict(sorted(self.security.senders.items())),
+                            dict(sorted(modes.items())))
+
+    def protected(self) -> bool:
+        """Whether any topic, service or action is signed or encrypted."""
+        return any(e.security != "off" for e in (*self.topics, *self.services, *self.actions))
 
     def uses_rmw_desert(self) -> bool:
         return any(t.profile == RMW_DESERT for t in (*self.topics, *self.services))

@@ -12,11 +12,16 @@ manifest reserves a fragment_id; otherwise they are refused, counted too_large a
 Incoming: frames are decoded, fragments reassembled, and `on_payload` receives each complete payload
 on the link's thread. Fragments are recognised by their header (kind 0, fragment_id); with
 fragment_id None nothing is treated as a fragment.
+
+Security: with a `guard` (uwgen.security.guard.LinkGuard) a whole payload is protected when it
+leaves its queue, before it is fragmented, and every whole payload received (after reassembly)
+goes through `guard.unprotect`; only what it passes reaches `on_payload`.
 """
 from __future__ import annotations
 
 import random
 from collections.abc import Callable
+from typing import Any
 
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
@@ -45,12 +50,14 @@ class Link:
                  max_partial_bytes: int = 256 * 1024,
                  max_fragments: int = MAX_COUNT,
                  pace_margin: float = DEFAULT_MARGIN,
-                 bitrate: float | None = None):
+                 bitrate: float | None = None,
+                 guard: Any = None):
         self.config = config or LinkConfig()
         self.name = name
         self.clock = clock
         self.fragment_id = fragment_id
         self._on_payload = on_payload
+        self.guard = guard
         self.counters = Counters(LINK_COUNTERS)
         self._pulled_key: int | None = None       # channel of the payload pulled last
         rng = rng or random.Random()
@@ -72,7 +79,9 @@ class Link:
             splitter=self.fragmenter.split if self.fragmenter else None,
             max_message=self.fragmenter.max_message_size if self.fragmenter else MAX_PAYLOAD,
             fec_over=self.fragmenter.max_payload if self.fragmenter else MAX_PAYLOAD,
-            max_message_for=self.fragmenter.max_message_for if self.fragmenter else None)
+            max_message_for=self.fragmenter.max_message_for if self.fragmenter else None,
+            protect=guard.protect if guard is not None else None,
+            overhead=guard.overhead if guard is not None else None)
         self.connection = DesertConnection(
             host, port, self.config, source=self._source, on_frame=self._on_frame, clock=clock,
             name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
@@ -130,6 +139,7 @@ class Link:
             "connection": conn,
             "fragments": frag,
             "payloads_delivered": self.counters["payloads_delivered"],
+            "security": self.guard.stats() if self.guard is not None else None,
         }
 
     # -- wiring --------------------------------------------------------------------------------
@@ -156,6 +166,10 @@ class Link:
                 self.counters.inc("nested_fragments")    # never sent by uwgen: refuse to recurse
                 return
             payload = whole
+        if self.guard is not None:
+            payload = self.guard.unprotect(payload)
+            if payload is None:
+                return                                   # counted by the guard
         self.counters.inc("payloads_delivered")
         if self._on_payload is not None:
             self._on_payload(payload)

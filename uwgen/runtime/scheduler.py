@@ -13,7 +13,7 @@ channel (one topic or service id) has a LinkPolicy, turned into small policy obj
 `next_payload(now)` is called by the connection only when it may write (pull, not push). Every
 message offered is accounted for exactly once:
 
-    offered == sent + superseded + overflow + expired + too_large + invalid + queued
+    offered == sent + superseded + overflow + expired + too_large + invalid + protect_failed + queued
 
 where `queued` counts waiting messages including one being sent in fragments. `rate_limited` is
 informational: messages that were held back at least once by the rate limit while the link was free.
@@ -26,6 +26,12 @@ entries, which its nodes must read unsplit) is never split. On a channel whose p
 11). Fragments then leave one per `next_payload` call, so a higher-priority
 channel can still get in between. A message being sent in fragments is finished even if a newer
 one arrives (it is not superseded) or its ttl passes: abandoning it would waste what already went.
+
+Security (uwgen.security.guard.LinkGuard): `protect(key, payload)` turns a channel's next message
+into its protected form when the channel is ready to send it, once, before its size is weighed or
+it is split, so sequence numbers are spent only on what is about to go and the size is exact;
+`overhead(key)` is the most protection may add, counted in the size check of `offer`. A message that
+cannot be protected is dropped (`protect_failed`), never sent in the clear.
 """
 from __future__ import annotations
 
@@ -44,8 +50,8 @@ from uwgen.runtime.stats import Counters, log_count
 log = logging.getLogger("uwgen.link.scheduler")
 
 CHANNEL_COUNTERS = ("offered", "sent", "superseded", "overflow", "expired", "too_large", "invalid",
-                    "rate_limited", "fragments_sent")
-DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid")
+                    "rate_limited", "fragments_sent", "protect_failed")
+DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid", "protect_failed")
 
 
 @dataclass
@@ -53,6 +59,7 @@ class Message:
     payload: bytes
     offered_at: float
     rate_held: bool = False
+    sealed: bool = False        # protected already (or nothing to protect)
 
 
 # -- policy objects (one of each per channel; add new kinds here, not if-chains below) -----------
@@ -191,6 +198,7 @@ class Channel:
 
 
 Splitter = Callable[..., list[bytes]]          # (payload) or (payload, repair)
+Protect = Callable[[int, bytes], bytes]
 
 
 class LinkScheduler:
@@ -202,9 +210,12 @@ class LinkScheduler:
 
     def __init__(self, clock: Clock = SYSTEM_CLOCK, *, splitter: Splitter | None = None,
                  max_message: int = MAX_PAYLOAD, name: str = "link",
-                 fec_over: int = MAX_PAYLOAD, max_message_for: Callable[[int], int] | None = None):
+                 fec_over: int = MAX_PAYLOAD, max_message_for: Callable[[int], int] | None = None,
+                 protect: Protect | None = None, overhead: Callable[[int], int] | None = None):
         self.clock = clock
         self.splitter = splitter
+        self.protect = protect
+        self.overhead = overhead
         self.max_message = max_message if splitter is not None else MAX_PAYLOAD
         self.fec_over = fec_over
         self._max_message_for = max_message_for
@@ -245,7 +256,7 @@ class LinkScheduler:
         with self._lock:
             c = ch.counters
             c.inc("offered")
-            n = len(payload)
+            n = len(payload) + (self.overhead(key) if self.overhead and payload else 0)
             if n == 0:
                 log_count(log, logging.ERROR, c.inc("invalid"), "[%s] %s: refused an empty payload",
                           self.name, ch.name)
@@ -319,6 +330,8 @@ class LinkScheduler:
             if t is None or ch.key == exclude:
                 continue
             if t <= now:
+                if self.protect is not None and not self._seal_head(ch):
+                    continue                   # its messages could not be protected (counted)
                 if max_size is None or self._next_size(ch) <= max_size:
                     best.append(ch)
             elif not ch.queue[0].rate_held:
@@ -330,6 +343,22 @@ class LinkScheduler:
         chosen = next((ch for ch in best if last is not None and ch.key > last), best[0])
         self._last_served[chosen.priority] = chosen.key
         return chosen
+
+    def _seal_head(self, ch: Channel) -> bool:
+        """Protect the channel's next message (once); False when nothing is left to send. A
+        message that cannot be protected is dropped and counted, never sent in the clear."""
+        if ch.in_progress is not None:
+            return True
+        while ch.queue and not ch.queue[0].sealed:
+            msg = ch.queue[0]
+            try:
+                msg.payload = self.protect(ch.key, msg.payload)
+                msg.sealed = True
+            except Exception as exc:  # SecurityError: no sequence number could be reserved
+                ch.queue.popleft()
+                log_count(log, logging.ERROR, ch.counters.inc("protect_failed"),
+                          "[%s] %s: message dropped, cannot be protected: %s", self.name, ch.name, exc)
+        return bool(ch.queue)
 
     def _next_size(self, ch: Channel) -> int:
         """Length of the payload `_take` would return for this channel (a message about to be

@@ -13,10 +13,10 @@ import sys as _sys
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
     'codec': ('uwgen.runtime.codec', '2c90cff8b97df93e'),
-    'model': ('uwgen.manifest.model', 'a5d40bb27e189def'),
+    'model': ('uwgen.manifest.model', 'ee58821514bb53f8'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
-    'table': ('uwgen.runtime.table', '48e6ce09f5df4b54'),
+    'table': ('uwgen.runtime.table', '47ec2ecb53d8ffef'),
 }
 
 

@@ -1,0 +1,307 @@
+"""Both bridges secured, over the emulator, with a third DESERT node whose client forges.
+
+The emulator serves one client per port, so the forger gets in as a third acoustic node
+(`forger`, sending to the vehicle): what it writes reaches the vehicle's DESERT node
+over the (emulated) water, exactly as a stranger's modem would. It writes the frame of
+issue 9 in the clear ([0, 4, Twist] with x = 1007), frames protected under another key
+while claiming the surface's sender id, frames with random tags, and replays of frames
+the surface really sent. None reaches ROS; the real commands do, each once.
+"""
+from __future__ import annotations
+
+import random
+import socket
+import time
+from contextlib import contextmanager
+
+import pytest
+from geometry_msgs.msg import Twist
+from std_srvs.srv import SetBool
+
+from uwgen.bridge.plan import import_package
+from uwgen.emulator import NodeSpec, Scenario, run_emulator
+from uwgen.runtime.codec import load_items, pack_items
+from uwgen.runtime.framing import encode_frame
+from uwgen.security import wire
+from uwgen.security.guard import GuardConfig, LinkGuard
+
+from bridge.fakes import wait_for
+from bridge.harness import ros_sides
+
+from .conftest import Net
+
+MANIFEST = """\
+network: e2esec
+package: uwgen_e2esec
+fragment_id: 250
+security: {mode: encrypt, key_file: net.key}
+sides:
+  surface: {port: 4000, sender_id: 1, link: {max_read_length: 64, period: 0.05}}
+  vehicle: {port: 4001, sender_id: 2, link: {max_read_length: 64, period: 0.05}}
+topics:
+  - {name: /cmd_vel, id: 4, type: geometry_msgs/msg/Twist, publisher: surface, queue: fifo, depth: 8}
+  - {name: /log, id: 7, type: std_msgs/msg/String, publisher: vehicle, security: sign}
+services:
+  - {name: /enable, id: 20, type: std_srvs/srv/SetBool, server: vehicle, timeout: 3}
+"""
+
+
+def build(tmp_path_factory, manifest_text: str, package: str):
+    from uwgen.cli import main as uwgen_main
+    root = tmp_path_factory.mktemp(package)
+    (root / "interfaces" / "sec_msgs" / "msg").mkdir(parents=True)
+    (root / "interfaces" / "sec_msgs" / "msg" / "Note.msg").write_text("string text\n")
+    manifest = root / "interfaces" / "uwgen.yaml"
+    manifest.write_text(manifest_text.replace("package: uwgen_e2esec", f"package: {package}"))
+    assert uwgen_main(["keygen", str(root / "interfaces" / "net.key")]) == 0
+    rc = uwgen_main(["build", str(root / "interfaces"), "-m", str(manifest),
+                     "-o", str(root / "generated" / package)])
+    assert rc == 0
+    return import_package(package, root / "generated")
+
+
+@pytest.fixture(scope="module")
+def secure_package(tmp_path_factory):
+    return build(tmp_path_factory, MANIFEST, "uwgen_e2esec")
+
+
+@pytest.fixture(scope="module")
+def schema_package(tmp_path_factory):
+    """The same network with schema announcements on (wire-format.md section 10)."""
+    return build(tmp_path_factory, MANIFEST.replace("fragment_id: 250\n",
+                                                    "fragment_id: 250\nschema_id: 249\n"),
+                 "uwgen_e2esecschema")
+
+
+@contextmanager
+def secured_network(package):
+    scen = Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle"),
+                           NodeSpec("vehicle", position=(30.0, 0.0, 0.0), dest="surface"),
+                           NodeSpec("forger", position=(15.0, 10.0, 0.0), dest="vehicle"),
+                           NodeSpec("forger_s", position=(15.0, -10.0, 0.0), dest="surface")],
+                    period=0.05, max_read_length=64, bitrate=48000.0, seed=9)
+    with run_emulator(scen) as emu, ros_sides("surface", "vehicle") as sides:
+        net = Net(package, emu, sides, 0.05, 64)
+        net.start_bridge("surface")
+        net.start_bridge("vehicle")
+        yield net
+
+
+def tap(link, prefix: bytes) -> list[bytes]:
+    """Record the payloads the link writes that start with `prefix` (kind and id): what an
+    eavesdropper on the water would hear of them."""
+    heard: list[bytes] = []
+    original = link.scheduler.next_payload
+
+    def next_payload(*args, **kwargs):
+        picked = original(*args, **kwargs)
+        if picked is not None and picked[1].startswith(prefix):
+            heard.append(picked[1])
+        return picked
+    link.scheduler.next_payload = next_payload
+    return heard
+
+
+CMD_VEL = bytes([0, 4])         # kind 0, id 4
+REQUEST = bytes([2, 20])        # kind 2, id 20
+
+
+def security(net, side):
+    return net.bridges[side].status()["security"]
+
+
+def test_forged_cmd_vel_never_reaches_ros(secure_package, tmp_path):
+    with secured_network(secure_package) as net:
+        got: list[Twist] = []
+        net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
+        pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
+        heard = tap(net.bridges["surface"].link, CMD_VEL)
+        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+                 and pub.get_subscription_count(), what="secured bridges up")
+
+        for k in range(5):                                # the real operator
+            pub.publish(Twist(linear=Twist().linear.__class__(x=0.1 * (k + 1))))
+            time.sleep(0.1)
+        wait_for(lambda: len(got) == 5, timeout=10, what="the real commands")
+        assert len(heard) == 5
+
+        rng = random.Random(5)
+        stranger = LinkGuard.for_key(bytes(range(32)), GuardConfig("e2esec", 1, {2: "vehicle"},
+                                                                   {4: "encrypt"}),
+                                     tmp_path / "stranger.state")
+        plain = pack_items([0, 4, 1007.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        forged = ([plain] * 5
+                  + [stranger.protect(4, plain) for _ in range(5)]      # another key, surface's id
+                  + [h[:-8] + rng.randbytes(8) for h in heard]         # random tags
+                  + list(heard))                                       # replays of real frames
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
+            for frame in forged:
+                forger.sendall(encode_frame(frame))
+                time.sleep(0.06)                             # about one packet per period
+            wait_for(lambda: security(net, "vehicle")["dropped"] >= len(forged), timeout=15,
+                     what="every forged frame counted")
+        time.sleep(0.3)                                      # anything published would be here by now
+        sec = security(net, "vehicle")
+        assert sec["dropped"] == len(forged) == 20
+        assert (sec["unprotected"], sec["replay"]) == (5, 5)
+        assert sec["bad_tag"] + sec["unsynced"] == 10
+        assert len(got) == 5 and all(m.linear.x < 1 for m in got)
+        assert net.bridges["vehicle"].status()["topics"]["/cmd_vel"]["published"] == 5
+
+
+def test_secured_service_is_answered_once_and_only_when_authentic(secure_package):
+    with secured_network(secure_package) as net:
+        calls = []
+
+        def serve(req, resp):
+            calls.append(req.data)
+            resp.success, resp.message = True, "ok"
+            return resp
+        net.vehicle.node("server").create_service(SetBool, "/enable", serve)
+        client = net.surface.node("caller").create_client(SetBool, "/enable")
+        assert client.wait_for_service(timeout_sec=5.0)
+        heard = tap(net.bridges["surface"].link, REQUEST)
+        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+                 and net.bridges["vehicle"]._served[20][1].service_is_ready(), what="server visible")
+        future = client.call_async(SetBool.Request(data=True))
+        wait_for(future.done, what="the secured response")
+        assert future.result().success and calls == [True]
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
+            forger.sendall(encode_frame(heard[0]))             # the request, replayed
+            forger.sendall(encode_frame(pack_items([2, 20, 99, True])))   # a request in the clear
+            wait_for(lambda: security(net, "vehicle")["dropped"] >= 2, what="forgeries counted")
+        time.sleep(0.3)
+        assert calls == [True]
+        sec = security(net, "vehicle")
+        assert (sec["replay"], sec["unprotected"]) == (1, 1)
+        assert net.bridges["vehicle"].status()["services"]["/enable"]["requests"] == 1
+
+
+def test_frames_replayed_after_a_bridge_restart_are_rejected(secure_package):
+    with secured_network(secure_package) as net:
+        got: list[Twist] = []
+        net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
+        pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
+        heard = tap(net.bridges["surface"].link, CMD_VEL)
+        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+                 and pub.get_subscription_count(), what="secured bridges up")
+        for k in range(3):
+            pub.publish(Twist(linear=Twist().linear.__class__(x=0.1 * (k + 1))))
+            time.sleep(0.1)
+        wait_for(lambda: len(got) == 3, what="the real commands")
+
+        old = net.bridges["vehicle"]                      # the vehicle's bridge restarts
+        net.vehicle.executor.remove_node(old)
+        old.close()
+        new = net.start_bridge("vehicle")
+        wait_for(lambda: new.link.stats()["connected"], what="restarted vehicle bridge up")
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
+            for frame in heard:
+                forger.sendall(encode_frame(frame))
+                time.sleep(0.06)
+            wait_for(lambda: new.status()["security"]["dropped"] >= 3, what="replays counted")
+        sec = new.status()["security"]
+        assert sec["replay"] + sec["too_old"] == 3
+        assert new.status()["topics"]["/cmd_vel"]["published"] == 0 and len(got) == 3
+        pub.publish(Twist(linear=Twist().linear.__class__(x=0.9)))   # the operator goes on
+        wait_for(lambda: len(got) == 4, what="a new command after the restart")
+        assert [round(m.linear.x, 2) for m in got] == [0.1, 0.2, 0.3, 0.9]
+
+
+def test_schema_announcements_are_signed_and_forged_ones_cannot_refuse_an_id(schema_package):
+    with secured_network(schema_package) as net:
+        got: list[Twist] = []
+        net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
+        pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
+        vehicle = net.bridges["vehicle"]
+        wait_for(lambda: vehicle.status()["schema"]["heard"].get("4"), timeout=10,
+                 what="the surface's signed schema announcement")
+        # a stranger announces another fingerprint for /cmd_vel, to make the vehicle refuse it
+        forged = pack_items([0, 249, 0, 4, b"\x00\x00\x00\x00"])
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
+            # again and again: a copy may collide with the bridges' own announcements
+            deadline = time.monotonic() + 10
+            while security(net, "vehicle")["unprotected"] < 3 and time.monotonic() < deadline:
+                forger.sendall(encode_frame(forged))
+                time.sleep(0.2)
+        assert security(net, "vehicle")["unprotected"] >= 3
+        assert vehicle.status()["schema"]["mismatched"] == {}
+        wait_for(lambda: pub.get_subscription_count(), what="bridge subscribed")
+        pub.publish(Twist(linear=Twist().linear.__class__(x=0.4)))
+        wait_for(lambda: got, what="cmd_vel still flows")
+        assert got[0].linear.x == 0.4
+
+
+def test_a_forged_response_never_completes_a_call(secure_package, tmp_path):
+    with secured_network(secure_package) as net:
+        client = net.surface.node("caller").create_client(SetBool, "/enable")
+        assert client.wait_for_service(timeout_sec=5.0)          # the surface's stand-in
+        requests = tap(net.bridges["surface"].link, REQUEST)
+        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle")),
+                 what="secured bridges up")
+        future = client.call_async(SetBool.Request(data=True))  # no server on the vehicle: no answer
+        wait_for(lambda: requests, what="the request on the water")
+        _, _, n = wire.header_length(requests[0])
+        seq = load_items(requests[0][:n])[2]                    # the header stays readable
+        stranger = LinkGuard.for_key(bytes(range(32)), GuardConfig("e2esec", 2, {1: "surface"},
+                                                                   {20: "encrypt"}),
+                                     tmp_path / "stranger.state")
+        plain = pack_items([3, 20, seq, True, "forged"])
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger_s"))) as forger:
+            for frame in (plain, stranger.protect(20, plain)):
+                forger.sendall(encode_frame(frame))
+                time.sleep(0.1)
+            wait_for(lambda: security(net, "surface")["dropped"] >= 2, what="forged responses counted")
+        surface = net.bridges["surface"]
+        wait_for(lambda: surface.service_counters[20].timeouts == 1, timeout=6, what="the call's timeout")
+        assert not future.done()                                # no forged success reached the caller
+        assert surface.service_counters[20].responses == 0
+        assert security(net, "surface")["verified"] == 0
+
+
+ACTION = """\
+actions:
+  - {name: /fibonacci, id: 9, type: test_msgs/action/Fibonacci, server: vehicle,
+     accept_timeout: 3, result_timeout: 10, feedback: {rate: 10}}
+"""
+GOAL = bytes([2, 9])            # kind 2 (request), id 9: goals and cancels
+
+
+@pytest.fixture(scope="module")
+def action_package(tmp_path_factory):
+    """The secured network with an action: it takes the network's mode (encrypt)."""
+    return build(tmp_path_factory, MANIFEST + ACTION, "uwgen_e2esecaction")
+
+
+def test_a_secured_action_runs_and_forged_goals_and_cancels_never_reach_the_server(action_package):
+    from .test_actions_over_emulator import FibonacciServer, ready_client, result_of, send
+    assert action_package.MANIFEST.security.modes[9] == "encrypt"
+    with secured_network(action_package) as net:
+        real = FibonacciServer(net.vehicle.node("fibonacci_server"), step=0.05)
+        heard = tap(net.bridges["surface"].link, GOAL)
+        client = ready_client(net)
+        goal_handle = send(client, 5)
+        assert goal_handle.accepted
+        result = result_of(goal_handle)
+        assert list(result.result.sequence) == [0, 1, 1, 2, 3, 5]
+        assert real.goals == [5] and heard
+        _, _, n = wire.header_length(heard[0])
+        handle = load_items(heard[0][:n])[2]                  # the header stays readable
+        assert pack_items([5]) not in heard[0][n:]            # the goal's order does not
+        verified = security(net, "vehicle")["verified"]
+        assert verified >= 1
+
+        forged = [pack_items([2, 9, (handle + 1) % 12, 20]),  # a new goal in the clear
+                  pack_items([2, 9, handle])]                  # a cancel in the clear
+        with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
+            for frame in forged + heard:                       # and the real goal, replayed
+                forger.sendall(encode_frame(frame))
+                time.sleep(0.06)
+            wait_for(lambda: security(net, "vehicle")["dropped"] >= len(forged) + len(heard),
+                     timeout=15, what="every forged goal and cancel counted")
+        time.sleep(0.5)                                        # a goal let through would start by now
+        sec = security(net, "vehicle")
+        assert (sec["unprotected"], sec["replay"] + sec["too_old"]) == (2, len(heard))
+        assert sec["verified"] == verified                    # nothing forged was taken
+        assert real.goals == [5] and real.cancels == 0
+        assert net.bridges["vehicle"].status()["actions"]["/fibonacci"]["goal_requests"] == 1

@@ -1,0 +1,88 @@
+"""Security composes with the compact encodings: profile packed and field encodings travel
+protected, and the guard hands back exactly the payload the codec made."""
+from __future__ import annotations
+
+import pytest
+
+from uwgen.codegen import generate
+from uwgen.security.guard import GuardConfig, LinkGuard
+
+from .helpers import KEY
+
+MANIFEST = """\
+network: packsec
+security: {mode: encrypt, key_file: net.key}
+sides:
+  surface: {port: 4000, sender_id: 1}
+  vehicle: {port: 4001, sender_id: 2}
+topics:
+  - name: /cmd_vel
+    id: 4
+    type: geometry_msgs/msg/Twist
+    publisher: surface
+    rate: 2
+    profile: packed
+    fields:
+      linear.x: {min: -2, max: 2, precision: 2}
+      angular.z: {min: -3.2, max: 3.2, resolution: 0.05}
+  - name: /battery
+    id: 6
+    type: sensor_msgs/msg/BatteryState
+    publisher: vehicle
+    security: sign
+    fields:
+      voltage: {min: 0, max: 30, precision: 1}
+      cell_voltage[]: {min: 0, max: 5, precision: 2}
+"""
+
+
+@pytest.fixture(scope="module")
+def pkg(tmp_path_factory):
+    root = tmp_path_factory.mktemp("packsec")
+    (root / "uwgen.yaml").write_text(MANIFEST)
+    return generate(root / "out", "uwgen_packsec", manifest=root / "uwgen.yaml")
+
+
+def test_packed_and_encoded_fields_travel_protected(pkg, tmp_path):
+    from geometry_msgs.msg import Twist
+    from sensor_msgs.msg import BatteryState
+    assert pkg.MANIFEST.security.modes == {4: "encrypt", 6: "sign"}
+    fps = {i: pkg.TOPICS[i].fingerprint for i in (4, 6)}
+    tx = LinkGuard.for_key(KEY, GuardConfig("packsec", 1, {2: "vehicle"}, {4: "encrypt", 6: "sign"}, fps),
+                           tmp_path / "tx")
+    rx = LinkGuard.for_key(KEY, GuardConfig("packsec", 2, {1: "surface"}, {4: "encrypt", 6: "sign"}, fps),
+                           tmp_path / "rx")
+    twist = Twist()
+    twist.linear.x, twist.angular.z = 1.25, -0.5
+    battery = BatteryState(voltage=15.8, cell_voltage=[3.95, 3.96])
+    for ident, msg in ((4, twist), (6, battery)):
+        payload = pkg.TOPICS[ident].encode(msg)
+        frame = tx.protect(ident, payload)
+        assert len(frame) - len(payload) in (10, 14)
+        back = rx.unprotect(frame)
+        assert back == payload
+        decoded = pkg.TOPICS[ident].decode(back)
+        assert type(decoded) is type(msg)
+    assert pkg.TOPICS[4].decode(rx.unprotect(tx.protect(4, pkg.TOPICS[4].encode(twist)))).linear.x == 1.25
+    assert rx.stats()["dropped"] == 0
+
+
+def test_analyze_counts_the_security_overhead_in_every_protected_frame(tmp_path):
+    from uwgen.analyze import analyze
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.manifest.loader import load_manifest
+    lib = InterfaceLibrary([], installed=True)
+    (tmp_path / "on").mkdir()
+    (tmp_path / "off").mkdir()
+    (tmp_path / "on" / "uwgen.yaml").write_text(MANIFEST)
+    (tmp_path / "off" / "uwgen.yaml").write_text(MANIFEST.replace("mode: encrypt", "mode: off")
+                                                 .replace("security: sign", "security: off"))
+    on = analyze(load_manifest(tmp_path / "on" / "uwgen.yaml", lib), lib.get)
+    off = analyze(load_manifest(tmp_path / "off" / "uwgen.yaml", lib), lib.get)
+    for a, b in zip(on.entries, off.entries):
+        fa, fb = a.configured.frame, b.configured.frame
+        assert fa.typical - fb.typical == 10
+        assert fa.max is fb.max is None or fa.max - fb.max == 14      # None: unbounded (a string)
+        assert a.configured.payload == b.configured.payload       # the codec's bytes are the same
+    surface_on, surface_off = (next(x for x in r.budgets if x.side == "surface") for r in (on, off))
+    assert surface_on.typical - surface_off.typical == 2 * 10       # 2 frames a second

@@ -1,0 +1,71 @@
+"""The bridge's side of the secure link: the LinkGuard of one side, from its plan and options.
+
+The generated package's `MANIFEST.security` (a SecurityPlan, None when nothing is
+protected) names the key file, every side's sender id and the protected ids. The key
+file is `--key-file` if given, else the manifest's `key_file` (a relative path is taken
+from the manifest's folder as the build saw it). The state file is `--security-state`
+if given, else `<key file>.<network>.<side>.<key id>.state` next to the key.
+"""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
+from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+
+log = logging.getLogger("uwgen.security")
+
+
+def key_path(plan: BridgePlan, options: BridgeOptions) -> Path:
+    sec = plan.security
+    if options.key_file is not None:
+        return Path(options.key_file)
+    path = Path(sec.key_file)
+    if not path.is_absolute() and plan.manifest_source:
+        path = Path(plan.manifest_source).parent / path
+    return path
+
+
+def check_security(plan: BridgePlan, options: BridgeOptions) -> None:
+    """Fail early, before ROS starts, with a clear message (PlanError) if the key is unusable."""
+    if plan.security is None:
+        return
+    from uwgen.security.keys import SecurityError, read_key_file
+    if plan.side not in plan.security.senders:
+        raise PlanError(f"side {plan.side!r} has no sender_id in the manifest's security set-up")
+    try:
+        read_key_file(key_path(plan, options))
+    except SecurityError as exc:
+        raise PlanError(str(exc)) from None
+
+
+def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CLOCK) -> Any:
+    """This side's LinkGuard, or None when the manifest protects nothing."""
+    sec = plan.security
+    if sec is None:
+        return None
+    from uwgen.security.guard import GuardConfig, LinkGuard
+    from uwgen.security.keys import SecurityError, key_id, read_key_file
+    from uwgen.security.state import default_state_path
+    check_security(plan, options)
+    path = key_path(plan, options)
+    try:
+        master = read_key_file(path)
+        entries = {e.id: e for e in (*plan.topics, *plan.services)}
+        config = GuardConfig(
+            network=plan.network, sender=sec.senders[plan.side],
+            peers={sid: side for side, sid in sec.senders.items() if side != plan.side},
+            modes=dict(sec.modes),
+            fingerprints={i: bytes(getattr(entries.get(i), "fingerprint", b"") or b"") for i in sec.modes})
+        state = (Path(options.security_state) if options.security_state is not None
+                 else default_state_path(path, plan.network, plan.side, key_id(master, plan.network)))
+        guard = LinkGuard.for_key(master, config, state, clock=clock, name=plan.side)
+    except SecurityError as exc:
+        raise PlanError(str(exc)) from None
+    protected = ", ".join(f"{i} ({m})" for i, m in sorted(sec.modes.items()))
+    log.info("[%s] secure link: sender %d; protects ids %s; key %s (key id %s, the same on every "
+             "side); state %s, next sequence number %d", plan.side, config.sender, protected, path,
+             key_id(master, plan.network), state, guard.stats()["next_seq"])
+    return guard
