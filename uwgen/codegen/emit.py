@@ -133,10 +133,8 @@ class Lowering:
         p = repr(leaf.path)
         if isinstance(enc, Filler):
             return ["out.append(0)  # a message with no fields is one unsigned 0"]
-        if isinstance(enc, Absent):
-            return [f"# {leaf.path}: not sent ({enc.why})"]
-        if isinstance(enc, Static):
-            return [f"# {leaf.path}: not sent (static {enc.value!r})"]
+        if (comment := not_sent(leaf, enc)) is not None:
+            return [comment]
         if isinstance(enc, TimeOfDay):
             return [f"out.append(_time_of_day({expr}, {enc.step_ns}, {enc.count}, {p}))"]
         if isinstance(enc, TimeSinceEpoch):
@@ -268,11 +266,7 @@ class Lowering:
                 number_run(leaf.leaves)
                 continue
             enc = leaf.encoding
-            if isinstance(enc, Absent):
-                body.append(f"# {leaf.path}: not on the wire ({enc.why})")
-                continue
-            if isinstance(enc, Static):
-                value_of[leaf.path] = static_value(enc)
+            if not_read(leaf, enc, body, value_of):
                 continue
             var = fresh()
             body.extend(self._decode_leaf(leaf, enc, var, ct.profile_suffix))
@@ -405,6 +399,28 @@ def index_max(enc) -> int:
     if isinstance(enc, TimeOfDay):
         return enc.count - 1
     return enc.nmax
+
+
+def not_sent(leaf: Node, enc) -> str | None:
+    """The comment an encoder writes for a leaf that is not on the wire (absent, or static:
+    both sides know its value), else None: the leaf is sent."""
+    if isinstance(enc, Absent):
+        return f"# {leaf.path}: not sent ({enc.why})"
+    if isinstance(enc, Static):
+        return f"# {leaf.path}: not sent (static {enc.value!r})"
+    return None
+
+
+def not_read(leaf: Node, enc, body: list[str], value_of: dict[str, str]) -> bool:
+    """For a decoder: whether `leaf` is not on the wire. An absent leaf gets a comment (the
+    constructor leaves its default), a static one its value in `value_of`."""
+    if isinstance(enc, Absent):
+        body.append(f"# {leaf.path}: not on the wire ({enc.why})")
+        return True
+    if isinstance(enc, Static):
+        value_of[leaf.path] = static_value(enc)
+        return True
+    return False
 
 
 def static_value(enc: Static) -> str:

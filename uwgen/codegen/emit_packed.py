@@ -13,10 +13,11 @@ what cannot be written as one expression (floats, strings, loops over arrays).
 """
 from __future__ import annotations
 
-from uwgen.codegen.emit import F32_MAX, Function, Lowering, field_access, func_name, index_max, quantize_lines, static_value
+from uwgen.codegen.emit import (F32_MAX, Function, Lowering, field_access, func_name, index_max, not_read,
+                                not_sent, quantize_lines)
 from uwgen.codegen.ir import (
-    Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, MessageArray, Node, Number,
-    NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
+    Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, MessageArray, Node, Number,
+    NumberArray, Octets, Quantized, Text, TextArray, TimeOfDay, TimeSinceEpoch,
 )
 from uwgen.idl.model import ArrayKind
 from uwgen.runtime.bits import count_width, text_width
@@ -68,10 +69,8 @@ class PackedLowering(Lowering):
         p = repr(leaf.path)
         if isinstance(enc, Filler):
             return ["a <<= 1  # a message with no fields is one 0 bit"]
-        if isinstance(enc, Absent):
-            return [f"# {leaf.path}: not sent ({enc.why})"]
-        if isinstance(enc, Static):
-            return [f"# {leaf.path}: not sent (static {enc.value!r})"]
+        if (comment := not_sent(leaf, enc)) is not None:
+            return [comment]
         if isinstance(enc, Number):
             if enc.is_float:
                 return [f"a = _put_float(a, {expr}, {enc.prim == 'float32'}, {p})"]
@@ -148,11 +147,7 @@ class PackedLowering(Lowering):
         counter = [0]
         for leaf in ct.root.leaves():
             enc = leaf.encoding
-            if isinstance(enc, Absent):
-                body.append(f"# {leaf.path}: not on the wire ({enc.why})")
-                continue
-            if isinstance(enc, Static):
-                value_of[leaf.path] = static_value(enc)
+            if not_read(leaf, enc, body, value_of):
                 continue
             counter[0] += 1
             var = f"x{counter[0]}"
