@@ -24,6 +24,7 @@ MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
 """
 from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
+from ._runtime.model import SecurityPlan
 from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 
 from ._classes import PLAIN, ROS
@@ -92,11 +93,12 @@ MANIFEST = ManifestInfo(
     schema_id=249,
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
+    security=SecurityPlan(key_file='keys/demo.key', senders={'surface': 1, 'vehicle': 2}, modes={4: 'encrypt', 5: 'sign', 6: 'sign', 20: 'encrypt', 21: 'encrypt', 30: 'encrypt', 249: 'sign'}),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "542906a60020edba",
+    "manifest": "abb343153d7d78bd",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
