@@ -30,7 +30,11 @@ def test_demo_manifest_is_exactly_the_contract():
         ("linear.x", "quantize"), ("linear.y", "static"), ("linear.z", "quantize"), ("angular.x", "static"),
         ("angular.y", "static"), ("angular.z", "quantize")]
     assert [f.path for f in m.topics[1].fields] == ["x", "y", "theta", "linear_velocity", "angular_velocity"]
-    assert all(not t.fields for t in m.topics[2:]) and all(not s.request_fields for s in m.services)
+    # The battery sends only what the simulated vehicle measures (so, signed, it fits a packet).
+    assert {(f.path, f.kind) for f in m.topics[2].fields} == {(p, "omit") for p in (
+        "temperature", "charge", "capacity", "design_capacity", "power_supply_health",
+        "power_supply_technology", "cell_voltage", "cell_temperature", "location", "serial_number")}
+    assert not m.topics[3].fields and all(not s.request_fields for s in m.services)
     services = [(s.name, s.id, s.type_name, s.server, s.timeout) for s in m.services]
     assert services == [
         ("/turtle1/teleport_absolute", 20, "turtlesim/srv/TeleportAbsolute", "vehicle", 10.0),

@@ -124,3 +124,18 @@ def test_demo_vehicle_drops_a_strangers_cmd_vel_and_takes_the_surfaces(demo_guar
     sealed = surface.protect(4, genuine)
     assert len(sealed) >= len(genuine) + 10 and genuine[3:] not in sealed
     assert vehicle.unprotect(sealed) == genuine and vehicle.stats()["verified"] == 1
+
+
+def test_demo_battery_signed_still_fits_one_packet(demo_guards):
+    # The manifest omits what the simulated vehicle does not measure so that signing the
+    # battery does not split it into two fragments (64-byte packets, 4-byte frame overhead).
+    from sensor_msgs.msg import BatteryState
+    from uwgen.runtime.framing import OVERHEAD
+    pkg, guards = demo_guards
+    b = BatteryState()
+    b.header.stamp.sec, b.header.stamp.nanosec, b.header.frame_id = 1795433581, 999999999, "vehicle"
+    b.voltage, b.current, b.percentage, b.present, b.power_supply_status = 16.8, -5.5, 1.0, True, 2
+    payload = pkg.TOPICS[6].encode(b)
+    sealed = guards["vehicle"].protect(6, payload)            # the first frame: a sync frame (+14)
+    assert len(sealed) == len(payload) + 14
+    assert len(sealed) + OVERHEAD <= pkg.MANIFEST.sides["vehicle"].link.max_read_length
