@@ -18,11 +18,10 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-import timeit
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from codec_bench import samples  # noqa: E402  (the same messages as the codec benchmark)
+from codec_bench import per_call_us, samples  # noqa: E402  (the codec benchmark's messages and timer)
 
 from uwgen.codegen import generate  # noqa: E402
 from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD  # noqa: E402
@@ -33,11 +32,6 @@ from uwgen.security.state import RECV_BLOCK, SEND_BLOCK  # noqa: E402
 MESSAGES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/Pose", "sensor_msgs/msg/NavSatFix",
             "sensor_msgs/msg/Imu", "sensor_msgs/msg/BatteryState", "std_msgs/msg/String")
 MODES = ("off", "sign", "encrypt")
-
-
-def per_call_us(fn, number: int) -> float:
-    """Best of 5 repeats, in microseconds per call (the least disturbed measurement)."""
-    return min(timeit.repeat(fn, number=number, repeat=5)) / number * 1e6
 
 
 def guards(folder: Path, mode: str, disk: bool = True) -> tuple[LinkGuard, LinkGuard]:

@@ -54,20 +54,24 @@ services:
 """
 
 
-@pytest.fixture(scope="session")
-def e2e_package(tmp_path_factory):
+def build_package(root, manifest_text: str, package: str, keygen: bool = False):
+    """`uwgen build -m` of a manifest of installed types, written to `root/uwgen.yaml`,
+    into `root/generated/<package>`, imported. With `keygen`, `uwgen keygen root/net.key`
+    first (the key file a secured manifest names)."""
     from uwgen.cli import main as uwgen_main
 
-    root = tmp_path_factory.mktemp("e2e")
-    # `uwgen build` wants a folder of interfaces; the manifest itself uses installed types.
-    (root / "interfaces" / "e2e_msgs" / "msg").mkdir(parents=True)
-    (root / "interfaces" / "e2e_msgs" / "msg" / "Note.msg").write_text("string text\n")
-    manifest = root / "interfaces" / "uwgen.yaml"
-    manifest.write_text(MANIFEST)
-    out = root / "generated" / "uwgen_e2e"
-    rc = uwgen_main(["build", str(root / "interfaces"), "-m", str(manifest), "-o", str(out)])
-    assert rc == 0, "uwgen build of the e2e manifest failed"
-    return import_package("uwgen_e2e", root / "generated")
+    manifest = root / "uwgen.yaml"
+    manifest.write_text(manifest_text)
+    if keygen:
+        assert uwgen_main(["keygen", str(root / "net.key")]) == 0
+    rc = uwgen_main(["build", "-m", str(manifest), "-o", str(root / "generated" / package)])
+    assert rc == 0, f"uwgen build of {package} failed"
+    return import_package(package, root / "generated")
+
+
+@pytest.fixture(scope="session")
+def e2e_package(tmp_path_factory):
+    return build_package(tmp_path_factory.mktemp("e2e"), MANIFEST, "uwgen_e2e")
 
 
 class Net:

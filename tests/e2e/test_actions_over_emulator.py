@@ -10,11 +10,9 @@ from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalRespons
 from rclpy.task import Future
 from test_msgs.action import Fibonacci
 
-from uwgen.bridge.plan import import_package
-
 from bridge.fakes import wait_for
 
-from .conftest import network
+from .conftest import build_package, network
 
 ACTION_ID = 9
 MANIFEST = """\
@@ -40,16 +38,7 @@ actions:
 
 @pytest.fixture(scope="module")
 def action_package(tmp_path_factory):
-    from uwgen.cli import main as uwgen_main
-
-    root = tmp_path_factory.mktemp("e2e_actions")
-    (root / "interfaces" / "e2e_msgs" / "msg").mkdir(parents=True)
-    (root / "interfaces" / "e2e_msgs" / "msg" / "Note.msg").write_text("string text\n")
-    manifest = root / "interfaces" / "uwgen.yaml"
-    manifest.write_text(MANIFEST)
-    out = root / "generated" / "uwgen_e2e_actions"
-    assert uwgen_main(["build", str(root / "interfaces"), "-m", str(manifest), "-o", str(out)]) == 0
-    return import_package("uwgen_e2e_actions", root / "generated")
+    return build_package(tmp_path_factory.mktemp("e2e_actions"), MANIFEST, "uwgen_e2e_actions")
 
 
 @pytest.fixture

@@ -16,12 +16,14 @@ import pytest
 from std_msgs.msg import String
 
 from uwgen.bridge.node import BridgeNode
-from uwgen.bridge.plan import BridgePlan, import_package
+from uwgen.bridge.plan import BridgePlan
 from uwgen.emulator import TdmaSpec, run_emulator
 from uwgen.emulator.from_manifest import scenario_from_manifest
 
 from bridge.fakes import wait_for
 from bridge.harness import ros_sides
+
+from .conftest import build_package
 
 VEHICLES = [f"auv{i}" for i in range(1, 16)]
 BRIDGED = ["surface", "auv1", "auv2", "auv3"]
@@ -41,17 +43,9 @@ def fleet_manifest() -> str:
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
-    from uwgen.cli import main as uwgen_main
-
     root = tmp_path_factory.mktemp("fleet")
-    (root / "interfaces" / "fleet_msgs" / "msg").mkdir(parents=True)
-    (root / "interfaces" / "fleet_msgs" / "msg" / "Note.msg").write_text("string text\n")
-    manifest = root / "interfaces" / "uwgen.yaml"
-    manifest.write_text(fleet_manifest())
-    out = root / "generated" / "uwgen_fleet"
-    assert uwgen_main(["build", str(root / "interfaces"), "-m", str(manifest), "-o",
-                       str(out)]) == 0
-    return manifest, import_package("uwgen_fleet", root / "generated")
+    package = build_package(root, fleet_manifest(), "uwgen_fleet")
+    return root / "uwgen.yaml", package
 
 
 def test_three_vehicles_and_the_surface_exchange_traffic_over_a_16_node_network(fleet):

@@ -8,12 +8,14 @@ import pytest
 from std_msgs.msg import String
 
 from uwgen.bridge.node import BridgeNode
-from uwgen.bridge.plan import BridgePlan, import_package
+from uwgen.bridge.plan import BridgePlan
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 from uwgen.runtime.link import Link
 
 from bridge.fakes import wait_for
 from bridge.harness import ros_sides
+
+from .conftest import build_package
 
 MANIFEST = """\
 network: fec
@@ -35,15 +37,7 @@ topics:
 
 @pytest.fixture(scope="module")
 def fec_package(tmp_path_factory):
-    from uwgen.cli import main as uwgen_main
-    root = tmp_path_factory.mktemp("fec")
-    (root / "interfaces" / "fec_msgs" / "msg").mkdir(parents=True)
-    (root / "interfaces" / "fec_msgs" / "msg" / "Note.msg").write_text("string text\n")
-    manifest = root / "interfaces" / "uwgen.yaml"
-    manifest.write_text(MANIFEST)
-    out = root / "generated" / "uwgen_fec"
-    assert uwgen_main(["build", str(root / "interfaces"), "-m", str(manifest), "-o", str(out)]) == 0
-    return import_package("uwgen_fec", root / "generated")
+    return build_package(tmp_path_factory.mktemp("fec"), MANIFEST, "uwgen_fec")
 
 
 def test_repair_fragments_rebuild_reports_over_a_lossy_link(fec_package):

@@ -18,7 +18,6 @@ import pytest
 from geometry_msgs.msg import Twist
 from std_srvs.srv import SetBool
 
-from uwgen.bridge.plan import import_package
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 from uwgen.runtime.codec import load_items, pack_items
 from uwgen.runtime.framing import encode_frame
@@ -28,7 +27,7 @@ from uwgen.security.guard import GuardConfig, LinkGuard
 from bridge.fakes import wait_for
 from bridge.harness import ros_sides
 
-from .conftest import Net
+from .conftest import Net, build_package
 
 MANIFEST = """\
 network: e2esec
@@ -47,17 +46,9 @@ services:
 
 
 def build(tmp_path_factory, manifest_text: str, package: str):
-    from uwgen.cli import main as uwgen_main
-    root = tmp_path_factory.mktemp(package)
-    (root / "interfaces" / "sec_msgs" / "msg").mkdir(parents=True)
-    (root / "interfaces" / "sec_msgs" / "msg" / "Note.msg").write_text("string text\n")
-    manifest = root / "interfaces" / "uwgen.yaml"
-    manifest.write_text(manifest_text.replace("package: uwgen_e2esec", f"package: {package}"))
-    assert uwgen_main(["keygen", str(root / "interfaces" / "net.key")]) == 0
-    rc = uwgen_main(["build", str(root / "interfaces"), "-m", str(manifest),
-                     "-o", str(root / "generated" / package)])
-    assert rc == 0
-    return import_package(package, root / "generated")
+    return build_package(tmp_path_factory.mktemp(package),
+                         manifest_text.replace("package: uwgen_e2esec", f"package: {package}"),
+                         package, keygen=True)
 
 
 @pytest.fixture(scope="module")
