@@ -98,7 +98,7 @@ MANIFEST = ManifestInfo(
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "3edc1c2a4ffe3e1f",
+    "manifest": "d301244cc4940d5d",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
