@@ -24,6 +24,7 @@ MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
 """
 from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
+from ._runtime.model import SecurityPlan
 from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
 
 from ._classes import PLAIN, ROS
@@ -37,7 +38,6 @@ from .turtlesim import srv as _turtlesim_srv
 
 CODECS = {
     ("builtin_interfaces/msg/Time", "native"): TypeCodec("builtin_interfaces/msg/Time", "native", _builtin_interfaces_msg.enc_Time, _builtin_interfaces_msg.dec_Time, PLAIN, ROS, "builtin_interfaces__Time"),
-    ("sensor_msgs/msg/BatteryState", "native"): TypeCodec("sensor_msgs/msg/BatteryState", "native", _sensor_msgs_msg.enc_BatteryState, _sensor_msgs_msg.dec_BatteryState, PLAIN, ROS, "sensor_msgs__BatteryState"),
     ("std_msgs/msg/Header", "native"): TypeCodec("std_msgs/msg/Header", "native", _std_msgs_msg.enc_Header, _std_msgs_msg.dec_Header, PLAIN, ROS, "std_msgs__Header"),
     ("std_msgs/msg/String", "native"): TypeCodec("std_msgs/msg/String", "native", _std_msgs_msg.enc_String, _std_msgs_msg.dec_String, PLAIN, ROS, "std_msgs__String"),
     ("turtlesim/action/RotateAbsolute_Feedback", "native"): TypeCodec("turtlesim/action/RotateAbsolute_Feedback", "native", _turtlesim_action.enc_RotateAbsolute_Feedback, _turtlesim_action.dec_RotateAbsolute_Feedback, PLAIN, ROS, "turtlesim__RotateAbsolute_Feedback"),
@@ -60,6 +60,7 @@ CODECS = {
 
 # Codecs with the manifest's field encodings, by variant: t<id> topic, q<id>/r<id> request/response.
 VARIANTS = {
+    "t6": TypeCodec("sensor_msgs/msg/BatteryState", "native", _sensor_msgs_msg.enc_t6_BatteryState, _sensor_msgs_msg.dec_t6_BatteryState, PLAIN, ROS, "sensor_msgs__BatteryState"),
     "t4": TypeCodec("geometry_msgs/msg/Twist", "packed", _geometry_msgs_msg.enc_pk_t4_Twist, _geometry_msgs_msg.dec_pk_t4_Twist, PLAIN, ROS, "geometry_msgs__Twist"),
     "t5": TypeCodec("turtlesim/msg/Pose", "packed", _turtlesim_msg.enc_pk_t5_Pose, _turtlesim_msg.dec_pk_t5_Pose, PLAIN, ROS, "turtlesim__Pose"),
 }
@@ -78,7 +79,7 @@ ROS_INTERFACES = {
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("15b02242")
+SCHEMA_DIGEST = bytes.fromhex("eeee4b98")
 
 MANIFEST = ManifestInfo(
     network="demo",
@@ -92,11 +93,12 @@ MANIFEST = ManifestInfo(
     schema_id=249,
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
+    security=SecurityPlan(key_file='keys/demo.key', senders={'surface': 1, 'vehicle': 2}, modes={4: 'encrypt', 5: 'sign', 6: 'sign', 20: 'encrypt', 21: 'encrypt', 30: 'encrypt', 249: 'sign'}),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "542906a60020edba",
+    "manifest": "d301244cc4940d5d",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
@@ -137,8 +139,8 @@ TOPICS = {
         publisher="vehicle", profile="native",
         policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
-        codec=CODECS[("sensor_msgs/msg/BatteryState", "native")],
-        fingerprint=bytes.fromhex("2bfcff5a")),
+        codec=VARIANTS["t6"],
+        fingerprint=bytes.fromhex("3f8eba3d")),
     7: TopicCodec(
         id=7, name="/vehicle/log", type_name="std_msgs/msg/String",
         publisher="vehicle", profile="native",

@@ -194,10 +194,37 @@ def test_demo_report_shows_encoded_frame_sizes_next_to_native(tmp_path):
     assert set(sizes) == {"/turtle1/cmd_vel", "/turtle1/pose"}
     for z in sizes.values():
         assert z.sent < z.native and z.how == "packed + field encodings"
-    cmd = sizes["/turtle1/cmd_vel"]
-    assert cmd.sent == 4 + 2 + 1 + 5   # frame, header, string head, 9 + 16 + 9 bits of x, z (command number), yaw
+    cmd, pose = sizes["/turtle1/cmd_vel"], sizes["/turtle1/pose"]
+    # frame, header, string head, 9 + 16 + 9 bits of x, z (command number), yaw; then the
+    # secure link's word (2) and tag (8), measured on a really sealed payload
+    assert (cmd.security, cmd.security_bytes) == ("encrypt", 2 + 8)
+    assert cmd.sent == 4 + 2 + 1 + 5 + 10
+    assert (pose.security, pose.security_bytes) == ("sign", 10)
     write(tmp_path / "operator.jsonl", [])
     write(tmp_path / "vehicle.jsonl", [])
     report = build_report(tmp_path)
     report.sizes = list(sizes.values())
-    assert f"/turtle1/cmd_vel 12 B with packed + field encodings (native {cmd.native} B)" in format_report(report)
+    assert (f"/turtle1/cmd_vel 22 B = 12 B with packed + field encodings + 10 B encrypt "
+            f"(native, unprotected: {cmd.native} B)") in format_report(report)
+
+
+def test_report_shows_each_bridges_security_counts_and_drop_reasons(tmp_path):
+    write(tmp_path / "operator.jsonl", [])
+    write(tmp_path / "vehicle.jsonl", [])
+    counts = {"protected": 0, "sync_sent": 0, "verified": 0, "bad_tag": 0, "replay": 0, "dropped": 0}
+    (tmp_path / "bridge_surface.json").write_text(json.dumps(
+        {"security": {**counts, "protected": 310, "verified": 150}}))
+    (tmp_path / "bridge_vehicle.json").write_text(json.dumps(
+        {"security": {**counts, "protected": 151, "verified": 305, "bad_tag": 3, "replay": 1, "dropped": 4}}))
+    report = build_report(tmp_path)
+    assert report.security["vehicle"]["verified"] == 305
+    assert ("security: surface protected 310 verified 150 dropped 0; vehicle protected 151 "
+            "verified 305 dropped 4 (bad_tag 3, replay 1)") in format_report(report)
+
+
+def test_report_of_an_unsecured_run_has_no_security_line(tmp_path):
+    write(tmp_path / "operator.jsonl", [])
+    write(tmp_path / "vehicle.jsonl", [])
+    (tmp_path / "bridge_surface.json").write_text(json.dumps({"security": None}))
+    report = build_report(tmp_path)
+    assert report.security == {} and "security:" not in format_report(report)

@@ -86,11 +86,12 @@ def test_field_bits_are_listed_per_field(demo):
 def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     _manifest, a = demo
     surface = next(b for b in a.budgets if b.side == "surface")
-    # 5 cmd_vel frames of 12 bytes per second, plus the schema announcement of the 7 ids
-    # (a 47-byte payload: 00 18 F9 00, then id + 44 + 4 bytes each, id 30 taking 2 bytes;
-    # a 51-byte frame) every 600 s. The action's goals have no rate: warned about below.
-    assert surface.schema == pytest.approx(51 / 600)
-    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * 12 + 51 / 600)
+    # 5 cmd_vel frames of 12 bytes per second, each 10 bytes more encrypted (security word
+    # and tag), plus the schema announcement of the 7 ids (a 47-byte payload: 00 18 F9 00,
+    # then id + 44 + 4 bytes each, id 30 taking 2 bytes; a 51-byte frame, 61 signed) every
+    # 600 s. The action's goals have no rate: warned about below.
+    assert surface.schema == pytest.approx((51 + 10) / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (12 + 10) + (51 + 10) / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
     assert not any("cannot fit" in w for w in a.warnings())
 

@@ -41,6 +41,9 @@ def test_read_only_checkout_writes_to_the_cache(monkeypatch, tmp_path):
     assert demo.default_out() == tmp_path / "demo_output"
     from uwgen.typesupport import build_dir
     assert tmp_path in build_dir("turtlesim", "0" * 16).parents   # turtlesim's build too
+    from uwgen.demo.keys import demo_key
+    with demo_key(demo.DEMO_MANIFEST, tmp_path / "out") as key:    # and the network key
+        assert key.path == tmp_path / "demo" / "keys" / "demo.key" and key.created
 
 
 @pytest.mark.timeout(240)
@@ -58,6 +61,17 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     assert counters["s"]["packets_delivered"] > 10 and counters["v"]["packets_delivered"] > 10
     assert "emulated" not in res.stdout
     assert "the vehicle followed the commands" in res.stdout
+    # The secure link was on (issue 9): both bridges protected and verified, nothing dropped.
+    import json
+    import re
+    security = re.search(r"^security: surface protected (\d+) verified (\d+) dropped (\d+); "
+                         r"vehicle protected (\d+) verified (\d+) dropped (\d+)$", res.stdout, re.M)
+    assert security, res.stdout
+    s_prot, s_ver, s_drop, v_prot, v_ver, v_drop = map(int, security.groups())
+    assert min(s_prot, s_ver, v_prot, v_ver) > 0 and s_drop == v_drop == 0
+    vehicle = json.loads((tmp_path / "bridge_vehicle.json").read_text())["security"]
+    assert vehicle["verified"] == v_ver and vehicle["unprotected"] == 0
+    assert "/turtle1/cmd_vel 22 B = 12 B with packed + field encodings + 10 B encrypt" in res.stdout
     # Quiet: the report and nothing else; no INFO line from any part.
     assert "INFO" not in res.stdout + res.stderr
     assert "[bridge_" not in res.stdout and "[operator]" not in res.stdout

@@ -30,7 +30,11 @@ def test_demo_manifest_is_exactly_the_contract():
         ("linear.x", "quantize"), ("linear.y", "static"), ("linear.z", "quantize"), ("angular.x", "static"),
         ("angular.y", "static"), ("angular.z", "quantize")]
     assert [f.path for f in m.topics[1].fields] == ["x", "y", "theta", "linear_velocity", "angular_velocity"]
-    assert all(not t.fields for t in m.topics[2:]) and all(not s.request_fields for s in m.services)
+    # The battery sends only what the simulated vehicle measures (so, signed, it fits a packet).
+    assert {(f.path, f.kind) for f in m.topics[2].fields} == {(p, "omit") for p in (
+        "temperature", "charge", "capacity", "design_capacity", "power_supply_health",
+        "power_supply_technology", "cell_voltage", "cell_temperature", "location", "serial_number")}
+    assert not m.topics[3].fields and all(not s.request_fields for s in m.services)
     services = [(s.name, s.id, s.type_name, s.server, s.timeout) for s in m.services]
     assert services == [
         ("/turtle1/teleport_absolute", 20, "turtlesim/srv/TeleportAbsolute", "vehicle", 10.0),
@@ -40,8 +44,39 @@ def test_demo_manifest_is_exactly_the_contract():
     assert m.topics[1].type.full_name == "turtlesim/msg/Pose"
     assert isinstance(m.services[1].type, ServiceDef) and m.services[1].type.full_name == "turtlesim/srv/SetPen"
     assert m.entry(20).name == "/turtle1/teleport_absolute" and m.entry(99) is None
-    assert m.topics[0].where.line == 15 and m.source == SAMPLES / "uwgen.yaml"
+    cmd_line = (SAMPLES / "uwgen.yaml").read_text().splitlines().index("  - name: /turtle1/cmd_vel") + 1
+    assert m.topics[0].where.line == cmd_line and m.source == SAMPLES / "uwgen.yaml"
     assert m.schema_id == 249 and m.schema_period == 600.0
+
+
+def test_demo_manifest_protects_everything_that_commands_the_vehicle():
+    # Issue 9 in the showcase: the commands are encrypted, the telemetry the operator steers
+    # by is signed, the free-text log alone goes in the clear; the key is not in the manifest.
+    m = load_manifest(SAMPLES / "uwgen.yaml", library())
+    plan = m.security_plan()
+    assert plan is not None and plan.key_file == "keys/demo.key"
+    assert plan.senders == {"surface": 1, "vehicle": 2}
+    commands = [m.entry(4), *m.services, *m.actions]
+    assert {e.name for e in commands} == {"/turtle1/cmd_vel", "/turtle1/teleport_absolute",
+                                          "/vehicle/set_pen", "/turtle1/rotate_absolute"}
+    assert all(plan.modes[e.id] == "encrypt" for e in commands)
+    assert plan.modes[5] == plan.modes[6] == "sign"                     # pose, battery
+    assert 7 not in plan.modes                                          # /vehicle/log
+    assert plan.modes[m.schema_id] == "sign"                            # announcements too
+
+
+def test_demo_key_is_git_ignored_never_committed():
+    import subprocess
+
+    import pytest
+    root = SAMPLES.parent
+    if not (root / ".git").exists():
+        pytest.skip("not a git checkout")
+    key = SAMPLES / "keys" / "demo.key"
+    ignored = subprocess.run(["git", "check-ignore", "-q", str(key)], cwd=root)
+    assert ignored.returncode == 0, f"{key} must be git-ignored"
+    tracked = subprocess.run(["git", "ls-files", "msg_samples/keys"], cwd=root, capture_output=True, text=True)
+    assert tracked.stdout == ""
 
 
 def test_reference_manifest_loads():

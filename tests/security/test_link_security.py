@@ -119,3 +119,26 @@ def test_repair_fragments_of_a_protected_message_rebuild_it(tmp_path):
             v._on_frame(f)
     assert got == [long_log]
     assert v.stats()["security"]["verified"] == 1
+
+
+def test_an_actions_feedback_channel_is_protected_as_its_wire_id(tmp_path):
+    # An action's feedback goes on link channel 256 + id with the action's id in its header:
+    # the receiver checks the header's id, so the sender must protect by it too (found in the
+    # secured demo: every feedback of its mission arrived unprotected and was dropped).
+    from uwgen.bridge.plan import FEEDBACK_KEY_BASE
+    from uwgen.security.guard import LinkGuard
+    modes = {30: "encrypt"}
+    clock = ManualClock()
+    got: list[bytes] = []
+    sg = LinkGuard.for_key(KEY, config(2, 1, "surface", modes), tmp_path / "v.state", clock=clock)
+    rg = LinkGuard.for_key(KEY, config(1, 2, "vehicle", modes), tmp_path / "s.state", clock=clock)
+    s = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="vehicle", guard=sg)
+    v = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="surface", guard=rg,
+             on_payload=got.append)
+    s.add_channel(FEEDBACK_KEY_BASE + 30, LinkPolicy(queue="latest"))
+    feedback = pack_items([0, 30, 5, 0.25])
+    assert sg.overhead(FEEDBACK_KEY_BASE + 30) > 0          # weighed with its protection
+    assert s.offer(FEEDBACK_KEY_BASE + 30, feedback)
+    frames = carry(s, v)
+    assert len(frames) == 1 and feedback not in frames[0]
+    assert got == [feedback] and rg.stats()["verified"] == 1 and rg.stats()["dropped"] == 0

@@ -57,17 +57,18 @@ def options_from_args(plan: BridgePlan, args: argparse.Namespace):
 def run(package: ModuleType, side: str, args: argparse.Namespace,
         ros_args: Sequence[str] | None = None, link_factory: Any = None) -> int:
     """Run the bridge until SIGINT/SIGTERM. `ros_args` go to rclpy.init (e.g. --ros-args ...)."""
+    # A package of another uwgen first: nothing else it says can be trusted (its key set-up included).
+    from uwgen.codegen.vendor import foreign_runtime
+    problem = foreign_runtime(package)
+    if problem:
+        print(f"uwgen bridge: {problem}", file=sys.stderr)
+        return EXIT_USAGE
     try:
         plan = BridgePlan.from_package(package, side)
         options = options_from_args(plan, args)
         check_security(plan, options)
     except PlanError as exc:
         print(f"uwgen bridge: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    from uwgen.codegen.vendor import foreign_runtime
-    problem = foreign_runtime(package)
-    if problem:
-        print(f"uwgen bridge: {problem}", file=sys.stderr)
         return EXIT_USAGE
 
     import signal

@@ -10,12 +10,15 @@ ROS domains, as on two computers; discovery stays on this machine):
 The operator sets the pen and teleports the turtle (services), then drives a square with
 10 Hz cmd_vel; the vehicle reports its pose, battery and log lines. At the end a table
 per topic and service and a plot of the commanded and reported path are produced.
+The link is secured as the manifest says (docs/security.md): both bridges get the network
+key with --key-file; the demo creates it when missing (uwgen.demo.keys).
 Everything is written to --out (default demo_output/); --docs also writes the plot to
 docs/demo-path.png. See docs/demo.md.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import os
@@ -31,6 +34,7 @@ HELP = "run the demo: operator and vehicle simulator talking through two bridges
 ROOT = Path(__file__).resolve().parents[2]
 GENERATED = ROOT / "generated"
 PACKAGE = "uwgen_demo"
+DEMO_MANIFEST = ROOT / "msg_samples" / "uwgen.yaml"
 EXIT_FAILED = 1
 FOLLOW_TOLERANCE = 0.5   # metres between the reported path and the commanded square
 
@@ -192,6 +196,21 @@ def _endpoint(hp: tuple[str, int]) -> str:
     return f"{hp[0]}:{hp[1]}"
 
 
+def network_key(stack: contextlib.ExitStack, out: Path, say):
+    """The demo's network key, held (locked) by `stack` while the bridges run: a DemoKey,
+    None when the manifest protects nothing, False (after saying why) when it is unusable."""
+    from uwgen.demo.keys import demo_key
+    from uwgen.security.keys import SecurityError
+    try:
+        key = stack.enter_context(demo_key(DEMO_MANIFEST, out))
+    except (SecurityError, OSError) as exc:
+        print(f"uwgen demo: cannot set up the network key: {exc}", file=sys.stderr)
+        return False
+    if key is not None:
+        say(f"  {key.describe()}")
+    return key
+
+
 def run(args: argparse.Namespace) -> int:
     if getattr(args, "drive_away", False):
         args.out = args.out or default_out()
@@ -231,6 +250,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"uwgen demo: turtlesim's interfaces are not available to rclpy: {exc}", file=sys.stderr)
         return EXIT_FAILED
 
+    keys = contextlib.ExitStack()
+    key = network_key(keys, out, say)
+    if key is False:
+        return EXIT_FAILED
+    key_args = key.bridge_args() if key else []
+
     scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle"),
                            NodeSpec("vehicle", port=0, position=(args.distance, 0.0, 0.0), dest="surface")],
                     period=0.2, max_read_length=64, bitrate=4800.0, per=args.per, seed=args.seed)
@@ -238,7 +263,7 @@ def run(args: argparse.Namespace) -> int:
     py = sys.executable
     procs: list[Proc] = []
     t0 = time.monotonic()
-    with (_given_desert(args.desert) if args.desert else run_emulator(scen)) as emu:
+    with keys, (_given_desert(args.desert) if args.desert else run_emulator(scen)) as emu:
         endpoints = args.desert or {n: ("127.0.0.1", emu.port(n)) for n in ("surface", "vehicle")}
         ports = {n: port for n, (_host, port) in endpoints.items()}
         if args.desert:
@@ -257,7 +282,7 @@ def run(args: argparse.Namespace) -> int:
                 procs.append(Proc(f"bridge_{side}", [
                     py, "-m", f"{PACKAGE}.bridge_{side}", "--host", endpoints[side][0],
                     "--port", str(ports[side]),
-                    "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5"],
+                    "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5", *key_args],
                     env, out, not quiet))
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
                                           str(out / "vehicle.jsonl")], venv, out, not quiet))
@@ -277,7 +302,7 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.monotonic() - t0
     crashed = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
     report = build_report(out)
-    report.sizes = frame_sizes(ROOT / "msg_samples" / "uwgen.yaml", [ROOT / "msg_samples"])
+    report.sizes = frame_sizes(DEMO_MANIFEST, [ROOT / "msg_samples"])
     print()
     print(format_report(report))
     title = (f"uwgen demo: DESERT at {_endpoint(endpoints['surface'])} and {_endpoint(endpoints['vehicle'])}"

@@ -115,7 +115,9 @@ def scenario(start: float, end: float, duration: float, wind: float, seed: int):
 
 
 def run(args: argparse.Namespace) -> int:
-    from uwgen.commands.demo import GENERATED, PACKAGE, Proc, _env, domains
+    import contextlib
+
+    from uwgen.commands.demo import GENERATED, PACKAGE, Proc, _env, domains, network_key
     from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.records import read_records
     from uwgen.demo.report import POSE_KEY_STEPS
@@ -135,6 +137,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"uwgen demo: turtlesim's interfaces are not available to rclpy: {exc}",
               file=sys.stderr)
         return 1
+    keys = contextlib.ExitStack()
+    key = network_key(keys, out, lambda *a: None if args.quiet else print(*a))
+    if key is False:
+        return 1
+    key_args = key.bridge_args() if key else []
     start, end, duration = args.distance, args.drive_to, args.drive_time
     scen = scenario(start, end, duration, args.wind, args.seed)
     speed = (end - start) / duration
@@ -143,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     vdom, sdom = domains()
     py = sys.executable
     procs: list = []
-    with run_emulator(scen) as emu:
+    with keys, run_emulator(scen) as emu:
         t0 = time.time()                      # emulator time 0, on the records' clock
         ports = {n: emu.port(n) for n in ("surface", "vehicle")}
         venv = _env(vdom, [str(GENERATED)], iface)
@@ -152,7 +159,8 @@ def run(args: argparse.Namespace) -> int:
             for side, env in (("vehicle", venv), ("surface", senv)):
                 procs.append(Proc(f"bridge_{side}", [
                     py, "-m", f"{PACKAGE}.bridge_{side}", "--port", str(ports[side]),
-                    "--stats-file", str(out / f"bridge_{side}.json")], env, out, not args.quiet))
+                    "--stats-file", str(out / f"bridge_{side}.json"), *key_args], env, out,
+                    not args.quiet))
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
                                           str(out / "vehicle.jsonl")], venv, out, not args.quiet))
             operator = Proc("operator", [py, "-m", "uwgen.demo.operator", "--record",

@@ -17,6 +17,8 @@ Columns, per topic (from the publishing side to the other):
   latency    from publication to delivery (median and 95th percentile), matched per message
 So `taken = on link + policy + still queued`, and `on link = received by the far bridge + lost`
 (uwgen.bridge.ledger); a topic whose bridge counters do not add up is named under the table.
+Under the tables, per side, the secure link's counts (the `security` entry of the bridge's
+status): frames protected, frames verified, frames dropped as not authentic, by reason.
 """
 from __future__ import annotations
 
@@ -90,15 +92,18 @@ class Report:
     emulator: dict
     missions: list[dict] = field(default_factory=list)   # the operator's action goals
     sizes: list["FrameSize"] = field(default_factory=list)
+    security: dict[str, dict] = field(default_factory=dict)   # side -> its bridge's security counts
 
 
 @dataclass(frozen=True)
 class FrameSize:
     """Bytes on the wire of one representative message of a topic."""
     topic: str
-    native: int            # frame bytes in profile native without field encodings
-    sent: int              # frame bytes as the manifest sends it
+    native: int            # frame bytes in profile native without field encodings, unprotected
+    sent: int              # frame bytes as the manifest sends it (security included)
     how: str               # 'packed + field encodings', ...
+    security: str = "off"  # sign | encrypt | off
+    security_bytes: int = 0   # of `sent`, what the secure link adds (sync frames: 4 more)
 
 
 # The grid of the demo manifest's /turtle1/pose field encodings (tests/bridge checks they
@@ -208,9 +213,11 @@ def build_report(out_dir: Path) -> Report:
     end_error = None
     if commanded and truth:
         end_error = math.dist(commanded[-1], truth[-1])
+    security = {side: status["security"] for side, status in (("surface", surface), ("vehicle", vehicle))
+                if isinstance(status.get("security"), dict)}
     return Report(rows, services, commanded, reported, truth,
                   (sum(dev) / len(dev)) if dev else None, max(dev) if dev else None,
-                  end_error, emulator, ev(op, "mission"))
+                  end_error, emulator, ev(op, "mission"), security=security)
 
 
 def paths(op: list[dict], veh: list[dict]):
@@ -291,7 +298,9 @@ def format_report(report: Report) -> str:
                         if report.end_error is not None else ""))
     if report.sizes:
         lines.append("frame sizes (one representative message): "
-                     + "; ".join(f"{z.topic} {z.sent} B with {z.how} (native {z.native} B)" for z in report.sizes))
+                     + "; ".join(_size(z) for z in report.sizes))
+    if report.security:
+        lines.append("security: " + "; ".join(_security(side, c) for side, c in sorted(report.security.items())))
     emu = report.emulator.get("nodes", {})
     for name, c in sorted(emu.items()):
         lost = {k: v for k, v in c.items() if k.startswith("lost_") and v}
@@ -302,14 +311,33 @@ def format_report(report: Report) -> str:
     return "\n".join(lines)
 
 
+def _size(z: FrameSize) -> str:
+    if not z.security_bytes:
+        return f"{z.topic} {z.sent} B with {z.how} (native {z.native} B)"
+    return (f"{z.topic} {z.sent} B = {z.sent - z.security_bytes} B with {z.how} + {z.security_bytes} B "
+            f"{z.security} (native, unprotected: {z.native} B)")
+
+
+def _security(side: str, c: dict) -> str:
+    from uwgen.security.guard import DROP_REASONS as SECURITY_DROPS
+    reasons = {r: c[r] for r in SECURITY_DROPS if c.get(r)}
+    return (f"{side} protected {c.get('protected', 0)} verified {c.get('verified', 0)} dropped "
+            f"{c.get('dropped', 0)}" + (f" ({', '.join(f'{r} {n}' for r, n in reasons.items())})"
+                                       if reasons else ""))
+
+
 def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
     """Frame bytes of a representative /turtle1/cmd_vel and /turtle1/pose as `manifest`
     sends them, next to the same messages in profile native without field encodings
-    (codecs built for the occasion, so the numbers follow the manifest)."""
+    (codecs built for the occasion, so the numbers follow the manifest). A protected topic's
+    payload is sealed as its bridge seals it (an ordinary frame, under a throwaway key; a sync
+    frame has 4 bytes more) and measured."""
     import tempfile
 
     from uwgen.codegen import generate
     from uwgen.runtime.framing import OVERHEAD
+    from uwgen.security import wire
+    from uwgen.security.keys import new_master_key, sender_key
 
     samples = {
         "/turtle1/cmd_vel": lambda cls: cls(linear=_vec(cls, 0.4), angular=_vec(cls, 0.0, z=0.3)),
@@ -319,6 +347,8 @@ def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
     with tempfile.TemporaryDirectory() as tmp:
         pkg = generate(Path(tmp), "uwgen_demo_sizes", folders=folders, manifest=manifest,
                        names=["geometry_msgs/msg/Twist", "turtlesim/msg/Pose"])
+        plan = getattr(pkg.MANIFEST, "security", None)
+        modes = dict(plan.modes) if plan is not None else {}
         for topic in pkg.TOPICS.values():
             if topic.name not in samples:
                 continue
@@ -326,7 +356,14 @@ def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
             native = pkg.codec(topic.type_name, "native").encode(msg, [0, topic.id])
             encoded = any(c is topic.codec for c in getattr(pkg, "VARIANTS", {}).values())
             how = topic.profile + (" + field encodings" if encoded else "")
-            out.append(FrameSize(topic.name, len(native) + OVERHEAD, len(topic.encode(msg)) + OVERHEAD, how))
+            payload = topic.encode(msg)
+            mode = modes.get(topic.id, "off")
+            sent = payload
+            if mode != "off":
+                aead = wire.new_aead(sender_key(new_master_key(), "sizes", 1))
+                sent = wire.seal(aead, mode, 1, 1, payload, bytes(getattr(topic, "fingerprint", b"") or b""))
+            out.append(FrameSize(topic.name, len(native) + OVERHEAD, len(sent) + OVERHEAD, how, mode,
+                                 len(sent) - len(payload)))
     return out
 
 

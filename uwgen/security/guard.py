@@ -96,12 +96,21 @@ class LinkGuard:
     # -- sending -----------------------------------------------------------------------
 
     def overhead(self, ident: int) -> int:
-        """The most bytes protection adds to a payload of `ident` (0 when unprotected)."""
-        return wire.SYNC_OVERHEAD if ident in self.config.modes else 0
+        """The most bytes protection adds to a payload of channel `ident` (0 when unprotected).
+        A channel key above 255 (an action's feedback channel, 256 + id) carries wire id
+        `ident & 0xFF`: counted as that id (at worst an over-estimate)."""
+        modes = self.config.modes
+        return wire.SYNC_OVERHEAD if ident in modes or (ident & 0xFF) in modes else 0
 
     def protect(self, ident: int, payload: bytes) -> bytes:
         """The payload as it goes on the wire; SecurityError (counted) if no number can be
-        reserved: nothing unprotected ever leaves for a protected id."""
+        reserved: nothing unprotected ever leaves for a protected id. The mode is that of the
+        id in the payload's header, as the receiver reads it (`ident` is the link channel's
+        key, which is not the wire id on an action's feedback channel)."""
+        try:
+            ident = wire.header_length(payload)[1]
+        except wire.MalformedError:
+            pass                                 # not a header: the channel's key decides
         mode = self.config.modes.get(ident)
         if mode is None:
             return payload

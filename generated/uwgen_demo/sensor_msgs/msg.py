@@ -33,8 +33,11 @@ from ..std_msgs import msg as _std_msgs_msg
 
 _S0 = _struct.Struct('<iI')
 _N1 = ('header.stamp.sec', 'header.stamp.nanosec')
-_S2 = _struct.Struct('<fffffffBBB')
-_N3 = ('voltage', 'temperature', 'current', 'charge', 'capacity', 'design_capacity', 'percentage', 'power_supply_status', 'power_supply_health', 'power_supply_technology')
+_S2 = _struct.Struct('<f')
+_N3 = ('voltage',)
+_N4 = ('current',)
+_S5 = _struct.Struct('<fB')
+_N6 = ('percentage', 'power_supply_status')
 
 
 class BatteryState:
@@ -90,7 +93,7 @@ class BatteryState:
         return f"sensor_msgs.msg.BatteryState(header={self.header!r}, voltage={self.voltage!r}, temperature={self.temperature!r}, current={self.current!r}, charge={self.charge!r}, capacity={self.capacity!r}, design_capacity={self.design_capacity!r}, percentage={self.percentage!r}, power_supply_status={self.power_supply_status!r}, power_supply_health={self.power_supply_health!r}, power_supply_technology={self.power_supply_technology!r}, present={self.present!r}, cell_voltage={self.cell_voltage!r}, cell_temperature={self.cell_temperature!r}, location={self.location!r}, serial_number={self.serial_number!r})"
 
 
-def enc_BatteryState(m, out):
+def enc_t6_BatteryState(m, out):
     """Append the CBOR items of a sensor_msgs/msg/BatteryState (native profile) to `out`."""
     m1 = m.header
     m2 = m1.stamp
@@ -98,25 +101,25 @@ def enc_BatteryState(m, out):
     x = m1.frame_id
     if type(x) is not str: raise _EncodeError('header.frame_id', 'expected str, got ' + type(x).__name__)
     out.append(x)
-    out += _numbers(_S2, (m.voltage, m.temperature, m.current, m.charge, m.capacity, m.design_capacity, m.percentage, m.power_supply_status, m.power_supply_health, m.power_supply_technology,), _N3)
+    out += _numbers(_S2, (m.voltage,), _N3)
+    # temperature: not sent (omitted by the manifest; the receiver keeps the default)
+    out += _numbers(_S2, (m.current,), _N4)
+    # charge: not sent (omitted by the manifest; the receiver keeps the default)
+    # capacity: not sent (omitted by the manifest; the receiver keeps the default)
+    # design_capacity: not sent (omitted by the manifest; the receiver keeps the default)
+    out += _numbers(_S5, (m.percentage, m.power_supply_status,), _N6)
+    # power_supply_health: not sent (omitted by the manifest; the receiver keeps the default)
+    # power_supply_technology: not sent (omitted by the manifest; the receiver keeps the default)
     x = m.present
     if x is not True and x is not False: x = _as_bool(x, 'present')
     out.append(1 if x else 0)
-    x = _as_list(m.cell_voltage, 'cell_voltage')
-    out.append(len(x))
-    out += _numbers(_struct_for('f', len(x)), x, (), 'cell_voltage')
-    x = _as_list(m.cell_temperature, 'cell_temperature')
-    out.append(len(x))
-    out += _numbers(_struct_for('f', len(x)), x, (), 'cell_temperature')
-    x = m.location
-    if type(x) is not str: raise _EncodeError('location', 'expected str, got ' + type(x).__name__)
-    out.append(x)
-    x = m.serial_number
-    if type(x) is not str: raise _EncodeError('serial_number', 'expected str, got ' + type(x).__name__)
-    out.append(x)
+    # cell_voltage: not sent (omitted by the manifest; the receiver keeps the default)
+    # cell_temperature: not sent (omitted by the manifest; the receiver keeps the default)
+    # location: not sent (omitted by the manifest; the receiver keeps the default)
+    # serial_number: not sent (omitted by the manifest; the receiver keeps the default)
 
 
-def dec_BatteryState(v, i, C):
+def dec_t6_BatteryState(v, i, C):
     """Read a sensor_msgs/msg/BatteryState (native profile) from items `v` at `i`; return (message, next index)."""
     if len(v) - i < 2: raise _short('header.stamp.sec')
     x1, x2 = v[i:i + 2]
@@ -127,50 +130,34 @@ def dec_BatteryState(v, i, C):
     x3 = v[i]
     i += 1
     if type(x3) is not str: raise _bad_item('header.frame_id', 'a text string', x3)
-    if len(v) - i < 10: raise _short('voltage')
-    x4, x5, x6, x7, x8, x9, x10, x11, x12, x13 = v[i:i + 10]
-    i += 10
+    if len(v) - i < 1: raise _short('voltage')
+    x4 = v[i]
+    i += 1
     if type(x4) is not float: raise _bad_item('voltage', 'a float', x4)
-    if type(x5) is not float: raise _bad_item('temperature', 'a float', x5)
-    if type(x6) is not float: raise _bad_item('current', 'a float', x6)
-    if type(x7) is not float: raise _bad_item('charge', 'a float', x7)
-    if type(x8) is not float: raise _bad_item('capacity', 'a float', x8)
-    if type(x9) is not float: raise _bad_item('design_capacity', 'a float', x9)
-    if type(x10) is not float: raise _bad_item('percentage', 'a float', x10)
-    if type(x11) is not int or not 0 <= x11 <= 255: raise _bad_item('power_supply_status', 'an uint8', x11)
-    if type(x12) is not int or not 0 <= x12 <= 255: raise _bad_item('power_supply_health', 'an uint8', x12)
-    if type(x13) is not int or not 0 <= x13 <= 255: raise _bad_item('power_supply_technology', 'an uint8', x13)
     if abs(x4) > 3.4028234663852886e+38 and abs(x4) != _INF: raise _bad_item('voltage', 'a float32', x4)
-    if abs(x5) > 3.4028234663852886e+38 and abs(x5) != _INF: raise _bad_item('temperature', 'a float32', x5)
-    if abs(x6) > 3.4028234663852886e+38 and abs(x6) != _INF: raise _bad_item('current', 'a float32', x6)
-    if abs(x7) > 3.4028234663852886e+38 and abs(x7) != _INF: raise _bad_item('charge', 'a float32', x7)
-    if abs(x8) > 3.4028234663852886e+38 and abs(x8) != _INF: raise _bad_item('capacity', 'a float32', x8)
-    if abs(x9) > 3.4028234663852886e+38 and abs(x9) != _INF: raise _bad_item('design_capacity', 'a float32', x9)
-    if abs(x10) > 3.4028234663852886e+38 and abs(x10) != _INF: raise _bad_item('percentage', 'a float32', x10)
+    # temperature: not on the wire (omitted by the manifest; the receiver keeps the default)
+    if len(v) - i < 1: raise _short('current')
+    x5 = v[i]
+    i += 1
+    if type(x5) is not float: raise _bad_item('current', 'a float', x5)
+    if abs(x5) > 3.4028234663852886e+38 and abs(x5) != _INF: raise _bad_item('current', 'a float32', x5)
+    # charge: not on the wire (omitted by the manifest; the receiver keeps the default)
+    # capacity: not on the wire (omitted by the manifest; the receiver keeps the default)
+    # design_capacity: not on the wire (omitted by the manifest; the receiver keeps the default)
+    if len(v) - i < 2: raise _short('percentage')
+    x6, x7 = v[i:i + 2]
+    i += 2
+    if type(x6) is not float: raise _bad_item('percentage', 'a float', x6)
+    if type(x7) is not int or not 0 <= x7 <= 255: raise _bad_item('power_supply_status', 'an uint8', x7)
+    if abs(x6) > 3.4028234663852886e+38 and abs(x6) != _INF: raise _bad_item('percentage', 'a float32', x6)
+    # power_supply_health: not on the wire (omitted by the manifest; the receiver keeps the default)
+    # power_supply_technology: not on the wire (omitted by the manifest; the receiver keeps the default)
     if i >= len(v): raise _short('present')
-    x14 = v[i]
+    x8 = v[i]
     i += 1
-    if x14 is not True and x14 is not False: x14 = _item_bool(x14, 'present')
-    n = _count(v, i, 'cell_voltage', None, 1)
-    i += 1
-    if len(v) - i < n: raise _short('cell_voltage')
-    x15 = v[i:i + n]
-    i += n
-    if not _only(x15, float): raise _bad_items('cell_voltage', 'float32', x15)
-    if not _float32_ok(x15): raise _bad_items('cell_voltage', 'float32', x15)
-    n = _count(v, i, 'cell_temperature', None, 1)
-    i += 1
-    if len(v) - i < n: raise _short('cell_temperature')
-    x16 = v[i:i + n]
-    i += n
-    if not _only(x16, float): raise _bad_items('cell_temperature', 'float32', x16)
-    if not _float32_ok(x16): raise _bad_items('cell_temperature', 'float32', x16)
-    if i >= len(v): raise _short('location')
-    x17 = v[i]
-    i += 1
-    if type(x17) is not str: raise _bad_item('location', 'a text string', x17)
-    if i >= len(v): raise _short('serial_number')
-    x18 = v[i]
-    i += 1
-    if type(x18) is not str: raise _bad_item('serial_number', 'a text string', x18)
-    return C.sensor_msgs__BatteryState(header=C.std_msgs__Header(stamp=C.builtin_interfaces__Time(sec=x1, nanosec=x2), frame_id=x3), voltage=x4, temperature=x5, current=x6, charge=x7, capacity=x8, design_capacity=x9, percentage=x10, power_supply_status=x11, power_supply_health=x12, power_supply_technology=x13, present=x14, cell_voltage=x15, cell_temperature=x16, location=x17, serial_number=x18), i
+    if x8 is not True and x8 is not False: x8 = _item_bool(x8, 'present')
+    # cell_voltage: not on the wire (omitted by the manifest; the receiver keeps the default)
+    # cell_temperature: not on the wire (omitted by the manifest; the receiver keeps the default)
+    # location: not on the wire (omitted by the manifest; the receiver keeps the default)
+    # serial_number: not on the wire (omitted by the manifest; the receiver keeps the default)
+    return C.sensor_msgs__BatteryState(header=C.std_msgs__Header(stamp=C.builtin_interfaces__Time(sec=x1, nanosec=x2), frame_id=x3), voltage=x4, current=x5, percentage=x6, power_supply_status=x7, present=x8), i
