@@ -268,13 +268,15 @@ def test_a_secured_action_runs_and_forged_goals_and_cancels_never_reach_the_serv
     from .test_actions_over_emulator import FibonacciServer, ready_client, result_of, send
     assert action_package.MANIFEST.security.modes[9] == "encrypt"
     with secured_network(action_package) as net:
-        real = FibonacciServer(net.vehicle.node("fibonacci_server"), step=0.05)
+        real = FibonacciServer(net.vehicle.node("fibonacci_server"), step=0.2)
         heard = tap(net.bridges["surface"].link, GOAL)
         client = ready_client(net)
-        goal_handle = send(client, 5)
+        feedback: list = []
+        goal_handle = send(client, 5, feedback)
         assert goal_handle.accepted
         result = result_of(goal_handle)
         assert list(result.result.sequence) == [0, 1, 1, 2, 3, 5]
+        assert feedback                                        # protected feedback arrived too
         assert real.goals == [5] and heard
         _, _, n = wire.header_length(heard[0])
         handle = load_items(heard[0][:n])[2]                  # the header stays readable
