@@ -101,14 +101,21 @@ def security(net, side):
     return net.bridges[side].status()["security"]
 
 
+def cmd_vel_ends(net):
+    """The vehicle's received cmd_vel list, the surface's publisher, and what the surface's
+    link sends of cmd_vel (a tap), once both bridges are up and the publisher is matched."""
+    got: list[Twist] = []
+    net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
+    pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
+    heard = tap(net.bridges["surface"].link, CMD_VEL)
+    wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+             and pub.get_subscription_count(), what="secured bridges up")
+    return got, pub, heard
+
+
 def test_forged_cmd_vel_never_reaches_ros(secure_package, tmp_path):
     with secured_network(secure_package) as net:
-        got: list[Twist] = []
-        net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
-        pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
-        heard = tap(net.bridges["surface"].link, CMD_VEL)
-        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
-                 and pub.get_subscription_count(), what="secured bridges up")
+        got, pub, heard = cmd_vel_ends(net)
 
         for k in range(5):                                # the real operator
             pub.publish(Twist(linear=Twist().linear.__class__(x=0.1 * (k + 1))))
@@ -170,12 +177,7 @@ def test_secured_service_is_answered_once_and_only_when_authentic(secure_package
 
 def test_frames_replayed_after_a_bridge_restart_are_rejected(secure_package):
     with secured_network(secure_package) as net:
-        got: list[Twist] = []
-        net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
-        pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
-        heard = tap(net.bridges["surface"].link, CMD_VEL)
-        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
-                 and pub.get_subscription_count(), what="secured bridges up")
+        got, pub, heard = cmd_vel_ends(net)
         for k in range(3):
             pub.publish(Twist(linear=Twist().linear.__class__(x=0.1 * (k + 1))))
             time.sleep(0.1)
