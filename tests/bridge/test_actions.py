@@ -89,6 +89,31 @@ def test_unanswered_goal_is_rejected_after_accept_timeout(pair):
     assert status["goal_resends"] == 2
 
 
+def test_a_goal_that_comes_before_the_server_is_discovered_waits_for_it(pair):
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    future = client.send_goal_async(Fibonacci.Goal(order=4))
+    wait_for(lambda: counted(bridges["vehicle"])["waited"] == 1, what="the goal waiting")
+    fib_server(vehicle.node("late_real"), results)     # the real server comes up only now
+    wait_for(future.done, what="the goal's answer")
+    assert future.result().accepted
+    result = future.result().get_result_async()
+    wait_for(result.done, what="the result")
+    assert result.result().status == GoalStatus.STATUS_SUCCEEDED and results == [4]
+    assert counted(bridges["vehicle"])["no_server"] == 0
+
+
+def test_a_goal_with_no_server_is_rejected_after_waiting(pair):
+    surface, vehicle, bridges, links = pair
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    assert not send_goal(client).accepted
+    wait_for(lambda: counted(bridges["vehicle"])["no_server"] == 1, what="no_server counted")
+    assert counted(bridges["vehicle"])["waited"] == 1
+
+
 def drop_replies(link, count: int) -> list:
     """Make `link` lose its next `count` responses (kind 3); returns what it dropped."""
     dropped, offer = [], link.offer

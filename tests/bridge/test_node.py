@@ -219,6 +219,20 @@ def test_request_without_local_server_is_counted(pair):
              what="the caller's timeout")
 
 
+def test_request_that_comes_before_the_server_is_discovered_waits_for_it(pair):
+    surface, vehicle, bridges, links = pair
+    client = surface.node("caller").create_client(BasicTypes, "/echo")
+    assert client.wait_for_service(timeout_sec=5.0)
+    future = client.call_async(BasicTypes.Request(int32_value=21, string_value="first"))
+    vb = bridges["vehicle"]
+    wait_for(lambda: vb.service_counters[ECHO.id].waited == 1, what="the request waiting")
+    echo_server(vehicle.node("late_server"))          # the real server comes up only now
+    wait_for(future.done, what="the first call's response")
+    assert future.result().int32_value == 42 and future.result().string_value == "re:first"
+    assert vb.service_counters[ECHO.id].no_server == 0
+    assert bridges["surface"].service_counters[ECHO.id].timeouts == 0
+
+
 def test_encode_error_is_counted_and_nothing_is_sent():
     tight = FakeTopicCodec(4, "/cmd", String, "surface", max_len=20)
     package = fake_package([tight])

@@ -37,7 +37,9 @@ class ServiceCounters:
     # serving side
     requests: int = 0         # requests that came over the link
     duplicate_requests: int = 0  # a request whose seq is already being served (dropped)
-    no_server: int = 0        # the real service was not available (no response sent)
+    waited: int = 0           # requests that came before the real server was discovered
+                              # and waited for it (served once it appeared, or no_server)
+    no_server: int = 0        # no real server appeared within the call's timeout (dropped)
     server_timeouts: int = 0  # the real service did not answer within the manifest timeout
     server_errors: int = 0    # the real service's call failed
     replies: int = 0          # responses offered back to the link
@@ -65,7 +67,8 @@ class ActionCounters:
     # server side (the bridge calls the real action server)
     goal_requests: int = 0    # goals that came over the link
     duplicate_goals: int = 0  # a goal for a handle already in flight (dropped)
-    no_server: int = 0        # no local action server: the goal was rejected
+    waited: int = 0           # goals that came before the local server was discovered
+    no_server: int = 0        # no local action server within accept_timeout: rejected
     server_timeouts: int = 0  # the local server did not answer or finish in time
     server_gone: int = 0      # goals aborted because the local server disappeared
     server_errors: int = 0    # the local goal, cancel or result call failed
