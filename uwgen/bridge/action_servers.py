@@ -70,6 +70,7 @@ class ActionServers:
                 continue
             client = ActionClient(wiring.node, cls, codec.name, callback_group=wiring.main_group)
             self.served[codec.id] = (codec, client)
+            wiring.loops.watch_server(codec.name, action=True)
             self.goals[codec.id] = {}
             self.finished[codec.id] = OrderedDict()
 
@@ -123,6 +124,9 @@ class ActionServers:
             self._cancel(ident, handle)
             return
         counters.goal_requests += 1
+        if self.w.loops.blocked(codec.name):
+            counters.loop_guard += 1      # our goal would reach another bridge's stand-in
+            return
         if self._repeat(ident, handle, payload):     # in flight, or finished just now
             counters.duplicate_goals += 1
             return

@@ -55,19 +55,31 @@ class StandIns:
         self.counters = counters
         self.calls = CallTable(wiring.clock, rng=rng)
         self.called: dict[int, Any] = {}     # id -> codec
-        self.services: list[Any] = []
+        self.services: dict[int, Any] = {}   # id -> the stand-in service (absent: withdrawn)
         for codec in codecs:
             counters[codec.id] = ServiceCounters()
             cls = wiring.ros_class(codec, "srv")
             if cls is None:
                 continue
-            srv = wiring.node.create_service(cls, codec.name, self._standin(codec),
-                                             callback_group=wiring.service_group)
-            allow_no_response(srv)
-            self.services.append(srv)
+            self._offer(codec, cls)
+            wiring.loops.watch_standin(codec.name,
+                                       on_change=lambda blocked, c=codec, k=cls: self._loop(c, k, blocked))
             self.called[codec.id] = codec
             if is_rmw_desert(codec):
                 self.calls.set_seq_range(codec.id, *RMW_DESERT_SEQ_RANGE)
+
+    def _offer(self, codec: Any, cls: Any) -> None:
+        srv = self.w.node.create_service(cls, codec.name, self._standin(codec),
+                                         callback_group=self.w.service_group)
+        allow_no_response(srv)
+        self.services[codec.id] = srv
+
+    def _loop(self, codec: Any, cls: Any, blocked: bool) -> None:
+        """Withdraw the stand-in while another bridge here serves it (loops.py), and back."""
+        if blocked and codec.id in self.services:
+            self.w.node.destroy_service(self.services.pop(codec.id))
+        elif not blocked and codec.id not in self.services:
+            self._offer(codec, cls)
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.called:
@@ -80,6 +92,9 @@ class StandIns:
 
         async def call(request: Any, response: Any) -> Any:
             counters.local_calls += 1
+            if self.w.loops.blocked(codec.name):
+                counters.loop_guard += 1
+                return None       # never a response: the real server in this graph answers
             future = Future()
             try:
                 pending = self.calls.begin(codec.id, codec.timeout, token=future)
@@ -155,6 +170,7 @@ class Servers:
                 continue
             client = wiring.node.create_client(cls, codec.name, callback_group=wiring.main_group)
             self.served[codec.id] = (codec, client)
+            wiring.loops.watch_server(codec.name)
             self.serving[codec.id] = {}
             self.waiting[codec.id] = {}
 
@@ -173,6 +189,9 @@ class Servers:
             self.w.say_once(f"dreq{ident}", f"{codec.name}: request dropped, does not decode: {exc}")
             return
         counters.requests += 1
+        if self.w.loops.blocked(codec.name):
+            counters.loop_guard += 1      # our call would reach another bridge's stand-in
+            return
         if seq in self.serving[ident] or seq in self.waiting[ident]:
             counters.duplicate_requests += 1
             return
