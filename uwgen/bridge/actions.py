@@ -11,6 +11,10 @@ published to the local client. The status topic is the local ActionServer's own.
 from the local client goes out as `[2, id, handle]` and its answer decides the local
 cancel response.
 
+Results: each result that arrives is acknowledged (`[2, id, -1 - handle, 0]`), also a
+copy (the server side re-sends a result until acknowledged); an accepted goal with no
+result asks for it (`[2, id, -1 - handle, 1]`) every accept_timeout.
+
 Losses: a goal with no answer is sent again (same handle and bytes) after a third and two
 thirds of `accept_timeout`; no answer at all rejects the goal (or refuses the cancel) and
 sends a cancel, in case only the answer was lost; no result within `result_timeout` aborts
@@ -54,6 +58,7 @@ class GoalState:
     payload: bytes = b""                          # the goal as sent (sent again unchanged)
     sends: int = 1
     next_send: float = 0.0                        # when to send it again while unanswered
+    next_query: float = 0.0                       # accepted, no result: when to ask for it
 
 
 class ActionStandIns:
@@ -208,6 +213,9 @@ class ActionStandIns:
             counters.other_sides += 1       # an answer or result for another client side
             return
         if code in RESULTS:
+            # Acknowledged whatever became of it: a copy means our last ack was lost.
+            if self.w.send(ident, codec.encode_result_status(handle, received=True)):
+                counters.result_acks += 1
             pending = table.complete(ident, handle)
             if pending is None:
                 counters.unknown += 1
@@ -228,12 +236,15 @@ class ActionStandIns:
             if code == ACCEPTED:
                 counters.accepted += 1
                 pending.deadline = self.w.clock.now() + codec.result_timeout
+                state.next_query = self.w.clock.now() + codec.accept_timeout
             else:
                 counters.rejected += 1
                 table.complete(ident, handle)
             state.answer.set_result(code)
         elif code not in (ACCEPTED, REJECTED) and state.cancel is not None and not state.cancel.done():
             state.cancel.set_result(code)
+        elif code == ACCEPTED and state.answer.done() and state.next_query:
+            pass                      # the goal still runs: the reply to our result request
         else:
             counters.unknown += 1     # a repeated answer
 
@@ -287,6 +298,12 @@ class ActionStandIns:
                 state.result.set_result((ABORTED, codec.ros_class().Result()))
             for pending in table.pending(ident):
                 state = pending.token
+                if state.answer.done() and not state.result.done() and state.next_query <= now:
+                    # Accepted, no result yet: ask (the server side re-sends it, says the
+                    # goal still runs, or reports it aborted when it does not know it).
+                    state.next_query = now + codec.accept_timeout
+                    counters.result_queries += 1
+                    self.w.send(ident, codec.encode_result_status(state.handle, received=False))
                 if (not state.answer.done() and state.sends < GOAL_SENDS
                         and state.next_send <= now):
                     state.sends += 1
