@@ -7,6 +7,8 @@ the manifest names surfaces as the parser's own `DefinitionError` (located in th
 """
 from __future__ import annotations
 
+import dataclasses
+
 import ipaddress
 import keyword
 import re
@@ -58,7 +60,9 @@ POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair")
 MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
-TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security",
+              "reliability")
+LINK_RELIABILITY = ("best_effort", "reliable")
 SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
                 "request_fields", "response_fields", "security")
 
@@ -383,6 +387,15 @@ class _ManifestBuilder:
         topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
         fields = self.fields(entries, "fields", definition, label, topic_profile)
         mode = self.sec.entry_mode(entries, label, name, security)
+        if "reliability" in entries:
+            rel_node = entries["reliability"][1]
+            if r.choice(rel_node, f"reliability of {label}", LINK_RELIABILITY) == "reliable":
+                if topic_profile == RMW_DESERT:
+                    raise r.error(rel_node, f"reliability of {label}: profile rmw_desert cannot be "
+                                            "reliable (rmw_desert nodes read no acknowledgements and "
+                                            "wire format 1 has none); use profile native or packed, or "
+                                            "best_effort")
+                policy = dataclasses.replace(policy, reliable=True)
         return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields,
                      security=mode)
 

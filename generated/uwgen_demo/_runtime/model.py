@@ -45,6 +45,8 @@ class LinkPolicy:
     ttl: float | None = None    # seconds; older messages are dropped, never sent stale
     priority: int = 0           # higher is served first when the link is busy
     repair: int = 0             # repair fragments per fragmented message (erasure code; 0: none)
+    reliable: bool = False      # acknowledged and re-sent until its ttl (topics with
+                                # `reliability: reliable`; wire format 15); never rmw_desert
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import sys as _sys
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
     'codec': ('uwgen.runtime.codec', '26bca51745bec02f'),
-    'model': ('uwgen.manifest.model', 'f56aa128b35252ee'),
+    'model': ('uwgen.manifest.model', 'f318bbb1fd9efe0c'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
     'table': ('uwgen.runtime.table', '18c0d595d7ac2a0d'),
