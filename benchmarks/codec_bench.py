@@ -115,7 +115,9 @@ def main() -> None:
             back, _ = codec.decode(payload, (0, 4))
             assert type(back) is cls
             cdr = serialize_message(msg)
-            assert serialize_message(back) == cdr, f"{name}: uwgen's round trip changed the message"
+            # (CDR bytes are not compared: rclpy leaves its padding bytes uninitialized)
+            assert deserialize_message(serialize_message(back), cls) == deserialize_message(cdr, cls), \
+                f"{name}: uwgen's round trip changed the message"
 
             def uwgen_round_trip(codec=codec, msg=msg):
                 codec.decode(codec.encode(msg, [0, 4]), (0, 4))
