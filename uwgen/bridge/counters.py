@@ -33,6 +33,7 @@ class ServiceCounters:
     refused: int = 0          # requests the link or the call table refused (no response sent)
     responses: int = 0        # responses returned to local callers
     timeouts: int = 0         # calls that got no response before the manifest timeout
+    request_resends: int = 0  # requests sent again (same seq) after an RTO without response
     decode_errors: int = 0    # responses (or requests) that did not decode
     # serving side
     requests: int = 0         # requests that came over the link
@@ -45,6 +46,7 @@ class ServiceCounters:
     server_timeouts: int = 0  # the real service did not answer within the manifest timeout
     server_errors: int = 0    # the real service's call failed
     replies: int = 0          # responses offered back to the link
+    repeated_replies: int = 0  # responses sent again for a copy of an answered request
     reply_refused: int = 0    # responses the link refused
 
 
