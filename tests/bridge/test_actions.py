@@ -163,7 +163,7 @@ def test_a_result_lost_once_is_sent_again_and_acknowledged(pair):
 def test_a_client_side_asks_for_a_result_the_server_side_does_not_know(pair):
     surface, vehicle, bridges, links = pair
     links.links["vehicle"].mute = True                 # the real result never comes back
-    links.links["vehicle"].inject(pack_items([2, 9, -1 - 4, 1]))     # result wanted, goal 4
+    links.links["vehicle"].inject(pack_items([2, 9, 24 + 4, 1]))     # result wanted, goal 4
     vb = bridges["vehicle"]
     wait_for(lambda: counted(vb)["lost_goals"] == 1, what="the unknown goal reported")
     assert links.links["vehicle"].offered(9) == [pack_items([3, 9, 4, 6, 0])]   # aborted

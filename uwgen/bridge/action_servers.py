@@ -31,7 +31,7 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.plan import FEEDBACK_KEY_BASE
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
-from uwgen.runtime.reliable import RttEstimator
+from uwgen.runtime.reliable import RttEstimator, command_rtt
 from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, RESULTS)
 
 SERVER_GONE_GRACE = 1.0   # seconds the local server may be missing before its goals abort
@@ -88,10 +88,7 @@ class ActionServers:
             self.goals[codec.id] = {}
             self.finished[codec.id] = OrderedDict()
             self.unacked[codec.id] = {}
-            # Until measured, a result is sent again as often as the client side sends a goal
-            # again (accept_timeout / 3: the manifest sizes accept_timeout for the link).
-            self.rtt[codec.id] = RttEstimator(codec.accept_timeout / 3, wiring.options.link.period,
-                                              codec.accept_timeout, wiring.options.link.period)
+            self.rtt[codec.id] = command_rtt(codec.accept_timeout, wiring.options.link.period)
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.served:

@@ -39,7 +39,7 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.plan import TIMEOUT_REPLY_DEFAULT, is_rmw_desert
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE
-from uwgen.runtime.reliable import RttEstimator
+from uwgen.runtime.reliable import RttEstimator, command_rtt
 
 WAIT_SHARE = 0.5      # of the manifest timeout a request may wait for the local server (the
                       # rest is for its trip and the response's: the caller's clock started
@@ -59,9 +59,8 @@ class Outgoing:
 
 
 def service_rtt(codec: Any, period: float) -> RttEstimator:
-    """The round trip of one service's calls: until measured, a third of its timeout (so a
-    request goes up to three times within it); never below the link's period."""
-    return RttEstimator(codec.timeout / 3, period, codec.timeout / 2, period)
+    """The retransmission timer of one service's requests (reliable.command_rtt)."""
+    return command_rtt(codec.timeout, period)
 
 
 class StandIns:
