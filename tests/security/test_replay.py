@@ -89,7 +89,8 @@ def test_replays_after_a_receiver_crash_are_rejected(tmp_path):
     frames = [s.protect(4, twist(i)) for i in range(40)]
     for f in frames:
         assert v.unprotect(f) is not None
-    del v                                       # killed: no close(), only what was reserved on disk
+    v.store.unlock()                            # killed: no close(), only what was reserved on
+    del v                                       # disk (a dead process holds no lock)
     v2 = vehicle(tmp_path)
     assert [v2.unprotect(f) for f in frames] == [None] * 40
     # the floor was raised by at most one block beyond what was accepted: after that many
@@ -102,7 +103,8 @@ def test_a_restarted_sender_with_higher_numbers_is_accepted(tmp_path):
     s, v = surface(tmp_path), vehicle(tmp_path)
     for i in range(10):
         assert v.unprotect(s.protect(4, twist(i))) is not None
-    del s                                       # crash: numbers 10..255 were reserved, unused
+    s.store.unlock()                            # crash: numbers 10..255 were reserved, unused
+    del s
     s2 = surface(tmp_path)
     frames = [s2.protect(4, twist(i)) for i in range(10)]
     assert [v.unprotect(f) for f in frames] == [twist(i) for i in range(10)]

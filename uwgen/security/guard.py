@@ -23,13 +23,14 @@ from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.codec import DecodeError, load_items
 from uwgen.runtime.stats import Counters
 from uwgen.security import wire
-from uwgen.security.keys import SecurityError, key_id, sender_key
+from uwgen.security.errors import SecurityError
+from uwgen.security.keys import key_id, sender_key
 from uwgen.security.state import RECV_BLOCK, SEND_BLOCK, SequenceSource, State, StateFile
-from uwgen.security.window import NEW, WINDOW, ReplayWindow
+from uwgen.security.window import MAX_JUMP, NEW, WINDOW, ReplayWindow
 
 log = logging.getLogger("uwgen.security")
 
-DROP_REASONS = ("bad_tag", "replay", "too_old", "unknown_sender", "reflected", "unsynced",
+DROP_REASONS = ("bad_tag", "replay", "too_old", "too_far", "unknown_sender", "reflected", "unsynced",
                 "unprotected", "truncated", "malformed", "state_error")
 COUNTERS = ("protected", "sync_sent", "verified", "protect_failed", *DROP_REASONS)
 SYNC_FIRST = 3          # the first frames after a start carry the full sequence number
@@ -42,6 +43,8 @@ WHY = {
     "replay": "a number this sender already used (a replay)",
     "too_old": "a number older than the replay window (an old frame replayed, or a sender that "
                "lost its state file and started its numbers again: give the network a new key)",
+    "too_far": f"a number more than {MAX_JUMP} above the highest one accepted from this sender "
+               "(refused: one frame may not move the window that far)",
     "unknown_sender": "a sender id no side of the manifest has",
     "reflected": "this side's own sender id (a frame sent back to us)",
     "unsynced": "no sequence state for this sender yet; waiting for one of its sync frames",
@@ -73,10 +76,15 @@ class LinkGuard:
                 raise SecurityError(f"id {ident}: mode {mode!r} is not sign or encrypt")
         self.config, self.store, self.clock, self.name = config, store, clock, name
         self.counters = Counters(COUNTERS)
+        store.lock()                  # a second copy of this side is refused here
+        try:
+            self.state: State = store.load()
+        except BaseException:
+            store.unlock()
+            raise
         self._aead = {s: wire.new_aead(sender_key(master, config.network, s))
                       for s in (config.sender, *config.peers)}
         self._lock = threading.Lock()
-        self.state: State = store.load()
         self._seqs = SequenceSource(store, self.state, send_block)
         self._sent = 0
         self._last_sync = float("-inf")
@@ -91,7 +99,8 @@ class LinkGuard:
 
     @classmethod
     def for_key(cls, master: bytes, config: GuardConfig, state_path, io=None, **kw) -> "LinkGuard":
-        return cls(master, config, StateFile(state_path, key_id(master, config.network), io), **kw)
+        return cls(master, config,
+                   StateFile(state_path, key_id(master, config.network), io, sender=config.sender), **kw)
 
     # -- sending -----------------------------------------------------------------------
 
@@ -176,7 +185,7 @@ class LinkGuard:
             return self._drop(verdict, ident, p.sender)
         floor = self.state.floors.get(p.sender)
         if floor is None or seq > floor:
-            self.state.floors[p.sender] = seq + self._recv_block
+            self.state.floors[p.sender] = min(seq + self._recv_block, wire.MAX_SEQ)
             try:
                 self.store.save(self.state)
             except SecurityError as exc:
@@ -233,6 +242,7 @@ class LinkGuard:
                 self.store.save(self.state)
             except SecurityError as exc:
                 log.error("[%s] %s (the next start skips the reserved numbers)", self.name, exc)
+            self.store.unlock()
 
 
 def _plain(payload: bytes) -> bool:
