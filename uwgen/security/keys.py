@@ -28,7 +28,7 @@ KEY_FILE_HEADER = ("# uwgen network master key: keep it secret, give every side 
                    "a copy (owner-only permissions).\n")
 
 
-__all__ = ["SecurityError", "sender_key", "key_id", "new_master_key", "write_key_file",
+__all__ = ["SecurityError", "sender_key", "working_key", "new_epoch", "key_id", "new_master_key", "write_key_file",
            "read_key_file"]
 
 
@@ -40,6 +40,20 @@ def sender_key(master: bytes, network: str, sender: int) -> bytes:
     """The AES-128 key of `sender` (0..15) in `network`."""
     return _hkdf(master, b"sender key\x00" + network.encode() + b"\x00" + bytes([sender]),
                  SENDER_KEY_BYTES)
+
+
+def working_key(master: bytes, network: str, sender: int, epoch: bytes) -> bytes:
+    """The AES-128 key `sender` seals with during `epoch` (6 random bytes, new at every start):
+    HKDF as `sender_key`, with the epoch in the info, as OSCORE's appendix B.2 re-keying mixes
+    a fresh nonce into its key derivation. A new epoch is a new key, so its numbers may start
+    at 0 again without ever repeating a (key, nonce) pair: no state file is needed for that."""
+    return _hkdf(master, b"working key\x00" + network.encode() + b"\x00" + bytes([sender]) + epoch,
+                 SENDER_KEY_BYTES)
+
+
+def new_epoch(nbytes: int = 6) -> bytes:
+    """A fresh random epoch (from the OS's CSPRNG)."""
+    return secrets.token_bytes(nbytes)
 
 
 def key_id(master: bytes, network: str) -> str:
