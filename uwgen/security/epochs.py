@@ -7,11 +7,15 @@ a second copy of the side, a renumbered id, all pick another epoch and so anothe
 (key, nonce) pair never repeats (two epochs collide with probability 2^-48 per pair of starts).
 
 A receiver keeps, per sender, the last `KEEP` epochs it accepted, each with its working key
-and its replay window; a frame without a sync word is tried under the most recent first.
+and its replay window; a frame without a sync word is tried under the most recent first. It
+also remembers the ids of the last `RETIRED` epochs it let go, and never takes one of them
+again: otherwise a recorded sync frame of an epoch pushed out of its memory would be a new
+epoch again, and delivered twice.
 Pure classes: the random source and the key derivation are passed in.
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -20,6 +24,7 @@ from uwgen.security.window import MAX_JUMP, ReplayWindow
 
 EPOCH_NUMBERS = MAX_JUMP      # a sender starts a new epoch after this many numbers
 KEEP = 2                      # epochs a receiver remembers per sender
+RETIRED = 64                  # epochs it remembers it let go (to refuse them), per sender
 
 
 class SendSession:
@@ -56,9 +61,14 @@ class PeerEpoch:
 class PeerEpochs:
     """The epochs of one sender that a receiver accepted, most recent first."""
 
-    def __init__(self, keep: int = KEEP):
+    def __init__(self, keep: int = KEEP, retired: int = RETIRED):
         self.keep = keep
         self._epochs: list[PeerEpoch] = []
+        self._retired: deque[bytes] = deque(maxlen=retired)
+
+    def retired(self, epoch: bytes) -> bool:
+        """Whether `epoch` was accepted once and let go since: never taken again."""
+        return epoch in self._retired
 
     def get(self, epoch: bytes) -> PeerEpoch | None:
         return next((e for e in self._epochs if e.epoch == epoch), None)
@@ -71,6 +81,8 @@ class PeerEpochs:
         if entry in self._epochs:
             self._epochs.remove(entry)
         self._epochs.insert(0, entry)
+        for old in self._epochs[self.keep:]:
+            self._retired.append(old.epoch)
         del self._epochs[self.keep:]
 
     @property

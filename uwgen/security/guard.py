@@ -167,6 +167,8 @@ class LinkGuard:
             if not self.freshness.fresh(p.sync.time, wall, max_age):
                 return drop("stale", ident, p.sender)
             entry, seq = peer.get(p.sync.epoch), p.full_seq()
+            if entry is None and peer.retired(p.sync.epoch):
+                return drop("too_old", ident, p.sender)     # an epoch this side let go
             if entry is None:                   # a new epoch: taken only from a fresh sync
                 if self.freshness.before(p.sync.time, wall, self._started):
                     return drop("stale", ident, p.sender)   # sealed before this side started
