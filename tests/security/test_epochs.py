@@ -9,7 +9,7 @@ from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.codec import pack_items
 from uwgen.security import guard as guard_module
 from uwgen.security import wire
-from uwgen.security.epochs import PeerEpochs, SendSession
+from uwgen.security.epochs import PeerEpoch, PeerEpochs, SendSession
 from uwgen.security.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, sent_at, stamp
 from uwgen.security.guard import GuardConfig, LinkGuard
 
@@ -109,7 +109,7 @@ def test_a_frame_held_back_while_newer_ones_went_through_is_stale(tmp_path):
 
 def test_a_receiver_keeps_the_last_two_epochs_of_a_sender():
     pe = PeerEpochs()
-    a, b, c = (guard_module.PeerEpoch(bytes([k]) * 6, None, None) for k in (1, 2, 3))
+    a, b, c = (PeerEpoch(bytes([k]) * 6, None, None) for k in (1, 2, 3))
     for e in (a, b, a, c):
         pe.touch(e)
     assert [e.epoch for e in pe.recent()] == [c.epoch, a.epoch]

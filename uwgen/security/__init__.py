@@ -12,6 +12,7 @@ reassembles it.
     epochs.py     the sender's epoch and numbers; the epochs a receiver keeps per sender
     window.py     the replay window of one (sender, epoch): bounded jumps, overtaken times
     freshness.py  the sync word's time and the max-age check (wall clocks passed in)
+    receiver.py   the receiving rules (epoch, freshness, replay), shared by every seal
     droplog.py    drop counters with throttled logs
     files.py      private file writes (no symlink followed) and the one-copy-per-side lock
     guard.py      LinkGuard: what a link calls to protect and to check payloads

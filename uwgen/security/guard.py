@@ -28,12 +28,13 @@ from uwgen.runtime.codec import DecodeError, load_items
 from uwgen.runtime.stats import Counters
 from uwgen.security import wire
 from uwgen.security.droplog import SUMMARY_PERIOD, DropLog
-from uwgen.security.epochs import EPOCH_NUMBERS, PeerEpoch, PeerEpochs, SendSession
+from uwgen.security.epochs import EPOCH_NUMBERS, SendSession
 from uwgen.security.errors import SecurityError
 from uwgen.security.files import SideLock
 from uwgen.security.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, stamp
 from uwgen.security.keys import new_epoch, working_key
-from uwgen.security.window import NEW, WINDOW, ReplayWindow
+from uwgen.security.receiver import Numbering, Receiver
+from uwgen.security.window import WINDOW
 
 DROP_REASONS = ("bad_tag", "replay", "too_old", "too_far", "stale", "unknown_sender", "reflected",
                 "unsynced", "unprotected", "truncated", "malformed")
@@ -76,9 +77,8 @@ class LinkGuard:
                                    epoch_numbers)
         self._last_sync = float("-inf")
         self._sync_due = 0                      # sync frames owed to a peer that (re)started
-        self._peers = {s: PeerEpochs() for s in config.peers}
-        self._window_size = window
-        self._started = wall.now()              # recorded frames are older than this
+        self.receiver = Receiver(config.peers, self._aead, self.freshness, clock, wall, window,
+                                 on_new_epoch=self._peer_restarted)
 
     @classmethod
     def for_key(cls, master: bytes, config: GuardConfig, lock_path: Path | None = None,
@@ -91,6 +91,11 @@ class LinkGuard:
     @property
     def lock_path(self) -> Path | None:
         return self._lock_file.path if self._lock_file is not None else None
+
+    def _peer_restarted(self, sender: int) -> None:
+        """A peer's new epoch: it may not know ours either, so the next frames carry it."""
+        self.counters.inc("epochs_seen")
+        self._sync_due = SYNC_FIRST
 
     def _aead(self, sender: int, epoch: bytes):
         return wire.new_aead(working_key(self._master, self.config.network, sender, epoch))
@@ -159,55 +164,23 @@ class LinkGuard:
             return drop("reflected", ident, p.sender)
         if p.sender not in self.config.peers:
             return drop("unprotected" if _plain(payload) else "unknown_sender", ident, p.sender)
-        peer = self._peers[p.sender]
         fp = self.config.fingerprints.get(ident, b"")
-        max_age = self._max_age(ident)
-        if p.sync is not None:
-            wall = self.wall.now()
-            if not self.freshness.fresh(p.sync.time, wall, max_age):
-                return drop("stale", ident, p.sender)
-            entry, seq = peer.get(p.sync.epoch), p.full_seq()
-            if entry is None and peer.retired(p.sync.epoch):
-                return drop("too_old", ident, p.sender)     # an epoch this side let go
-            if entry is None:                   # a new epoch: taken only from a fresh sync
-                if self.freshness.before(p.sync.time, wall, self._started):
-                    return drop("stale", ident, p.sender)   # sealed before this side started
-                if seq >= EPOCH_NUMBERS:        # no sender gets that far in one epoch
-                    return drop("too_far", ident, p.sender)
-                entry = PeerEpoch(p.sync.epoch, self._aead(p.sender, p.sync.epoch), None)
-            plain = _open(entry.aead, mode, p, seq, fp)
-        else:
-            if peer.current is None:
-                return drop("unsynced", ident, p.sender)
-            for entry in peer.recent():         # most recent epoch first
-                seq = entry.window.reconstruct(p.partial)
-                if (plain := _open(entry.aead, mode, p, seq, fp)) is not None:
-                    break
-        if plain is None:
-            return drop("unprotected" if _plain(payload) else "bad_tag", ident, p.sender)
-        now = self.clock.now()
-        if entry.window is None:                # first frame of this epoch: nothing before it
-            entry.window = ReplayWindow.from_floor(seq, self._window_size)
-            self.counters.inc("epochs_seen")
-            self._sync_due = SYNC_FIRST         # the peer (re)started: it may not know our epoch
-        else:
-            verdict = entry.window.check(seq)
-            if verdict != NEW:
-                return drop(verdict, ident, p.sender)
-            overtaken = entry.window.overtaken_for(seq, now)
-            if overtaken is not None and overtaken > max_age:
-                return drop("stale", ident, p.sender)
-        entry.window.accept(seq, now)
-        peer.touch(entry)
+        numbering = Numbering(p.sender, p.partial, wire.PARTIAL_BITS, p.full_seq(), p.sync)
+        got = self.receiver.admit(numbering, self._max_age(ident),
+                                  lambda aead, seq: _open(aead, mode, p, seq, fp))
+        if isinstance(got, str):
+            reason = "unprotected" if got == "bad_tag" and _plain(payload) else got
+            return drop(reason, ident, p.sender)
         self.counters.inc("verified")
-        return plain
+        return got
 
     # -- accounting and shutdown -------------------------------------------------------
 
     def stats(self) -> dict:
         c = self.counters.as_dict()
         peers = {}
-        for s, pe in sorted(self._peers.items()):
+        for s in sorted(self.config.peers):
+            pe = self.receiver.peer(s)
             if pe.current is not None:
                 peers[str(s)] = {"side": self.config.peers[s], "epoch": pe.current.epoch.hex(),
                                  "high": pe.current.window.high}

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from uwgen.security.wire import PARTIAL_BITS, PARTIAL_MASK
+from uwgen.security.wire import PARTIAL_BITS
 
 WINDOW = 128          # positions remembered below the highest number (at least 64)
 MAX_JUMP = 1 << 16    # the most one frame may move the window forward
@@ -45,13 +45,14 @@ class ReplayWindow:
         """A window that treats every number up to `floor` as seen (a first contact, a restart)."""
         return cls(size, floor, (1 << size) - 1, max_jump)
 
-    def reconstruct(self, partial: int) -> int | None:
-        """The full number ending in `partial` closest to high + 1; None without state."""
+    def reconstruct(self, partial: int, bits: int = PARTIAL_BITS) -> int | None:
+        """The full number whose low `bits` bits are `partial` closest to high + 1; None
+        without state."""
         if self.high is None:
             return None
         expected = self.high + 1
-        span = 1 << PARTIAL_BITS
-        base = (expected & ~PARTIAL_MASK) | partial
+        span = 1 << bits
+        base = (expected & ~(span - 1)) | partial
         candidates = [c for c in (base - span, base, base + span) if c >= 0]
         return min(candidates, key=lambda c: abs(c - expected))
 
