@@ -202,8 +202,11 @@ def test_a_goal_sent_again_runs_once(pair, lost, delay):
     wait_for(future.done, what="the result")
     assert future.result().status == GoalStatus.STATUS_SUCCEEDED
     assert results == [5] and len(dropped) == lost
-    assert counted(bridges["surface"])["goal_resends"] >= 1
-    assert counted(bridges["vehicle"])["repeated_replies"] >= 1
+    # Whichever comes first repairs it: the goal sent again (answered again), or the
+    # result sent again because it was not acknowledged.
+    vehicle = counted(bridges["vehicle"])
+    assert counted(bridges["surface"])["goal_resends"] + vehicle["results_resent"] >= 1
+    assert vehicle["repeated_replies"] + vehicle["results_resent"] >= 1
 
 
 def test_a_late_acceptance_is_answered_with_a_cancel(pair):
