@@ -117,7 +117,7 @@ class Overhead:
         self.seen: set[tuple[int, bytes]] = set()
         send = bridge.wiring.send
 
-        def counted(key: int, payload: bytes) -> bool:
+        def counted(key: int, payload: bytes, **kw) -> bool:
             if key in COMMAND_IDS:
                 status = payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18   # result status
                 if status and not retries:
@@ -125,7 +125,7 @@ class Overhead:
                 if status or (key, payload) in self.seen:
                     self.bytes += len(payload) + OVERHEAD
                 self.seen.add((key, payload))
-            return send(key, payload)
+            return send(key, payload, **kw)
         bridge.wiring.send = counted
         if not retries:
             bridge.standins.rtt.clear()                                  # no request copies

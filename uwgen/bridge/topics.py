@@ -25,6 +25,24 @@ from uwgen.runtime.codec import KIND_TOPIC
 
 
 
+MAX_AGE_TRUSTED = 3600.0   # s: a source stamp older than this is not a publication time
+
+
+def publication_time(info: Any, now: float, wall: float) -> float | None:
+    """When a taken message was published, on the bridge's clock (`now` is that clock's
+    reading, `wall` the system clock's, both at take): from the message info's
+    `source_timestamp` (ns since the epoch, stamped by the publisher's rmw on this
+    machine's system clock). None when there is none, or it is in the future or older
+    than MAX_AGE_TRUSTED (a publisher on another clock): then the ttl runs from now."""
+    stamp = info.get("source_timestamp") if isinstance(info, dict) else None
+    if not isinstance(stamp, int) or stamp <= 0:
+        return None
+    age = wall - stamp / 1e9
+    if not 0.0 <= age <= MAX_AGE_TRUSTED:
+        return None
+    return now - age
+
+
 class TopicBridge:
     def __init__(self, wiring: Wiring, outgoing: list[Any], incoming: list[Any]):
         self.w = wiring
@@ -63,11 +81,12 @@ class TopicBridge:
 
     # -- outgoing ----------------------------------------------------------------------
 
-    def _taker(self, codec: Any) -> Callable[[Any], None]:
+    def _taker(self, codec: Any) -> Callable[[Any, Any], None]:
         counters = self.counters[codec.id]
 
-        def take(msg: Any) -> None:
+        def take(msg: Any, info: Any) -> None:    # two arguments: rclpy passes MessageInfo
             counters.taken += 1
+            published = publication_time(info, self.w.clock.now(), self.w.wall())
             if self.echo_hazards and self._echo_blocked(codec):
                 return
             try:
@@ -77,7 +96,7 @@ class TopicBridge:
                 self.w.say_once(f"enc{codec.id}{type(exc).__name__}",
                                 f"{codec.name}: message not sent, cannot encode: {exc}")
                 return
-            if self.w.send(codec.id, payload):
+            if self.w.send(codec.id, payload, published=published):
                 counters.offered += 1
             else:
                 counters.refused += 1

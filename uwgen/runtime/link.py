@@ -101,9 +101,11 @@ class Link:
         self.scheduler.add_channel(key, policy, name=f"channel {key} ({name})" if name else None,
                                    whole=whole)
 
-    def offer(self, key: int, payload: bytes) -> bool:
-        """Queue an unframed payload; False (and a counted, logged drop) if it can never be sent."""
-        ok = self.scheduler.offer(key, payload)
+    def offer(self, key: int, payload: bytes, *, published: float | None = None) -> bool:
+        """Queue an unframed payload; False (and a counted, logged drop) if it can never be sent.
+        `published`: when its ROS publisher published it, on the link's clock; the channel's
+        ttl runs from then (docs/seams.md section 4)."""
+        ok = self.scheduler.offer(key, payload, published)
         if ok:
             self.connection.wake()
         return ok
