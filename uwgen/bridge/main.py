@@ -75,10 +75,12 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
     import threading
 
     from uwgen.typesupport import BuildError, activate_recorded
+    no_support = ""
     try:  # the type support of the package's own interfaces (uwgen ros-interfaces builds it)
-        for env in activate_recorded(getattr(package, "ROS_INTERFACES", {})):
+        for env in activate_recorded(getattr(package, "ROS_INTERFACES", {}), fix=_rebuild(package)):
             log.info("using the rclpy type support of %s built in %s", env.package, env.prefix)
     except BuildError as exc:
+        no_support = str(exc)
         log.error("%s; their topics and services are not bridged", exc)
 
     import rclpy
@@ -108,8 +110,8 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         finally:
             executor.remove_node(node)
             executor.shutdown(timeout_sec=0.5)
-    except PlanError as exc:  # bad ROS parameter values
-        print(f"uwgen bridge: {exc}", file=sys.stderr)
+    except PlanError as exc:  # bad ROS parameter values, nothing that can be bridged
+        print(f"uwgen bridge: {exc}" + (f"; {no_support}" if no_support else ""), file=sys.stderr)
         return EXIT_USAGE
     finally:
         if node is not None:
@@ -122,6 +124,16 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return 0
+
+
+def _rebuild(package: ModuleType) -> str | None:
+    """The command that rebuilds `package` with its interfaces' type support, run in its
+    project (None: the package does not say where it was built)."""
+    from uwgen.buildinfo import own_manifest, rebuild_hint
+    manifest = own_manifest(package)
+    if manifest is None:
+        return None
+    return rebuild_hint(package.BUILT_FROM, manifest, Path(package.__file__).parent)
 
 
 def _summary(status: dict) -> str:

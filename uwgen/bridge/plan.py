@@ -157,6 +157,11 @@ class BridgePlan:
                        **{k: v for k, v in extra.items() if v is not None})
         return opts.check()
 
+    def entry_names(self) -> list[str]:
+        """Every topic, service and action this side bridges, by name."""
+        return [e.name for e in (*self.outgoing_topics, *self.incoming_topics, *self.called_services,
+                                 *self.served_services, *self.offered_actions, *self.served_actions)]
+
     def describe(self) -> str:
         def names(items):
             return ", ".join(f"{i.name}#{i.id}" for i in items) or "-"
