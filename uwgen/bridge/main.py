@@ -64,7 +64,7 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         print(f"uwgen bridge: {problem}", file=sys.stderr)
         return EXIT_USAGE
     try:
-        plan = BridgePlan.from_package(package, side)
+        plan = BridgePlan.from_package(package, side, getattr(args, "manifest", None))
         options = options_from_args(plan, args)
         check_security(plan, options)
     except PlanError as exc:
