@@ -104,13 +104,3 @@ def test_pdr_sweep_prints_the_table_and_saves_the_plot(tmp_path, capsys):
     assert out.splitlines()[0].split() == ["distance_km", "wind_0", "wind_10"]
     assert "wind 0 m/s: full delivery (>= 99 %) up to" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-
-
-def test_a_port_already_taken_exits_1_with_the_reason(capsys):
-    import socket
-    with socket.socket() as busy:
-        busy.bind(("127.0.0.1", 0))
-        busy.listen(1)
-        port = busy.getsockname()[1]
-        assert main(["emulate", "--ports", str(port), "0", "--duration", "0.1"]) == 1
-    assert f"cannot listen on 127.0.0.1:{port}" in capsys.readouterr().err

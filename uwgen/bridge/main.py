@@ -27,9 +27,11 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", help="DESERT node host (default: the manifest's side entry)")
     parser.add_argument("--port", type=int, help="DESERT node TCP port (default: the manifest's)")
     parser.add_argument("--max-read-length", type=int, metavar="BYTES",
-                        help="bytes per acoustic packet (DESERT's max_read_length)")
+                        help="bytes per acoustic packet (DESERT's max_read_length; default: "
+                             "the manifest's side entry)")
     parser.add_argument("--period", type=float, metavar="SECONDS",
-                        help="seconds between packets (DESERT's period_)")
+                        help="seconds between packets (DESERT's period_; default: the "
+                             "manifest's side entry)")
     parser.add_argument("--status-period", type=float, default=2.0, metavar="SECONDS",
                         help="seconds between ~/status messages (default 2; 0: none)")
     parser.add_argument("--timeout-reply", choices=TIMEOUT_REPLIES, default="none",

@@ -28,6 +28,7 @@ import sys
 import time
 from pathlib import Path
 
+from uwgen.commands.options import old_spelling
 from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
 
 HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
@@ -52,7 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--per", type=float, default=0.05,
                         help="packet error rate on top of collisions (default 0.05)")
     parser.add_argument("--seed", type=int, default=1, help="emulator random seed")
-    parser.add_argument("--side", type=float, default=4.0, help="square side in metres")
+    parser.add_argument("--square-size", dest="square_size", type=float, default=4.0, metavar="M",
+                        help="length of a side of the square the operator drives, in metres")
+    # --side is a manifest side everywhere else; it was this command's square size.
+    old_spelling(parser, "--side", "--square-size", "square_size", "demo", type=float)
     parser.add_argument("--laps", type=int, default=1, help="laps of the square")
     parser.add_argument("--timeout", type=float, default=180.0,
                         help="give up if the operator has not finished after this many seconds")
@@ -199,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
                                           str(out / "vehicle.jsonl")], venv, out, not quiet))
             operator = Proc("operator", [py, "-m", "uwgen.demo.operator", "--record",
-                                         str(out / "operator.jsonl"), "--side", str(args.side),
+                                         str(out / "operator.jsonl"), "--square-size", str(args.square_size),
                                          "--laps", str(args.laps)], senv, out, not quiet)
             procs.append(operator)
             try:

@@ -16,6 +16,8 @@ import sys
 import threading
 from pathlib import Path
 
+from uwgen.commands.options import add_manifest
+
 HELP = "run emulated DESERT nodes (TCP sockets + acoustic channel), or print a PDR sweep"
 
 EXIT_USAGE = 2
@@ -31,15 +33,15 @@ COUNTER_COLUMNS = ("bytes_in", "packets_queued", "packets_sent", "packets_delive
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", nargs="?", type=Path,
                         help="YAML scenario (msg_samples/scenarios/*.yaml); flags override it")
-    parser.add_argument("-m", "--manifest", type=Path, default=None,
-                        help="uwgen manifest: one node per side, named after it, with its port "
-                             "and link settings; a scenario file then only adds physics "
-                             "(positions, waypoints, snr, tdma, seed, ...)")
+    add_manifest(parser, help="one node per side, named after it, with its port and link "
+                              "settings; a scenario file then only adds physics (positions, "
+                              "waypoints, snr, tdma, seed, ...)")
     g = parser.add_argument_group("nodes (without a scenario file)")
     g.add_argument("--nodes", type=int, default=None, metavar="N",
                    help="number of nodes, on a line, each sending to the next (default 2)")
-    g.add_argument("--ports", type=int, nargs="+", default=None, metavar="PORT",
-                   help="one TCP port per node (default 4000, 4001, ...; 0 = any free port)")
+    g.add_argument("--ports", nargs="+", default=None, metavar="PORT",
+                   help="one TCP port per node (default 4000, 4001, ...; 0 = any free port); "
+                        "a scenario file may follow them")
     g.add_argument("--distance", type=float, default=None, metavar="M",
                    help="metres between neighbouring nodes (default 1000)")
     link = parser.add_argument_group("link and channel")
@@ -49,13 +51,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="bytes per packet (default 64, at most 4096)")
     link.add_argument("--bitrate", type=float, default=None, metavar="BPS",
                       help="acoustic bit rate (default 4800)")
-    link.add_argument("--per", type=float, default=None, help="fixed packet error rate 0..1")
+    link.add_argument("--per", type=float, default=None,
+                      help="fixed packet error rate 0..1 on top of the channel model (default: none)")
     link.add_argument("--seed", type=int, default=None, help="random seed (default 1)")
     link.add_argument("--wind", type=float, nargs="+", default=None, metavar="M_S",
                       help="wind speed: turns on the SNR channel model (several values "
                            "with --pdr-sweep; default there 0 5 10)")
     link.add_argument("--tdma", type=float, default=None, metavar="FRAME",
-                      help="use TDMA with this frame length in seconds (slot = frame / nodes)")
+                      help="use TDMA with this frame length in seconds (slot = frame / nodes; "
+                           "default: no TDMA, every node sends when it has data)")
     link.add_argument("--guard", type=float, default=None, metavar="S",
                       help="TDMA guard time in seconds (default 0.05)")
     run_g = parser.add_argument_group("running")
@@ -94,6 +98,25 @@ def run(args: argparse.Namespace) -> int:
     return _serve(scenario, args.duration, args.crash_every, args.crash_down)
 
 
+def split_ports(args: argparse.Namespace) -> argparse.Namespace:
+    """`--ports 4900 4901 scen.yaml`: the ports, and the scenario file after them (argparse
+    gives `--ports` every word up to the next option)."""
+    from uwgen.emulator.scenario import ScenarioError
+
+    if args.ports is None:
+        return args
+    ports, rest = [], []
+    for word in args.ports:
+        (rest if rest or not word.isdigit() else ports).append(word)
+    if rest and (len(rest) > 1 or args.scenario is not None):
+        raise ScenarioError(f"--ports: expected port numbers, got {' '.join(rest)}")
+    bad = [p for p in ports if not 0 <= int(p) <= 65535]
+    if bad:
+        raise ScenarioError(f"--ports: {bad[0]} is not a TCP port (0..65535)")
+    return argparse.Namespace(**{**vars(args), "ports": [int(p) for p in ports],
+                                 "scenario": Path(rest[0]) if rest else args.scenario})
+
+
 def build_scenario(args: argparse.Namespace):
     """The scenario from the YAML file (if any) with the command-line flags applied."""
     from dataclasses import replace
@@ -101,6 +124,8 @@ def build_scenario(args: argparse.Namespace):
     from uwgen.emulator.physics import SnrModel
     from uwgen.emulator.scenario import NodeSpec, Scenario, ScenarioError, TdmaSpec, \
         load_scenario
+
+    args = split_ports(args)
 
     if args.wind is not None and len(args.wind) != 1:
         raise ScenarioError("--wind takes one value when running nodes "
@@ -174,9 +199,9 @@ def _serve(scenario, duration: float | None, crash_every: float | None = None,
     emu = Emulator(scenario)
     try:
         emu.start()
-    except EmulatorError as exc:
+    except EmulatorError as exc:   # a port taken: bad input, as every other error
         print(f"uwgen emulate: {exc}", file=sys.stderr)
-        return EXIT_FAILED
+        return EXIT_USAGE
     feeds = None
     if any(n.pose_topic is not None for n in scenario.nodes):
         from uwgen.emulator.ros_pose import PoseFeedError, PoseFeeds

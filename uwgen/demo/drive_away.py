@@ -164,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
                                           str(out / "vehicle.jsonl")], venv, out, not args.quiet))
             operator = Proc("operator", [py, "-m", "uwgen.demo.operator", "--record",
-                                         str(out / "operator.jsonl"), "--side", str(args.side),
+                                         str(out / "operator.jsonl"), "--square-size", str(args.square_size),
                                          "--laps", "100", "--max-drive", str(HOLD + duration)],
                             senv, out, not args.quiet)
             procs.append(operator)

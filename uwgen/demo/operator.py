@@ -111,7 +111,8 @@ class Pilot:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m uwgen.demo.operator", description=__doc__.split("\n")[0])
     parser.add_argument("--record", type=Path, help="write events as JSON lines here")
-    parser.add_argument("--side", type=float, default=4.0, help="square side in metres")
+    parser.add_argument("--square-size", dest="side", type=float, default=4.0,
+                        help="square side in metres")
     parser.add_argument("--speed", type=float, default=0.4, help="m/s along the sides")
     parser.add_argument("--turn", type=float, default=0.6, help="rad/s in the corners")
     parser.add_argument("--laps", type=int, default=1)
