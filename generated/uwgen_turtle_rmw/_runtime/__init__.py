@@ -16,7 +16,7 @@ CARRIED = {
     'model': ('uwgen.manifest.model', 'f56aa128b35252ee'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
-    'table': ('uwgen.runtime.table', '033ae066567a147d'),
+    'table': ('uwgen.runtime.table', 'a6e0b86c61837f1a'),
 }
 
 
