@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 from uwgen.commands.options import old_spelling
+from uwgen.emulator.physics import DEFAULT_PHY, PHYS, phy
 from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
 
 HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
@@ -52,6 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--distance", type=float, default=300.0, help="metres between the nodes")
     parser.add_argument("--per", type=float, default=0.05,
                         help="packet error rate on top of collisions (default 0.05)")
+    parser.add_argument("--phy", choices=tuple(PHYS), default=DEFAULT_PHY, metavar="NAME",
+                        help=f"the emulated channel's SNR model: {', '.join(PHYS)} (default "
+                             f"{DEFAULT_PHY}: DESERT's stock two-node scenario, delivery ends "
+                             "near 3.8 km; see `uwgen emulate --help`)")
     parser.add_argument("--seed", type=int, default=1, help="emulator random seed")
     parser.add_argument("--square-size", dest="square_size", type=float, default=4.0, metavar="M",
                         help="length of a side of the square the operator drives, in metres")
@@ -174,7 +179,8 @@ def run(args: argparse.Namespace) -> int:
 
     scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle"),
                            NodeSpec("vehicle", port=0, position=(args.distance, 0.0, 0.0), dest="surface")],
-                    period=0.2, max_read_length=64, bitrate=4800.0, per=args.per, seed=args.seed)
+                    period=0.2, max_read_length=64, bitrate=4800.0, per=args.per, seed=args.seed,
+                    snr=phy(args.phy))
     vdom, sdom = domains()
     py = sys.executable
     procs: list[Proc] = []
@@ -189,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
             say(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
                 f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, "
                 f"{scen.max_read_length} B every {scen.period:g} s at {scen.bitrate:g} bit/s, "
-                f"packet error rate {args.per:g} plus collisions")
+                f"PHY {args.phy}, packet error rate {args.per:g} plus collisions")
         say(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
         venv = _env(vdom, [str(GENERATED)], iface)
         senv = _env(sdom, [str(GENERATED)], iface)

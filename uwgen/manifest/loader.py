@@ -110,7 +110,9 @@ def load_sides(path: Path) -> tuple[str, dict[str, Side]]:
         raise ManifestError(SourceRef(r.path, 1, 1), "empty manifest: expected a mapping with at least 'network' and 'sides'")
     top = r.mapping(root, "the manifest", TOP_KEYS)
     network = r.string(r.require(top, "network", root, "the manifest"), "network")
-    return network, builder.sides(r.require(top, "sides", root, "the manifest"))
+    sides = builder.sides(r.require(top, "sides", root, "the manifest"))
+    builder.errors.raise_if_any(ManifestErrors)   # every broken side, each located
+    return network, sides
 
 
 def validate_ros_name(name: str) -> str | None:
