@@ -43,7 +43,7 @@ class Wiring:
     throttle: LogThrottle = field(init=False)  # error lines a remote peer can cause: bounded
 
     def __post_init__(self) -> None:
-        self.throttle = LogThrottle(self.log.error, self.clock)
+        self.throttle = LogThrottle(self.log.error, self.clock, warn=self.log.warning)
 
     def say_once(self, key: str, text: str) -> None:
         """Log the first occurrence of a kind of problem; later ones are counted only."""
