@@ -230,7 +230,7 @@ def run(args: argparse.Namespace) -> int:
     title = (f"uwgen demo: DESERT at {_endpoint(endpoints['surface'])} and {_endpoint(endpoints['vehicle'])}"
              if args.desert else
              f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "
-             f"{scen.period:g} s, PER {args.per:g}")
+             f"{scen.period:g} s, PHY {args.phy}, PER {args.per:g}")
     plot = plot_paths(report, out / "demo-path.png", title)
     if args.docs:
         plot_paths(report, ROOT / "docs" / "demo-path.png", title)
