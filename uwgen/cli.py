@@ -46,8 +46,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         prog="uwgen",
         description="Generate CBOR codecs and bridge nodes that carry ROS 2 topics, services "
                     "and actions over DESERT underwater acoustic links.",
-        epilog="Conventions of every command: -m MANIFEST is the manifest file or a folder "
-               "holding uwgen.yaml; interface folders are DIR arguments; defaults are shown "
+        epilog="Conventions of every command: -m MANIFEST is the manifest file or a folder\n"
+               "holding uwgen.yaml; interface folders are DIR arguments; defaults are shown\n"
                "in each command's --help.")
     parser.add_argument("--version", action="version", version=f"uwgen {version()}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug detail")
