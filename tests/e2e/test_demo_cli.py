@@ -72,8 +72,10 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     vehicle = json.loads((tmp_path / "bridge_vehicle.json").read_text())["security"]
     assert vehicle["verified"] == v_ver and vehicle["unprotected"] == 0
     assert "/turtle1/cmd_vel 22 B = 12 B with packed + field encodings + 10 B encrypt" in res.stdout
-    # Quiet: the report and nothing else; no INFO line from any part.
+    # Quiet: the report and nothing else; no INFO line from any part, and no ERROR line for
+    # what a lossy link does in normal operation.
     assert "INFO" not in res.stdout + res.stderr
+    assert "ERROR" not in res.stdout + res.stderr and "Traceback" not in res.stderr
     assert "[bridge_" not in res.stdout and "[operator]" not in res.stdout
 
 
