@@ -250,7 +250,7 @@ class BridgeNode(Node):
         except Exception as exc:
             self._log.warning(f"link did not stop cleanly: {exc}")
         if self.guard is not None:
-            self.guard.close()                 # exact sequence numbers for the next start
+            self.guard.close()                 # last drop summary; frees the side lock
         self.inbox.close()
         status = self.status()
         self.reporter.write(json.dumps(status, sort_keys=True, default=str))
