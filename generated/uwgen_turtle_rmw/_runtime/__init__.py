@@ -17,7 +17,7 @@ CARRIED = {
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
     'rosclasses': ('uwgen.runtime.rosclasses', 'a2d4dab69e6a913d'),
-    'table': ('uwgen.runtime.table', 'a72b5bb3d1f233c8'),
+    'table': ('uwgen.runtime.table', 'c1ff6a279ab8cca6'),
 }
 
 
