@@ -12,11 +12,11 @@ import sys as _sys
 
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
-    'codec': ('uwgen.runtime.codec', '2c90cff8b97df93e'),
+    'codec': ('uwgen.runtime.codec', 'de15be4c304e3185'),
     'model': ('uwgen.manifest.model', 'ee58821514bb53f8'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
-    'rosclasses': ('uwgen.runtime.rosclasses', 'a2d4dab69e6a913d'),
+    'rosclasses': ('uwgen.runtime.rosclasses', '6bb8e6195c73dcad'),
     'table': ('uwgen.runtime.table', '720f345827ad6e40'),
 }
 
