@@ -162,3 +162,13 @@ def test_profile_rmw_desert_never_sends_a_typed_array(pkg):
     items = cbor2.loads(b"\x9f" + payload + b"\xff")
     assert not any(isinstance(i, cbor2.CBORTag) for i in items)
     assert 3.950000047683716 in items          # the cells are items, one by one
+
+
+def test_a_remembered_choice_is_the_same_as_a_fresh_one_and_is_not_shared(monkeypatch):
+    values = [0.05, 0.0, 0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 0.05]
+    fresh = rt._choose(array.array("d", values).tobytes(), "d", False)
+    first, second = rt.number_array(values, "d", False, "x"), rt.number_array(list(values), "d", False, "x")
+    assert first == second == fresh == values
+    out = [0, 4]
+    out += first                       # how generated encoders use it: copied, never mutated
+    assert rt.number_array(values, "d", False, "x") == values

@@ -262,6 +262,25 @@ def number_array(value, code: str, counted: bool, path: str) -> list:
     measured only when the bounds do not decide."""
     raw = _little_endian(value, code, path)
     size = len(raw)
+    if size <= CHOICE_CACHE_BYTES:       # small arrays repeat (covariances): decide once each
+        key = (code, counted, raw)
+        hit = _CHOICES.get(key)
+        if hit is None:
+            if len(_CHOICES) >= CHOICE_CACHE_SIZE:
+                _CHOICES.clear()
+            hit = _CHOICES[key] = _choose(raw, code, counted)
+        return hit
+    return _choose(raw, code, counted)
+
+
+CHOICE_CACHE_BYTES = 512       # arrays up to this many bytes have their choice remembered,
+CHOICE_CACHE_SIZE = 1024       # this many of them (a few MiB at most), then forgotten
+_CHOICES: dict[tuple[str, bool, bytes], list] = {}
+
+
+def _choose(raw: bytes, code: str, counted: bool) -> list:
+    """number_array's choice for the little-endian elements `raw` (a new list; callers copy it)."""
+    size = len(raw)
     n = size // _WIDTHS[code]
     typed = 2 + head_size(size) + size
     count = head_size(n) if counted else 0

@@ -12,7 +12,7 @@ import sys as _sys
 
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
-    'codec': ('uwgen.runtime.codec', 'de15be4c304e3185'),
+    'codec': ('uwgen.runtime.codec', '52c2e0b3ce9cc12f'),
     'model': ('uwgen.manifest.model', 'ee58821514bb53f8'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
