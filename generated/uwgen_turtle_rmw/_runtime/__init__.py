@@ -12,12 +12,12 @@ import sys as _sys
 
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
-    'codec': ('uwgen.runtime.codec', '52c2e0b3ce9cc12f'),
-    'model': ('uwgen.manifest.model', 'ee58821514bb53f8'),
+    'codec': ('uwgen.runtime.codec', '49cc106b5dbfd3ac'),
+    'model': ('uwgen.manifest.model', 'f56aa128b35252ee'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
     'rosclasses': ('uwgen.runtime.rosclasses', '6bb8e6195c73dcad'),
-    'table': ('uwgen.runtime.table', '720f345827ad6e40'),
+    'table': ('uwgen.runtime.table', '245585298b66570e'),
 }
 
 
