@@ -402,7 +402,7 @@ def test_a_burst_on_a_latest_only_topic_offers_only_the_newest_and_books_the_res
     topics = bridges["surface"].topics
     first, *more = twists(1, 2, 3, 4)
     topics._subscription_of[CMD.id] = FakeSubscription(more)
-    topics._taker(CMD)(first)   # as the executor calls it, with three more already queued
+    topics._taker(CMD)(first, {})   # as the executor calls it, with three more already queued
     counters = topics.counters[CMD.id]
     assert (counters.taken, counters.superseded, counters.offered) == (4, 3, 1)
     offered = [p for k, p in links.links["surface"].offers if k == CMD.id]
@@ -419,7 +419,7 @@ def test_a_burst_on_a_fifo_topic_offers_every_message_in_order():
         topics = bridges["surface"].topics
         first, *more = twists(1, 2, 3)
         topics._subscription_of[fifo.id] = FakeSubscription(more)
-        topics._taker(fifo)(first)
+        topics._taker(fifo)(first, {})
         assert [p for k, p in links.links["surface"].offers if k == fifo.id] == \
             [fifo.encode(m) for m in (first, *more)]
         counters = topics.counters[fifo.id]
