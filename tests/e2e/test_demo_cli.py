@@ -54,7 +54,8 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
                     period=0.2, max_read_length=64, bitrate=4800.0, per=0.0, seed=3)
     with run_emulator(scen) as emu:
         res = uwgen("--quiet", "demo", "--desert", f"127.0.0.1:{emu.port('s')},127.0.0.1:{emu.port('v')}",
-                    "--side", "1", "--out", str(tmp_path), "--timeout", "150", timeout=220)
+                    "--side", "1", "--out", str(tmp_path), "--timeout", "150",
+                    "--key-file", str(tmp_path / "keys" / "demo.key"), timeout=220)
         counters = emu.all_counters()
     assert res.returncode == 0, res.stdout + res.stderr
     # The demo used the given nodes, started no emulator of its own.

@@ -49,6 +49,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run against a running DESERT instead of the emulator: the surface "
                              "node's and the vehicle's application sockets (the bridges use the "
                              "manifest's link settings, 64 B every 0.2 s)")
+    parser.add_argument("--key-file", type=Path, default=None, metavar="PATH",
+                        help="the network key both bridges use (created when missing; default: "
+                             "the manifest's msg_samples/keys/demo.key, or in uwgen's cache if "
+                             "the checkout is read-only); its sequence state files stay next to it")
     parser.add_argument("--docs", action="store_true",
                         help="also write the plot to docs/demo-path.png")
     parser.add_argument("--distance", type=float, default=300.0, help="metres between the nodes")
@@ -196,13 +200,14 @@ def _endpoint(hp: tuple[str, int]) -> str:
     return f"{hp[0]}:{hp[1]}"
 
 
-def network_key(stack: contextlib.ExitStack, out: Path, say):
-    """The demo's network key, held (locked) by `stack` while the bridges run: a DemoKey,
-    None when the manifest protects nothing, False (after saying why) when it is unusable."""
+def network_key(stack: contextlib.ExitStack, out: Path, say, key_file: Path | None = None):
+    """The demo's network key (`key_file`, else the manifest's), held (locked) by `stack` while
+    the bridges run: a DemoKey, None when the manifest protects nothing, False (after saying
+    why) when it is unusable."""
     from uwgen.demo.keys import demo_key
     from uwgen.security.keys import SecurityError
     try:
-        key = stack.enter_context(demo_key(DEMO_MANIFEST, out))
+        key = stack.enter_context(demo_key(DEMO_MANIFEST, out, key_file))
     except (SecurityError, OSError) as exc:
         print(f"uwgen demo: cannot set up the network key: {exc}", file=sys.stderr)
         return False
@@ -251,7 +256,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_FAILED
 
     keys = contextlib.ExitStack()
-    key = network_key(keys, out, say)
+    key = network_key(keys, out, say, args.key_file)
     if key is False:
         return EXIT_FAILED
     key_args = key.bridge_args() if key else []
