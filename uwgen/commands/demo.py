@@ -29,6 +29,8 @@ import threading
 import time
 from pathlib import Path
 
+from uwgen.argtypes import number, whole
+
 HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -55,13 +57,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "the checkout is read-only); its sequence state files stay next to it")
     parser.add_argument("--docs", action="store_true",
                         help="also write the plot to docs/demo-path.png")
-    parser.add_argument("--distance", type=float, default=300.0, help="metres between the nodes")
-    parser.add_argument("--per", type=float, default=0.05,
+    parser.add_argument("--distance", type=number(1, 1e5), default=300.0, help="metres between the nodes")
+    parser.add_argument("--per", type=number(0, 1), default=0.05,
                         help="packet error rate on top of collisions (default 0.05)")
-    parser.add_argument("--seed", type=int, default=1, help="emulator random seed")
-    parser.add_argument("--side", type=float, default=4.0, help="square side in metres")
-    parser.add_argument("--laps", type=int, default=1, help="laps of the square")
-    parser.add_argument("--timeout", type=float, default=180.0,
+    parser.add_argument("--seed", type=whole(0, 2 ** 64 - 1), default=1, help="emulator random seed")
+    parser.add_argument("--side", type=number(0, 1e3, above=True), default=4.0, help="square side in metres")
+    parser.add_argument("--laps", type=whole(1, 100), default=1, help="laps of the square")
+    parser.add_argument("--timeout", type=number(1, 1e6), default=180.0,
                         help="give up if the operator has not finished after this many seconds")
     parser.add_argument("--quiet", dest="quiet_command", action="store_true",
                         help="print only the report and problems (node errors): no relayed node logs, no INFO "
@@ -70,11 +72,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     away.add_argument("--drive-away", action="store_true",
                       help="the vehicle drives away from --distance until the link fades; plots "
                            "delivery ratio and latency against distance (drive-away.png)")
-    away.add_argument("--drive-to", type=float, default=10000.0, metavar="M",
+    away.add_argument("--drive-to", type=number(1, 1e5), default=10000.0, metavar="M",
                       help="with --drive-away: final distance in metres (default 10000)")
-    away.add_argument("--drive-time", type=float, default=75.0, metavar="S",
+    away.add_argument("--drive-time", type=number(1, 1e5), default=75.0, metavar="S",
                       help="with --drive-away: seconds the drive takes (default 75, time-lapse)")
-    away.add_argument("--wind", type=float, default=0.0, metavar="M_S",
+    away.add_argument("--wind", type=number(0, 100), default=0.0, metavar="M_S",
                       help="with --drive-away: wind speed of the SNR model (default 0)")
 
 

@@ -23,8 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
 
-import yaml
-
+from uwgen import yamltext
 from uwgen.security.keys import read_key_file, write_key_file
 
 
@@ -46,7 +45,7 @@ class DemoKey:
 def manifest_key_file(manifest: Path) -> Path | None:
     """The manifest's `security: {key_file: ...}`, relative to its folder (None: no security).
     The manifest was loaded by `uwgen build` already; this only needs the one key."""
-    data = yaml.safe_load(Path(manifest).read_text(encoding="utf-8")) or {}
+    data = yamltext.safe_load(Path(manifest).read_text(encoding="utf-8")) or {}
     security = data.get("security") if isinstance(data, dict) else None
     key_file = security.get("key_file") if isinstance(security, dict) else None
     if not key_file:

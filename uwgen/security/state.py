@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from uwgen.security.keys import SecurityError
+from uwgen.security.wire import MAX_SENDER, MAX_SEQ
 
 log = logging.getLogger("uwgen.security")
 
@@ -81,6 +82,17 @@ class State:
                           sort_keys=True).encode() + b"\n"
 
 
+def _whole(value, largest: int, what: str) -> int:
+    """A whole number 0..largest from the file (JSON number or, for keys, its text); anything
+    else (a fraction, 1e400, a 400-digit number, true) is a ValueError naming it."""
+    if isinstance(value, str) and value.isascii() and value.isdigit() and len(value) <= 20:
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= largest:
+        shown = repr(value) if len(repr(value)) <= 24 else repr(value)[:24] + "..."
+        raise ValueError(f"{what} {shown} is not a whole number in 0..{largest}")
+    return value
+
+
 class StateFile:
     def __init__(self, path: Path, key_id: str, io: FileIO | None = None):
         self.path = Path(path)
@@ -100,11 +112,10 @@ class StateFile:
             obj = json.loads(data)
             if obj.get("version") != STATE_VERSION:
                 raise ValueError(f"version {obj.get('version')!r}")
-            state = State(str(obj["key_id"]), int(obj["reserved"]),
-                          {int(k): int(v) for k, v in dict(obj["floors"]).items()})
-            if state.reserved < 0 or any(v < 0 for v in state.floors.values()):
-                raise ValueError("negative number")
-        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            state = State(str(obj["key_id"]), _whole(obj["reserved"], MAX_SEQ + 1, "reserved"),
+                          {_whole(k, MAX_SENDER, "sender id"): _whole(v, MAX_SEQ + 1, "floor")
+                           for k, v in dict(obj["floors"]).items()})
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
             raise SecurityError(
                 f"security state file {self.path} is damaged ({exc}); starting over could repeat "
                 "nonces: restore it, or generate a new network key (uwgen keygen) and delete it") from None
