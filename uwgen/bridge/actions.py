@@ -30,7 +30,8 @@ from uwgen.bridge.calls import CallTable, CallTableFull
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.wiring import Wiring
-from uwgen.runtime.codec import ACTION_HANDLES, KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.manifest.model import ACTION_HANDLES
+from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCELED, CANCELING, REJECTED, RESULTS,
                                  SUCCEEDED)
 

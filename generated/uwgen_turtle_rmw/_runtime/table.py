@@ -15,9 +15,9 @@ import logging
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .model import RMW_DESERT, LinkPolicy, Qos, Side
+from .model import ACTION_HANDLES, RMW_DESERT, LinkPolicy, Qos, Side
 from .codec import (
-    ACTION_HANDLES, KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
+    KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
     EncodeError, load_items, pack_items, unexpected,
 )
 from .framing import MAX_PAYLOAD
