@@ -46,6 +46,7 @@ def test_read_only_checkout_writes_to_the_cache(monkeypatch, tmp_path):
         assert key.path == tmp_path / "demo" / "keys" / "demo.key" and key.created
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(240)
 def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     # A DESERT someone else started (here the emulator, as another program would be).
