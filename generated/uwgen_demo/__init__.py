@@ -22,10 +22,37 @@ CODECS: (type name, profile) -> TypeCodec, for every generated type.
 TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCodec.
 MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
+
+Messages are this package's plain classes (`from uwgen_demo.<pkg>.msg import Name`,
+keyword arguments as in rclpy) or, where rclpy is importable, rclpy's; every decode
+returns rclpy's classes where it can, the plain ones with `ros=False`.
+
+    data = codec("pkg/msg/Name").encode(msg)          # a bare message: its fields, no header
+    msg = codec("pkg/msg/Name").decode_message(data)
+    payload = TOPICS[id].encode(msg)                  # a topic's payload, as the bridge sends it
+    msg = TOPICS[id].decode(payload)
+    payload = SERVICES[id].encode_request(seq, request)     # seq: the caller's call number
+    seq, request = SERVICES[id].decode_request(payload)
+    payload = SERVICES[id].encode_response(seq, response)   # the same seq as the request's
+    seq, response = SERVICES[id].decode_response(payload)
+    payload = ACTIONS[id].encode_goal(handle, goal)   # handle: 0..23, the client's goal number
+    payload = ACTIONS[id].encode_cancel(handle)
+    handle, goal = ACTIONS[id].decode_request(payload)          # goal None: a cancel
+    payload = ACTIONS[id].encode_answer(handle, ACCEPTED)       # or REJECTED, CANCELING, CANCEL_REFUSED
+    payload = ACTIONS[id].encode_result(handle, SUCCEEDED, result)   # or ABORTED, CANCELED
+    handle, code, result = ACTIONS[id].decode_response(payload)  # result None: an answer
+    payload = ACTIONS[id].encode_feedback(handle, feedback)
+    handle, feedback = ACTIONS[id].decode_feedback(payload)
+
+(the answer and result codes are importable from this package).
+
+Wire format: uwgen's docs/wire-format.md (section 13 for actions). Bad bytes
+raise `uwgen_demo._runtime.codec.DecodeError`, a message that cannot be encoded `EncodeError`.
 """
 from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
 from ._runtime.model import SecurityPlan
-from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
+from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec, find_codec
+from ._runtime.table import ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELED, CANCELING, REJECTED, SUCCEEDED  # noqa: F401
 
 from ._classes import PLAIN, ROS
 from .builtin_interfaces import msg as _builtin_interfaces_msg
@@ -67,8 +94,9 @@ VARIANTS = {
 
 
 def codec(type_name, profile="native"):
-    """The TypeCodec of `type_name` ('pkg/msg/Name') in `profile`."""
-    return CODECS[(type_name, profile)]
+    """The TypeCodec of `type_name` ('pkg/msg/Name') in `profile`: `.encode(msg)` gives a
+    bare message's bytes, `.decode_message(data)` the message back."""
+    return find_codec(CODECS, type_name, profile)
 
 
 # Interface packages of this build's own folders: package -> (folder, digest of its files).
@@ -79,7 +107,7 @@ ROS_INTERFACES = {
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("eeee4b98")
+SCHEMA_DIGEST = bytes.fromhex("3ff9da87")
 
 MANIFEST = ManifestInfo(
     network="demo",
@@ -126,21 +154,21 @@ TOPICS = {
         policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t4"],
-        fingerprint=bytes.fromhex("92b9198b")),
+        fingerprint=bytes.fromhex("4eaa7bae")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="vehicle", profile="packed",
         policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t5"],
-        fingerprint=bytes.fromhex("29eb5926")),
+        fingerprint=bytes.fromhex("c48d8a2e")),
     6: TopicCodec(
         id=6, name="/vehicle/battery", type_name="sensor_msgs/msg/BatteryState",
         publisher="vehicle", profile="native",
         policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t6"],
-        fingerprint=bytes.fromhex("3f8eba3d")),
+        fingerprint=bytes.fromhex("fa9a22d1")),
     7: TopicCodec(
         id=7, name="/vehicle/log", type_name="std_msgs/msg/String",
         publisher="vehicle", profile="native",
@@ -158,7 +186,7 @@ SERVICES = {
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "native")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
-        fingerprint=bytes.fromhex("98b801eb")),
+        fingerprint=bytes.fromhex("55b81224")),
     21: ServiceCodec(
         id=21, name="/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="vehicle", timeout=10.0, profile="native",
@@ -166,7 +194,7 @@ SERVICES = {
         request=CODECS[("turtlesim/srv/SetPen_Request", "native")],
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),
-        fingerprint=bytes.fromhex("3345d7b2")),
+        fingerprint=bytes.fromhex("8863fbb2")),
 }
 
 ACTIONS = {
@@ -180,5 +208,5 @@ ACTIONS = {
         result=CODECS[("turtlesim/action/RotateAbsolute_Result", "native")],
         feedback=CODECS[("turtlesim/action/RotateAbsolute_Feedback", "native")],
         ros_import=("turtlesim.action", "RotateAbsolute"),
-        fingerprint=bytes.fromhex("d498bd11")),
+        fingerprint=bytes.fromhex("8ad2442a")),
 }

@@ -24,7 +24,7 @@ COMMANDS = {
 # Flags of commands that run for minutes when given good values: only refusals are checked.
 REFUSED_ONLY = {
     "emulate": ["--duration"],
-    "demo": ["--distance", "--per", "--seed", "--side", "--laps", "--timeout", "--drive-to", "--drive-time", "--wind"],
+    "demo": ["--distance", "--per", "--seed", "--square-size", "--side", "--laps", "--timeout", "--drive-to", "--drive-time", "--wind"],
     "bridge": ["--max-read-length", "--period", "--status-period"],
 }
 

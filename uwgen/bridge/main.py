@@ -30,9 +30,11 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", help="DESERT node host (default: the manifest's side entry)")
     parser.add_argument("--port", type=int, help="DESERT node TCP port (default: the manifest's)")
     parser.add_argument("--max-read-length", type=whole(1, 4096), metavar="BYTES",
-                        help="bytes per acoustic packet (DESERT's max_read_length)")
+                        help="bytes per acoustic packet (DESERT's max_read_length; default: "
+                             "the manifest's side entry)")
     parser.add_argument("--period", type=number(0.001, 3600), metavar="SECONDS",
-                        help="seconds between packets (DESERT's period_)")
+                        help="seconds between packets (DESERT's period_; default: the "
+                             "manifest's side entry)")
     parser.add_argument("--status-period", type=number(0, 3600), default=2.0, metavar="SECONDS",
                         help="seconds between ~/status messages (default 2; 0: none)")
     parser.add_argument("--timeout-reply", choices=TIMEOUT_REPLIES, default="none",
@@ -45,8 +47,8 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
                         help="network key of the secure link (default: the manifest's security "
                              "key_file)")
     parser.add_argument("--security-state", type=Path, metavar="PATH",
-                        help="file keeping this side's sequence numbers across restarts (default: "
-                             "next to the key file)")
+                        help="lock file held while this side runs, so a second copy is refused "
+                             "(default: <key file>.<network>.<side>.lock; no state is kept in it)")
 
 
 def options_from_args(plan: BridgePlan, args: argparse.Namespace):
@@ -69,7 +71,7 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         print(f"uwgen bridge: {problem}", file=sys.stderr)
         return EXIT_USAGE
     try:
-        plan = BridgePlan.from_package(package, side)
+        plan = BridgePlan.from_package(package, side, getattr(args, "manifest", None))
         options = options_from_args(plan, args)
         check_security(plan, options)
     except PlanError as exc:
@@ -104,10 +106,12 @@ def restore_signals(previous: dict) -> None:
 def _run(package: ModuleType, side: str, plan: BridgePlan, options, ros_args, link_factory,
          stop: threading.Event) -> int:
     from uwgen.typesupport import BuildError, activate_recorded
+    no_support = ""
     try:  # the type support of the package's own interfaces (uwgen ros-interfaces builds it)
-        for env in activate_recorded(getattr(package, "ROS_INTERFACES", {})):
+        for env in activate_recorded(getattr(package, "ROS_INTERFACES", {}), fix=_rebuild(package)):
             log.info("using the rclpy type support of %s built in %s", env.package, env.prefix)
     except BuildError as exc:
+        no_support = str(exc)
         log.error("%s; their topics and services are not bridged", exc)
 
     import rclpy
@@ -136,8 +140,8 @@ def _run(package: ModuleType, side: str, plan: BridgePlan, options, ros_args, li
         finally:
             executor.remove_node(node)
             executor.shutdown(timeout_sec=0.5)
-    except PlanError as exc:  # bad ROS parameter values
-        print(f"uwgen bridge: {exc}", file=sys.stderr)
+    except PlanError as exc:  # bad ROS parameter values, nothing that can be bridged
+        print(f"uwgen bridge: {exc}" + (f"; {no_support}" if no_support else ""), file=sys.stderr)
         return EXIT_USAGE
     finally:
         if node is not None:
@@ -148,6 +152,16 @@ def _run(package: ModuleType, side: str, plan: BridgePlan, options, ros_args, li
         if rclpy.ok():
             rclpy.shutdown()
     return 0
+
+
+def _rebuild(package: ModuleType) -> str | None:
+    """The command that rebuilds `package` with its interfaces' type support, run in its
+    project (None: the package does not say where it was built)."""
+    from uwgen.buildinfo import own_manifest, rebuild_hint
+    manifest = own_manifest(package)
+    if manifest is None:
+        return None
+    return rebuild_hint(package.BUILT_FROM, manifest, Path(package.__file__).parent)
 
 
 def _summary(status: dict) -> str:

@@ -47,7 +47,7 @@ class BridgeOptions:
     timeout_reply: str = TIMEOUT_REPLY_NONE
     stats_file: Path | None = None  # also write the status JSON here (periodically and at exit)
     key_file: Path | None = None    # network key (default: the manifest's security key_file)
-    security_state: Path | None = None  # sequence state file (default: next to the key file)
+    security_state: Path | None = None  # the side's lock file (default: next to the key file)
 
     def check(self) -> "BridgeOptions":
         if not 0 < self.port < 65536:
@@ -82,10 +82,15 @@ class BridgePlan:
     schema_period: float | None = None    # seconds between periodic announcements
     schema_digest: bytes = b""            # the generated package's SCHEMA_DIGEST
     security: Any = None          # manifest.model.SecurityPlan, None when nothing is protected
-    manifest_source: str = ""     # the manifest as the build named it (relative key files)
+    manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
+    manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
 
     @classmethod
-    def from_package(cls, package: ModuleType | Any, side: str) -> "BridgePlan":
+    def from_package(cls, package: ModuleType | Any, side: str,
+                     manifest_path: Path | None = None) -> "BridgePlan":
+        """The plan of `side`. `manifest_path`: the manifest the package was built from, as
+        given on the command line (default: found from the package's place, see
+        buildinfo.own_manifest)."""
         manifest = package.MANIFEST
         sides = manifest.sides
         if side not in sides:
@@ -113,6 +118,7 @@ class BridgePlan:
             schema_digest=getattr(manifest, "schema_digest", b""),
             security=getattr(manifest, "security", None),
             manifest_source=getattr(manifest, "source", "") or "",
+            manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
@@ -157,6 +163,11 @@ class BridgePlan:
                        **{k: v for k, v in extra.items() if v is not None})
         return opts.check()
 
+    def entry_names(self) -> list[str]:
+        """Every topic, service and action this side bridges, by name."""
+        return [e.name for e in (*self.outgoing_topics, *self.incoming_topics, *self.called_services,
+                                 *self.served_services, *self.offered_actions, *self.served_actions)]
+
     def describe(self) -> str:
         def names(items):
             return ", ".join(f"{i.name}#{i.id}" for i in items) or "-"
@@ -166,6 +177,11 @@ class BridgePlan:
                 + (f"; offers actions {names(self.offered_actions)}; serves actions "
                    f"{names(self.served_actions)}" if self.offered_actions or self.served_actions
                    else ""))
+
+
+def _own_manifest(package: Any) -> Path | None:
+    from uwgen.buildinfo import own_manifest
+    return own_manifest(package) if getattr(package, "__file__", None) else None
 
 
 def is_rmw_desert(entry: Any) -> bool:

@@ -103,7 +103,7 @@ class FrameSize:
     sent: int              # frame bytes as the manifest sends it (security included)
     how: str               # 'packed + field encodings', ...
     security: str = "off"  # sign | encrypt | off
-    security_bytes: int = 0   # of `sent`, what the secure link adds (sync frames: 4 more)
+    security_bytes: int = 0   # of `sent`, what the secure link adds (sync frames: 13 more)
 
 
 # The grid of the demo manifest's /turtle1/pose field encodings (tests/bridge checks they
@@ -267,6 +267,14 @@ def _ms(x: float | None) -> str:
     return "-" if x is None else f"{x * 1000:.0f} ms"
 
 
+COLUMNS = """\
+  taken: by the sending bridge from its local graph; sub drop: messages the sending bridge's
+  subscription lost before it took them (its ROS queue overflowed); on link: put on the wire;
+  policy: dropped by the topic's link policy (superseded by a newer one, rate, ttl, overflow);
+  lost (seen): put on the link, never received by the far bridge; (seen) of those, how many the
+  far bridge knew it missed (fragments of a message that never completed)"""
+
+
 def format_report(report: Report) -> str:
     lines = []
     head = (f"{'topic':<20} {'direction':<18} {'published':>9} {'taken':>6} {'sub drop':>8} "
@@ -279,6 +287,7 @@ def format_report(report: Report) -> str:
     for r in report.topics:
         for problem in r.imbalances:
             lines.append(f"  {r.name}: counters do not add up: {problem}")
+    lines += COLUMNS.splitlines()
     lines.append("")
     shead = (f"{'service':<28} {'calls':>5} {'ok':>4} {'failed':>6} {'policy':>6} "
              f"{'round trip p50':>14} {'p95':>8}")
@@ -288,9 +297,10 @@ def format_report(report: Report) -> str:
                      f"{_ms(median(s.rtts) if s.rtts else None):>14} {_ms(percentile(s.rtts, 95)):>8}")
     lines.append("")
     for m in report.missions:
+        turned = m.get("status") == "succeeded" and m.get("delta") is not None
         lines.append(f"action {m.get('name')}: {m.get('status')} after {m.get('rtt', 0):.2f} s, "
                      f"{m.get('feedback', 0)} feedback messages"
-                     + (f", turned {m['delta']:.2f} rad" if m.get("delta") is not None else ""))
+                     + (f", turned {m['delta']:.2f} rad" if turned else ""))
     if report.deviation_mean is not None:
         lines.append(f"path: the poses the surface received stay within {report.deviation_max:.2f} m "
                      f"of the commanded square (mean {report.deviation_mean:.2f} m)"
@@ -331,13 +341,13 @@ def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
     sends them, next to the same messages in profile native without field encodings
     (codecs built for the occasion, so the numbers follow the manifest). A protected topic's
     payload is sealed as its bridge seals it (an ordinary frame, under a throwaway key; a sync
-    frame has 4 bytes more) and measured."""
+    frame has 13 bytes more) and measured."""
     import tempfile
 
     from uwgen.codegen import generate
     from uwgen.runtime.framing import OVERHEAD
     from uwgen.security import wire
-    from uwgen.security.keys import new_master_key, sender_key
+    from uwgen.security.keys import new_epoch, new_master_key, working_key
 
     samples = {
         "/turtle1/cmd_vel": lambda cls: cls(linear=_vec(cls, 0.4), angular=_vec(cls, 0.0, z=0.3)),
@@ -360,7 +370,7 @@ def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
             mode = modes.get(topic.id, "off")
             sent = payload
             if mode != "off":
-                aead = wire.new_aead(sender_key(new_master_key(), "sizes", 1))
+                aead = wire.new_aead(working_key(new_master_key(), "sizes", 1, new_epoch()))
                 sent = wire.seal(aead, mode, 1, 1, payload, bytes(getattr(topic, "fingerprint", b"") or b""))
             out.append(FrameSize(topic.name, len(native) + OVERHEAD, len(sent) + OVERHEAD, how, mode,
                                  len(sent) - len(payload)))
@@ -375,6 +385,18 @@ def _vec(twist_cls, x: float, z: float = 0.0):
 
 
 def plot_paths(report: Report, path: Path, title: str = "") -> Path:
+    import matplotlib.pyplot as plt
+
+    fig = path_figure(report, title)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def path_figure(report: Report, title: str = ""):
+    """The figure of the commanded and reported paths (the caller saves and closes it)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -393,11 +415,8 @@ def plot_paths(report: Report, path: Path, title: str = "") -> Path:
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper left", fontsize=8)
+    # Below the axes, never over the square: the paths fill the plot.
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8, frameon=False)
     ax.set_title(title or "uwgen demo: commanded vs reported path", fontsize=10)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return fig

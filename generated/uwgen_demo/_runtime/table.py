@@ -4,9 +4,10 @@
 """The codec table of a generated package: manifest id -> codec, plus class namespaces.
 
 Generated modules hold the per-type `enc_*`/`dec_*` functions; this module wraps them
-with the payload header (wire format section 3) and the profile's payload limits, and
-provides the two namespaces decoders build messages from: rclpy classes (imported on
-first use, so a generated package imports without ROS) or the generated plain classes.
+with the payload header (wire format section 3) and the profile's payload limits. The
+two namespaces decoders build messages from, rclpy classes (imported on first use, so a
+generated package imports without ROS) or the generated plain classes, are in
+uwgen.runtime.rosclasses.
 """
 from __future__ import annotations
 
@@ -21,59 +22,9 @@ from .codec import (
     EncodeError, load_items, pack_items, unexpected,
 )
 from .framing import MAX_PAYLOAD
+from .rosclasses import PlainClasses, RosClasses
 
 log = logging.getLogger("uwgen.codec")
-
-
-class PlainClasses:
-    """Namespace of the generated plain classes, as decoders name them (`C.pkg__Name`)."""
-
-    def __init__(self, classes: dict[str, type]):
-        self.__dict__.update(classes)
-
-    @staticmethod
-    def octet_list(data: bytes) -> bytes:
-        return data
-
-    @staticmethod
-    def uint8_list(data: bytes) -> bytes:
-        return data
-
-
-class RosClasses:
-    """Namespace of rclpy classes, each imported the first time a decoder needs it.
-
-    A type with no importable rclpy class (ROS not installed, or a package only uwgen
-    knows) falls back to its generated plain class, and says so once in the log.
-    """
-
-    def __init__(self, imports: dict[str, tuple[str, str]], fallback: PlainClasses):
-        self._imports = imports
-        self._fallback = fallback
-
-    def __getattr__(self, key: str):
-        try:
-            module, name = self._imports[key]
-        except KeyError:
-            raise AttributeError(key) from None
-        try:
-            cls = importlib.import_module(module)
-            for part in name.split("."):   # an action's parts: `Fibonacci.Goal`
-                cls = getattr(cls, part)
-        except (ImportError, AttributeError) as exc:
-            cls = getattr(self._fallback, key)
-            log.info("no rclpy class %s.%s (%s): decoding to the generated plain class", module, name, exc)
-        setattr(self, key, cls)  # later look-ups are plain attribute reads
-        return cls
-
-    @staticmethod
-    def octet_list(data: bytes) -> list[bytes]:
-        """rclpy holds `byte[]` as a list of 1-byte bytes."""
-        return [data[k:k + 1] for k in range(len(data))]
-
-    @staticmethod
-    def uint8_list(data: bytes) -> list[int]:
-        return list(data)
 
 
 @dataclass(frozen=True)
@@ -94,9 +45,10 @@ class TypeCodec:
     def plain_class(self) -> type:
         return getattr(self.plain, self.class_key)
 
-    def encode(self, msg: Any, header: list) -> bytes:
-        """The payload: `header` items, then the message's fields."""
-        out = header
+    def encode(self, msg: Any, header: list | None = None) -> bytes:
+        """The payload: `header` items, then the message's fields. Without a header, the
+        bytes of the bare message (its fields alone; `decode_message` reads them back)."""
+        out = [] if header is None else header
         try:
             self.enc(msg, out)
         except CodecError:
@@ -114,6 +66,11 @@ class TypeCodec:
                 raise EncodeError("", f"{len(data)}-byte payload: over the {MAX_PAYLOAD} bytes an rmw_desert "
                                       "receiver takes (no fragmentation in this profile)")
         return data
+
+    def decode_message(self, payload: bytes, ros: bool = True) -> Any:
+        """The message of `encode(msg)`'s bytes (a bare message, no header); `ros=False`:
+        the generated plain class even where rclpy is importable."""
+        return self.decode(payload, (), ros)[0]
 
     def decode(self, payload: bytes, header: tuple, ros: bool = True) -> tuple[Any, list]:
         """(message, header items). `header` gives the expected kind and id; a header
@@ -194,6 +151,20 @@ class ServiceCodec:
     def decode_response(self, payload: bytes, ros: bool = True) -> tuple[int, Any]:
         msg, head = self.response.decode(payload, (KIND_RESPONSE, self.id, None), ros)
         return head[2], msg
+
+
+def find_codec(codecs: dict, type_name: str, profile: str) -> TypeCodec:
+    """codecs[(type_name, profile)], else a KeyError saying what the package has."""
+    try:
+        return codecs[(type_name, profile)]
+    except KeyError:
+        pass
+    profiles = sorted(p for t, p in codecs if t == type_name)
+    if profiles:
+        raise KeyError(f"{type_name} has no {profile} codec in this package, only {', '.join(profiles)} "
+                       f"(give profile=...)") from None
+    raise KeyError(f"{type_name} has no codec in this package: the manifest may give it field "
+                   f"encodings (use its entry in TOPICS, SERVICES or ACTIONS), or it was not built") from None
 
 
 def _seq(seq: int) -> int:
