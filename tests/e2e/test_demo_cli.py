@@ -46,6 +46,7 @@ def test_read_only_checkout_writes_to_the_cache(monkeypatch, tmp_path):
         assert key.path == tmp_path / "demo" / "keys" / "demo.key" and key.created
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(240)
 def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     # A DESERT someone else started (here the emulator, as another program would be).
@@ -54,7 +55,8 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
                     period=0.2, max_read_length=64, bitrate=4800.0, per=0.0, seed=3)
     with run_emulator(scen) as emu:
         res = uwgen("--quiet", "demo", "--desert", f"127.0.0.1:{emu.port('s')},127.0.0.1:{emu.port('v')}",
-                    "--square-size", "1", "--out", str(tmp_path), "--timeout", "150", timeout=220)
+                    "--square-size", "1", "--out", str(tmp_path), "--timeout", "150",
+                    "--key-file", str(tmp_path / "keys" / "demo.key"), timeout=220)
         counters = emu.all_counters()
     assert res.returncode == 0, res.stdout + res.stderr
     # The demo used the given nodes, started no emulator of its own.
