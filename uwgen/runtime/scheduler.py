@@ -211,8 +211,10 @@ class LinkScheduler:
     def __init__(self, clock: Clock = SYSTEM_CLOCK, *, splitter: Splitter | None = None,
                  max_message: int = MAX_PAYLOAD, name: str = "link",
                  fec_over: int = MAX_PAYLOAD, max_message_for: Callable[[int], int] | None = None,
-                 protect: Protect | None = None, overhead: Callable[[int], int] | None = None):
+                 protect: Protect | None = None, overhead: Callable[[int], int] | None = None,
+                 measure: Callable[[bytes], int] = len):
         self.clock = clock
+        self.measure = measure         # what a payload costs in the room `next_payload` fills
         self.splitter = splitter
         self.protect = protect
         self.overhead = overhead
@@ -364,9 +366,9 @@ class LinkScheduler:
         """Length of the payload `_take` would return for this channel (a message about to be
         split: its first fragment, at most one packet's worth)."""
         if ch.in_progress is not None:
-            return len(ch.in_progress[0])
-        n = len(ch.queue[0].payload)
-        return n if n <= ch.split_over else min(n, self.fec_over)
+            return self.measure(ch.in_progress[0])
+        p = ch.queue[0].payload
+        return self.measure(p) if len(p) <= ch.split_over else self.fec_over
 
     def _take(self, ch: Channel, now: float) -> bytes:
         c = ch.counters
