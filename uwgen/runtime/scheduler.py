@@ -27,11 +27,14 @@ entries, which its nodes must read unsplit) is never split. On a channel whose p
 channel can still get in between. A message being sent in fragments is finished even if a newer
 one arrives (it is not superseded) or its ttl passes: abandoning it would waste what already went.
 
-Security (uwgen.security.guard.LinkGuard): `protect(key, payload)` turns a channel's next message
-into its protected form when the channel is ready to send it, once, before its size is weighed or
-it is split, so sequence numbers are spent only on what is about to go and the size is exact;
-`overhead(key)` is the most protection may add, counted in the size check of `offer`. A message that
-cannot be protected is dropped (`protect_failed`), never sent in the clear.
+Security (uwgen.security.guard.LinkGuard): `protect(key, payload)` turns a message into its
+protected form at the moment it is taken to be sent (in `next_payload`, before it is split), never
+while it is only being considered: a message that waits behind others is sealed when it finally
+leaves, so its sequence number is never older than the frames sent before it (a receiver's replay
+window would refuse a frame sealed early and sent after more than a window of newer ones).
+`overhead(key)` is the most protection may add, counted in the size check of `offer` and, for a
+message not sealed yet, in the room it needs in a packet-aligned write. A message that cannot be
+protected is dropped (`protect_failed`), never sent in the clear.
 """
 from __future__ import annotations
 
@@ -288,10 +291,12 @@ class LinkScheduler:
         now = self.clock.now() if now is None else now
         with self._lock:
             self._expire(now)
-            ch = self._pick(now, max_size, exclude)
-            if ch is None:
-                return None
-            return ch.key, self._take(ch, now)
+            while True:
+                ch = self._pick(now, max_size, exclude)
+                if ch is None:
+                    return None
+                if self._seal_head(ch):        # sealed now, as it leaves (or nothing to seal)
+                    return ch.key, self._take(ch, now)
 
     def next_ready_time(self, now: float | None = None) -> float | None:
         """When `next_payload` will next have something (>= now), or None if every queue is empty."""
@@ -332,8 +337,6 @@ class LinkScheduler:
             if t is None or ch.key == exclude:
                 continue
             if t <= now:
-                if self.protect is not None and not self._seal_head(ch):
-                    continue                   # its messages could not be protected (counted)
                 if max_size is None or self._next_size(ch) <= max_size:
                     best.append(ch)
             elif not ch.queue[0].rate_held:
@@ -347,28 +350,32 @@ class LinkScheduler:
         return chosen
 
     def _seal_head(self, ch: Channel) -> bool:
-        """Protect the channel's next message (once); False when nothing is left to send. A
-        message that cannot be protected is dropped and counted, never sent in the clear."""
-        if ch.in_progress is not None:
+        """Protect the channel's next message as it is taken to be sent; False (the message
+        dropped and counted, never sent in the clear) when it cannot be protected."""
+        if self.protect is None or ch.in_progress is not None or ch.queue[0].sealed:
             return True
-        while ch.queue and not ch.queue[0].sealed:
-            msg = ch.queue[0]
-            try:
-                msg.payload = self.protect(ch.key, msg.payload)
-                msg.sealed = True
-            except Exception as exc:  # SecurityError: no sequence number could be reserved
-                ch.queue.popleft()
-                log_count(log, logging.ERROR, ch.counters.inc("protect_failed"),
-                          "[%s] %s: message dropped, cannot be protected: %s", self.name, ch.name, exc)
-        return bool(ch.queue)
+        msg = ch.queue[0]
+        try:
+            msg.payload = self.protect(ch.key, msg.payload)
+            msg.sealed = True
+            return True
+        except Exception as exc:  # SecurityError: the guard cannot protect it
+            ch.queue.popleft()
+            log_count(log, logging.ERROR, ch.counters.inc("protect_failed"),
+                      "[%s] %s: message dropped, cannot be protected: %s", self.name, ch.name, exc)
+            return False
 
     def _next_size(self, ch: Channel) -> int:
         """Length of the payload `_take` would return for this channel (a message about to be
         split: its first fragment, at most one packet's worth)."""
         if ch.in_progress is not None:
             return self.measure(ch.in_progress[0])
-        p = ch.queue[0].payload
-        return self.measure(p) if len(p) <= ch.split_over else self.fec_over
+        msg = ch.queue[0]
+        n = len(msg.payload)
+        extra = self.overhead(ch.key) if self.overhead is not None and not msg.sealed else 0
+        if n + extra > ch.split_over:
+            return self.fec_over
+        return self.measure(msg.payload) + extra   # the most sealing it (as it leaves) may add
 
     def _take(self, ch: Channel, now: float) -> bytes:
         c = ch.counters
