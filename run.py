@@ -4,7 +4,9 @@
     python3 run.py demo    # set up, then run the demo over an emulated acoustic link
     python3 run.py test    # set up, then check generated/ and run the whole test suite
 
-Everything the project needs is installed here, from the package registry, into
+Prerequisites: Python 3.11, and CMake, a C/C++ compiler and make (checked first): building
+rclpy's type support of interface packages (the demo's turtlesim, the tests', `--ros`)
+runs ROS's rosidl generators through them. Everything else the project needs is installed here, from the package registry, into
 `.venv` (re-installed when pyproject.toml changes). Every ROS process started from
 here keeps its discovery on this machine and gets a ROS_DOMAIN_ID of its own.
 """
@@ -35,6 +37,19 @@ def find_python311() -> str:
         return found
     sys.exit("run.py: uwgen needs Python 3.11 (ROS 2 Jazzy's wheels are built for it); "
              f"this is {sys.version.split()[0]} and no python3.11 is on PATH")
+
+
+# What building interface type support needs (the same list as uwgen.typesupport.BUILD_TOOLS).
+BUILD_TOOLS = ("cmake", "c++", "cc", "make")
+
+
+def check_tools() -> None:
+    missing = [tool for tool in BUILD_TOOLS if shutil.which(tool) is None]
+    if missing:
+        print(f"run.py: uwgen builds rclpy's type support of interface packages with "
+              f"{', '.join(BUILD_TOOLS)}; not on PATH: {', '.join(missing)}. Install them "
+              "(Debian/Ubuntu: apt-get install cmake g++ make) and run this again", file=sys.stderr)
+        sys.exit(2)
 
 
 def wanted_stamp() -> str:
@@ -91,6 +106,8 @@ def main(argv: list[str]) -> int:
     if not argv or argv[0] not in jobs:
         print(__doc__.strip())
         return 2
+    check_tools()
+    find_python311()
     ensure_venv()
     return jobs[argv[0]](argv[1:])
 

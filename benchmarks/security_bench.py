@@ -1,17 +1,20 @@
 #!/usr/bin/env python3
 """Secure link benchmark: bytes per frame and encode+decode time with security off, sign and
-encrypt, for the benchmark messages, against `off` measured in the same run.
+encrypt, for the benchmark messages, against `off` measured in the same run, and against the
+design of issue 9 that this one replaced (same run, same disk).
 
     .venv/bin/python benchmarks/security_bench.py [--quick]
 
 A round trip is: generated codec encode, LinkGuard.protect (sign/encrypt), frame, then
-LinkGuard.unprotect and codec decode into rclpy instances, between two guards of one
-network (sender and receiver state files in a temporary folder, so the fsync'd
-reservations, one per 256 frames sent and one per 16 accepted, are in the time; `us no
-disk` is the same with blocks so large that nothing is written: the cost of the crypto). Bytes
-are those of the usual frame; one frame in 32 (and the first 3 after a start, and one after 30 s
-without any) carries a sync word, 4 bytes more, which the `avg B` column spreads over all
-frames of a sender that sends at least one frame a second.
+LinkGuard.unprotect and codec decode into rclpy instances, between two guards of one network.
+The guards keep nothing on disk (a fresh epoch per start), so `us` is all crypto and codec.
+
+`before` is issue 9's design: the same AES-CCM per frame, plus a state file written (temporary
+file, fsync, rename, fsync of the folder) once per 256 frames sent and once per 16 accepted;
+that write is timed here with the same write path, and its share per frame added. Bytes: issue
+9's sync word was 4 bytes on 1 frame in 32, this one is 13 bytes (number bits, epoch, time) on 1
+frame in 64 (and the first 3 of each epoch, and one after 30 s without any); `avg B` spreads
+the sync words over all frames of a sender that sends at least one frame every 30 s.
 """
 from __future__ import annotations
 
@@ -26,23 +29,23 @@ from codec_bench import per_call_us, samples  # noqa: E402  (the codec benchmark
 from uwgen.codegen import generate  # noqa: E402
 from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD  # noqa: E402
 from uwgen.security import wire  # noqa: E402
+from uwgen.security.files import write_private  # noqa: E402
 from uwgen.security.guard import SYNC_EVERY, GuardConfig, LinkGuard  # noqa: E402
-from uwgen.security.state import RECV_BLOCK, SEND_BLOCK  # noqa: E402
+
+BEFORE_SYNC_BYTES, BEFORE_SYNC_EVERY = 4, 32     # issue 9's sync word
+BEFORE_SEND_BLOCK, BEFORE_RECV_BLOCK = 256, 16   # its state-file writes: per frames sent, accepted
 
 MESSAGES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/Pose", "sensor_msgs/msg/NavSatFix",
             "sensor_msgs/msg/Imu", "sensor_msgs/msg/BatteryState", "std_msgs/msg/String")
 MODES = ("off", "sign", "encrypt")
 
 
-def guards(folder: Path, mode: str, disk: bool = True) -> tuple[LinkGuard, LinkGuard]:
-    """A sender and a receiver; without `disk` their blocks are so large they never write."""
+def guards(mode: str) -> tuple[LinkGuard, LinkGuard]:
+    """A sender and a receiver of one network (nothing on disk)."""
     key = bytes(range(32))
     modes = {4: mode}
-    kw = {} if disk else {"send_block": 10**12, "recv_block": 10**12}
-    tag = f"{mode}{'' if disk else '.nodisk'}"
-    tx = LinkGuard.for_key(key, GuardConfig("bench", 1, {2: "rx"}, modes), folder / f"{tag}.tx", **kw)
-    rx = LinkGuard.for_key(key, GuardConfig("bench", 2, {1: "tx"}, modes), folder / f"{tag}.rx", **kw)
-    return tx, rx
+    return (LinkGuard(key, GuardConfig("bench", 1, {2: "rx"}, modes)),
+            LinkGuard(key, GuardConfig("bench", 2, {1: "tx"}, modes)))
 
 
 def main() -> None:
@@ -54,11 +57,14 @@ def main() -> None:
     msgs = samples()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
+        state = folder / "before.state"
+        record = b'{"floors": {"2": 1234567}, "key_id": "0123456789abcdef", "reserved": 123456, "version": 1}\n'
+        write_us = per_call_us(lambda: write_private(state, record), 20)
+        before_disk = write_us * (1 / BEFORE_SEND_BLOCK + 1 / BEFORE_RECV_BLOCK)
         pkg = generate(folder / "gen", "uwgen_secbench", names=list(MESSAGES))
-        pairs = {m: guards(folder, m) for m in MODES if m != "off"}
-        bare = {m: guards(folder, m, disk=False) for m in MODES if m != "off"}
-        print(f"{'message':<14}{'mode':<9}{'frame B':>8}{'avg B':>8}{'+B':>5}{'us':>9}{'x off':>7}"
-              f"{'us no disk':>12}{'x off':>7}")
+        pairs = {m: guards(m) for m in MODES if m != "off"}
+        print(f"{'message':<14}{'mode':<9}{'frame B':>8}{'+B':>4}{'avg B before':>13}{'avg B now':>10}"
+              f"{'us before':>10}{'x off':>7}{'us now':>8}{'x off':>7}")
         for name in MESSAGES:
             codec, msg = pkg.codec(name), msgs[name]
             base_len = base_us = None
@@ -67,8 +73,9 @@ def main() -> None:
                     def trip(codec=codec, msg=msg):
                         codec.decode(codec.encode(msg, [0, 4]), (0, 4))
                     size = len(codec.encode(msg, [0, 4])) + FRAME_OVERHEAD
-                    us = us_bare = per_call_us(trip, number)
+                    us = before = per_call_us(trip, number)
                     base_len, base_us = size, us
+                    avg_before = avg_now = size
                 else:
                     def make(tx, rx, codec=codec, msg=msg):
                         def trip():
@@ -81,21 +88,22 @@ def main() -> None:
                     assert rx.unprotect(protected) == plain
                     size = len(plain) + wire.OVERHEAD + FRAME_OVERHEAD
                     us = per_call_us(make(tx, rx), number)
-                    us_bare = per_call_us(make(*bare[mode]), number)
-                avg = size + (wire.SYNC_BYTES / SYNC_EVERY if mode != "off" else 0)
-                print(f"{name.split('/')[-1]:<14}{mode:<9}{size:>8}{avg:>8.1f}{size - base_len:>5}"
-                      f"{us:>9.1f}{us / base_us:>7.2f}{us_bare:>12.1f}{us_bare / base_us:>7.2f}")
-        for tx, rx in (*pairs.values(), *bare.values()):
+                    before = us + before_disk
+                    avg_before = size + BEFORE_SYNC_BYTES / BEFORE_SYNC_EVERY
+                    avg_now = size + wire.SYNC_BYTES / SYNC_EVERY
+                print(f"{name.split('/')[-1]:<14}{mode:<9}{size:>8}{size - base_len:>4}{avg_before:>13.2f}"
+                      f"{avg_now:>10.2f}{before:>10.1f}{before / base_us:>7.2f}{us:>8.1f}{us / base_us:>7.2f}")
+        for tx, rx in pairs.values():
             st = rx.stats()
             assert st["dropped"] == 0 and st["verified"] > 0, st
-        tx, _ = pairs["sign"]
-        write_us = per_call_us(lambda: tx.store.save(tx.state), 20)
-        per_frame = write_us * (1 / SEND_BLOCK + 1 / RECV_BLOCK)
-        print(f"one fsync'd state-file write: {write_us:.0f} us; one per {SEND_BLOCK} frames sent and "
-              f"one per {RECV_BLOCK} accepted: {per_frame:.1f} us per frame (the gap between the "
-              "two time columns; it follows the disk)")
-        print(f"overhead goal: <= 10 B per frame; measured {wire.OVERHEAD} B "
-              f"({wire.SYNC_OVERHEAD} B on sync frames, 1 in {SYNC_EVERY})")
+        print(f"before: one fsync'd state-file write took {write_us:.0f} us here; one per "
+              f"{BEFORE_SEND_BLOCK} frames sent and one per {BEFORE_RECV_BLOCK} accepted: "
+              f"{before_disk:.1f} us per frame (it follows the disk). Now: no state write at all.")
+        print(f"overhead goal: <= 10 B per frame; measured {wire.OVERHEAD} B, {wire.SYNC_OVERHEAD} B on "
+              f"sync frames (1 in {SYNC_EVERY}): {wire.OVERHEAD + wire.SYNC_BYTES / SYNC_EVERY:.2f} B on "
+              f"average (before: {wire.OVERHEAD + BEFORE_SYNC_BYTES / BEFORE_SYNC_EVERY:.2f} B); at "
+              f"200 bit/s {8 * (wire.OVERHEAD + wire.SYNC_BYTES / SYNC_EVERY) / 200:.3f} s of air time "
+              f"per frame (before {8 * (wire.OVERHEAD + BEFORE_SYNC_BYTES / BEFORE_SYNC_EVERY) / 200:.3f} s)")
 
 
 if __name__ == "__main__":

@@ -256,6 +256,7 @@ class SideBudget:
     worst: float | None                   # ... at worst-case sizes (None: unbounded)
     unlimited: list[str] = field(default_factory=list)   # entries with no rate
     schema: float = 0.0                   # bytes per second of periodic schema announcements (included above)
+    limited_by: str = "period"            # what sets the capacity: the link's "period" or the modem's "bit rate"
 
     @property
     def fits(self) -> bool:
@@ -275,7 +276,8 @@ class Analysis:
         for b in self.budgets:
             if b.typical > b.capacity:
                 out.append(f"side {b.side}: configured traffic needs {b.typical:.1f} B/s (typical sizes) but its "
-                           f"link carries {b.capacity:.1f} B/s: it cannot fit; lower rates or shrink messages")
+                           f"link carries {b.capacity:.1f} B/s (limited by its {b.limited_by}): it cannot fit; "
+                           "lower rates or shrink messages")
             elif b.worst is not None and b.worst > b.capacity:
                 out.append(f"side {b.side}: at worst-case sizes traffic needs {b.worst:.1f} B/s, over the "
                            f"{b.capacity:.1f} B/s its link carries")
@@ -292,6 +294,15 @@ def air_time(frame_bytes: int, bitrate: float, max_read_length: int) -> float:
     max_read_length bytes (wire format section 1)."""
     packets = max(1, math.ceil(frame_bytes / max_read_length))
     return (frame_bytes + DESERT_PACKET_OVERHEAD * packets) * 8 / bitrate
+
+
+def capacity(max_read_length: int, period: float, bitrate: float) -> tuple[float, str]:
+    """(payload bytes per second a side's link carries, what limits it): at most one packet
+    of max_read_length bytes per period, and no more than the modem's bit rate can put on
+    the air, DESERT's 4 bytes per packet included."""
+    by_period = max_read_length / period
+    by_bitrate = bitrate / 8 * max_read_length / (max_read_length + DESERT_PACKET_OVERHEAD)
+    return (by_period, "period") if by_period <= by_bitrate else (by_bitrate, "bit rate")
 
 
 def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Analysis:
@@ -323,7 +334,7 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     budgets = []
     schema = _schema_rate(manifest)
     for side in manifest.sides.values():
-        cap = side.link.bytes_per_second
+        cap, limit = capacity(side.link.max_read_length, side.link.period, bitrate)
         typical, worst, unlimited = schema, schema, []
         for e in entries:
             if e.sender not in (side.name, "*") or (e.sender == "*" and _server_of(manifest, e) == side.name):
@@ -334,7 +345,7 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
             frame = e.configured.frame
             typical += e.rate * frame.typical
             worst = None if worst is None or frame.max is None else worst + e.rate * frame.max
-        budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema))
+        budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema, limit))
     return Analysis(manifest.network, bitrate, entries, budgets)
 
 
@@ -435,12 +446,14 @@ def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
     lines += ["", "link budget (what each side sends, at the configured rates and sizes; * = configured profile)"]
     if a.budgets and a.budgets[0].schema:
         lines.append(f"  (includes {a.budgets[0].schema:.2f} B/s of periodic schema announcements per side)")
-    lines.append(f"  {'side':<12}{'capacity B/s':>14}{'typical B/s':>13}{'worst B/s':>12}  verdict")
+    lines.append(f"  capacity: one packet of max_read_length bytes per period, and at most what "
+                 f"{a.bitrate:g} bit/s carries (4 bytes per packet are DESERT's)")
+    lines.append(f"  {'side':<12}{'capacity B/s':>14}{'limited by':>12}{'typical B/s':>13}{'worst B/s':>12}  verdict")
     for b in a.budgets:
         worst = "unbounded" if b.worst is None else f"{b.worst:.1f}"
         verdict = "fits" if b.fits else "DOES NOT FIT" if b.typical > b.capacity or (
             b.worst is not None and b.worst > b.capacity) else "check warnings"
-        lines.append(f"  {b.side:<12}{b.capacity:>14.1f}{b.typical:>13.1f}{worst:>12}  {verdict}")
+        lines.append(f"  {b.side:<12}{b.capacity:>14.1f}{b.limited_by:>12}{b.typical:>13.1f}{worst:>12}  {verdict}")
     for w in a.warnings():
         lines.append(f"WARNING: {w}")
     return "\n".join(lines)

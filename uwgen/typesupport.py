@@ -336,12 +336,17 @@ def _tools(root: Path, quiet: bool) -> Path:
     return tools
 
 
+# What building rclpy's type support needs on PATH (run.py checks the same list up front).
+BUILD_TOOLS = ("cmake", "c++", "cc", "make")
+INSTALL_TOOLS = "apt-get install cmake g++ make"
+
+
 def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: bool,
            dep_prefixes: list[Path] = ()) -> None:
-    for tool in ("cmake", "c++", "cc", "make"):
+    for tool in BUILD_TOOLS:
         if shutil.which(tool) is None:
             raise BuildError(f"building the {package} interfaces needs `{tool}` on PATH "
-                             "(apt-get install cmake g++ make)")
+                             f"({INSTALL_TOOLS})")
     try:
         work.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

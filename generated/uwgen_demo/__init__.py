@@ -79,7 +79,7 @@ ROS_INTERFACES = {
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("eeee4b98")
+SCHEMA_DIGEST = bytes.fromhex("3ff9da87")
 
 MANIFEST = ManifestInfo(
     network="demo",
@@ -126,21 +126,21 @@ TOPICS = {
         policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t4"],
-        fingerprint=bytes.fromhex("92b9198b")),
+        fingerprint=bytes.fromhex("4eaa7bae")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="vehicle", profile="packed",
         policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t5"],
-        fingerprint=bytes.fromhex("29eb5926")),
+        fingerprint=bytes.fromhex("c48d8a2e")),
     6: TopicCodec(
         id=6, name="/vehicle/battery", type_name="sensor_msgs/msg/BatteryState",
         publisher="vehicle", profile="native",
         policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1, repair=0),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t6"],
-        fingerprint=bytes.fromhex("3f8eba3d")),
+        fingerprint=bytes.fromhex("fa9a22d1")),
     7: TopicCodec(
         id=7, name="/vehicle/log", type_name="std_msgs/msg/String",
         publisher="vehicle", profile="native",
@@ -158,7 +158,7 @@ SERVICES = {
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "native")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
-        fingerprint=bytes.fromhex("98b801eb")),
+        fingerprint=bytes.fromhex("55b81224")),
     21: ServiceCodec(
         id=21, name="/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="vehicle", timeout=10.0, profile="native",
@@ -166,7 +166,7 @@ SERVICES = {
         request=CODECS[("turtlesim/srv/SetPen_Request", "native")],
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),
-        fingerprint=bytes.fromhex("3345d7b2")),
+        fingerprint=bytes.fromhex("8863fbb2")),
 }
 
 ACTIONS = {
@@ -180,5 +180,5 @@ ACTIONS = {
         result=CODECS[("turtlesim/action/RotateAbsolute_Result", "native")],
         feedback=CODECS[("turtlesim/action/RotateAbsolute_Feedback", "native")],
         ros_import=("turtlesim.action", "RotateAbsolute"),
-        fingerprint=bytes.fromhex("d498bd11")),
+        fingerprint=bytes.fromhex("8ad2442a")),
 }

@@ -51,7 +51,33 @@ PLAIN = PlainClasses({
     "turtlesim__TeleportRelative_Response": _turtlesim_srv.TeleportRelative_Response,
 })
 
-ROS = RosClasses(fallback=PLAIN, imports={
+# How rclpy lays out each class, (field, rosidl type, slot content) per field: decoders
+# fill the slots of a class directly once RosClasses has checked it against this.
+LAYOUTS = {
+    "builtin_interfaces__Time": (('sec', 'int32', 'int'), ('nanosec', 'uint32', 'int')),
+    "geometry_msgs__Twist": (('linear', 'geometry_msgs/Vector3', 'msg:geometry_msgs__Vector3'), ('angular', 'geometry_msgs/Vector3', 'msg:geometry_msgs__Vector3')),
+    "geometry_msgs__Vector3": (('x', 'double', 'float'), ('y', 'double', 'float'), ('z', 'double', 'float')),
+    "sensor_msgs__BatteryState": (('header', 'std_msgs/Header', 'msg:std_msgs__Header'), ('voltage', 'float', 'float'), ('temperature', 'float', 'float'), ('current', 'float', 'float'), ('charge', 'float', 'float'), ('capacity', 'float', 'float'), ('design_capacity', 'float', 'float'), ('percentage', 'float', 'float'), ('power_supply_status', 'uint8', 'int'), ('power_supply_health', 'uint8', 'int'), ('power_supply_technology', 'uint8', 'int'), ('present', 'boolean', 'bool'), ('cell_voltage', 'sequence<float>', 'array:f'), ('cell_temperature', 'sequence<float>', 'array:f'), ('location', 'string', 'str'), ('serial_number', 'string', 'str')),
+    "std_msgs__Header": (('stamp', 'builtin_interfaces/Time', 'msg:builtin_interfaces__Time'), ('frame_id', 'string', 'str')),
+    "std_msgs__String": (('data', 'string', 'str'),),
+    "turtlesim__Color": (('r', 'uint8', 'int'), ('g', 'uint8', 'int'), ('b', 'uint8', 'int')),
+    "turtlesim__Kill_Request": (('name', 'string', 'str'),),
+    "turtlesim__Kill_Response": (),
+    "turtlesim__Pose": (('x', 'float', 'float'), ('y', 'float', 'float'), ('theta', 'float', 'float'), ('linear_velocity', 'float', 'float'), ('angular_velocity', 'float', 'float')),
+    "turtlesim__RotateAbsolute_Feedback": (('remaining', 'float', 'float'),),
+    "turtlesim__RotateAbsolute_Goal": (('theta', 'float', 'float'),),
+    "turtlesim__RotateAbsolute_Result": (('delta', 'float', 'float'),),
+    "turtlesim__SetPen_Request": (('r', 'uint8', 'int'), ('g', 'uint8', 'int'), ('b', 'uint8', 'int'), ('width', 'uint8', 'int'), ('off', 'uint8', 'int')),
+    "turtlesim__SetPen_Response": (),
+    "turtlesim__Spawn_Request": (('x', 'float', 'float'), ('y', 'float', 'float'), ('theta', 'float', 'float'), ('name', 'string', 'str')),
+    "turtlesim__Spawn_Response": (('name', 'string', 'str'),),
+    "turtlesim__TeleportAbsolute_Request": (('x', 'float', 'float'), ('y', 'float', 'float'), ('theta', 'float', 'float')),
+    "turtlesim__TeleportAbsolute_Response": (),
+    "turtlesim__TeleportRelative_Request": (('linear', 'float', 'float'), ('angular', 'float', 'float')),
+    "turtlesim__TeleportRelative_Response": (),
+}
+
+ROS = RosClasses(fallback=PLAIN, layouts=LAYOUTS, imports={
     "builtin_interfaces__Time": ("builtin_interfaces.msg", "Time"),
     "geometry_msgs__Twist": ("geometry_msgs.msg", "Twist"),
     "geometry_msgs__Vector3": ("geometry_msgs.msg", "Vector3"),

@@ -40,7 +40,29 @@ PLAIN = PlainClasses({
     "turtlesim__TeleportRelative_Response": _turtlesim_srv.TeleportRelative_Response,
 })
 
-ROS = RosClasses(fallback=PLAIN, imports={
+# How rclpy lays out each class, (field, rosidl type, slot content) per field: decoders
+# fill the slots of a class directly once RosClasses has checked it against this.
+LAYOUTS = {
+    "geometry_msgs__Twist": (('linear', 'geometry_msgs/Vector3', 'msg:geometry_msgs__Vector3'), ('angular', 'geometry_msgs/Vector3', 'msg:geometry_msgs__Vector3')),
+    "geometry_msgs__Vector3": (('x', 'double', 'float'), ('y', 'double', 'float'), ('z', 'double', 'float')),
+    "turtlesim__Color": (('r', 'uint8', 'int'), ('g', 'uint8', 'int'), ('b', 'uint8', 'int')),
+    "turtlesim__Kill_Request": (('name', 'string', 'str'),),
+    "turtlesim__Kill_Response": (),
+    "turtlesim__Pose": (('x', 'float', 'float'), ('y', 'float', 'float'), ('theta', 'float', 'float'), ('linear_velocity', 'float', 'float'), ('angular_velocity', 'float', 'float')),
+    "turtlesim__RotateAbsolute_Feedback": (('remaining', 'float', 'float'),),
+    "turtlesim__RotateAbsolute_Goal": (('theta', 'float', 'float'),),
+    "turtlesim__RotateAbsolute_Result": (('delta', 'float', 'float'),),
+    "turtlesim__SetPen_Request": (('r', 'uint8', 'int'), ('g', 'uint8', 'int'), ('b', 'uint8', 'int'), ('width', 'uint8', 'int'), ('off', 'uint8', 'int')),
+    "turtlesim__SetPen_Response": (),
+    "turtlesim__Spawn_Request": (('x', 'float', 'float'), ('y', 'float', 'float'), ('theta', 'float', 'float'), ('name', 'string', 'str')),
+    "turtlesim__Spawn_Response": (('name', 'string', 'str'),),
+    "turtlesim__TeleportAbsolute_Request": (('x', 'float', 'float'), ('y', 'float', 'float'), ('theta', 'float', 'float')),
+    "turtlesim__TeleportAbsolute_Response": (),
+    "turtlesim__TeleportRelative_Request": (('linear', 'float', 'float'), ('angular', 'float', 'float')),
+    "turtlesim__TeleportRelative_Response": (),
+}
+
+ROS = RosClasses(fallback=PLAIN, layouts=LAYOUTS, imports={
     "geometry_msgs__Twist": ("geometry_msgs.msg", "Twist"),
     "geometry_msgs__Vector3": ("geometry_msgs.msg", "Vector3"),
     "turtlesim__Color": ("turtlesim.msg", "Color"),

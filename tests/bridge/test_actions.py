@@ -89,6 +89,31 @@ def test_unanswered_goal_is_rejected_after_accept_timeout(pair):
     assert status["goal_resends"] == 2
 
 
+def test_a_goal_that_comes_before_the_server_is_discovered_waits_for_it(pair):
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    future = client.send_goal_async(Fibonacci.Goal(order=4))
+    wait_for(lambda: counted(bridges["vehicle"])["waited"] == 1, what="the goal waiting")
+    fib_server(vehicle.node("late_real"), results)     # the real server comes up only now
+    wait_for(future.done, what="the goal's answer")
+    assert future.result().accepted
+    result = future.result().get_result_async()
+    wait_for(result.done, what="the result")
+    assert result.result().status == GoalStatus.STATUS_SUCCEEDED and results == [4]
+    assert counted(bridges["vehicle"])["no_server"] == 0
+
+
+def test_a_goal_with_no_server_is_rejected_after_waiting(pair):
+    surface, vehicle, bridges, links = pair
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    assert not send_goal(client).accepted
+    wait_for(lambda: counted(bridges["vehicle"])["no_server"] == 1, what="no_server counted")
+    assert counted(bridges["vehicle"])["waited"] == 1
+
+
 def drop_replies(link, count: int) -> list:
     """Make `link` lose its next `count` responses (kind 3); returns what it dropped."""
     dropped, offer = [], link.offer
@@ -230,3 +255,28 @@ def test_a_copy_of_a_finished_goal_is_a_repeat_only_within_the_window(pair):
     time.sleep(1.5 * 0.5)                               # REPEAT_WINDOW x accept_timeout
     links.links["vehicle"].inject(goal)                 # later: a new goal on that handle
     wait_for(lambda: results == [6, 6], what="the goal run again")
+
+
+def test_bridges_sharing_one_graph_run_a_goal_once(fib_codec):
+    """Both sides and the real server in one ROS domain: without the guard the serving
+    bridge's action client reaches the calling bridge's stand-in and the goal runs in a loop."""
+    package = fake_package([])
+    package.ACTIONS = {9: fib_codec}
+    links = LinkPair()
+    with ros_sides("surface", "vehicle", same_domain=True) as (surface, vehicle):
+        bridges = {s.name: start_bridge(s, package, links.factory) for s in (surface, vehicle)}
+        results: list = []
+        fib_server(vehicle.node("real"), results)
+        sb, vb = bridges["surface"], bridges["vehicle"]
+        wait_for(lambda: "/fib" in sb.status()["echo_hazards"] and 9 not in sb.action_standins.servers,
+                 what="the stand-in withdrawn")
+        client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+        assert client.wait_for_server(timeout_sec=5.0)
+        goal_handle = send_goal(client, 6)
+        assert goal_handle.accepted                      # by the real server
+        result = goal_handle.get_result_async()
+        wait_for(result.done, what="the result")
+        assert result.result().status == GoalStatus.STATUS_SUCCEEDED
+        time.sleep(0.5)
+        assert results == [6] and counted(vb)["goal_requests"] == 0
+        assert links.links["surface"].offered(9) == []   # nothing went over the link

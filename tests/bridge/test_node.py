@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 from geometry_msgs.msg import Twist
@@ -219,6 +220,20 @@ def test_request_without_local_server_is_counted(pair):
              what="the caller's timeout")
 
 
+def test_request_that_comes_before_the_server_is_discovered_waits_for_it(pair):
+    surface, vehicle, bridges, links = pair
+    client = surface.node("caller").create_client(BasicTypes, "/echo")
+    assert client.wait_for_service(timeout_sec=5.0)
+    future = client.call_async(BasicTypes.Request(int32_value=21, string_value="first"))
+    vb = bridges["vehicle"]
+    wait_for(lambda: vb.service_counters[ECHO.id].waited == 1, what="the request waiting")
+    echo_server(vehicle.node("late_server"))          # the real server comes up only now
+    wait_for(future.done, what="the first call's response")
+    assert future.result().int32_value == 42 and future.result().string_value == "re:first"
+    assert vb.service_counters[ECHO.id].no_server == 0
+    assert bridges["surface"].service_counters[ECHO.id].timeouts == 0
+
+
 def test_encode_error_is_counted_and_nothing_is_sent():
     tight = FakeTopicCodec(4, "/cmd", String, "surface", max_len=20)
     package = fake_package([tight])
@@ -280,6 +295,33 @@ def test_bridges_sharing_one_graph_do_not_loop():
         wait_for(lambda: sb.topic_counters[4].taken >= 1, what="message taken")
         assert sb.topic_counters[4].offered == offered
         assert sb.status()["topics"]["/cmd"]["echo_guard"] >= 1
+
+
+def test_bridges_sharing_one_graph_run_a_call_once():
+    """Both sides and the real server in one ROS domain: the serving bridge's client would
+    reach the calling bridge's stand-in, and each call would go round between them."""
+    package = fake_package([], [ECHO])
+    links = LinkPair()
+    with ros_sides("surface", "vehicle", same_domain=True) as (surface, vehicle):
+        bridges = start_bridges((surface, vehicle), package, links)
+        served = []
+
+        def serve(req, resp):
+            served.append(req.int32_value)
+            resp.int32_value = req.int32_value * 2
+            return resp
+        vehicle.node("real").create_service(BasicTypes, "/echo", serve)
+        sb, vb = bridges["surface"], bridges["vehicle"]
+        wait_for(lambda: "/echo" in sb.status()["echo_hazards"] and ECHO.id not in sb.standins.services,
+                 what="the stand-in withdrawn")
+        client = surface.node("caller").create_client(BasicTypes, "/echo")
+        assert client.wait_for_service(timeout_sec=5.0)
+        future = client.call_async(BasicTypes.Request(int32_value=5))
+        wait_for(future.done, what="the real server's response")
+        assert future.result().int32_value == 10
+        time.sleep(0.5)
+        assert served == [5] and vb.service_counters[ECHO.id].requests == 0
+        assert links.links["surface"].offered(ECHO.id) == []     # nothing went over the link
 
 
 def test_status_is_published_as_json(pair):

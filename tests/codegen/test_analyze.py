@@ -144,3 +144,44 @@ def test_an_action_costs_its_goal_result_and_feedback(demo, demo_pkg):
     assert f"result {name}" in vehicle.unlimited and f"goal {name}" in surface.unlimited
     assert f"feedback {name}" not in vehicle.unlimited
 
+
+
+UWGEN = Path(sys.executable).parent / "uwgen"
+SLOW_MODEM = """
+network: slow
+sides:
+  surface: {port: 4000, link: {max_read_length: 64, period: 0.2}}
+  vehicle: {port: 4001, link: {max_read_length: 64, period: 0.2}}
+topics:
+  - name: /depth
+    id: 4
+    type: std_msgs/msg/Float64
+    publisher: surface
+    rate: 5
+"""
+
+
+def test_capacity_is_limited_by_the_bit_rate_as_well_as_by_the_period(tmp_path):
+    # 64 B every 0.2 s is 320 B/s, but a 200 bit/s modem carries 25 B/s, 64 of every 68
+    # of them payload (DESERT adds 4 bytes per packet): 23.5 B/s. Five 15-byte frames a
+    # second (each 0.76 s on the air) cannot fit.
+    (tmp_path / "uwgen.yaml").write_text(SLOW_MODEM)
+    res = subprocess.run([str(UWGEN), "analyze", "-m", str(tmp_path / "uwgen.yaml"), "--bitrate", "200",
+                          "--strict"], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 1, res.stdout + res.stderr
+    surface = next(line.split() for line in res.stdout.splitlines() if line.startswith("  surface "))
+    assert surface == ["surface", "23.5", "bit", "rate", "75.0", "75.0", "DOES", "NOT", "FIT"]
+    assert "200 bit/s" in res.stdout
+    fast = subprocess.run([str(UWGEN), "analyze", "-m", str(tmp_path / "uwgen.yaml"), "--strict"],
+                          capture_output=True, text=True, timeout=60)
+    assert fast.returncode == 0, fast.stdout + fast.stderr     # 4800 bit/s: 320 B/s by the period
+
+
+def test_the_budget_says_what_limits_each_side(tmp_path):
+    (tmp_path / "uwgen.yaml").write_text(SLOW_MODEM)
+    lib = InterfaceLibrary([], installed=True)
+    manifest = load_manifest(tmp_path / "uwgen.yaml", lib)
+    slow = analyze(manifest, lib.get, 200.0).budgets[0]
+    assert slow.capacity == pytest.approx(200 / 8 * 64 / 68) and slow.limited_by == "bit rate"
+    fast = analyze(manifest, lib.get, 4800.0).budgets[0]
+    assert fast.capacity == 320.0 and fast.limited_by == "period"

@@ -95,11 +95,11 @@ class Net:
 
 @contextmanager
 def network(package, *, period=0.05, mrl=64, distance=30.0, bitrate=48000.0, per=0.0,
-            bridges=("surface", "vehicle")):
+            bridges=("surface", "vehicle"), same_domain=False):
     scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle"),
                            NodeSpec("vehicle", port=0, position=(distance, 0.0, 0.0), dest="surface")],
                     period=period, max_read_length=mrl, bitrate=bitrate, per=per, seed=5)
-    with run_emulator(scen) as emu, ros_sides("surface", "vehicle") as sides:
+    with run_emulator(scen) as emu, ros_sides("surface", "vehicle", same_domain=same_domain) as sides:
         net = Net(package, emu, sides, period, mrl)
         for side in bridges:
             net.start_bridge(side)

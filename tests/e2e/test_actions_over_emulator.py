@@ -245,3 +245,22 @@ def test_link_loss_during_a_goal_aborts_it_after_result_timeout(net):
     wait_for(lambda: counters(net, "vehicle")["server_timeouts"] == 1, timeout=8.0,
              what="the server side's own timeout")
     wait_for(lambda: real.cancels == 1, what="the real goal cancelled")
+
+
+def test_bridges_sharing_one_graph_do_not_loop_a_goal(action_package):
+    """Both bridges and the real server in one ROS domain: one goal runs once (it ran in a
+    loop until the processes were killed before the guard)."""
+    with network(action_package, same_domain=True) as net:
+        real = FibonacciServer(net.vehicle.node("fibonacci_server"))
+        sb, vb = net.bridges["surface"], net.bridges["vehicle"]
+        wait_for(lambda: "/fibonacci" in sb.status()["echo_hazards"]
+                 and ACTION_ID not in sb.action_standins.servers, what="the stand-in withdrawn")
+        client = ActionClient(net.surface.node("operator"), Fibonacci, "/fibonacci")
+        assert client.wait_for_server(timeout_sec=5.0)
+        goal_handle = send(client, 4)
+        assert goal_handle.accepted
+        assert result_of(goal_handle).status == GoalStatus.STATUS_SUCCEEDED
+        time.sleep(1.0)
+        assert real.goals == [4]
+        assert vb.status()["actions"]["/fibonacci"]["goal_requests"] == 0
+        assert sb.link.stats()["channels"][ACTION_ID]["offered"] == 0

@@ -65,6 +65,31 @@ def test_service_round_trip(net):
     assert net.bridges["surface"].status()["services"]["/enable"]["calls"]["completed"] == 1
 
 
+def test_bridges_sharing_one_graph_do_not_loop_a_call(e2e_package):
+    """Both bridges and the real server in one ROS domain (a forgotten ROS_DOMAIN_ID): one
+    call runs the real server once, nothing goes round over the link."""
+    with network(e2e_package, same_domain=True) as net:
+        calls = []
+
+        def serve(req, resp):
+            calls.append(req.data)
+            resp.success = True
+            return resp
+        net.vehicle.node("server").create_service(SetBool, "/enable", serve)
+        sb, vb = net.bridges["surface"], net.bridges["vehicle"]
+        wait_for(lambda: connected(net, "surface", "vehicle")
+                 and "/enable" in sb.status()["echo_hazards"] and 20 not in sb.standins.services,
+                 what="the stand-in withdrawn")
+        client = net.surface.node("caller").create_client(SetBool, "/enable")
+        assert client.wait_for_service(timeout_sec=5.0)
+        future = client.call_async(SetBool.Request(data=True))
+        wait_for(future.done, what="the real server's response")
+        time.sleep(1.0)                     # several round trips of the link: room for a loop
+        assert calls == [True]
+        assert vb.service_counters[20].requests == 0
+        assert sb.link.stats()["channels"][20]["offered"] == 0
+
+
 def test_service_timeout_when_nobody_answers(e2e_package):
     # No vehicle bridge: the request crosses the link and is dropped by DESERT (no client).
     with network(e2e_package, bridges=("surface",)) as net:

@@ -1,4 +1,5 @@
-"""A surface/vehicle pair of LinkGuards on state files in a temporary folder."""
+"""A surface/vehicle pair of LinkGuards, each holding its side's lock in a temporary folder,
+with manual clocks (a monotonic one, and a wall clock that starts at WALL0)."""
 from __future__ import annotations
 
 from uwgen.runtime.clock import ManualClock
@@ -8,6 +9,7 @@ from uwgen.security.guard import GuardConfig, LinkGuard
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(100, 132))
 SURFACE, VEHICLE = 1, 2
+WALL0 = 1_790_000_000.0          # a wall time (late 2026) for the manual wall clocks
 # Every id of this little manifest is protected: cmd_vel encrypted, log signed, a service signed.
 MODES = {4: "encrypt", 7: "sign", 20: "sign"}
 MANIFEST_IDS = set(MODES)
@@ -19,14 +21,16 @@ def config(sender: int, peer: int, peer_name: str, modes=None) -> GuardConfig:
                        dict(FINGERPRINTS))
 
 
-def surface(folder, key=KEY, clock=None, **kw) -> LinkGuard:
-    return LinkGuard.for_key(key, config(SURFACE, VEHICLE, "vehicle"), folder / "surface.state",
-                             clock=clock or ManualClock(), name="surface", **kw)
+def surface(folder, key=KEY, clock=None, wall=None, **kw) -> LinkGuard:
+    return LinkGuard.for_key(key, config(SURFACE, VEHICLE, "vehicle"), folder / "surface.lock",
+                             clock=clock or ManualClock(), wall=wall or ManualClock(WALL0),
+                             name="surface", **kw)
 
 
-def vehicle(folder, key=KEY, clock=None, **kw) -> LinkGuard:
-    return LinkGuard.for_key(key, config(VEHICLE, SURFACE, "surface"), folder / "vehicle.state",
-                             clock=clock or ManualClock(), name="vehicle", **kw)
+def vehicle(folder, key=KEY, clock=None, wall=None, **kw) -> LinkGuard:
+    return LinkGuard.for_key(key, config(VEHICLE, SURFACE, "surface"), folder / "vehicle.lock",
+                             clock=clock or ManualClock(), wall=wall or ManualClock(WALL0),
+                             name="vehicle", **kw)
 
 
 def twist(x: float = 1.0) -> bytes:

@@ -28,10 +28,10 @@ def test_the_key_is_found_next_to_the_manifest_and_the_state_next_to_the_key(tmp
         guard = guard_for(plan, plan.options())
     start = [r.getMessage() for r in caplog.records if "secure link" in r.getMessage()]
     assert len(start) == 1 and "sender 2" in start[0] and "4 (encrypt)" in start[0]
-    assert guard.state.key_id in start[0]
+    from uwgen.security.keys import key_id, read_key_file
+    assert key_id(read_key_file(tmp_path / "net.key"), "demo") in start[0]
     assert guard.config.sender == 2 and guard.config.peers == {1: "surface"}
-    assert guard.store.path.parent == tmp_path
-    assert guard.store.path.name.startswith("net.key.demo.vehicle.")
+    assert guard.lock_path == tmp_path / "net.key.demo.vehicle.lock"
 
 
 def test_key_file_and_state_options_override_the_manifest(tmp_path):
@@ -39,7 +39,7 @@ def test_key_file_and_state_options_override_the_manifest(tmp_path):
     plan = BridgePlan.from_package(package(tmp_path), "surface")
     opts = plan.options(key_file=tmp_path / "other.key", security_state=tmp_path / "s.state")
     guard = guard_for(plan, opts)
-    assert guard.store.path == tmp_path / "s.state"
+    assert guard.lock_path == tmp_path / "s.state"
 
 
 def test_a_missing_key_stops_the_bridge_with_a_clear_message(tmp_path):

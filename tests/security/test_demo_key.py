@@ -136,6 +136,6 @@ def test_demo_battery_signed_still_fits_one_packet(demo_guards):
     b.header.stamp.sec, b.header.stamp.nanosec, b.header.frame_id = 1795433581, 999999999, "vehicle"
     b.voltage, b.current, b.percentage, b.present, b.power_supply_status = 16.8, -5.5, 1.0, True, 2
     payload = pkg.TOPICS[6].encode(b)
-    sealed = guards["vehicle"].protect(6, payload)            # the first frame: a sync frame (+14)
-    assert len(sealed) == len(payload) + 14
+    sealed = guards["vehicle"].protect(6, payload)            # the first frame: a sync frame (+23)
+    assert len(sealed) == len(payload) + 23
     assert len(sealed) + OVERHEAD <= pkg.MANIFEST.sides["vehicle"].link.max_read_length

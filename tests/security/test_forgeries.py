@@ -131,8 +131,8 @@ def test_overhead_is_ten_bytes_except_sync_frames(pair):
         sizes.append(len(w) - len(p))
         assert v.unprotect(w) == p
     assert set(sizes) == {wire.OVERHEAD, wire.SYNC_OVERHEAD}
-    assert sizes[:3] == [14, 14, 14]
-    assert sizes.count(14) == 3 + len([n for n in range(3, 200) if n % 32 == 0])
+    assert sizes[:3] == [23, 23, 23]
+    assert sizes.count(23) == 3 + len([n for n in range(3, 200) if n % 64 == 0])
 
 
 def test_a_slow_sender_sends_a_sync_frame_at_least_every_30_s(tmp_path):
@@ -144,16 +144,18 @@ def test_a_slow_sender_sends_a_sync_frame_at_least_every_30_s(tmp_path):
         clock.advance(gap)
         sizes.append(len(s.protect(4, twist())) - len(twist()))
     # 3 first, then none for 17 s of 1-s frames, then each frame after a 40-s silence
-    assert sizes[:3] == [14] * 3 and set(sizes[3:20]) == {10}
-    assert sizes[20:23] == [14] * 3 and set(sizes[23:]) == {10}
+    assert sizes[:3] == [23] * 3 and set(sizes[3:20]) == {10}
+    assert sizes[20:23] == [23] * 3 and set(sizes[23:]) == {10}
 
 
 def test_the_schema_fingerprint_is_authenticated(tmp_path):
     from uwgen.security.guard import GuardConfig, LinkGuard
-    from .helpers import KEY, MODES
+    from uwgen.runtime.clock import ManualClock
+    from .helpers import KEY, MODES, WALL0
     s = surface(tmp_path)
     other_schema = LinkGuard.for_key(KEY, GuardConfig("demo", 2, {1: "surface"}, dict(MODES),
-                                                      {4: bytes(8)}), tmp_path / "v.state")
+                                                      {4: bytes(8)}), tmp_path / "v.lock",
+                                    wall=ManualClock(WALL0))
     assert other_schema.unprotect(s.protect(4, twist())) is None
     assert other_schema.stats()["bad_tag"] == 1
 

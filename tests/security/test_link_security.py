@@ -6,16 +6,14 @@ from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.codec import pack_items
 from uwgen.runtime.link import Link
-from uwgen.security.state import FileIO
 
 from .helpers import KEY, config, log_line, surface, twist, vehicle
 
 
-def links(tmp_path, io=None):
+def links(tmp_path):
     clock = ManualClock()
     got: list[bytes] = []
-    from uwgen.security.guard import LinkGuard
-    sg = LinkGuard.for_key(KEY, config(1, 2, "vehicle"), tmp_path / "s.state", io=io, clock=clock)
+    sg = surface(tmp_path, clock=clock)
     s = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="surface", guard=sg)
     v = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="vehicle",
              guard=vehicle(tmp_path, clock=clock), on_payload=got.append)
@@ -67,10 +65,11 @@ def test_plain_frames_for_protected_ids_do_not_reach_the_bridge(tmp_path):
 
 
 def test_a_payload_that_cannot_be_protected_is_dropped_and_counted(tmp_path):
-    class FullDisk(FileIO):
-        def write_atomic(self, path, data):
-            raise OSError(28, "No space left on device")
-    s, _, _ = links(tmp_path, io=FullDisk())
+    s, _, _ = links(tmp_path)
+
+    def broken(key, payload):
+        raise RuntimeError("no key")
+    s.scheduler.protect = broken
     assert s.offer(4, twist())
     assert s.scheduler.next_payload(0.0) is None          # nothing goes out in the clear
     chan = s.stats()["channels"][4]
@@ -82,19 +81,19 @@ def test_size_check_counts_the_overhead(tmp_path):
     g = surface(tmp_path)
     link = Link(config=LinkConfig(), fragment_id=None, guard=g)
     link.add_channel(7, LinkPolicy())
-    assert not link.offer(7, log_line("z" * 240))          # fits 255 bare, not with 14 more
+    assert not link.offer(7, log_line("z" * 240))          # fits 255 bare, not with 23 more
     assert link.stats()["channels"][7]["too_large"] == 1
-    assert link.offer(7, log_line("z" * 230))
+    assert link.offer(7, log_line("z" * 220))
     assert isinstance(g, LinkGuard)
 
 
 def test_packet_aligned_writes_weigh_the_protected_size(tmp_path):
     s, v, got = links(tmp_path)
-    payload = twist(1.5)                                   # 20 bytes; 34 protected (a sync frame)
+    payload = twist(1.5)                                   # 20 bytes; 43 protected (a sync frame)
     assert s.offer(4, payload)
-    assert s.scheduler.next_payload(0.0, max_size=len(payload) + 13) is None   # would not fit
-    key, frame = s.scheduler.next_payload(0.0, max_size=len(payload) + 14)
-    assert key == 4 and len(frame) == len(payload) + 14
+    assert s.scheduler.next_payload(0.0, max_size=len(payload) + 22) is None   # would not fit
+    key, frame = s.scheduler.next_payload(0.0, max_size=len(payload) + 23)
+    assert key == 4 and len(frame) == len(payload) + 23
     v._on_frame(frame)
     assert got == [payload]
 
@@ -103,7 +102,8 @@ def test_repair_fragments_of_a_protected_message_rebuild_it(tmp_path):
     from uwgen.security.guard import LinkGuard
     clock = ManualClock()
     got: list[bytes] = []
-    sg = LinkGuard.for_key(KEY, config(1, 2, "vehicle"), tmp_path / "s.state", clock=clock)
+    sg = surface(tmp_path, clock=clock)
+    assert isinstance(sg, LinkGuard)
     s = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="surface", guard=sg)
     v = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="vehicle",
              guard=vehicle(tmp_path, clock=clock), on_payload=got.append)
@@ -130,8 +130,8 @@ def test_an_actions_feedback_channel_is_protected_as_its_wire_id(tmp_path):
     modes = {30: "encrypt"}
     clock = ManualClock()
     got: list[bytes] = []
-    sg = LinkGuard.for_key(KEY, config(2, 1, "surface", modes), tmp_path / "v.state", clock=clock)
-    rg = LinkGuard.for_key(KEY, config(1, 2, "vehicle", modes), tmp_path / "s.state", clock=clock)
+    sg = LinkGuard.for_key(KEY, config(2, 1, "surface", modes), tmp_path / "v.lock", clock=clock)
+    rg = LinkGuard.for_key(KEY, config(1, 2, "vehicle", modes), tmp_path / "s.lock", clock=clock)
     s = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="vehicle", guard=sg)
     v = Link(config=LinkConfig(), fragment_id=250, clock=clock, name="surface", guard=rg,
              on_payload=got.append)

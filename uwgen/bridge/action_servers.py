@@ -3,7 +3,8 @@ rclpy ActionClient, and its answers, feedback and result go back (wire format 13
 
 Per goal handle of the client side: `[2, id, handle, goal...]` becomes `send_goal_async`;
 its acceptance is answered `[3, id, handle, 1]` (or 0: rejected, also when no local
-server is available); the result is requested locally at once and pushed as
+server appears within half the accept_timeout: a goal that arrives before the local
+server is discovered waits for it); the result is requested locally at once and pushed as
 `[3, id, handle, status, result...]`; feedback goes out as `[0, id, handle, feedback...]`
 on the action's latest-only feedback channel. `[2, id, handle]` cancels the goal and is
 answered 3 (canceling) or 2 (refused).
@@ -43,12 +44,13 @@ REPEAT_WINDOW = 1.5       # accept_timeouts after a goal first came in which a c
 class Served:
     """One goal from the link, at the real server (server side)."""
 
-    sent: Future                  # send_goal_async: -> ClientGoalHandle
-    deadline: float
+    sent: Future | None           # send_goal_async: -> ClientGoalHandle (None: waiting for
+    deadline: float               # the local server to be discovered)
     payload: bytes = b""          # the goal as it came (a repeat has the same bytes)
     arrived: float = 0.0          # when it first came
     goal_handle: Any = None       # ClientGoalHandle, once accepted
     cancel_wanted: bool = False   # a cancel came before the local server answered
+    goal: Any = None              # the goal message while it waits for the local server
 
 
 class ActionServers:
@@ -68,6 +70,7 @@ class ActionServers:
                 continue
             client = ActionClient(wiring.node, cls, codec.name, callback_group=wiring.main_group)
             self.served[codec.id] = (codec, client)
+            wiring.loops.watch_server(codec.name, action=True)
             self.goals[codec.id] = {}
             self.finished[codec.id] = OrderedDict()
 
@@ -121,20 +124,38 @@ class ActionServers:
             self._cancel(ident, handle)
             return
         counters.goal_requests += 1
+        if self.w.loops.blocked(codec.name):
+            counters.loop_guard += 1      # our goal would reach another bridge's stand-in
+            return
         if self._repeat(ident, handle, payload):     # in flight, or finished just now
             counters.duplicate_goals += 1
             return
         self.finished[ident].pop(handle, None)     # a new goal on a handle used before
-        if not client.server_is_ready():
-            counters.no_server += 1
-            self.w.throttle.report(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no "
-                                                        "local action server is available")
-            self._answer(ident, handle, REJECTED)
-            return
-        sent = client.send_goal_async(goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb))
         now = self.w.clock.now()
-        goals[handle] = Served(sent, now + codec.accept_timeout, payload=payload, arrived=now)
-        sent.add_done_callback(lambda f: self._answered(ident, handle, f))
+        # A goal waits for the local server at most half its accept_timeout: the client
+        # side's clock started before the goal's trip, and the answer needs one too.
+        entry = goals[handle] = Served(None, now + codec.accept_timeout / 2, payload=payload,
+                                       arrived=now, goal=goal)
+        if client.server_is_ready():
+            self._send_goal(ident, handle, entry)
+        else:
+            counters.waited += 1     # sent once the server is discovered (see _send_waiting)
+
+    def _send_goal(self, ident: int, handle: int, entry: Served) -> None:
+        client = self.served[ident][1]
+        entry.sent = client.send_goal_async(
+            entry.goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb))
+        entry.deadline = self.w.clock.now() + self.served[ident][0].accept_timeout
+        entry.goal = None
+        entry.sent.add_done_callback(lambda f: self._answered(ident, handle, f))
+
+    def _send_waiting(self, ident: int) -> None:
+        """Send the goals that waited for the local server, now that it is ready."""
+        if not self.served[ident][1].server_is_ready():
+            return
+        for handle, entry in list(self.goals[ident].items()):
+            if entry.sent is None:
+                self._send_goal(ident, handle, entry)
 
     def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
         """Answer a goal that came again; True when it was one (then it is not run)."""
@@ -209,6 +230,10 @@ class ActionServers:
         if entry is None:
             self._answer(ident, handle, CANCEL_REFUSED)   # finished: its result is on its way
             return
+        if entry.sent is None:                             # still waiting for the local server
+            del self.goals[ident][handle]
+            self._answer(ident, handle, REJECTED)
+            return
         if entry.goal_handle is None:
             entry.cancel_wanted = True                     # answered once the server has answered
             return
@@ -227,10 +252,18 @@ class ActionServers:
         for ident, goals in self.goals.items():
             codec, client = self.served[ident]
             counters = self.counters[ident]
+            self._send_waiting(ident)
             for handle, entry in list(goals.items()):
                 if entry.deadline > now:
                     continue
                 del goals[handle]
+                if entry.sent is None:
+                    counters.no_server += 1
+                    say(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no local "
+                                             f"action server appeared within "
+                                             f"{codec.accept_timeout / 2:g} s")
+                    self._answer(ident, handle, REJECTED)
+                    continue
                 counters.server_timeouts += 1
                 if entry.goal_handle is None:
                     say(f"aanswer{ident}", f"{codec.name}: local server did not answer goal "
@@ -246,7 +279,7 @@ class ActionServers:
     def _check_server(self, ident: int, now: float) -> None:
         """Abort the goals of a local server that has disappeared (for SERVER_GONE_GRACE)."""
         codec, client = self.served[ident]
-        goals = self.goals[ident]
+        goals = {h: e for h, e in self.goals[ident].items() if e.sent is not None}
         if not goals or client.server_is_ready():
             self._gone_since.pop(ident, None)
             return
@@ -255,8 +288,8 @@ class ActionServers:
             return
         self.w.log.error(f"{codec.name}: the local action server is gone: {len(goals)} goal(s) "
                          "reported aborted")
-        for handle, entry in list(goals.items()):
-            del goals[handle]
+        for handle, entry in goals.items():
+            del self.goals[ident][handle]
             self.counters[ident].server_gone += 1
             self._result(ident, handle, ABORTED, codec.ros_class().Result(), entry)
         self._gone_since.pop(ident, None)

@@ -30,7 +30,8 @@ from uwgen.bridge.calls import CallTable, CallTableFull
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.wiring import Wiring
-from uwgen.runtime.codec import ACTION_HANDLES, KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.manifest.model import ACTION_HANDLES
+from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCELED, CANCELING, REJECTED, RESULTS,
                                  SUCCEEDED)
 
@@ -64,7 +65,7 @@ class ActionStandIns:
         self.offered: dict[int, Any] = {}            # id -> codec
         self.tables: dict[int, CallTable] = {}       # id -> goal handles in flight
         self.handles: dict[int, range] = {}          # id -> this side's handles
-        self.servers: list[Any] = []
+        self.servers: dict[int, Any] = {}    # id -> the stand-in ActionServer (absent: withdrawn)
         self._states: dict[int, GoalState] = {}      # id(goal message) -> its goal
         for codec in codecs:
             counters[codec.id] = ActionCounters()
@@ -80,10 +81,22 @@ class ActionStandIns:
             self.handles[codec.id] = range(first, last + 1)
             self.tables[codec.id] = table
             self.offered[codec.id] = codec
-            self.servers.append(ActionServer(
-                wiring.node, cls, codec.name, self._executor(codec),
-                goal_callback=self._goal_callback(codec), cancel_callback=self._cancel_callback(codec),
-                handle_accepted_callback=self._accepted, callback_group=wiring.service_group))
+            self._offer(codec, cls)
+            wiring.loops.watch_standin(codec.name, action=True,
+                                       on_change=lambda blocked, c=codec, k=cls: self._loop(c, k, blocked))
+
+    def _offer(self, codec: Any, cls: Any) -> None:
+        self.servers[codec.id] = ActionServer(
+            self.w.node, cls, codec.name, self._executor(codec),
+            goal_callback=self._goal_callback(codec), cancel_callback=self._cancel_callback(codec),
+            handle_accepted_callback=self._accepted, callback_group=self.w.service_group)
+
+    def _loop(self, codec: Any, cls: Any, blocked: bool) -> None:
+        """Withdraw the stand-in while another bridge here serves it (loops.py), and back."""
+        if blocked and codec.id in self.servers:
+            self.servers.pop(codec.id).destroy()
+        elif not blocked and codec.id not in self.servers:
+            self._offer(codec, cls)
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.offered:
@@ -98,6 +111,10 @@ class ActionStandIns:
 
         async def on_goal(goal: Any) -> GoalResponse:
             counters.goals += 1
+            if self.w.loops.blocked(codec.name):
+                counters.loop_guard += 1
+                # Never answered by the stand-in: the real server in this graph answers it.
+                return await Future()
             try:
                 pending = table.begin(codec.id, codec.accept_timeout)
             except CallTableFull:

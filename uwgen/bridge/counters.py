@@ -37,7 +37,11 @@ class ServiceCounters:
     # serving side
     requests: int = 0         # requests that came over the link
     duplicate_requests: int = 0  # a request whose seq is already being served (dropped)
-    no_server: int = 0        # the real service was not available (no response sent)
+    loop_guard: int = 0       # calls (stand-in) or requests (server side) not bridged: another
+                              # uwgen bridge in this ROS graph handles the service (loops.py)
+    waited: int = 0           # requests that came before the real server was discovered
+                              # and waited for it (served once it appeared, or no_server)
+    no_server: int = 0        # no real server appeared within the call's timeout (dropped)
     server_timeouts: int = 0  # the real service did not answer within the manifest timeout
     server_errors: int = 0    # the real service's call failed
     replies: int = 0          # responses offered back to the link
@@ -62,10 +66,13 @@ class ActionCounters:
     unknown: int = 0          # answers or results for no goal in flight (dropped)
     other_sides: int = 0      # payloads for another client side's goals (its handles; ignored)
     decode_errors: int = 0    # payloads of this action that did not decode
+    loop_guard: int = 0       # goals not bridged: another uwgen bridge in this graph handles
+                              # the action (loops.py)
     # server side (the bridge calls the real action server)
     goal_requests: int = 0    # goals that came over the link
     duplicate_goals: int = 0  # a goal for a handle already in flight (dropped)
-    no_server: int = 0        # no local action server: the goal was rejected
+    waited: int = 0           # goals that came before the local server was discovered
+    no_server: int = 0        # no local action server within accept_timeout: rejected
     server_timeouts: int = 0  # the local server did not answer or finish in time
     server_gone: int = 0      # goals aborted because the local server disappeared
     server_errors: int = 0    # the local goal, cancel or result call failed
@@ -92,10 +99,10 @@ DROP_FIELDS = {
     "topic": ("encode_errors", "refused", "decode_errors", "publish_errors"),
     "service": ("encode_errors", "refused", "timeouts", "decode_errors", "duplicate_requests",
                 "no_server", "server_timeouts", "server_errors", "reply_refused",
-                "late", "duplicate", "unknown"),
+                "late", "duplicate", "unknown", "loop_guard"),
     "action": ("refused", "accept_timeouts", "result_timeouts", "cancel_timeouts", "unknown",
                "decode_errors", "duplicate_goals", "no_server", "server_timeouts", "server_gone",
-               "server_errors", "encode_errors", "reply_refused"),
+               "server_errors", "encode_errors", "reply_refused", "loop_guard"),
     "bridge": tuple(f.name for f in fields(BridgeCounters)),
     # "superseded" is what a `latest` queue is for (a newer message replaced an older one):
     # it is counted in ~/status and said once, not warned about every report.

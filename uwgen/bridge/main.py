@@ -42,8 +42,8 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
                         help="network key of the secure link (default: the manifest's security "
                              "key_file)")
     parser.add_argument("--security-state", type=Path, metavar="PATH",
-                        help="file keeping this side's sequence numbers across restarts (default: "
-                             "next to the key file)")
+                        help="lock file held while this side runs, so a second copy is refused "
+                             "(default: <key file>.<network>.<side>.lock; no state is kept in it)")
 
 
 def options_from_args(plan: BridgePlan, args: argparse.Namespace):

@@ -115,7 +115,7 @@ class BridgeNode(Node):
 
         self.reporter = StatusReporter(w, plan.network, plan.side)
         self.create_timer(EXPIRY_TICK, self._expire, callback_group=main_group)
-        self.create_timer(GRAPH_TICK, self.topics.check_graph, callback_group=main_group)
+        self.create_timer(GRAPH_TICK, self._check_graph, callback_group=main_group)
         if self.options.status_period > 0:
             self.create_timer(self.options.status_period, self.publish_status,
                               callback_group=main_group)
@@ -203,6 +203,7 @@ class BridgeNode(Node):
 
     def _check_graph(self) -> None:
         self.topics.check_graph()
+        self.wiring.loops.check_graph()
 
     # -- status ----------------------------------------------------------------------------
 
@@ -218,7 +219,7 @@ class BridgeNode(Node):
             services=service_status(self.standins, self.servers, channels, self.unavailable),
             actions=action_status(self.action_standins, self.action_servers, channels,
                                   self.unavailable),
-            bridge=asdict(self.counters), echo_hazards=dict(self.echo_hazards),
+            bridge=asdict(self.counters), echo_hazards={**self.echo_hazards, **self.wiring.loops.hazards},
             security=link_stats.get("security") if isinstance(link_stats, dict) else None)
 
     def discovery_status(self) -> dict | None:
@@ -243,7 +244,7 @@ class BridgeNode(Node):
         except Exception as exc:
             self._log.warning(f"link did not stop cleanly: {exc}")
         if self.guard is not None:
-            self.guard.close()                 # exact sequence numbers for the next start
+            self.guard.close()                 # last drop summary; frees the side lock
         self.inbox.close()
         status = self.status()
         self.reporter.write(json.dumps(status, sort_keys=True, default=str))

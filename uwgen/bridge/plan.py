@@ -47,7 +47,7 @@ class BridgeOptions:
     timeout_reply: str = TIMEOUT_REPLY_NONE
     stats_file: Path | None = None  # also write the status JSON here (periodically and at exit)
     key_file: Path | None = None    # network key (default: the manifest's security key_file)
-    security_state: Path | None = None  # sequence state file (default: next to the key file)
+    security_state: Path | None = None  # the side's lock file (default: next to the key file)
 
     def check(self) -> "BridgeOptions":
         if not 0 < self.port < 65536:

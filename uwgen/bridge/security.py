@@ -3,8 +3,10 @@
 The generated package's `MANIFEST.security` (a SecurityPlan, None when nothing is
 protected) names the key file, every side's sender id and the protected ids. The key
 file is `--key-file` if given, else the manifest's `key_file` (a relative path is taken
-from the manifest's folder as the build saw it). The state file is `--security-state`
-if given, else `<key file>.<network>.<side>.<key id>.state` next to the key.
+from the manifest's folder as the build saw it). The guard keeps no state on disk (a fresh
+epoch per start); it holds a lock, `--security-state` if given, else
+`<key file>.<network>.<side>.lock` next to the key, so a second copy of the same side on this
+machine is refused at start. An entry's ttl is its max age on the secure link.
 """
 from __future__ import annotations
 
@@ -28,6 +30,12 @@ def key_path(plan: BridgePlan, options: BridgeOptions) -> Path:
     return path
 
 
+def lock_path(key_file: Path, network: str, side: str) -> Path:
+    """`<key file>.<network>.<side>.lock`, next to the key file."""
+    key_file = Path(key_file)
+    return key_file.with_name(f"{key_file.name}.{network}.{side}.lock")
+
+
 def check_security(plan: BridgePlan, options: BridgeOptions) -> None:
     """Fail early, before ROS starts, with a clear message (PlanError) if the key is unusable."""
     if plan.security is None:
@@ -48,24 +56,26 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
         return None
     from uwgen.security.guard import GuardConfig, LinkGuard
     from uwgen.security.keys import SecurityError, key_id, read_key_file
-    from uwgen.security.state import default_state_path
     check_security(plan, options)
     path = key_path(plan, options)
     try:
         master = read_key_file(path)
         entries = {e.id: e for e in (*plan.topics, *plan.services)}
+        ttls = {e.id: e.policy.ttl for e in (*plan.topics, *plan.services, *plan.offered_actions, *plan.served_actions)
+                if getattr(getattr(e, "policy", None), "ttl", None)}
         config = GuardConfig(
             network=plan.network, sender=sec.senders[plan.side],
             peers={sid: side for side, sid in sec.senders.items() if side != plan.side},
             modes=dict(sec.modes),
-            fingerprints={i: bytes(getattr(entries.get(i), "fingerprint", b"") or b"") for i in sec.modes})
-        state = (Path(options.security_state) if options.security_state is not None
-                 else default_state_path(path, plan.network, plan.side, key_id(master, plan.network)))
-        guard = LinkGuard.for_key(master, config, state, clock=clock, name=plan.side)
+            fingerprints={i: bytes(getattr(entries.get(i), "fingerprint", b"") or b"") for i in sec.modes},
+            max_ages={i: float(t) for i, t in ttls.items() if i in sec.modes})
+        lock = (Path(options.security_state) if options.security_state is not None
+                else lock_path(path, plan.network, plan.side))
+        guard = LinkGuard.for_key(master, config, lock, clock=clock, name=plan.side)
     except SecurityError as exc:
         raise PlanError(str(exc)) from None
     protected = ", ".join(f"{i} ({m})" for i, m in sorted(sec.modes.items()))
-    log.info("[%s] secure link: sender %d; protects ids %s; key %s (key id %s, the same on every "
-             "side); state %s, next sequence number %d", plan.side, config.sender, protected, path,
-             key_id(master, plan.network), state, guard.stats()["next_seq"])
+    log.info("[%s] secure link: sender %d, epoch %s; protects ids %s; key %s (key id %s, the same "
+             "on every side); lock %s", plan.side, config.sender, guard.stats()["epoch"], protected,
+             path, key_id(master, plan.network), lock)
     return guard

@@ -7,6 +7,12 @@ rmw_desert-profile service use seqs 1..999; an rmw_desert server may answer only
 latest of several outstanding requests, and the older calls then time out at their
 deadline like any unanswered call (counted).
 
+Waiting for the local server. A request can arrive before this bridge has discovered the
+real server (e.g. the first call after both sides started): it then waits, in arrival
+order, until the server is ready (bounded by WAIT_SHARE of the manifest timeout, counted
+from arrival, at most WAITING_LIMIT requests per service) instead of being dropped; only
+then is it counted `no_server`.
+
 Failed bridged calls (see docs/demo.md, "Service calls"). ROS 2 services have no error
 reply and rclpy cannot hand an exception to a remote client's future. When a bridged call
 gets no response within the manifest timeout, or its request cannot be queued, the
@@ -33,6 +39,11 @@ from uwgen.bridge.plan import TIMEOUT_REPLY_DEFAULT, is_rmw_desert
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE
 
+WAIT_SHARE = 0.5      # of the manifest timeout a request may wait for the local server (the
+                      # rest is for its trip and the response's: the caller's clock started
+                      # before it was sent)
+WAITING_LIMIT = 32    # requests per service waiting for the local server; more: no_server
+
 
 class StandIns:
     """Stand-in services for services served on another side: request out, response back."""
@@ -44,19 +55,31 @@ class StandIns:
         self.counters = counters
         self.calls = CallTable(wiring.clock, rng=rng)
         self.called: dict[int, Any] = {}     # id -> codec
-        self.services: list[Any] = []
+        self.services: dict[int, Any] = {}   # id -> the stand-in service (absent: withdrawn)
         for codec in codecs:
             counters[codec.id] = ServiceCounters()
             cls = wiring.ros_class(codec, "srv")
             if cls is None:
                 continue
-            srv = wiring.node.create_service(cls, codec.name, self._standin(codec),
-                                             callback_group=wiring.service_group)
-            allow_no_response(srv)
-            self.services.append(srv)
+            self._offer(codec, cls)
+            wiring.loops.watch_standin(codec.name,
+                                       on_change=lambda blocked, c=codec, k=cls: self._loop(c, k, blocked))
             self.called[codec.id] = codec
             if is_rmw_desert(codec):
                 self.calls.set_seq_range(codec.id, *RMW_DESERT_SEQ_RANGE)
+
+    def _offer(self, codec: Any, cls: Any) -> None:
+        srv = self.w.node.create_service(cls, codec.name, self._standin(codec),
+                                         callback_group=self.w.service_group)
+        allow_no_response(srv)
+        self.services[codec.id] = srv
+
+    def _loop(self, codec: Any, cls: Any, blocked: bool) -> None:
+        """Withdraw the stand-in while another bridge here serves it (loops.py), and back."""
+        if blocked and codec.id in self.services:
+            self.w.node.destroy_service(self.services.pop(codec.id))
+        elif not blocked and codec.id not in self.services:
+            self._offer(codec, cls)
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.called:
@@ -69,6 +92,9 @@ class StandIns:
 
         async def call(request: Any, response: Any) -> Any:
             counters.local_calls += 1
+            if self.w.loops.blocked(codec.name):
+                counters.loop_guard += 1
+                return None       # never a response: the real server in this graph answers
             future = Future()
             try:
                 pending = self.calls.begin(codec.id, codec.timeout, token=future)
@@ -135,6 +161,8 @@ class Servers:
         self.counters = counters
         self.served: dict[int, tuple[Any, Any]] = {}   # id -> (codec, client)
         self.serving: dict[int, dict[int, tuple[Future, float]]] = {}  # id -> seq -> call
+        # id -> seq -> (request, deadline): requests waiting for the local server
+        self.waiting: dict[int, dict[int, tuple[Any, float]]] = {}
         for codec in codecs:
             counters[codec.id] = ServiceCounters()
             cls = wiring.ros_class(codec, "srv")
@@ -142,7 +170,9 @@ class Servers:
                 continue
             client = wiring.node.create_client(cls, codec.name, callback_group=wiring.main_group)
             self.served[codec.id] = (codec, client)
+            wiring.loops.watch_server(codec.name)
             self.serving[codec.id] = {}
+            self.waiting[codec.id] = {}
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.served:
@@ -159,18 +189,48 @@ class Servers:
             self.w.say_once(f"dreq{ident}", f"{codec.name}: request dropped, does not decode: {exc}")
             return
         counters.requests += 1
-        serving = self.serving[ident]
-        if seq in serving:
+        if self.w.loops.blocked(codec.name):
+            counters.loop_guard += 1      # our call would reach another bridge's stand-in
+            return
+        if seq in self.serving[ident] or seq in self.waiting[ident]:
             counters.duplicate_requests += 1
             return
+        now = self.w.clock.now()
         if not client.service_is_ready():
-            counters.no_server += 1
-            self.w.throttle.report(f"noserver{ident}", f"{codec.name}: request seq {seq} not served: "
-                                   "no local server is available (the caller will time out)")
+            if len(self.waiting[ident]) >= WAITING_LIMIT:
+                counters.no_server += 1
+                self.w.throttle.report(f"noserver{ident}", f"{codec.name}: request seq {seq} not "
+                                       f"served: no local server and {WAITING_LIMIT} requests "
+                                       "already wait for one (the caller times out)")
+                return
+            counters.waited += 1
+            self.waiting[ident][seq] = (request, now + WAIT_SHARE * codec.timeout)
             return
-        future = client.call_async(request)
-        serving[seq] = (future, self.w.clock.now() + codec.timeout)
+        self._call(ident, seq, request, now + codec.timeout)
+
+    def _call(self, ident: int, seq: int, request: Any, deadline: float) -> None:
+        future = self.served[ident][1].call_async(request)
+        self.serving[ident][seq] = (future, deadline)
         future.add_done_callback(lambda f: self._reply(ident, seq, f))
+
+    def _serve_waiting(self, now: float) -> None:
+        """Call the requests whose server has appeared; give up those past their deadline."""
+        for ident, waiting in self.waiting.items():
+            if not waiting:
+                continue
+            codec, client = self.served[ident]
+            ready = client.service_is_ready()
+            for seq, (request, wait_until) in list(waiting.items()):
+                if ready:
+                    del waiting[seq]
+                    self._call(ident, seq, request, now + codec.timeout)
+                elif wait_until <= now:
+                    del waiting[seq]
+                    self.counters[ident].no_server += 1
+                    self.w.throttle.report(
+                        f"noserver{ident}", f"{codec.name}: request seq {seq} not served: no local "
+                        f"server appeared within {WAIT_SHARE * codec.timeout:g} s (the caller "
+                        "times out)")
 
     def _reply(self, ident: int, seq: int, future: Future) -> None:
         codec, _ = self.served[ident]
@@ -201,6 +261,7 @@ class Servers:
 
     def expire(self) -> None:
         now = self.w.clock.now()
+        self._serve_waiting(now)
         for ident, serving in self.serving.items():
             codec, client = self.served[ident]
             for seq, (future, deadline) in list(serving.items()):

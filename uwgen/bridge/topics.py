@@ -19,10 +19,10 @@ from typing import Any, Callable
 from uwgen.bridge import ledger
 from uwgen.bridge.counters import TopicCounters
 from uwgen.bridge.dispatch import Dispatcher
+from uwgen.bridge.loops import BRIDGE_NODE_PREFIX
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.codec import KIND_TOPIC
 
-BRIDGE_NODE_PREFIX = "uwgen_bridge_"
 
 
 class TopicBridge:

@@ -11,6 +11,7 @@ from typing import Any, Callable
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from uwgen.bridge.loops import LoopGuard
 from uwgen.bridge.plan import BridgeOptions
 from uwgen.bridge.throttle import LogThrottle
 from uwgen.manifest.model import Qos
@@ -41,9 +42,11 @@ class Wiring:
     unavailable: dict[str, str] = field(default_factory=dict)  # entry name -> why not bridged
     said: set[str] = field(default_factory=set)
     throttle: LogThrottle = field(init=False)  # error lines a remote peer can cause: bounded
+    loops: LoopGuard = field(init=False)       # services/actions another bridge here handles
 
     def __post_init__(self) -> None:
         self.throttle = LogThrottle(self.log.error, self.clock)
+        self.loops = LoopGuard(self.node, self.log)
 
     def say_once(self, key: str, text: str) -> None:
         """Log the first occurrence of a kind of problem; later ones are counted only."""

@@ -12,6 +12,7 @@ bounds and the expression that builds the decoded message. The templates in
 """
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -271,8 +272,7 @@ class Lowering:
             var = fresh()
             body.extend(self._decode_leaf(leaf, enc, var, ct.profile_suffix))
             value_of[leaf.path] = self._ros_value(enc, var)
-        made = self._construct(ct.root, value_of, body, 0, [0])
-        body.append(f"return {made}, i")
+        self.construct(ct.root, value_of, body, "i")
         return Function(func_name("dec", ct.name, ct.suffix), "v, i, C",
                         f"Read a {ct.full_name} ({ct.profile} profile) from items `v` at `i`; "
                         "return (message, next index).", body)
@@ -372,6 +372,13 @@ class Lowering:
             return f"_from_time_of_day({n}, {enc.step_ns}, C.{enc.class_key}, {p})"
         return f"_from_time_since({n}, {enc.epoch_ns}, {enc.step_ns}, C.{enc.class_key})"
 
+    def construct(self, root: Node, value_of: dict[str, str], body: list[str], rest: str) -> None:
+        """Append the statements that build the decoded message and `return (message, rest)`:
+        rclpy's slots filled directly when `C` says its classes have the layout checked at
+        first use (fill_slots), else the classes' constructors."""
+        body.extend(fill_slots(root, value_of, rest))
+        body.append(f"return {self._construct(root, value_of, body, 0, [0])}, {rest}")
+
     def _construct(self, node: Node, value_of: dict[str, str], body: list[str], depth: int,
                    temps: list[int]) -> str:
         """The expression that builds `node`; nested messages NEST_CHUNK levels down are
@@ -390,6 +397,43 @@ class Lowering:
             body.append(f"t{temps[0]} = {expr}")
             return f"t{temps[0]}"
         return expr
+
+
+def fill_slots(root: Node, value_of: dict[str, str], rest: str) -> list[str]:
+    """The fast way to build an rclpy message: a new instance of each class, every slot
+    stored directly (`o._x = x1`), numeric arrays made the containers rclpy keeps
+    (ir.ros_store). Guarded by `C.fast_<key>`, which is true only for rclpy classes whose
+    layout uwgen.runtime.table.RosClasses verified, this one's and every inlined one's.
+    None for a type with a leaf not on the wire (its default is the constructor's)."""
+    if any(isinstance(leaf.encoding, Absent) for leaf in root.leaves()):
+        return []
+    lines = [f"if C.fast_{root.class_key}:  # rclpy's classes as checked at first use: fill their slots",
+             "    cf = C.check_fields"]
+    names = (f"o{k}" if k else "o" for k in itertools.count())
+
+    def build(node: Node) -> str:
+        var = next(names)
+        lines.append(f"    {var} = _new(C.{node.class_key})")
+        lines.append(f"    {var}._check_fields = cf")
+        for child in node.children:
+            if child.children is not None:
+                lines.append(f"    {var}._{child.name} = {build(child)}")
+            elif not isinstance(child.encoding, Filler):
+                lines.append(f"    {var}._{child.name} = {ros_container(child.store, value_of[child.path])}")
+        return var
+
+    lines.append(f"    return {build(root)}, {rest}")
+    return lines
+
+
+def ros_container(store: str, expr: str) -> str:
+    """`expr` (a decoded value) as rclpy keeps it in a slot of kind `store`."""
+    kind, _, arg = store.partition(":")
+    if kind == "ndarray":
+        return f"C.ndarray({expr}, {arg!r})"
+    if kind == "array":
+        return f"C.array({expr}, {arg!r})"
+    return expr
 
 
 def index_max(enc) -> int:

@@ -153,8 +153,7 @@ class PackedLowering(Lowering):
             var = f"x{counter[0]}"
             body.extend(self._get_leaf(leaf, enc, var, ct.profile_suffix))
             value_of[leaf.path] = self._ros_value(enc, var)
-        made = self._construct(ct.root, value_of, body, 0, [0])
-        body.append(f"return {made}, p")
+        self.construct(ct.root, value_of, body, "p")
         return Function(func_name("get", ct.name, ct.suffix), "r, p, C",
                         f"Read a {ct.full_name} from the top `p` bits of `r` (packed profile); "
                         "return (message, bits left).", body)

@@ -10,6 +10,10 @@ The description (wire-format.md section 10) is the CBOR array
 
     ["uwgen-schema", 1, entry, kinds, id, profile, type name, roots, types]
 
+plus, only for an id the secure link protects, a tenth item: its security mode ("sign" or
+"encrypt"), so two builds that protect an id differently refuse each other (the description,
+and so the fingerprint, of an unprotected id is what it always was).
+
 where `entry` is "topic", "service" or "action", `kinds` the header kinds the id travels
 with ([0], [2, 3] for a service, [0, 2, 3] for an action), `roots` the codec keys of the
 message(s) (request then response for a service; goal, result, feedback for an action) and `types` every codec type they reach (inlined or through
@@ -73,7 +77,7 @@ def canonical(value: Any, where: str = "") -> Any:
 
 
 def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type_name: str,
-                roots: list[CodecType], codecs: dict[str, CodecType]) -> list:
+                roots: list[CodecType], codecs: dict[str, CodecType], security: str = "off") -> list:
     """The CBOR-able description of one manifest id (see the module docstring).
 
     `codecs` maps codec key -> CodecType for this profile; every type the roots reach
@@ -87,8 +91,9 @@ def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type
         reached[ct.key] = ct
         todo.extend(codecs[key] for key in ct.uses)
     types = [canonical(reached[key], key) for key in sorted(reached)]
-    return [SCHEMA_MAGIC, SCHEMA_VERSION, entry, list(kinds), ident, profile, type_name,
-            [ct.key for ct in roots], types]
+    out = [SCHEMA_MAGIC, SCHEMA_VERSION, entry, list(kinds), ident, profile, type_name,
+           [ct.key for ct in roots], types]
+    return out if security == "off" else [*out, security]
 
 
 def digest(data: Any) -> bytes:
@@ -97,21 +102,23 @@ def digest(data: Any) -> bytes:
 
 
 def topic_fingerprint(ident: int, profile: str, type_name: str, root: CodecType,
-                      codecs: dict[str, CodecType]) -> bytes:
-    return digest(description("topic", [KIND_TOPIC], ident, profile, type_name, [root], codecs))
+                      codecs: dict[str, CodecType], security: str = "off") -> bytes:
+    return digest(description("topic", [KIND_TOPIC], ident, profile, type_name, [root], codecs,
+                              security))
 
 
 def service_fingerprint(ident: int, profile: str, type_name: str, request: CodecType,
-                        response: CodecType, codecs: dict[str, CodecType]) -> bytes:
+                        response: CodecType, codecs: dict[str, CodecType],
+                        security: str = "off") -> bytes:
     return digest(description("service", [KIND_REQUEST, KIND_RESPONSE], ident, profile, type_name,
-                              [request, response], codecs))
+                              [request, response], codecs, security))
 
 
 def action_fingerprint(ident: int, profile: str, type_name: str, goal: CodecType,
                        result: CodecType, feedback: CodecType,
-                       codecs: dict[str, CodecType]) -> bytes:
+                       codecs: dict[str, CodecType], security: str = "off") -> bytes:
     return digest(description("action", [KIND_TOPIC, KIND_REQUEST, KIND_RESPONSE], ident, profile,
-                              type_name, [goal, result, feedback], codecs))
+                              type_name, [goal, result, feedback], codecs, security))
 
 
 def package_digest(fingerprints: dict[tuple[str, int], bytes]) -> bytes:
@@ -159,10 +166,11 @@ def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], 
     out: dict[tuple[str, int], bytes] = {}
     for key, (roots, codecs) in entry_codecs(manifest, builder).items():
         entry = entries[key]
+        mode = getattr(entry, "security", "off")
         if key[0] == "topic":
-            out[key] = topic_fingerprint(entry.id, entry.profile, entry.type_name, roots[0], codecs)
+            out[key] = topic_fingerprint(entry.id, entry.profile, entry.type_name, roots[0], codecs, mode)
         elif key[0] == "action":
-            out[key] = action_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs)
+            out[key] = action_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs, mode)
         else:
-            out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs)
+            out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs, mode)
     return out

@@ -26,7 +26,8 @@ from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
 from uwgen.codegen.emit_packed import PackedLowering
 from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest
 from uwgen.codegen.vendor import runtime_files
-from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, type_key, variant_name
+from uwgen.codegen.ir import (CodecType, IRBuilder, ProfileError, check_profile_limits, ros_layout, type_key,
+                              variant_name)
 from uwgen.manifest.model import NATIVE, PACKED
 from uwgen.idl.loader import InterfaceLibrary, parts_of
 from uwgen.idl.model import (OCTET_TYPES, ActionDef, ArrayKind, DefinitionError, Field, MessageDef,
@@ -103,6 +104,7 @@ class PackagePlan:
     modules: list[ModulePlan]
     codecs: list[CodecEntry]
     ros_imports: list[tuple[str, str, str]]  # (class key, module, class name)
+    ros_layouts: list[tuple[str, str]]       # (class key, repr of ir.ros_layout)
     plain_keys: list[tuple[str, str, str]]   # (class key, generated module, class name)
     skipped: list[str] = field(default_factory=list)   # types a profile can never carry (bulk builds)
     fingerprints: dict[tuple[str, int], bytes] = field(default_factory=dict)  # ('topic'|'service', id) -> fp
@@ -282,10 +284,11 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     sources = sorted((source_label(f, lib), _digest(f)) for f in files)
     ordered = [modules[p] for p in sorted(modules)]
     ros_imports = sorted((type_key(n), *_ros_import(n)) for n in definitions)
+    ros_layouts = sorted((type_key(n), repr(ros_layout(d))) for n, d in definitions.items())
     plain_keys = sorted((type_key(n), module_alias(_ros_module(n)), n.split("/")[2]) for n in definitions)
     fingerprints = manifest_fingerprints(manifest, builder) if manifest is not None else {}
     return PackagePlan(package, sources, manifest_label, manifest, ordered, entries,
-                       ros_imports, plain_keys, sorted(set(skipped)), fingerprints,
+                       ros_imports, ros_layouts, plain_keys, sorted(set(skipped)), fingerprints,
                        package_digest(fingerprints) if manifest is not None else None,
                        ros_interfaces=_local_packages(lib, [*definitions, *services]),
                        source_paths=sorted((Path(f), Path(f).resolve() in local_files)
@@ -455,7 +458,7 @@ def render_package(plan: PackagePlan) -> dict[str, str]:
             header=header, package=pkg, namespaces=sorted(m.namespace for m in plan.modules if m.package == pkg))
     files["_classes.py"] = env.get_template("classes.py.j2").render(
         header=header, modules=[(m.package, m.namespace, module_alias(m.name)) for m in plan.modules],
-        plain_keys=plan.plain_keys, ros_imports=plan.ros_imports)
+        plain_keys=plan.plain_keys, ros_imports=plan.ros_imports, ros_layouts=plan.ros_layouts)
     files["__init__.py"] = env.get_template("package_init.py.j2").render(
         header=header, plan=plan, manifest=_manifest_view(plan))
     first_lines = env.get_template("_header.j2").render(header=header).splitlines(keepends=True)[:2]

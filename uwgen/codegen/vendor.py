@@ -29,6 +29,7 @@ CARRIED = {
     "model": "uwgen.manifest.model",
     "framing": "uwgen.runtime.framing",
     "bits": "uwgen.runtime.bits",
+    "rosclasses": "uwgen.runtime.rosclasses",
     "table": "uwgen.runtime.table",
 }
 FOLDER = "_runtime"

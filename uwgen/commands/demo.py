@@ -25,16 +25,13 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
+from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
+
 HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
 
-ROOT = Path(__file__).resolve().parents[2]
-GENERATED = ROOT / "generated"
-PACKAGE = "uwgen_demo"
-DEMO_MANIFEST = ROOT / "msg_samples" / "uwgen.yaml"
 EXIT_FAILED = 1
 FOLLOW_TOLERANCE = 0.5   # metres between the reported path and the commanded square
 
@@ -96,76 +93,6 @@ def default_out() -> Path:
     return cache_root() / "demo_output"
 
 
-def domains() -> tuple[int, int]:
-    """(vehicle, surface) ROS domain ids: two different ones, derived from ROS_DOMAIN_ID."""
-    base = int(os.environ.get("ROS_DOMAIN_ID") or (1 + os.getpid() % 100))
-    base = base % 200
-    return base, base + 1
-
-
-class Proc:
-    """A child process whose merged output goes to a log file and (filtered) to the console."""
-
-    def __init__(self, name: str, cmd: list[str], env: dict, out_dir: Path, relay: bool):
-        self.name = name
-        self.logfile = out_dir / f"{name}.log"
-        self._fh = self.logfile.open("w", encoding="utf-8")
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True, bufsize=1)
-        self._relay = relay
-        self._thread = threading.Thread(target=self._pump, name=f"log-{name}", daemon=True)
-        self._thread.start()
-
-    def _pump(self) -> None:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            self._fh.write(line)
-            self._fh.flush()
-            if self._relay and self._interesting(line):
-                print(f"  [{self.name}] {_strip(line)}", flush=True)
-            elif not self._relay and ("ERROR" in line or "Traceback" in line):
-                # Quiet: only problems, on stderr.
-                print(f"  [{self.name}] {_strip(line)}", file=sys.stderr, flush=True)
-
-    def _interesting(self, line: str) -> bool:
-        if self.name == "operator":
-            return "[operator]" in line or "ERROR" in line or "WARN" in line
-        return "ERROR" in line or "WARN" in line or "Traceback" in line or "Error" in line
-
-    def stop(self, timeout: float = 10.0) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)
-        self._thread.join(timeout=2)
-        self._fh.close()
-        return self.proc.returncode
-
-
-def _strip(line: str) -> str:
-    line = line.rstrip()
-    # "[INFO] [1700000000.123] [operator]: text" -> "text" (rclpy's console format)
-    if line.startswith("[") and "]: " in line:
-        level = line[1:line.index("]")]
-        text = line.split("]: ", 1)[1]
-        return text if level == "INFO" else f"{level}: {text}"
-    return line
-
-
-def _env(domain: int, extra_paths: list[str], iface_env) -> dict:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    env["PYTHONUNBUFFERED"] = "1"
-    env["RCUTILS_COLORIZED_OUTPUT"] = "0"
-    env["PYTHONPATH"] = os.pathsep.join([*extra_paths, env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    return iface_env.child_env(env)
-
-
 class _given_desert:
     """Stands in for the emulator when the demo runs against a DESERT someone else started."""
 
@@ -194,21 +121,6 @@ def _unreachable(hp: tuple[str, int], timeout: float = 3.0) -> str | None:
 
 def _endpoint(hp: tuple[str, int]) -> str:
     return f"{hp[0]}:{hp[1]}"
-
-
-def network_key(stack: contextlib.ExitStack, out: Path, say):
-    """The demo's network key, held (locked) by `stack` while the bridges run: a DemoKey,
-    None when the manifest protects nothing, False (after saying why) when it is unusable."""
-    from uwgen.demo.keys import demo_key
-    from uwgen.security.keys import SecurityError
-    try:
-        key = stack.enter_context(demo_key(DEMO_MANIFEST, out))
-    except (SecurityError, OSError) as exc:
-        print(f"uwgen demo: cannot set up the network key: {exc}", file=sys.stderr)
-        return False
-    if key is not None:
-        say(f"  {key.describe()}")
-    return key
 
 
 def run(args: argparse.Namespace) -> int:

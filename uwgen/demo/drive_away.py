@@ -117,7 +117,7 @@ def scenario(start: float, end: float, duration: float, wind: float, seed: int):
 def run(args: argparse.Namespace) -> int:
     import contextlib
 
-    from uwgen.commands.demo import GENERATED, PACKAGE, Proc, _env, domains, network_key
+    from uwgen.demo.processes import GENERATED, PACKAGE, Proc, _env, domains, network_key
     from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.records import read_records
     from uwgen.demo.report import POSE_KEY_STEPS

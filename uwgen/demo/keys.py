@@ -6,13 +6,11 @@ When that folder cannot be written (a read-only checkout), the key is
 `<uwgen cache>/demo/keys/demo.key` instead, created there when missing, as the demo's
 output falls back to the cache. Both bridges get the key with `--key-file`.
 
-The bridges keep their sequence state files next to the key (their default), so the state
-lives exactly as long as the key: a state file lost while its key stays would make a
-sender start again at 0 and repeat nonces. For the same reason two demos must not use one
-key at the same time (each bridge reserves numbers in its own process, so two surfaces
-would send the same numbers under the same key): a demo holds an exclusive lock on
-`<key>.lock` while its bridges run, and a second demo that finds the key in use makes a
-key of its own for that run only, in its output folder.
+The bridges keep no state on disk (a fresh epoch, so a fresh working key, per start), but
+each holds a lock next to the key while it runs, so a second copy of a side is refused. Two
+demos on one key would have their second pair of bridges refused: a demo holds an exclusive
+lock on `<key>.lock` while its bridges run, and a second demo that finds the key in use makes
+a key of its own for that run only, in its output folder.
 """
 from __future__ import annotations
 
@@ -40,7 +38,7 @@ class DemoKey:
     def describe(self) -> str:
         how = "created now (owner-only)" if self.created else "existing"
         return (f"network key: {self.path} ({how}{'; ' + self.note if self.note else ''}); both "
-                "bridges get it with --key-file, their sequence state files stay next to it")
+                "bridges get it with --key-file, their lock files stay next to it")
 
 
 def manifest_key_file(manifest: Path) -> Path | None:
@@ -104,7 +102,7 @@ def demo_key(manifest: Path, out: Path) -> Iterator[DemoKey | None]:
 
 
 def _run_only_key(out: Path, busy: Path) -> DemoKey:
-    """A new key for this run alone (another demo holds `busy`): never a shared state file."""
+    """A new key for this run alone (another demo holds `busy`), in its own folder."""
     folder = Path(out) / "keys"
     folder.mkdir(parents=True, exist_ok=True)
     for old in folder.glob("*.state"):

@@ -1,6 +1,6 @@
 """Clocks. Everything that waits or schedules takes one, so tests can drive time.
 
-`now()` is monotonic seconds. `ManualClock` only moves when told to.
+`now()` is monotonic seconds (WallClock: seconds since the UNIX epoch). `ManualClock` only moves when told to.
 """
 from __future__ import annotations
 
@@ -17,6 +17,14 @@ class MonotonicClock:
 
     def now(self) -> float:
         return time.monotonic()
+
+
+class WallClock:
+    """Wall time, time.time(): seconds since the UNIX epoch, for times two machines compare
+    (the secure link's sync time). Not for measuring intervals: it can jump."""
+
+    def now(self) -> float:
+        return time.time()
 
 
 class ManualClock:
@@ -41,3 +49,4 @@ class ManualClock:
 
 
 SYSTEM_CLOCK = MonotonicClock()
+WALL_CLOCK = WallClock()

@@ -1,9 +1,10 @@
 """The codec table of a generated package: manifest id -> codec, plus class namespaces.
 
 Generated modules hold the per-type `enc_*`/`dec_*` functions; this module wraps them
-with the payload header (wire format section 3) and the profile's payload limits, and
-provides the two namespaces decoders build messages from: rclpy classes (imported on
-first use, so a generated package imports without ROS) or the generated plain classes.
+with the payload header (wire format section 3) and the profile's payload limits. The
+two namespaces decoders build messages from, rclpy classes (imported on first use, so a
+generated package imports without ROS) or the generated plain classes, are in
+uwgen.runtime.rosclasses.
 """
 from __future__ import annotations
 
@@ -12,65 +13,15 @@ import logging
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from uwgen.manifest.model import RMW_DESERT, LinkPolicy, Qos, Side
+from uwgen.manifest.model import ACTION_HANDLES, RMW_DESERT, LinkPolicy, Qos, Side
 from uwgen.runtime.codec import (
-    ACTION_HANDLES, KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
+    KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
     EncodeError, load_items, pack_items, unexpected,
 )
 from uwgen.runtime.framing import MAX_PAYLOAD
+from uwgen.runtime.rosclasses import PlainClasses, RosClasses
 
 log = logging.getLogger("uwgen.codec")
-
-
-class PlainClasses:
-    """Namespace of the generated plain classes, as decoders name them (`C.pkg__Name`)."""
-
-    def __init__(self, classes: dict[str, type]):
-        self.__dict__.update(classes)
-
-    @staticmethod
-    def octet_list(data: bytes) -> bytes:
-        return data
-
-    @staticmethod
-    def uint8_list(data: bytes) -> bytes:
-        return data
-
-
-class RosClasses:
-    """Namespace of rclpy classes, each imported the first time a decoder needs it.
-
-    A type with no importable rclpy class (ROS not installed, or a package only uwgen
-    knows) falls back to its generated plain class, and says so once in the log.
-    """
-
-    def __init__(self, imports: dict[str, tuple[str, str]], fallback: PlainClasses):
-        self._imports = imports
-        self._fallback = fallback
-
-    def __getattr__(self, key: str):
-        try:
-            module, name = self._imports[key]
-        except KeyError:
-            raise AttributeError(key) from None
-        try:
-            cls = importlib.import_module(module)
-            for part in name.split("."):   # an action's parts: `Fibonacci.Goal`
-                cls = getattr(cls, part)
-        except (ImportError, AttributeError) as exc:
-            cls = getattr(self._fallback, key)
-            log.info("no rclpy class %s.%s (%s): decoding to the generated plain class", module, name, exc)
-        setattr(self, key, cls)  # later look-ups are plain attribute reads
-        return cls
-
-    @staticmethod
-    def octet_list(data: bytes) -> list[bytes]:
-        """rclpy holds `byte[]` as a list of 1-byte bytes."""
-        return [data[k:k + 1] for k in range(len(data))]
-
-    @staticmethod
-    def uint8_list(data: bytes) -> list[int]:
-        return list(data)
 
 
 @dataclass(frozen=True)

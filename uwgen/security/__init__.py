@@ -1,17 +1,22 @@
-"""The secure link (issue 9, docs/wire-format.md section 12).
+"""The secure link (issue 9, reworked by issue 17; docs/wire-format.md section 12).
 
 A protected payload is the ordinary payload with its fields signed or encrypted by
-AES-CCM with an 8-byte tag (AES-CCM-16-64-128, as OSCORE, RFC 8613), under a key that
-HKDF derives per sender from one network master key. It is protected WHOLE before the
-link fragments it and checked after the link reassembles it.
+AES-CCM with an 8-byte tag (AES-CCM-16-64-128, as OSCORE, RFC 8613), under a working key
+that HKDF derives from one network master key, the sender id and the sender's epoch: a
+random value new at every start, so no nonce depends on anything kept on disk. It is
+protected WHOLE, as it leaves, before the link fragments it, and checked after the link
+reassembles it.
 
-    keys.py    key files (`uwgen keygen`) and per-sender key derivation
-    wire.py    the protected layout: security word, nonce, authenticated data, seal/open
-    window.py  the per-sender replay window and sequence reconstruction
-    state.py   the state file: sequence blocks reserved before use, replay floors
-    guard.py   LinkGuard: what a link calls to protect and to check payloads, with
-               drop counters per reason and throttled logs
+    keys.py       key files (`uwgen keygen`), per-sender and per-epoch key derivation
+    wire.py       the protected layout: security word, sync word, nonce, aad, seal/open
+    epochs.py     the sender's epoch and numbers; the epochs a receiver keeps per sender
+    window.py     the replay window of one (sender, epoch): bounded jumps, overtaken times
+    freshness.py  the sync word's time and the max-age check (wall clocks passed in)
+    receiver.py   the receiving rules (epoch, freshness, replay), shared by every seal
+    droplog.py    drop counters with throttled logs
+    files.py      private file writes (no symlink followed) and the one-copy-per-side lock
+    guard.py      LinkGuard: what a link calls to protect and to check payloads
 """
-from uwgen.security.keys import SecurityError
+from uwgen.security.errors import SecurityError
 
 __all__ = ["SecurityError"]

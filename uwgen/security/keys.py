@@ -17,6 +17,9 @@ from pathlib import Path
 from cryptography.hazmat.primitives import hashes
 from cryptography.hazmat.primitives.kdf.hkdf import HKDF
 
+from uwgen.security.errors import SecurityError
+from uwgen.security.files import write_private
+
 MASTER_KEY_BYTES = 32
 SENDER_KEY_BYTES = 16          # AES-128, as AES-CCM-16-64-128
 KEY_ID_BYTES = 8
@@ -25,8 +28,8 @@ KEY_FILE_HEADER = ("# uwgen network master key: keep it secret, give every side 
                    "a copy (owner-only permissions).\n")
 
 
-class SecurityError(Exception):
-    """Security cannot be set up as asked (key file, state file, sender id): a clear message."""
+__all__ = ["SecurityError", "sender_key", "working_key", "new_epoch", "key_id", "new_master_key", "write_key_file",
+           "read_key_file"]
 
 
 def _hkdf(master: bytes, info: bytes, length: int) -> bytes:
@@ -37,6 +40,20 @@ def sender_key(master: bytes, network: str, sender: int) -> bytes:
     """The AES-128 key of `sender` (0..15) in `network`."""
     return _hkdf(master, b"sender key\x00" + network.encode() + b"\x00" + bytes([sender]),
                  SENDER_KEY_BYTES)
+
+
+def working_key(master: bytes, network: str, sender: int, epoch: bytes) -> bytes:
+    """The AES-128 key `sender` seals with during `epoch` (6 random bytes, new at every start):
+    HKDF as `sender_key`, with the epoch in the info, as OSCORE's appendix B.2 re-keying mixes
+    a fresh nonce into its key derivation. A new epoch is a new key, so its numbers may start
+    at 0 again without ever repeating a (key, nonce) pair: no state file is needed for that."""
+    return _hkdf(master, b"working key\x00" + network.encode() + b"\x00" + bytes([sender]) + epoch,
+                 SENDER_KEY_BYTES)
+
+
+def new_epoch(nbytes: int = 6) -> bytes:
+    """A fresh random epoch (from the OS's CSPRNG)."""
+    return secrets.token_bytes(nbytes)
 
 
 def key_id(master: bytes, network: str) -> str:
@@ -55,19 +72,11 @@ def write_key_file(path: Path, key: bytes | None = None, force: bool = False) ->
     key = new_master_key() if key is None else key
     if len(key) != MASTER_KEY_BYTES:
         raise SecurityError(f"a master key has {MASTER_KEY_BYTES} bytes, not {len(key)}")
-    if path.exists() and not force:
+    if os.path.lexists(path) and not force:
         raise SecurityError(f"{path} exists: not replacing a key (every side using it would stop "
                             "understanding this one); use --force to replace it")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    try:
-        os.fchmod(fd, 0o600)      # whatever the umask, and if tmp existed
-        os.write(fd, (KEY_FILE_HEADER + key.hex() + "\n").encode())
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    os.replace(tmp, path)
+    write_private(path, (KEY_FILE_HEADER + key.hex() + "\n").encode())
     return key
 
 

@@ -12,8 +12,6 @@ from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .codec import ACTION_HANDLES  # goal handles 0..23: one CBOR byte each
-
 if TYPE_CHECKING:   # annotations only: this module stays stdlib-only (generated packages carry it)
     from uwgen.idl.model import ActionDef, MessageDef, ServiceDef, SourceRef
 
@@ -28,6 +26,9 @@ FIFO_DEFAULT_DEPTH = 4   # queue depth of a fifo queue whose depth is not given
 SCHEMA_PERIOD_DEFAULT = 600.0   # seconds between schema announcements (besides connect and request)
 SECURITY_MODES = ("off", "sign", "encrypt")   # docs/wire-format.md section 12
 MAX_SENDER_ID = 15       # sender ids of the secure link are 4 bits
+# Action goal handles on the wire are 0..ACTION_HANDLES-1: one CBOR byte each (wire format
+# section 13). Defined here, where the manifest shares them among clients; the codecs import it.
+ACTION_HANDLES = 24
 
 # Ids rmw_desert uses for its discovery topics; reserved while any profile is rmw_desert.
 RMW_DISCOVERY_ID = 1

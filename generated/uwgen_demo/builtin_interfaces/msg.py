@@ -29,6 +29,7 @@ from .._runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from .._runtime.rosclasses import new_message as _new
 
 _S0 = _struct.Struct('<iI')
 _N1 = ('sec', 'nanosec')
@@ -62,4 +63,11 @@ def dec_Time(v, i, C):
     i += 2
     if type(x1) is not int or not -2147483648 <= x1 <= 2147483647: raise _bad_item('sec', 'an int32', x1)
     if type(x2) is not int or not 0 <= x2 <= 4294967295: raise _bad_item('nanosec', 'an uint32', x2)
+    if C.fast_builtin_interfaces__Time:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.builtin_interfaces__Time)
+        o._check_fields = cf
+        o._sec = x1
+        o._nanosec = x2
+        return o, i
     return C.builtin_interfaces__Time(sec=x1, nanosec=x2), i

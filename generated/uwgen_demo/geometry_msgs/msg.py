@@ -29,6 +29,7 @@ from .._runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from .._runtime.rosclasses import new_message as _new
 from .._runtime.bits import (
     end as _end,
     finish as _finish,
@@ -87,6 +88,14 @@ def get_pk_Vector3(r, p, C):
     x1, p = _get_float(r, p, 'x')
     x2, p = _get_float(r, p, 'y')
     x3, p = _get_float(r, p, 'z')
+    if C.fast_geometry_msgs__Vector3:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.geometry_msgs__Vector3)
+        o._check_fields = cf
+        o._x = x1
+        o._y = x2
+        o._z = x3
+        return o, p
     return C.geometry_msgs__Vector3(x=x1, y=x2, z=x3), p
 
 
@@ -144,6 +153,23 @@ def get_pk_t4_Twist(r, p, C):
     x3 = ((r >> p) & 0x3ff)
     if x3 > 640: raise _DecodeError('angular.z', f'index {x3} is over 640')
     x3 = (x3 - 320) / 100
+    if C.fast_geometry_msgs__Twist:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.geometry_msgs__Twist)
+        o._check_fields = cf
+        o1 = _new(C.geometry_msgs__Vector3)
+        o1._check_fields = cf
+        o1._x = x1
+        o1._y = 0.0
+        o1._z = x2
+        o._linear = o1
+        o2 = _new(C.geometry_msgs__Vector3)
+        o2._check_fields = cf
+        o2._x = 0.0
+        o2._y = 0.0
+        o2._z = x3
+        o._angular = o2
+        return o, p
     return C.geometry_msgs__Twist(linear=C.geometry_msgs__Vector3(x=x1, y=0.0, z=x2), angular=C.geometry_msgs__Vector3(x=0.0, y=0.0, z=x3)), p
 
 

@@ -29,6 +29,7 @@ from .._runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from .._runtime.rosclasses import new_message as _new
 from ..std_msgs import msg as _std_msgs_msg
 
 _S0 = _struct.Struct('<iI')

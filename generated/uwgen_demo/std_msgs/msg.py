@@ -29,6 +29,7 @@ from .._runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from .._runtime.rosclasses import new_message as _new
 from ..builtin_interfaces import msg as _builtin_interfaces_msg
 
 _S0 = _struct.Struct('<iI')
@@ -86,6 +87,17 @@ def dec_Header(v, i, C):
     x3 = v[i]
     i += 1
     if type(x3) is not str: raise _bad_item('frame_id', 'a text string', x3)
+    if C.fast_std_msgs__Header:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.std_msgs__Header)
+        o._check_fields = cf
+        o1 = _new(C.builtin_interfaces__Time)
+        o1._check_fields = cf
+        o1._sec = x1
+        o1._nanosec = x2
+        o._stamp = o1
+        o._frame_id = x3
+        return o, i
     return C.std_msgs__Header(stamp=C.builtin_interfaces__Time(sec=x1, nanosec=x2), frame_id=x3), i
 
 
@@ -102,4 +114,10 @@ def dec_String(v, i, C):
     x1 = v[i]
     i += 1
     if type(x1) is not str: raise _bad_item('data', 'a text string', x1)
+    if C.fast_std_msgs__String:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.std_msgs__String)
+        o._check_fields = cf
+        o._data = x1
+        return o, i
     return C.std_msgs__String(data=x1), i

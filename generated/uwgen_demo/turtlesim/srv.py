@@ -29,6 +29,7 @@ from .._runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from .._runtime.rosclasses import new_message as _new
 
 _S0 = _struct.Struct('<BBBBB')
 _N1 = ('r', 'g', 'b', 'width', 'off')
@@ -246,6 +247,12 @@ def dec_Kill_Request(v, i, C):
     x1 = v[i]
     i += 1
     if type(x1) is not str: raise _bad_item('name', 'a text string', x1)
+    if C.fast_turtlesim__Kill_Request:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__Kill_Request)
+        o._check_fields = cf
+        o._name = x1
+        return o, i
     return C.turtlesim__Kill_Request(name=x1), i
 
 
@@ -260,6 +267,11 @@ def dec_Kill_Response(v, i, C):
     x1 = v[i]
     i += 1
     if type(x1) is not int or x1 != 0: raise _bad_item('(empty)', 'the unsigned 0 of an empty message', x1)
+    if C.fast_turtlesim__Kill_Response:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__Kill_Response)
+        o._check_fields = cf
+        return o, i
     return C.turtlesim__Kill_Response(), i
 
 
@@ -278,6 +290,16 @@ def dec_SetPen_Request(v, i, C):
     if type(x3) is not int or not 0 <= x3 <= 255: raise _bad_item('b', 'an uint8', x3)
     if type(x4) is not int or not 0 <= x4 <= 255: raise _bad_item('width', 'an uint8', x4)
     if type(x5) is not int or not 0 <= x5 <= 255: raise _bad_item('off', 'an uint8', x5)
+    if C.fast_turtlesim__SetPen_Request:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__SetPen_Request)
+        o._check_fields = cf
+        o._r = x1
+        o._g = x2
+        o._b = x3
+        o._width = x4
+        o._off = x5
+        return o, i
     return C.turtlesim__SetPen_Request(r=x1, g=x2, b=x3, width=x4, off=x5), i
 
 
@@ -292,6 +314,11 @@ def dec_SetPen_Response(v, i, C):
     x1 = v[i]
     i += 1
     if type(x1) is not int or x1 != 0: raise _bad_item('(empty)', 'the unsigned 0 of an empty message', x1)
+    if C.fast_turtlesim__SetPen_Response:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__SetPen_Response)
+        o._check_fields = cf
+        return o, i
     return C.turtlesim__SetPen_Response(), i
 
 
@@ -318,6 +345,15 @@ def dec_Spawn_Request(v, i, C):
     x4 = v[i]
     i += 1
     if type(x4) is not str: raise _bad_item('name', 'a text string', x4)
+    if C.fast_turtlesim__Spawn_Request:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__Spawn_Request)
+        o._check_fields = cf
+        o._x = x1
+        o._y = x2
+        o._theta = x3
+        o._name = x4
+        return o, i
     return C.turtlesim__Spawn_Request(x=x1, y=x2, theta=x3, name=x4), i
 
 
@@ -334,6 +370,12 @@ def dec_Spawn_Response(v, i, C):
     x1 = v[i]
     i += 1
     if type(x1) is not str: raise _bad_item('name', 'a text string', x1)
+    if C.fast_turtlesim__Spawn_Response:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__Spawn_Response)
+        o._check_fields = cf
+        o._name = x1
+        return o, i
     return C.turtlesim__Spawn_Response(name=x1), i
 
 
@@ -353,6 +395,14 @@ def dec_TeleportAbsolute_Request(v, i, C):
     if abs(x1) > 3.4028234663852886e+38 and abs(x1) != _INF: raise _bad_item('x', 'a float32', x1)
     if abs(x2) > 3.4028234663852886e+38 and abs(x2) != _INF: raise _bad_item('y', 'a float32', x2)
     if abs(x3) > 3.4028234663852886e+38 and abs(x3) != _INF: raise _bad_item('theta', 'a float32', x3)
+    if C.fast_turtlesim__TeleportAbsolute_Request:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__TeleportAbsolute_Request)
+        o._check_fields = cf
+        o._x = x1
+        o._y = x2
+        o._theta = x3
+        return o, i
     return C.turtlesim__TeleportAbsolute_Request(x=x1, y=x2, theta=x3), i
 
 
@@ -367,6 +417,11 @@ def dec_TeleportAbsolute_Response(v, i, C):
     x1 = v[i]
     i += 1
     if type(x1) is not int or x1 != 0: raise _bad_item('(empty)', 'the unsigned 0 of an empty message', x1)
+    if C.fast_turtlesim__TeleportAbsolute_Response:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__TeleportAbsolute_Response)
+        o._check_fields = cf
+        return o, i
     return C.turtlesim__TeleportAbsolute_Response(), i
 
 
@@ -384,6 +439,13 @@ def dec_TeleportRelative_Request(v, i, C):
     if type(x2) is not float: raise _bad_item('angular', 'a float', x2)
     if abs(x1) > 3.4028234663852886e+38 and abs(x1) != _INF: raise _bad_item('linear', 'a float32', x1)
     if abs(x2) > 3.4028234663852886e+38 and abs(x2) != _INF: raise _bad_item('angular', 'a float32', x2)
+    if C.fast_turtlesim__TeleportRelative_Request:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__TeleportRelative_Request)
+        o._check_fields = cf
+        o._linear = x1
+        o._angular = x2
+        return o, i
     return C.turtlesim__TeleportRelative_Request(linear=x1, angular=x2), i
 
 
@@ -398,4 +460,9 @@ def dec_TeleportRelative_Response(v, i, C):
     x1 = v[i]
     i += 1
     if type(x1) is not int or x1 != 0: raise _bad_item('(empty)', 'the unsigned 0 of an empty message', x1)
+    if C.fast_turtlesim__TeleportRelative_Response:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__TeleportRelative_Response)
+        o._check_fields = cf
+        return o, i
     return C.turtlesim__TeleportRelative_Response(), i

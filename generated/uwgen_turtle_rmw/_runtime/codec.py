@@ -34,8 +34,6 @@ INF = float("inf")
 # What an rmw_desert receiver can take (wire format section 6).
 RMW_MAX_ITEMS = 64
 RMW_MAX_TEXT_BYTES = 127
-# Action goal handles on the wire are 0..ACTION_HANDLES-1: one CBOR byte each (section 13).
-ACTION_HANDLES = 24
 
 
 class CodecError(ValueError):

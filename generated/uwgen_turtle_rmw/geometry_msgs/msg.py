@@ -25,6 +25,7 @@ from .._runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from .._runtime.rosclasses import new_message as _new
 
 _S0 = _struct.Struct('<ffffff')
 _N1 = ('linear.x', 'linear.y', 'linear.z', 'angular.x', 'angular.y', 'angular.z')
@@ -83,6 +84,23 @@ def dec_rmw_Twist(v, i, C):
     if type(x4) is not float: raise _bad_item('angular.x', 'a float', x4)
     if type(x5) is not float: raise _bad_item('angular.y', 'a float', x5)
     if type(x6) is not float: raise _bad_item('angular.z', 'a float', x6)
+    if C.fast_geometry_msgs__Twist:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.geometry_msgs__Twist)
+        o._check_fields = cf
+        o1 = _new(C.geometry_msgs__Vector3)
+        o1._check_fields = cf
+        o1._x = x1
+        o1._y = x2
+        o1._z = x3
+        o._linear = o1
+        o2 = _new(C.geometry_msgs__Vector3)
+        o2._check_fields = cf
+        o2._x = x4
+        o2._y = x5
+        o2._z = x6
+        o._angular = o2
+        return o, i
     return C.geometry_msgs__Twist(linear=C.geometry_msgs__Vector3(x=x1, y=x2, z=x3), angular=C.geometry_msgs__Vector3(x=x4, y=x5, z=x6)), i
 
 
@@ -99,4 +117,12 @@ def dec_rmw_Vector3(v, i, C):
     if type(x1) is not float: raise _bad_item('x', 'a float', x1)
     if type(x2) is not float: raise _bad_item('y', 'a float', x2)
     if type(x3) is not float: raise _bad_item('z', 'a float', x3)
+    if C.fast_geometry_msgs__Vector3:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.geometry_msgs__Vector3)
+        o._check_fields = cf
+        o._x = x1
+        o._y = x2
+        o._z = x3
+        return o, i
     return C.geometry_msgs__Vector3(x=x1, y=x2, z=x3), i

@@ -25,6 +25,7 @@ from .._runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from .._runtime.rosclasses import new_message as _new
 
 _S0 = _struct.Struct('<f')
 _N1 = ('remaining',)
@@ -97,6 +98,12 @@ def dec_RotateAbsolute_Feedback(v, i, C):
     i += 1
     if type(x1) is not float: raise _bad_item('remaining', 'a float', x1)
     if abs(x1) > 3.4028234663852886e+38 and abs(x1) != _INF: raise _bad_item('remaining', 'a float32', x1)
+    if C.fast_turtlesim__RotateAbsolute_Feedback:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__RotateAbsolute_Feedback)
+        o._check_fields = cf
+        o._remaining = x1
+        return o, i
     return C.turtlesim__RotateAbsolute_Feedback(remaining=x1), i
 
 
@@ -112,6 +119,12 @@ def dec_RotateAbsolute_Goal(v, i, C):
     i += 1
     if type(x1) is not float: raise _bad_item('theta', 'a float', x1)
     if abs(x1) > 3.4028234663852886e+38 and abs(x1) != _INF: raise _bad_item('theta', 'a float32', x1)
+    if C.fast_turtlesim__RotateAbsolute_Goal:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__RotateAbsolute_Goal)
+        o._check_fields = cf
+        o._theta = x1
+        return o, i
     return C.turtlesim__RotateAbsolute_Goal(theta=x1), i
 
 
@@ -127,4 +140,10 @@ def dec_RotateAbsolute_Result(v, i, C):
     i += 1
     if type(x1) is not float: raise _bad_item('delta', 'a float', x1)
     if abs(x1) > 3.4028234663852886e+38 and abs(x1) != _INF: raise _bad_item('delta', 'a float32', x1)
+    if C.fast_turtlesim__RotateAbsolute_Result:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__RotateAbsolute_Result)
+        o._check_fields = cf
+        o._delta = x1
+        return o, i
     return C.turtlesim__RotateAbsolute_Result(delta=x1), i

@@ -25,6 +25,7 @@ from .._runtime.codec import (
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
 )
+from .._runtime.rosclasses import new_message as _new
 
 _S0 = _struct.Struct('<BBB')
 _N1 = ('r', 'g', 'b')
@@ -81,6 +82,14 @@ def dec_Color(v, i, C):
     if type(x1) is not int or not 0 <= x1 <= 255: raise _bad_item('r', 'an uint8', x1)
     if type(x2) is not int or not 0 <= x2 <= 255: raise _bad_item('g', 'an uint8', x2)
     if type(x3) is not int or not 0 <= x3 <= 255: raise _bad_item('b', 'an uint8', x3)
+    if C.fast_turtlesim__Color:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__Color)
+        o._check_fields = cf
+        o._r = x1
+        o._g = x2
+        o._b = x3
+        return o, i
     return C.turtlesim__Color(r=x1, g=x2, b=x3), i
 
 
@@ -104,6 +113,16 @@ def dec_Pose(v, i, C):
     if abs(x3) > 3.4028234663852886e+38 and abs(x3) != _INF: raise _bad_item('theta', 'a float32', x3)
     if abs(x4) > 3.4028234663852886e+38 and abs(x4) != _INF: raise _bad_item('linear_velocity', 'a float32', x4)
     if abs(x5) > 3.4028234663852886e+38 and abs(x5) != _INF: raise _bad_item('angular_velocity', 'a float32', x5)
+    if C.fast_turtlesim__Pose:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__Pose)
+        o._check_fields = cf
+        o._x = x1
+        o._y = x2
+        o._theta = x3
+        o._linear_velocity = x4
+        o._angular_velocity = x5
+        return o, i
     return C.turtlesim__Pose(x=x1, y=x2, theta=x3, linear_velocity=x4, angular_velocity=x5), i
 
 
@@ -127,4 +146,14 @@ def dec_rmw_Pose(v, i, C):
     if abs(x3) > 3.4028234663852886e+38 and abs(x3) != _INF: raise _bad_item('theta', 'a float32', x3)
     if abs(x4) > 3.4028234663852886e+38 and abs(x4) != _INF: raise _bad_item('linear_velocity', 'a float32', x4)
     if abs(x5) > 3.4028234663852886e+38 and abs(x5) != _INF: raise _bad_item('angular_velocity', 'a float32', x5)
+    if C.fast_turtlesim__Pose:  # rclpy's classes as checked at first use: fill their slots
+        cf = C.check_fields
+        o = _new(C.turtlesim__Pose)
+        o._check_fields = cf
+        o._x = x1
+        o._y = x2
+        o._theta = x3
+        o._linear_velocity = x4
+        o._angular_velocity = x5
+        return o, i
     return C.turtlesim__Pose(x=x1, y=x2, theta=x3, linear_velocity=x4, angular_velocity=x5), i

@@ -1,0 +1,136 @@
+"""The reliability engine (uwgen.runtime.reliable): acks, loss, retransmission, delivery once."""
+from __future__ import annotations
+
+import pytest
+
+from uwgen.runtime.reliable import (AckError, ReliableLink, Report, RttEstimator, Sent,
+                                    decode_reports, encode_reports, unwrap)
+
+SURFACE, VEHICLE = 1, 2
+EPOCH = b"\x01" * 6
+
+
+def engine(me: int, rto: float = 6.0) -> ReliableLink:
+    return ReliableLink(me, RttEstimator(rto, 1.0, 60.0, 0.5), ack_delay=2.0, bitmap_bytes=1)
+
+
+def test_a_report_has_the_bytes_of_the_worked_example():
+    # wire-format 15.3: vehicle acks surface's packet 0x105, 0x104 missing, 0x103..0xFE got.
+    report = Report(SURFACE, 0x105, 0b0111_1111, 1, 1.3)
+    assert encode_reports([report]).hex(" ") == "11 51 05 7f"
+    back = decode_reports(bytes.fromhex("11 51 05 7f"))[0]
+    assert (back.peer, back.largest, back.bitmap, back.nbytes, back.delay) == (1, 0x105, 0x7F, 1, 1.25)
+    got, missing = back.numbers()
+    assert missing == [0x104] and got == [0x105, 0x103, 0x102, 0x101, 0x100, 0xFF, 0xFE, 0xFD]
+
+
+@pytest.mark.parametrize("data", [b"\x11\x51", b"\x12\x51\x05\x7f"], ids=["head cut", "bitmap cut"])
+def test_a_cut_report_is_refused(data):
+    with pytest.raises(AckError):
+        decode_reports(data)
+
+
+def test_numbers_unwrap_across_4096():
+    assert unwrap(2, 4094) == 4098 and unwrap(4094, 4098) == 4094 and unwrap(7, 7) == 7
+
+
+def test_rto_follows_rfc_6298_from_the_measured_round_trip():
+    rtt = RttEstimator(10.0, 1.0, 60.0, 0.5)
+    rtt.sample(4.0)
+    assert (rtt.srtt, rtt.rttvar, rtt.rto) == (4.0, 2.0, 12.0)       # 4 + 4 * 2
+    rtt.sample(2.0)
+    assert rtt.srtt == pytest.approx(3.75) and rtt.rttvar == pytest.approx(2.0)
+    assert rtt.rto == pytest.approx(11.75)
+    rtt.backoff()
+    assert rtt.rto == pytest.approx(23.5)
+
+
+def exchange(sender: ReliableLink, receiver: ReliableLink, numbers, arrives, now: float):
+    """Packets `numbers` leave `sender`; those in `arrives` reach `receiver`."""
+    for n in numbers:
+        if n in arrives:
+            assert receiver.received(sender.me, EPOCH, n % 4096, now, eliciting=True)
+
+
+def test_a_lost_reliable_message_is_due_again_and_counted_lost():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(20, "req-a", deadline=30.0)], 0.0)
+    s.sent(1, [Sent(20, "req-b", deadline=30.0), Sent(4, "cmd", None)], 0.5)
+    s.sent(2, [Sent(4, "cmd2", None)], 1.0)
+    exchange(s, r, [0, 1, 2], {0, 2}, 1.0)
+    s.acked(r.ack_for(SURFACE, 3.0), 4.0)
+    assert [m.ref for m in s.due(4.0)] == ["req-b"]
+    assert s.due(4.0) == []                                         # handed out once
+    assert (s.entry(20).delivered, s.entry(20).lost_on_link, s.entry(20).resent) == (1, 1, 1)
+    assert (s.entry(4).delivered, s.entry(4).lost_on_link) == (1, 1)  # best effort: counted only
+    assert s.rtt.samples == 1 and s.rtt.srtt == pytest.approx(1.0)    # 4.0 - 1.0 - 2.0 s held
+
+
+def test_an_unacknowledged_packet_times_out_and_backs_off():
+    s = engine(SURFACE, rto=6.0)
+    s.sent(0, [Sent(20, "req", deadline=30.0)], 0.0)
+    assert s.due(5.9) == [] and s.next_timeout() == 6.0
+    assert [m.ref for m in s.due(6.0)] == ["req"]
+    assert s.rtt.rto == 12.0 and s.next_timeout() is None
+
+
+def test_a_message_past_its_deadline_is_not_sent_again():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(20, "req", deadline=5.0)], 0.0)
+    s.sent(1, [Sent(4, "cmd", None)], 1.0)
+    exchange(s, r, [0, 1], {1}, 1.0)
+    s.acked(r.ack_for(SURFACE, 6.0), 6.0)
+    assert s.due(6.0) == [] and s.entry(20).expired == 1 and s.entry(20).lost_on_link == 1
+
+
+def test_a_late_ack_of_a_timed_out_packet_counts_a_spurious_retransmission():
+    s, r = engine(SURFACE, rto=2.0), engine(VEHICLE)
+    s.sent(0, [Sent(20, "req", deadline=30.0)], 0.0)
+    assert len(s.due(2.0)) == 1
+    exchange(s, r, [0], {0}, 2.5)
+    s.acked(r.ack_for(SURFACE, 3.0), 3.0)
+    assert s.spurious == 1 and s.entry(20).delivered == 1 and s.rtt.samples == 0   # Karn
+
+
+def test_receiver_counts_duplicates_and_gaps_and_acks_across_the_wrap():
+    r = engine(VEHICLE)
+    for n in (4094, 4095, 1):            # 0 is lost
+        assert r.received(SURFACE, EPOCH, n, 0.0, eliciting=False)
+    assert not r.received(SURFACE, EPOCH, 4095, 0.1, eliciting=False)
+    receipts = r.receipts[(SURFACE, EPOCH)]
+    assert (receipts.duplicates, receipts.gaps) == (1, 1)
+    report = decode_reports(r.ack_for(SURFACE, 0.2))[0]
+    assert report.largest == 1 and report.numbers()[1][0] == 0      # 0 reported missing
+
+
+def test_an_ack_goes_alone_only_when_the_peer_waits_for_one():
+    r = engine(VEHICLE)
+    r.received(SURFACE, EPOCH, 0, 0.0, eliciting=False)
+    assert not r.ack_only_due(SURFACE, 10.0)
+    assert r.ack_for(SURFACE, 10.0, any_news=False) is None
+    r.received(SURFACE, EPOCH, 1, 10.0, eliciting=True)
+    assert not r.ack_only_due(SURFACE, 11.9) and r.ack_only_due(SURFACE, 12.0)
+    assert r.ack_for(SURFACE, 12.0) is not None and not r.ack_only_due(SURFACE, 20.0)
+
+
+def test_a_new_epoch_starts_the_peers_state_over():
+    r = engine(VEHICLE)
+    r.received(SURFACE, EPOCH, 100, 0.0, eliciting=False)
+    assert r.received(SURFACE, b"\x02" * 6, 100, 1.0, eliciting=False)    # not a duplicate
+    assert list(r.receipts) == [(SURFACE, b"\x02" * 6)]
+
+
+def test_a_reliable_message_is_delivered_once():
+    r = engine(VEHICLE)
+    assert r.deliver_once(SURFACE, EPOCH, 20, 7)
+    assert not r.deliver_once(SURFACE, EPOCH, 20, 7)
+    assert r.deliver_once(SURFACE, EPOCH, 21, 7)                      # another entry
+    assert r.duplicates == {20: 1}
+
+
+def test_an_ack_naming_a_packet_never_sent_is_counted_not_believed():
+    s = engine(SURFACE)
+    s.sent(0, [Sent(20, "req", deadline=30.0)], 0.0)
+    s.acked(encode_reports([Report(SURFACE, 9)]), 1.0)
+    s.acked(b"\x10\x00", 1.0)
+    assert s.bad_acks == 2 and s.entry(20).delivered == 0

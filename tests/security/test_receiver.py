@@ -1,0 +1,56 @@
+"""The receiving rules as a pure class (security.receiver.Receiver), as wire format 2's packet
+seal will use them: 12-bit packet numbers in W, the epoch and time in a sync packet."""
+from __future__ import annotations
+
+from uwgen.runtime.clock import ManualClock
+from uwgen.security.freshness import Freshness, stamp
+from uwgen.security.receiver import Numbering, Receiver
+from uwgen.security.wire import Sync
+
+from .helpers import WALL0
+
+EPOCH = bytes(range(6))
+
+
+def receiver(wall=None):
+    new_epochs = []
+    r = Receiver({1: "surface"}, lambda sender, epoch: ("key", sender, epoch), Freshness(5.0),
+                 ManualClock(), wall or ManualClock(WALL0), on_new_epoch=new_epochs.append)
+    return r, new_epochs
+
+
+def packet(number: int, sync: bool = False, time: float = WALL0) -> Numbering:
+    return Numbering(1, number % 4096, 12, number if sync else None,
+                     Sync(EPOCH, stamp(time)) if sync else None)
+
+
+def genuine(aead, number):
+    """A tag check that any number under the right key passes (the frames are the sender's)."""
+    return ("packet", number) if aead == ("key", 1, EPOCH) else None
+
+
+def test_packets_numbered_in_12_bits_follow_a_sync_packet():
+    r, new_epochs = receiver()
+    assert r.admit(packet(5000, sync=True), 120.0, genuine) == ("packet", 5000)
+    assert new_epochs == [1]
+    assert r.admit(packet(5001), 120.0, genuine) == ("packet", 5001)
+    assert r.admit(packet(5001), 120.0, genuine) == "replay"
+    assert r.admit(packet(4999), 120.0, genuine) == "replay"       # below the first: seen
+    assert r.admit(packet(7001), 120.0, genuine) == ("packet", 7001)   # 2000 on: within 2048
+    assert r.admit(packet(5001), 120.0, genuine) == "too_old"
+
+
+def test_without_a_sync_packet_nothing_is_taken():
+    r, _ = receiver()
+    assert r.admit(packet(7), 120.0, genuine) == "unsynced"
+
+
+def test_a_sync_packet_sealed_before_the_receiver_started_is_stale():
+    r, _ = receiver()
+    assert r.admit(packet(3, sync=True, time=WALL0 - 1.0), 120.0, genuine) == "stale"
+
+
+def test_a_bad_tag_changes_nothing():
+    r, new_epochs = receiver()
+    assert r.admit(packet(3, sync=True), 120.0, lambda aead, n: None) == "bad_tag"
+    assert new_epochs == [] and r.peer(1).current is None

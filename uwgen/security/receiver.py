@@ -1,0 +1,97 @@
+"""The receiving rules of the secure link, shared by every seal that uses them (today's
+per-payload seal, wire format 2's per-packet seal): which epoch and number a frame is under,
+whether it is fresh, and whether its number is new.
+
+`Receiver.admit(numbering, max_age, verify)` takes what a frame says about its number (sender,
+low bits, and for a sync frame the full number, epoch and time) and `verify(aead, number)`,
+which checks the frame's tag under a working key and number and returns what the frame
+protects (or None). It returns that, or the drop reason:
+
+- a sync frame must be fresh (`stale`); an epoch never heard is taken only from a sync frame
+  sealed after this side started (`stale`), numbered below `EPOCH_NUMBERS` (`too_far`), and
+  not one this side let go (`too_old`); every number below that frame's counts as seen;
+- a frame without a sync word needs a known epoch (`unsynced`) and is tried under the most
+  recent first, its number reconstructed from its low bits;
+- the tag (`bad_tag`), then the epoch's replay window (`replay`, `too_old`, `too_far`) and the
+  overtaken age (`stale`: a frame numbered below one that arrived more than `max_age` ago).
+
+Pure: clocks, the key derivation and the tag check are passed in.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from uwgen.runtime.clock import Clock
+from uwgen.security.epochs import EPOCH_NUMBERS, PeerEpoch, PeerEpochs
+from uwgen.security.freshness import Freshness
+from uwgen.security.wire import Sync
+from uwgen.security.window import NEW, WINDOW, ReplayWindow
+
+
+@dataclass(frozen=True)
+class Numbering:
+    """What a frame says about its number."""
+
+    sender: int
+    partial: int             # the number's low `bits` bits
+    bits: int                # 11 in a protected payload (wire format 1), 12 in a packet's W
+    full: int | None = None  # the whole number, in a sync frame
+    sync: Sync | None = None
+
+
+class Receiver:
+    def __init__(self, peers, aead_for: Callable[[int, bytes], Any], freshness: Freshness,
+                 clock: Clock, wall: Clock, window: int = WINDOW,
+                 on_new_epoch: Callable[[int], None] = lambda sender: None):
+        self._peers = {s: PeerEpochs() for s in peers}
+        self._aead_for, self.freshness = aead_for, freshness
+        self.clock, self.wall, self._window = clock, wall, window
+        self.on_new_epoch = on_new_epoch
+        self.started = wall.now()            # recorded frames are older than this
+
+    def peer(self, sender: int) -> PeerEpochs:
+        return self._peers[sender]
+
+    def admit(self, n: Numbering, max_age: float, verify: Callable[[Any, int], Any]) -> Any:
+        """What `verify` returned for the frame, or the drop reason (a str)."""
+        peer = self._peers[n.sender]
+        if n.sync is not None:
+            wall = self.wall.now()
+            if not self.freshness.fresh(n.sync.time, wall, max_age):
+                return "stale"
+            entry, seq = peer.get(n.sync.epoch), n.full
+            if entry is None:                # a new epoch: taken only from a fresh sync frame
+                if peer.retired(n.sync.epoch):
+                    return "too_old"         # an epoch this side let go
+                if self.freshness.before(n.sync.time, wall, self.started):
+                    return "stale"           # sealed before this side started
+                if seq >= EPOCH_NUMBERS:     # no sender gets that far in one epoch
+                    return "too_far"
+                entry = PeerEpoch(n.sync.epoch, self._aead_for(n.sender, n.sync.epoch), None)
+            got = verify(entry.aead, seq)
+        else:
+            if peer.current is None:
+                return "unsynced"
+            got = None
+            for entry in peer.recent():      # most recent epoch first
+                seq = entry.window.reconstruct(n.partial, n.bits)
+                if (got := verify(entry.aead, seq)) is not None:
+                    break
+        if got is None:
+            return "bad_tag"
+        now = self.clock.now()
+        if entry.window is None:             # first frame of this epoch: nothing before it
+            entry.window = ReplayWindow.from_floor(seq, self._window)
+            self.on_new_epoch(n.sender)
+        else:
+            verdict = entry.window.check(seq)
+            if verdict != NEW:
+                return verdict
+            overtaken = entry.window.overtaken_for(seq, now)
+            if overtaken is not None and overtaken > max_age:
+                return "stale"
+        entry.window.accept(seq, now)
+        peer.touch(entry)
+        return got
