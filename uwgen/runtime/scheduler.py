@@ -8,11 +8,10 @@ channel (one topic or service id) has a LinkPolicy, turned into small policy obj
   one), `fifo` keeps `depth` messages and drops the OLDEST on overflow;
 - a rate limit: at most `rate` messages per second leave the channel (a token bucket of depth 1);
 - a time-to-live: a message older than `ttl` when it would be sent is dropped, never sent stale;
-- a priority and no starvation: a channel's claim is its weight (priority + 1) times the time
-  since it was last served; the ready channel with the largest claim goes next, so under
-  saturation every channel with traffic is served in proportion to its weight (the model is
-  Goby3's DynamicBuffer, whose value grows with the time since a queue was last served). A
-  `strict` channel (manifest key `strict`) goes before all others whenever it is ready.
+- a priority and no starvation: each message served moves its channel's claim 1 / (priority
+  + 1) later in virtual time and the earliest claim goes next (see `claim`), so under
+  saturation every channel with traffic is served in proportion to priority + 1 and none
+  starves. A `strict` channel (manifest key `strict`) goes before all others whenever ready.
 
 `next_payload(now)` is called by the connection only when it may write (pull, not push). Every
 message offered is accounted for exactly once:
@@ -187,7 +186,7 @@ class Channel:
     split_over: int = MAX_PAYLOAD                # longer payloads are fragmented
     max_message: int = MAX_PAYLOAD               # longer payloads are refused (too_large)
     counters: Counters = field(default_factory=lambda: Counters(CHANNEL_COUNTERS))
-    served_at: float = 0.0                       # when it was last served (or added)
+    tag: float = 0.0                             # virtual time when it is next due (see claim)
     turn: int = 0                                # the scheduler's serve count when last served
 
     @property
@@ -239,6 +238,7 @@ class LinkScheduler:
         self._order: list[Channel] = []            # strict first, by priority, then key
         self._last_served: dict[int, int] = {}     # strict priority -> key served last (turns)
         self._turns = 0
+        self._vtime = 0.0                          # the claim served last (virtual time)
         self._lock = threading.Lock()
 
     # -- configuration -------------------------------------------------------------------------
@@ -251,8 +251,7 @@ class LinkScheduler:
         if key in self._channels:
             raise ValueError(f"channel {key} already added")
         ch = Channel(key=key, policy=policy, name=name or f"channel {key}", queue_kind=queue_for(policy),
-                     rate=rate_for(policy), expiry=expiry_for(policy), max_message=self.max_message,
-                     served_at=self.clock.now())
+                     rate=rate_for(policy), expiry=expiry_for(policy), max_message=self.max_message)
         if policy.repair and (self.splitter is None or whole):
             raise ValueError(f"channel {key}: repair fragments need fragments (a fragment_id) "
                              "and a channel that may be fragmented")
@@ -342,8 +341,8 @@ class LinkScheduler:
                 ch.counters.inc("expired")
 
     def _pick(self, now: float, max_size: int | None = None, exclude: int | None = None) -> Channel | None:
-        """The channel to serve: a ready strict channel of the highest priority (round robin
-        among equals), else the ready channel of highest value (see `value`)."""
+        """The channel to serve: a ready strict channel of the highest priority (in turns among
+        equals), else the ready channel with the earliest claim (see `claim`)."""
         strict: list[Channel] = []
         best: Channel | None = None
         best_rank: tuple = ()
@@ -362,28 +361,33 @@ class LinkScheduler:
                 if not strict or ch.priority == strict[0].priority:
                     strict.append(ch)
                 continue
-            rank = (self.value(ch, now), ch.priority, -ch.turn, -ch.key)
-            if best is None or rank > best_rank:
+            rank = (self.claim(ch), -ch.priority, ch.turn, ch.key)
+            if best is None or rank < best_rank:
                 best, best_rank = ch, rank
         if strict:
             last = self._last_served.get(strict[0].priority)
             chosen = next((ch for ch in strict if last is not None and ch.key > last), strict[0])
             self._last_served[chosen.priority] = chosen.key
-        else:
+        elif best is not None:
             chosen = best
-        if chosen is not None:
-            chosen.served_at = now
-            self._turns += 1
-            chosen.turn = self._turns     # equal claims: the one served longest ago goes first
+            self._vtime = self.claim(chosen)
+            chosen.tag = self._vtime + 1.0 / chosen.weight
+        else:
+            return None
+        self._turns += 1
+        chosen.turn = self._turns        # equal claims: the one served longest ago goes first
         return chosen
 
-    @staticmethod
-    def value(ch: Channel, now: float) -> float:
-        """How much a channel is owed: its weight times the time since it was last served (or
-        added). It grows while the channel waits, so every channel with traffic is served, and
-        under saturation each is served in proportion to its weight (Goby3's DynamicBuffer
-        model): weight = priority + 1 (priorities below 0 weigh 1)."""
-        return ch.weight * (now - ch.served_at)
+    def claim(self, ch: Channel) -> float:
+        """When a channel is due in virtual time (start-time fair queuing): each message served
+        moves its channel's claim 1 / weight later, weight = priority + 1 (priorities below 0
+        weigh 1); a channel that waited, idle or held back, claims no earlier than the claim
+        served last. The earliest claim is served next, so while a channel waits every other
+        channel served moves behind it: its standing grows with the service the others get
+        (the intent of Goby3's DynamicBuffer, whose value grows with the time a queue waited,
+        scaled by its priority), and under saturation each channel with traffic is served in
+        proportion to its weight, however many messages one packet takes at one instant."""
+        return max(ch.tag, self._vtime)
 
     def _seal_head(self, ch: Channel) -> bool:
         """Protect the channel's next message as it is taken to be sent; False (the message
