@@ -150,6 +150,12 @@ class Reader:
             raise self.error(node, f"{what} must be in {lo}..{hi}, got {value}")
         return value
 
+    def boolean(self, node: yaml.Node, what: str) -> bool:
+        value = self.value(node)
+        if not isinstance(value, bool):
+            raise self.error(node, f"{what} must be true or false, got {self.describe(node)}")
+        return value
+
     def number(self, node: yaml.Node, what: str, positive: bool = True) -> float:
         value = self.value(node)
         if isinstance(value, bool) or not isinstance(value, (int, float)):

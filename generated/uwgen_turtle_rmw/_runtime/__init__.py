@@ -13,7 +13,7 @@ import sys as _sys
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
     'codec': ('uwgen.runtime.codec', '26bca51745bec02f'),
-    'model': ('uwgen.manifest.model', 'f56aa128b35252ee'),
+    'model': ('uwgen.manifest.model', '443334a30cb0c159'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
     'rosclasses': ('uwgen.runtime.rosclasses', 'a2d4dab69e6a913d'),
