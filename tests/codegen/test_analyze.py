@@ -172,14 +172,15 @@ topics:
 
 def test_capacity_is_limited_by_the_bit_rate_as_well_as_by_the_period(tmp_path):
     # 64 B every 0.2 s is 320 B/s, but a 200 bit/s modem carries 25 B/s, 64 of every 68
-    # of them payload (DESERT adds 4 bytes per packet): 23.5 B/s. Five 15-byte frames a
-    # second (each 0.76 s on the air) cannot fit.
+    # of them payload (DESERT adds 4 bytes per packet): 23.5 B/s. Five 17-byte packets a
+    # second (wire format 2: a 15-byte frame's message, 1 byte shorter, + 3 bytes of P and W;
+    # each 0.84 s on the air) cannot fit.
     (tmp_path / "uwgen.yaml").write_text(SLOW_MODEM)
     res = subprocess.run([str(UWGEN), "analyze", "-m", str(tmp_path / "uwgen.yaml"), "--bitrate", "200",
                           "--strict"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 1, res.stdout + res.stderr
     surface = next(line.split() for line in res.stdout.splitlines() if line.startswith("  surface "))
-    assert surface == ["surface", "23.5", "bit", "rate", "75.0", "75.0", "DOES", "NOT", "FIT"]
+    assert surface == ["surface", "23.5", "bit", "rate", "85.0", "85.0", "DOES", "NOT", "FIT"]
     assert "200 bit/s" in res.stdout
     fast = subprocess.run([str(UWGEN), "analyze", "-m", str(tmp_path / "uwgen.yaml"), "--strict"],
                           capture_output=True, text=True, timeout=60)
