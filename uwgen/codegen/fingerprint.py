@@ -78,7 +78,7 @@ def canonical(value: Any, where: str = "") -> Any:
 
 
 def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type_name: str,
-                roots: list[CodecType], codecs: dict[str, CodecType], wire: int = 2,
+                roots: list[CodecType], codecs: dict[str, CodecType], *, wire: int = 2,
                 security: str = "off") -> list:
     """The CBOR-able description of one manifest id (see the module docstring).
 
@@ -106,21 +106,21 @@ def digest(data: Any) -> bytes:
 def topic_fingerprint(ident: int, profile: str, type_name: str, root: CodecType,
                       codecs: dict[str, CodecType], wire: int = 2, security: str = "off") -> bytes:
     return digest(description("topic", [KIND_TOPIC], ident, profile, type_name, [root], codecs,
-                              wire, security))
+                              wire=wire, security=security))
 
 
 def service_fingerprint(ident: int, profile: str, type_name: str, request: CodecType,
                         response: CodecType, codecs: dict[str, CodecType], wire: int = 2,
                         security: str = "off") -> bytes:
     return digest(description("service", [KIND_REQUEST, KIND_RESPONSE], ident, profile, type_name,
-                              [request, response], codecs, wire, security))
+                              [request, response], codecs, wire=wire, security=security))
 
 
 def action_fingerprint(ident: int, profile: str, type_name: str, goal: CodecType,
                        result: CodecType, feedback: CodecType,
                        codecs: dict[str, CodecType], wire: int = 2, security: str = "off") -> bytes:
     return digest(description("action", [KIND_TOPIC, KIND_REQUEST, KIND_RESPONSE], ident, profile,
-                              type_name, [goal, result, feedback], codecs, wire, security))
+                              type_name, [goal, result, feedback], codecs, wire=wire, security=security))
 
 
 def package_digest(fingerprints: dict[tuple[str, int], bytes]) -> bytes:
