@@ -58,6 +58,12 @@ def cbor_uint(n: int) -> int:
     return 1 if n < 24 else 2 if n < 0x100 else 3 if n < 0x10000 else 5 if n < 0x100000000 else 9
 
 
+def _smaller(a: Size, b: Size) -> Size:
+    """The size of whichever of two forms the encoder picks, the smaller each time."""
+    top = b.max if a.max is None else a.max if b.max is None else min(a.max, b.max)
+    return Size(min(a.min, b.min), min(a.typical, b.typical), top)
+
+
 def _counts(array: ArrayKind, size: int | None) -> tuple[int, int, int | None]:
     if array is ArrayKind.FIXED:
         return size, size, size
@@ -204,7 +210,13 @@ class Sizer:
             one = self.message(self.builder.by_key(enc.type_key, profile))
         else:
             raise AssertionError(enc)
-        return count + one.times(*counts)
+        items = count + one.times(*counts)
+        if isinstance(enc, NumberArray) and enc.tag is not None:   # or one typed array (4.1)
+            def typed(k: int) -> int:
+                return 2 + cbor_uint(enc.width * k) + enc.width * k
+            lo, typ, hi = counts
+            return _smaller(items, Size(typed(lo), typed(typ), None if hi is None else typed(hi)))
+        return items
 
     @staticmethod
     def _text_bytes(enc: Text) -> Size:

@@ -82,6 +82,9 @@ def rebuild_hint(record: dict, manifest: Path, package_dir: Path) -> str:
     root = (Path(manifest).parent / record.get("root", ".")).resolve()
     package_dir = Path(package_dir).resolve()
     command = record.get("command", "uwgen build")
+    local = any(not key.startswith("share/") for key in record.get("sources", {}))
+    if local and "--ros" not in shlex.split(command):
+        command += " --ros"   # interfaces of its own: rclpy needs their type support rebuilt too
     if package_dir != root / "generated" / package_dir.name:
         command += f" -o {shlex.quote(str(package_dir))}"
     return f"cd {shlex.quote(str(root))} && {command}"

@@ -10,6 +10,8 @@ import importlib
 import logging
 import sys
 
+from uwgen.commands.options import HelpFormatter, all_parsers
+
 # name -> module; the order here is the order of `uwgen --help`.
 COMMANDS = {
     "build": "uwgen.commands.build",
@@ -42,8 +44,11 @@ def version() -> str:
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="uwgen",
-        description="Generate CBOR codecs and bridge nodes that carry ROS 2 topics and "
-                    "services over DESERT underwater acoustic links.")
+        description="Generate CBOR codecs and bridge nodes that carry ROS 2 topics, services "
+                    "and actions over DESERT underwater acoustic links.",
+        epilog="Conventions of every command: -m MANIFEST is the manifest file or a folder\n"
+               "holding uwgen.yaml; interface folders are DIR arguments; defaults are shown\n"
+               "in each command's --help.")
     parser.add_argument("--version", action="version", version=f"uwgen {version()}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug detail")
     parser.add_argument("-q", "--quiet", action="store_true",
@@ -63,6 +68,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         cmd = sub.add_parser(name, help=module.HELP, description=module.HELP)
         module.add_arguments(cmd)
         cmd.set_defaults(_module=module)
+    for p in all_parsers(parser):
+        p.formatter_class = HelpFormatter
     return parser
 
 

@@ -56,6 +56,11 @@ class Collector:
         except kinds as exc:
             self.add(exc)
 
+    @property
+    def count(self) -> int:
+        """Errors found so far, kept or only counted."""
+        return len(self.errors) + self.more
+
     def __bool__(self) -> bool:
         return bool(self.errors)
 

@@ -286,12 +286,14 @@ def _built_here(package: str, cache: Path | None) -> bool:
     return str(interfaces_cache(cache)) in where
 
 
-def activate_recorded(recorded: dict[str, object], cache: Path | None = None) -> list[InterfaceEnv]:
+def activate_recorded(recorded: dict[str, object], cache: Path | None = None,
+                      fix: str | None = None) -> list[InterfaceEnv]:
     """Activate, in this process, the builds of the interface packages a generated package
     was made from (its `ROS_INTERFACES`: package -> digest, or (folder label, digest)).
 
     Packages rclpy can import already are left alone. A package with no build of its digest
-    raises BuildError naming the command that builds it."""
+    raises BuildError naming the command that builds it (`fix`, when the caller knows the
+    build's own command line and folder)."""
     envs = []
     missing = []
     for package, value in sorted(recorded.items()):
@@ -311,7 +313,8 @@ def activate_recorded(recorded: dict[str, object], cache: Path | None = None) ->
         last_label = label
     if missing:
         raise BuildError(f"rclpy has no type support for {', '.join(missing)}: run "
-                         f"`uwgen ros-interfaces {last_label}` (or `uwgen build --ros`) first")
+                         + (f"`{fix}`" if fix else
+                            f"`uwgen ros-interfaces {last_label}` (or `uwgen build --ros`)") + " first")
     return envs
 
 

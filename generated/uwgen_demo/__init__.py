@@ -22,10 +22,37 @@ CODECS: (type name, profile) -> TypeCodec, for every generated type.
 TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCodec.
 MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
+
+Messages are this package's plain classes (`from uwgen_demo.<pkg>.msg import Name`,
+keyword arguments as in rclpy) or, where rclpy is importable, rclpy's; every decode
+returns rclpy's classes where it can, the plain ones with `ros=False`.
+
+    data = codec("pkg/msg/Name").encode(msg)          # a bare message: its fields, no header
+    msg = codec("pkg/msg/Name").decode_message(data)
+    payload = TOPICS[id].encode(msg)                  # a topic's payload, as the bridge sends it
+    msg = TOPICS[id].decode(payload)
+    payload = SERVICES[id].encode_request(seq, request)     # seq: the caller's call number
+    seq, request = SERVICES[id].decode_request(payload)
+    payload = SERVICES[id].encode_response(seq, response)   # the same seq as the request's
+    seq, response = SERVICES[id].decode_response(payload)
+    payload = ACTIONS[id].encode_goal(handle, goal)   # handle: 0..23, the client's goal number
+    payload = ACTIONS[id].encode_cancel(handle)
+    handle, goal = ACTIONS[id].decode_request(payload)          # goal None: a cancel
+    payload = ACTIONS[id].encode_answer(handle, ACCEPTED)       # or REJECTED, CANCELING, CANCEL_REFUSED
+    payload = ACTIONS[id].encode_result(handle, SUCCEEDED, result)   # or ABORTED, CANCELED
+    handle, code, result = ACTIONS[id].decode_response(payload)  # result None: an answer
+    payload = ACTIONS[id].encode_feedback(handle, feedback)
+    handle, feedback = ACTIONS[id].decode_feedback(payload)
+
+(the answer and result codes are importable from this package).
+
+Wire format: uwgen's docs/wire-format.md (section 13 for actions). Bad bytes
+raise `uwgen_demo._runtime.codec.DecodeError`, a message that cannot be encoded `EncodeError`.
 """
 from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
 from ._runtime.model import SecurityPlan
-from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
+from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec, find_codec
+from ._runtime.table import ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELED, CANCELING, REJECTED, SUCCEEDED  # noqa: F401
 
 from ._classes import PLAIN, ROS
 from .builtin_interfaces import msg as _builtin_interfaces_msg
@@ -67,8 +94,9 @@ VARIANTS = {
 
 
 def codec(type_name, profile="native"):
-    """The TypeCodec of `type_name` ('pkg/msg/Name') in `profile`."""
-    return CODECS[(type_name, profile)]
+    """The TypeCodec of `type_name` ('pkg/msg/Name') in `profile`: `.encode(msg)` gives a
+    bare message's bytes, `.decode_message(data)` the message back."""
+    return find_codec(CODECS, type_name, profile)
 
 
 # Interface packages of this build's own folders: package -> (folder, digest of its files).

@@ -18,9 +18,25 @@ CODECS: (type name, profile) -> TypeCodec, for every generated type.
 TOPICS / SERVICES / ACTIONS: manifest id -> TopicCodec / ServiceCodec / ActionCodec.
 MANIFEST: the network's sides, profile, fragment id and schema announcements.
 SCHEMA_DIGEST: fingerprint of every id's fingerprint; each codec has its own `fingerprint`.
+
+Messages are this package's plain classes (`from uwgen_turtle_rmw.<pkg>.msg import Name`,
+keyword arguments as in rclpy) or, where rclpy is importable, rclpy's; every decode
+returns rclpy's classes where it can, the plain ones with `ros=False`.
+
+    data = codec("pkg/msg/Name").encode(msg)          # a bare message: its fields, no header
+    msg = codec("pkg/msg/Name").decode_message(data)
+    payload = TOPICS[id].encode(msg)                  # a topic's payload, as the bridge sends it
+    msg = TOPICS[id].decode(payload)
+    payload = SERVICES[id].encode_request(seq, request)     # seq: the caller's call number
+    seq, request = SERVICES[id].decode_request(payload)
+    payload = SERVICES[id].encode_response(seq, response)   # the same seq as the request's
+    seq, response = SERVICES[id].decode_response(payload)
+
+Wire format: uwgen's docs/wire-format.md. Bad bytes
+raise `uwgen_turtle_rmw._runtime.codec.DecodeError`, a message that cannot be encoded `EncodeError`.
 """
 from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
-from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec
+from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec, find_codec
 
 from ._classes import PLAIN, ROS
 from .geometry_msgs import msg as _geometry_msgs_msg
@@ -53,8 +69,9 @@ CODECS = {
 
 
 def codec(type_name, profile="native"):
-    """The TypeCodec of `type_name` ('pkg/msg/Name') in `profile`."""
-    return CODECS[(type_name, profile)]
+    """The TypeCodec of `type_name` ('pkg/msg/Name') in `profile`: `.encode(msg)` gives a
+    bare message's bytes, `.decode_message(data)` the message back."""
+    return find_codec(CODECS, type_name, profile)
 
 
 # Interface packages of this build's own folders: package -> (folder, digest of its files).

@@ -232,3 +232,51 @@ def test_report_of_an_unsecured_run_has_no_security_line(tmp_path):
     (tmp_path / "bridge_surface.json").write_text(json.dumps({"security": None}))
     report = build_report(tmp_path)
     assert report.security == {} and "security:" not in format_report(report)
+
+
+def _square_report(tmp_path, mission: dict):
+    """A report of a run that drove the 4 m square from (2, 2) and sent one mission goal."""
+    from uwgen.demo.operator import START
+    t = 1000.0
+    corners = square_waypoints(START[:2], 4.0, 1)
+    op = [{"t": t, "ev": "start", "x": START[0], "y": START[1], "theta": 0.0, "waypoints": corners}]
+    veh = [{"t": t, "ev": "teleport", "x": START[0], "y": START[1], "theta": 0.0}]
+    for i, (x, y) in enumerate(corners):
+        pose = {"x": f32(x), "y": f32(y), "theta": 0.0, "v": 0.0, "w": 0.0}
+        veh.append({"t": t + i, "ev": "pose", **pose})
+        op.append({"t": t + i + 0.5, "ev": "pose_rx", **pose})
+    op.append({"t": t + 9, "ev": "mission", "name": "/turtle1/rotate_absolute", **mission})
+    write(tmp_path / "operator.jsonl", op)
+    write(tmp_path / "vehicle.jsonl", veh)
+    return build_report(tmp_path)
+
+
+def test_an_aborted_mission_says_aborted_not_how_far_it_turned(tmp_path):
+    report = _square_report(tmp_path, {"ok": False, "status": "aborted", "feedback": 2, "rtt": 4.0,
+                                       "delta": 0.0})
+    text = format_report(report)
+    line = next(x for x in text.splitlines() if x.startswith("action "))
+    assert line.startswith("action /turtle1/rotate_absolute: aborted after 4.00 s") and "turned" not in line
+
+
+def test_the_report_explains_its_columns(tmp_path):
+    text = format_report(_square_report(tmp_path, {"ok": True, "status": "succeeded", "feedback": 1,
+                                                    "rtt": 3.0, "delta": 1.5}))
+    assert "turned 1.50 rad" in text
+    legend = " ".join(text.split())
+    assert "sub drop: messages the sending bridge's subscription lost" in legend
+    assert "lost (seen): put on the link, never received by the far bridge; (seen) of those" in legend
+
+
+def test_the_plot_legend_does_not_cover_the_square(tmp_path):
+    from uwgen.demo.report import path_figure
+    report = _square_report(tmp_path, {"ok": True, "status": "succeeded", "feedback": 1, "rtt": 3.0,
+                                       "delta": 1.5})
+    fig = path_figure(report, "title")
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    box = ax.get_legend().get_window_extent()
+    points = ax.transData.transform([*report.commanded, *report.reported])
+    assert not [p for p in points if box.contains(*p)]
+    import matplotlib.pyplot as plt
+    plt.close(fig)

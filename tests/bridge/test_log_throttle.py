@@ -65,3 +65,32 @@ def test_a_flood_of_forged_fragments_logs_a_logarithmic_number_of_lines(caplog):
             reasm.feed(bytes([0x00, 0x18, 0xFA, i % 256, 0x05, 0x02]))    # index 5 of count 2, no chunk
     assert reasm.stats["malformed"] == 10_000
     assert len(caplog.records) <= 5                # the 1st, 10th, 100th, 1000th, 10000th
+
+
+def test_expected_losses_are_warnings_with_counts_and_other_problems_errors():
+    clock, errors, warnings = ManualClock(), [], []
+    t = LogThrottle(errors.append, clock, every=60.0, warn=warnings.append)
+    for seq in range(3):
+        t.report("timeout21", f"/slow: call seq {seq} got no response within 1 s: failed", expected=True)
+    t.report("noserver21", "/slow: request seq 9 not served")
+    clock.advance(60.0)
+    t.tick()
+    assert [w.split(" (")[0] for w in warnings] == ["/slow: call seq 0 got no response within 1 s: failed",
+                                                    "2 more since the last summary"]
+    assert len(errors) == 1 and "not served" in errors[0]
+
+
+def test_a_bridged_call_that_times_out_is_a_warning_not_an_error():
+    package = fake_package([CMD], [SLOW])
+    links = LinkPair()
+    with ros_sides("surface") as (surface,):
+        bridge = start_bridge(surface, package, links.factory)
+        errors, warnings = [], []
+        bridge.wiring.throttle._emit, bridge.wiring.throttle._warn = errors.append, warnings.append
+        client = surface.node("caller").create_client(BasicTypes, "/slow")
+        assert client.wait_for_service(timeout_sec=10.0)
+        future = client.call_async(BasicTypes.Request())     # the far side never answers
+        wait_for(lambda: bridge.service_counters[SLOW.id].timeouts == 1, timeout=10.0,
+                 what="the call timed out")
+    assert errors == [] and len(warnings) == 1 and "got no response within 0.4 s" in warnings[0]
+    assert not future.done() or future.result() is None

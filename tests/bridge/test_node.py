@@ -5,10 +5,11 @@ import json
 import time
 
 import pytest
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, Vector3
 from std_msgs.msg import String
 from test_msgs.srv import BasicTypes
 
+from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.codec import load_items, pack_items
 
 from .fakes import FakeServiceCodec, FakeTopicCodec, LinkPair, fake_package, wait_for
@@ -72,12 +73,15 @@ def test_received_messages_are_never_sent_back(pair):
     cmds = collect(vehicle.node("sim"), Twist, "/cmd")
     pub = surface.node("op").create_publisher(Twist, "/cmd", 10)
     wait_for(lambda: pub.get_subscription_count(), what="bridge subscribed")
-    for _ in range(5):
-        pub.publish(Twist())
-    wait_for(lambda: len(cmds) == 5, what="5 commands across")
-    # The vehicle bridge published /cmd but offered nothing of it to its link.
+    for k in range(5):
+        pub.publish(Twist(linear=Vector3(x=float(k))))
+    wait_for(lambda: cmds and cmds[-1].linear.x == 4.0, what="the last command across")
+    # The vehicle bridge published /cmd but offered nothing of it to its link. (The
+    # surface bridge took all 5; of a burst of a latest-only topic it offers the newest.)
     assert [k for k, _ in links.links["vehicle"].offers if k == CMD.id] == []
-    assert len(links.links["surface"].offers) == 5
+    counters = bridges["surface"].topics.counters[CMD.id]
+    assert counters.taken == 5 and counters.offered + counters.superseded == 5
+    assert len(links.links["surface"].offers) == counters.offered == len(cmds)
     # And it holds no subscription on /cmd, only a publisher.
     vb = bridges["vehicle"]
     subs = dict(vb.get_subscriber_names_and_types_by_node(vb.get_name(), "/"))
@@ -235,7 +239,7 @@ def test_request_that_comes_before_the_server_is_discovered_waits_for_it(pair):
 
 
 def test_encode_error_is_counted_and_nothing_is_sent():
-    tight = FakeTopicCodec(4, "/cmd", String, "surface", max_len=20)
+    tight = FakeTopicCodec(4, "/cmd", String, "surface", policy=LinkPolicy(queue="fifo", depth=4), max_len=20)
     package = fake_package([tight])
     links = LinkPair()
     with ros_sides("surface", "vehicle") as (surface, vehicle):
@@ -333,3 +337,53 @@ def test_status_is_published_as_json(pair):
     assert status["side"] == "surface" and "/cmd" in status["topics"]
     assert status["topics"]["/cmd"]["direction"] == "out"
     assert status["services"]["/echo"]["role"] == "client"
+
+
+class FakeSubscription:
+    """What TopicBridge takes a burst from: rclpy's subscription handle, holding `queued`."""
+
+    def __init__(self, queued):
+        self.queued, self.msg_type, self.raw, self.topic_name = list(queued), Twist, False, "/fake"
+        self.handle = self
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def take_message(self, msg_type, raw):
+        return (self.queued.pop(0), None) if self.queued else None
+
+
+def twists(*xs):
+    return [Twist(linear=Vector3(x=float(x))) for x in xs]
+
+
+def test_a_burst_on_a_latest_only_topic_offers_only_the_newest_and_books_the_rest(pair):
+    surface, _vehicle, bridges, links = pair
+    topics = bridges["surface"].topics
+    first, *more = twists(1, 2, 3, 4)
+    topics._subscription_of[CMD.id] = FakeSubscription(more)
+    topics._taker(CMD)(first)   # as the executor calls it, with three more already queued
+    counters = topics.counters[CMD.id]
+    assert (counters.taken, counters.superseded, counters.offered) == (4, 3, 1)
+    offered = [p for k, p in links.links["surface"].offers if k == CMD.id]
+    assert offered == [CMD.encode(more[-1])]
+    acc = bridges["surface"].status()["topics"]["/cmd"]["accounting"]
+    assert acc["taken"] == 4 and acc["dropped_by_policy"]["superseded"] >= 3
+
+
+def test_a_burst_on_a_fifo_topic_offers_every_message_in_order():
+    fifo = FakeTopicCodec(9, "/fifo", Twist, "surface", policy=LinkPolicy(queue="fifo", depth=8))
+    links = LinkPair()
+    with ros_sides("surface", "vehicle") as (surface, vehicle):
+        bridges = start_bridges((surface, vehicle), fake_package([fifo]), links)
+        topics = bridges["surface"].topics
+        first, *more = twists(1, 2, 3)
+        topics._subscription_of[fifo.id] = FakeSubscription(more)
+        topics._taker(fifo)(first)
+        assert [p for k, p in links.links["surface"].offers if k == fifo.id] == \
+            [fifo.encode(m) for m in (first, *more)]
+        counters = topics.counters[fifo.id]
+        assert (counters.taken, counters.superseded, counters.offered) == (3, 0, 3)

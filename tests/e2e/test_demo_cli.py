@@ -54,7 +54,7 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
                     period=0.2, max_read_length=64, bitrate=4800.0, per=0.0, seed=3)
     with run_emulator(scen) as emu:
         res = uwgen("--quiet", "demo", "--desert", f"127.0.0.1:{emu.port('s')},127.0.0.1:{emu.port('v')}",
-                    "--side", "1", "--out", str(tmp_path), "--timeout", "150", timeout=220)
+                    "--square-size", "1", "--out", str(tmp_path), "--timeout", "150", timeout=220)
         counters = emu.all_counters()
     assert res.returncode == 0, res.stdout + res.stderr
     # The demo used the given nodes, started no emulator of its own.
@@ -72,8 +72,10 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     vehicle = json.loads((tmp_path / "bridge_vehicle.json").read_text())["security"]
     assert vehicle["verified"] == v_ver and vehicle["unprotected"] == 0
     assert "/turtle1/cmd_vel 22 B = 12 B with packed + field encodings + 10 B encrypt" in res.stdout
-    # Quiet: the report and nothing else; no INFO line from any part.
+    # Quiet: the report and nothing else; no INFO line from any part, and no ERROR line for
+    # what a lossy link does in normal operation.
     assert "INFO" not in res.stdout + res.stderr
+    assert "ERROR" not in res.stdout + res.stderr and "Traceback" not in res.stderr
     assert "[bridge_" not in res.stdout and "[operator]" not in res.stdout
 
 

@@ -5,6 +5,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -106,11 +107,41 @@ def test_pdr_sweep_prints_the_table_and_saves_the_plot(tmp_path, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_a_port_already_taken_exits_1_with_the_reason(capsys):
-    import socket
-    with socket.socket() as busy:
-        busy.bind(("127.0.0.1", 0))
-        busy.listen(1)
-        port = busy.getsockname()[1]
-        assert main(["emulate", "--ports", str(port), "0", "--duration", "0.1"]) == 1
-    assert f"cannot listen on 127.0.0.1:{port}" in capsys.readouterr().err
+# -- the default PHY: DESERT's stock scenario's, others by name ---------------------------
+
+REAL_ONE_WAY = {3400.0: 0.91, 3500.0: 0.78, 3600.0: 0.47, 3700.0: 0.18}   # measured on DESERT
+
+
+def test_the_default_phy_is_desert_stock_and_delivers_as_real_desert_near_its_range():
+    from uwgen.emulator.sweep import pdr_at
+    scen = emulate.build_scenario(parse("--ports", "0", "0", "--distance", "3500"))
+    for distance, real in REAL_ONE_WAY.items():
+        got = pdr_at(distance, scen.snr, packets=600, seed=1).pdr
+        assert abs(got - real) <= 0.06, (distance, got, real)
+
+
+def test_other_phys_by_name_and_a_scenario_files_own_is_kept():
+    assert emulate.build_scenario(parse("--ports", "0", "0", "--phy", "none")).snr is None
+    assert emulate.build_scenario(parse("--ports", "0", "0", "--phy", "thesis")).snr.tx_power_db == 174.5
+    own = emulate.build_scenario(parse(str(SCENARIOS / "two-nodes.yaml"), "--ports", "0", "0"))
+    assert own.snr.tx_power_db == 174.5                        # the file says so
+    stock = emulate.build_scenario(parse(str(SCENARIOS / "two-nodes.yaml"), "--ports", "0", "0",
+                                         "--phy", "desert-stock"))
+    assert stock.snr.tx_power_db == 150.0
+
+
+def test_emulate_and_demo_say_the_default_phy_in_their_help():
+    for command in ("emulate", "demo"):
+        res = subprocess.run([str(Path(sys.executable).parent / "uwgen"), command, "--help"], cwd=ROOT,
+                             capture_output=True, text=True, timeout=60)
+        text = " ".join(res.stdout.split())
+        assert "--phy NAME" in text and "desert-stock" in text and "thesis" in text, command
+
+
+def test_the_pdr_sweep_of_the_default_phy_fades_where_desert_does():
+    res = subprocess.run([str(Path(sys.executable).parent / "uwgen"), "emulate", "--pdr-sweep", "--wind", "0",
+                          "--packets", "200"], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert res.returncode == 0, res.stderr
+    rows = {line.split()[0]: float(line.split()[1]) for line in res.stdout.splitlines()
+            if line.split() and line.split()[0][0].isdigit()}
+    assert rows["3.00"] >= 0.99 and rows["3.50"] < 0.9 and rows["4.00"] == 0.0, rows

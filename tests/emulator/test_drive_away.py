@@ -35,3 +35,15 @@ def test_the_scenario_waits_then_drives_straight_away(tmp_path):
                        lambda t: 1000.0 * t)
     png = plot({"cmd_vel": bins}, tmp_path / "away.png", "test")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_drive_runs_through_the_demos_phy_and_checks_where_it_fades():
+    from uwgen.demo.drive_away import channel, expected_fade
+    stock = scenario(300.0, 10300.0, 100.0, wind=0.0, seed=1)
+    assert stock.snr.tx_power_db == 150.0                     # DESERT's stock PHY by default
+    full, none = expected_fade(stock.snr)
+    assert 3000.0 <= full <= 3400.0 and 3700.0 <= none <= 4000.0
+    thesis = scenario(300.0, 10300.0, 100.0, wind=0.0, seed=1, phy_name="thesis")
+    assert expected_fade(thesis.snr)[0] >= 6500.0
+    with pytest.raises(ValueError, match="no SNR losses"):
+        channel("none", 0.0)

@@ -141,3 +141,19 @@ def test_unknown_file_kind(tmp_path):
     path.write_text("module pkg {};\n")
     with pytest.raises(DefinitionError, match="expected .msg, .srv or .action"):
         parse_file(path)
+
+
+@pytest.mark.parametrize("separator, column", [("----", 1), ("--", 1), ("  ---", 3), ("- - -", 1),
+                                               ("---#", 1), ("—", 1)])
+def test_a_bad_service_separator_is_reported_at_its_own_line_and_column(separator, column):
+    with pytest.raises(DefinitionError) as info:
+        parse_service_string(f"# request\nint32 a\n{separator}\nint32 b\n", "pkg", "Srv", "Srv.srv")
+    assert str(info.value.where) == f"Srv.srv:3:{column}"
+    assert "exactly '---'" in info.value.message and repr(separator.strip()) in info.value.message
+
+
+def test_a_bad_action_separator_is_reported_at_its_own_line():
+    from uwgen.idl.parser import parse_action_string
+    with pytest.raises(DefinitionError) as info:
+        parse_action_string("int32 goal\n---\nint32 result\n----\nint32 feedback\n", "pkg", "Act", "Act.action")
+    assert str(info.value.where) == "Act.action:4:1"

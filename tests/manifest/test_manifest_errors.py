@@ -48,7 +48,7 @@ CASES = [
     pytest.param(SIDES + topic(id="0"), "8:9", "id of topic /a must be in 1..255, got 0", id="id-zero"),
     pytest.param(SIDES + topic(id="256"), "8:9", "id of topic /a must be in 1..255, got 256", id="id-too-big"),
     pytest.param(SIDES + topic(type="std_msgs/msg/Strin"), "9:11",
-                 "unknown type 'std_msgs/msg/Strin' for topic /a: std_msgs/msg/Strin not found (looked in: " + str(SAMPLES),
+                 "unknown type 'std_msgs/msg/Strin' for topic /a: std_msgs/msg/Strin not found; did you mean std_msgs/msg/String? (looked in: " + str(SAMPLES),
                  id="unknown-type"),
     pytest.param(SIDES + topic(type="nope_msgs/Thing"), "9:11", "unknown type 'nope_msgs/Thing'", id="unknown-short-type"),
     pytest.param(SIDES + topic(type="Twist"), "9:11", "type 'Twist' of topic /a is not a type name", id="bare-type"),

@@ -302,3 +302,17 @@ def test_server_that_accepts_and_closes_at_once_causes_no_spin_and_no_log_flood(
     lines = [r.getMessage() for r in caplog.records if r.name == "uwgen.link"]
     assert 1 <= len(lines) <= 3                        # the 1st, 10th (and 100th): no flood
     assert all("accepted the connection and closed it before it proved itself" in m for m in lines)
+
+
+def test_wake_ups_are_coalesced_until_the_thread_takes_them():
+    conn = make(free_port())
+    try:
+        for _ in range(100):
+            conn.wake()                 # 100 offers while the thread is busy or not started
+        assert conn._wake_r.recv(4096) == b"\0"   # one byte, one wake-up, not 100
+        conn._woken = False             # what the thread does when it takes the byte
+        conn.wake()
+        assert conn._wake_r.recv(4096) == b"\0"
+    finally:
+        conn.stop()
+

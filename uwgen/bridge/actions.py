@@ -276,13 +276,13 @@ class ActionStandIns:
                     counters.accept_timeouts += 1
                     say(f"aaccept{ident}", f"{codec.name}: goal {state.handle} got no answer within "
                                            f"{codec.accept_timeout:g} s: rejected (a cancel is sent, in "
-                                           "case only the answer was lost)")
+                                           "case only the answer was lost)", expected=True)
                     self.w.send(ident, codec.encode_cancel(state.handle))
                     state.answer.set_result(REJECTED)
                     continue
                 counters.result_timeouts += 1
                 say(f"aresult{ident}", f"{codec.name}: goal {state.handle} got no result within "
-                                       f"{codec.result_timeout:g} s: aborted (a cancel is sent)")
+                                       f"{codec.result_timeout:g} s: aborted (a cancel is sent)", expected=True)
                 self.w.send(ident, codec.encode_cancel(state.handle))
                 state.result.set_result((ABORTED, codec.ros_class().Result()))
             for pending in table.pending(ident):

@@ -10,7 +10,8 @@ Where a message can go, on the side that publishes the topic:
   by DDS, which is why `subscription_qos` sizes the history of fifo topics to hold what the link
   queue could);
 - dropped_by_policy, by reason: the link scheduler's drops (superseded, overflow, expired,
-  too_large, invalid) plus the bridge's own (encode_error, echo_guard);
+  too_large, invalid) plus the bridge's own (encode_error, echo_guard, and superseded for the
+  older messages of a latest-only topic taken in one burst: uwgen.bridge.topics);
 - sent: handed to the link (whole, or all its fragments).
 
 On the side that receives it:
@@ -63,6 +64,7 @@ def subscription_qos(codec: Any) -> Any:
 
 def outgoing(counters: Any, channel: dict, subscription_lost: int, echo_dropped: int) -> dict:
     policy = {reason: int(channel.get(reason, 0)) for reason in DROP_REASONS}
+    policy["superseded"] += getattr(counters, "superseded", 0)    # by the bridge, in a burst
     policy["encode_error"] = counters.encode_errors
     policy["echo_guard"] = echo_dropped
     return {

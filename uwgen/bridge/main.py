@@ -27,9 +27,11 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", help="DESERT node host (default: the manifest's side entry)")
     parser.add_argument("--port", type=int, help="DESERT node TCP port (default: the manifest's)")
     parser.add_argument("--max-read-length", type=int, metavar="BYTES",
-                        help="bytes per acoustic packet (DESERT's max_read_length)")
+                        help="bytes per acoustic packet (DESERT's max_read_length; default: "
+                             "the manifest's side entry)")
     parser.add_argument("--period", type=float, metavar="SECONDS",
-                        help="seconds between packets (DESERT's period_)")
+                        help="seconds between packets (DESERT's period_; default: the "
+                             "manifest's side entry)")
     parser.add_argument("--status-period", type=float, default=2.0, metavar="SECONDS",
                         help="seconds between ~/status messages (default 2; 0: none)")
     parser.add_argument("--timeout-reply", choices=TIMEOUT_REPLIES, default="none",
@@ -64,7 +66,7 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         print(f"uwgen bridge: {problem}", file=sys.stderr)
         return EXIT_USAGE
     try:
-        plan = BridgePlan.from_package(package, side)
+        plan = BridgePlan.from_package(package, side, getattr(args, "manifest", None))
         options = options_from_args(plan, args)
         check_security(plan, options)
     except PlanError as exc:
@@ -75,10 +77,12 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
     import threading
 
     from uwgen.typesupport import BuildError, activate_recorded
+    no_support = ""
     try:  # the type support of the package's own interfaces (uwgen ros-interfaces builds it)
-        for env in activate_recorded(getattr(package, "ROS_INTERFACES", {})):
+        for env in activate_recorded(getattr(package, "ROS_INTERFACES", {}), fix=_rebuild(package)):
             log.info("using the rclpy type support of %s built in %s", env.package, env.prefix)
     except BuildError as exc:
+        no_support = str(exc)
         log.error("%s; their topics and services are not bridged", exc)
 
     import rclpy
@@ -108,8 +112,8 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         finally:
             executor.remove_node(node)
             executor.shutdown(timeout_sec=0.5)
-    except PlanError as exc:  # bad ROS parameter values
-        print(f"uwgen bridge: {exc}", file=sys.stderr)
+    except PlanError as exc:  # bad ROS parameter values, nothing that can be bridged
+        print(f"uwgen bridge: {exc}" + (f"; {no_support}" if no_support else ""), file=sys.stderr)
         return EXIT_USAGE
     finally:
         if node is not None:
@@ -122,6 +126,16 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return 0
+
+
+def _rebuild(package: ModuleType) -> str | None:
+    """The command that rebuilds `package` with its interfaces' type support, run in its
+    project (None: the package does not say where it was built)."""
+    from uwgen.buildinfo import own_manifest, rebuild_hint
+    manifest = own_manifest(package)
+    if manifest is None:
+        return None
+    return rebuild_hint(package.BUILT_FROM, manifest, Path(package.__file__).parent)
 
 
 def _summary(status: dict) -> str:

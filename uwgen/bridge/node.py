@@ -31,7 +31,7 @@ from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
-from uwgen.bridge.plan import BridgeOptions, BridgePlan
+from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.security import guard_for
 from uwgen.bridge.services import Servers, StandIns, service_status
@@ -87,6 +87,10 @@ class BridgeNode(Node):
         self.action_standins = ActionStandIns(w, plan.offered_actions, self.action_counters,
                                               rng=rng, handles=plan.action_handles)
         self.action_servers = ActionServers(w, plan.served_actions, self.action_counters)
+        names = plan.entry_names()
+        if names and all(name in self.unavailable for name in names):
+            raise PlanError(f"nothing to bridge on side {plan.side}: rclpy has no type support "
+                            f"here for any of its entries ({', '.join(names)})")
 
         self._wake = self.create_guard_condition(self._drain_inbox, callback_group=main_group)
         self.inbox = Inbox(self._wake.trigger)
@@ -121,6 +125,8 @@ class BridgeNode(Node):
                               callback_group=main_group)
         self._log.info(f"{plan.describe()}; DESERT {self.options.host}:{self.options.port}, "
                        f"{link_cfg.max_read_length} B every {link_cfg.period} s")
+        if self.unavailable:
+            self._log.warning(f"not bridged (no rclpy type support here): {', '.join(sorted(self.unavailable))}")
         if start_link:
             self.start()
 

@@ -82,11 +82,16 @@ class BridgePlan:
     schema_period: float | None = None    # seconds between periodic announcements
     schema_digest: bytes = b""            # the generated package's SCHEMA_DIGEST
     security: Any = None          # manifest.model.SecurityPlan, None when nothing is protected
-    manifest_source: str = ""     # the manifest as the build named it (relative key files)
+    manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
+    manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
     sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
 
     @classmethod
-    def from_package(cls, package: ModuleType | Any, side: str) -> "BridgePlan":
+    def from_package(cls, package: ModuleType | Any, side: str,
+                     manifest_path: Path | None = None) -> "BridgePlan":
+        """The plan of `side`. `manifest_path`: the manifest the package was built from, as
+        given on the command line (default: found from the package's place, see
+        buildinfo.own_manifest)."""
         manifest = package.MANIFEST
         sides = manifest.sides
         if side not in sides:
@@ -114,6 +119,7 @@ class BridgePlan:
             schema_digest=getattr(manifest, "schema_digest", b""),
             security=getattr(manifest, "security", None),
             manifest_source=getattr(manifest, "source", "") or "",
+            manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
             sender_id=_sender_id(manifest, side),
         )
 
@@ -177,6 +183,11 @@ class BridgePlan:
                        **{k: v for k, v in extra.items() if v is not None})
         return opts.check()
 
+    def entry_names(self) -> list[str]:
+        """Every topic, service and action this side bridges, by name."""
+        return [e.name for e in (*self.outgoing_topics, *self.incoming_topics, *self.called_services,
+                                 *self.served_services, *self.offered_actions, *self.served_actions)]
+
     def describe(self) -> str:
         def names(items):
             return ", ".join(f"{i.name}#{i.id}" for i in items) or "-"
@@ -193,6 +204,11 @@ def _sender_id(manifest: Any, side: str) -> int:
     if side in senders:
         return senders[side]
     return sorted(manifest.sides).index(side) % 16
+
+
+def _own_manifest(package: Any) -> Path | None:
+    from uwgen.buildinfo import own_manifest
+    return own_manifest(package) if getattr(package, "__file__", None) else None
 
 
 def is_rmw_desert(entry: Any) -> bool:

@@ -3,7 +3,8 @@
 The generated package's `MANIFEST.security` (a SecurityPlan, None when nothing is
 protected) names the key file, every side's sender id and the protected ids. The key
 file is `--key-file` if given, else the manifest's `key_file` (a relative path is taken
-from the manifest's folder as the build saw it). The guard keeps no state on disk (a fresh
+from the folder of the manifest the bridge was given, else of the one next to the
+package's project, else as the build named it). The guard keeps no state on disk (a fresh
 epoch per start); it holds a lock, `--security-state` if given, else
 `<key file>.<network>.<side>.lock` next to the key, so a second copy of the same side on this
 machine is refused at start. An entry's ttl is its max age on the secure link.
@@ -24,10 +25,24 @@ def key_path(plan: BridgePlan, options: BridgeOptions) -> Path:
     sec = plan.security
     if options.key_file is not None:
         return Path(options.key_file)
-    path = Path(sec.key_file)
-    if not path.is_absolute() and plan.manifest_source:
-        path = Path(plan.manifest_source).parent / path
+    path = Path(sec.key_file).expanduser()
+    if not path.is_absolute():
+        if plan.manifest_path is not None:
+            path = plan.manifest_path.parent / path
+        elif plan.manifest_source:
+            path = Path(plan.manifest_source).parent / path
     return path
+
+
+def _missing_key(plan: BridgePlan, options: BridgeOptions, path: Path) -> str:
+    """What to do about a key file that is not there: get the network's key, never make a
+    new one here (a bridge with another key can talk to nobody on the network)."""
+    where = ("given with --key-file" if options.key_file is not None else
+             f"the manifest's key_file {plan.security.key_file!r}"
+             + ("" if Path(plan.security.key_file).is_absolute() else " (relative to the manifest's folder)"))
+    return (f"key file {path} not found ({where}): copy the network's key file there from a "
+            f"machine of this network, or give its place with --key-file. Every side must hold "
+            f"the same key: a new one (uwgen keygen) is only for setting up a new network")
 
 
 def lock_path(key_file: Path, network: str, side: str) -> Path:
@@ -43,8 +58,11 @@ def check_security(plan: BridgePlan, options: BridgeOptions) -> None:
     from uwgen.security.keys import SecurityError, read_key_file
     if plan.side not in plan.security.senders:
         raise PlanError(f"side {plan.side!r} has no sender_id in the manifest's security set-up")
+    path = key_path(plan, options)
+    if not path.exists():
+        raise PlanError(_missing_key(plan, options, path))
     try:
-        read_key_file(key_path(plan, options))
+        read_key_file(path)
     except SecurityError as exc:
         raise PlanError(str(exc)) from None
 

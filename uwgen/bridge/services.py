@@ -147,7 +147,7 @@ class StandIns:
                                    f"{codec.name}: call seq {pending.seq} got no response within "
                                    f"{codec.timeout:g} s: failed"
                                    + ("" if self.w.options.timeout_reply == TIMEOUT_REPLY_DEFAULT
-                                      else " (no response is sent to the caller)"))
+                                      else " (no response is sent to the caller)"), expected=True)
             if not pending.token.done():
                 pending.token.set_result(None)
 

@@ -4,6 +4,10 @@ A peer (or a forger) can send a request per packet; one error line per request w
 flood the log (1,280 lines in 40 ms were seen). Each kind of event (`key`, e.g. "no_server
 /enable") is logged in full the first time, then only counted; every `every` seconds one
 summary line per kind says how many more happened since. The counts also live in ~/status.
+
+What a lossy link makes happen in normal operation (a call or a goal that got no answer in
+time: the request or its answer was lost) is reported as `expected`, on the WARNING emitter;
+everything else (a request nobody serves, bytes that do not decode) on the ERROR one.
 """
 from __future__ import annotations
 
@@ -18,8 +22,10 @@ class LogThrottle:
     """`report(key, text)` from the bridge's thread; `tick()` now and then (a timer)."""
 
     def __init__(self, emit: Callable[[str], None], clock: Clock = SYSTEM_CLOCK,
-                 every: float = SUMMARY_EVERY):
+                 every: float = SUMMARY_EVERY, warn: Callable[[str], None] | None = None):
         self._emit = emit
+        self._warn = warn or emit
+        self._expected: set[str] = set()          # keys reported as expected losses
         self._clock = clock
         self.every = every
         self._first: dict[str, str] = {}           # key -> the text logged the first time
@@ -27,11 +33,14 @@ class LogThrottle:
         self.totals: dict[str, int] = {}           # key -> every occurrence
         self._next = clock.now() + every
 
-    def report(self, key: str, text: str) -> None:
+    def report(self, key: str, text: str, expected: bool = False) -> None:
+        """`expected`: a loss the link causes in normal operation (logged as a warning)."""
         self.totals[key] = self.totals.get(key, 0) + 1
         if key not in self._first:
             self._first[key] = text
-            self._emit(f"{text} (further ones are counted, summarised every {self.every:g} s)")
+            if expected:
+                self._expected.add(key)
+            self._say(key)(f"{text} (further ones are counted, summarised every {self.every:g} s)")
             return
         self._since[key] = self._since.get(key, 0) + 1
 
@@ -42,6 +51,9 @@ class LogThrottle:
         self._next = now + self.every
         for key, n in sorted(self._since.items()):
             if n:
-                self._emit(f"{n} more since the last summary ({self.totals[key]} in all) like: "
-                           f"{self._first[key]}")
+                self._say(key)(f"{n} more since the last summary ({self.totals[key]} in all) like: "
+                               f"{self._first[key]}")
         self._since.clear()
+
+    def _say(self, key: str) -> Callable[[str], None]:
+        return self._warn if key in self._expected else self._emit

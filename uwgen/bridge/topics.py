@@ -23,6 +23,7 @@ from uwgen.bridge.loops import BRIDGE_NODE_PREFIX
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.codec import KIND_TOPIC
 
+DRAIN_BATCH = 256     # most messages one subscription callback takes in one go
 
 
 class TopicBridge:
@@ -37,6 +38,7 @@ class TopicBridge:
         # Not `_subscriptions`: that is rclpy Node's own list, which destroy_node() empties.
         self.subscriptions: list[Any] = []
         self.sub_losses = ledger.SubscriptionLosses()
+        self._subscription_of: dict[int, Any] = {}
         node = wiring.node
         for codec in outgoing:
             self.counters[codec.id] = TopicCounters()
@@ -44,9 +46,11 @@ class TopicBridge:
             if cls is None:
                 continue
             self.outgoing[codec.id] = codec
-            self.subscriptions.append(node.create_subscription(
+            sub = node.create_subscription(
                 cls, codec.name, self._taker(codec), qos_profile(ledger.subscription_qos(codec)),
-                callback_group=wiring.main_group, event_callbacks=self.sub_losses.callbacks(codec.id)))
+                callback_group=wiring.main_group, event_callbacks=self.sub_losses.callbacks(codec.id))
+            self.subscriptions.append(sub)
+            self._subscription_of[codec.id] = sub
         for codec in incoming:
             self.counters[codec.id] = TopicCounters()
             cls = wiring.ros_class(codec)
@@ -64,24 +68,53 @@ class TopicBridge:
     # -- outgoing ----------------------------------------------------------------------
 
     def _taker(self, codec: Any) -> Callable[[Any], None]:
+        """The subscription's callback. It takes, in the same call, what else the
+        subscription already holds (up to DRAIN_BATCH): one executor wake-up per burst, not
+        per message. On a latest-only topic only the newest of them is encoded and offered;
+        the others are counted as superseded, as the link queue would have."""
         counters = self.counters[codec.id]
+        latest = getattr(codec.policy, "queue", "latest") == "latest"
 
         def take(msg: Any) -> None:
-            counters.taken += 1
-            if self.echo_hazards and self._echo_blocked(codec):
-                return
-            try:
-                payload = codec.encode(msg)
-            except ValueError as exc:  # EncodeError: bounds, ranges, too long for the profile
-                counters.encode_errors += 1
-                self.w.say_once(f"enc{codec.id}{type(exc).__name__}",
-                                f"{codec.name}: message not sent, cannot encode: {exc}")
-                return
-            if self.w.send(codec.id, payload):
-                counters.offered += 1
-            else:
-                counters.refused += 1
+            sub = self._subscription_of.get(codec.id)
+            batch = [msg, *self._more(sub)] if sub is not None else [msg]
+            counters.taken += len(batch)
+            if latest and len(batch) > 1:
+                counters.superseded += len(batch) - 1
+                batch = batch[-1:]
+            for m in batch:
+                self._send(codec, counters, m)
         return take
+
+    def _more(self, sub: Any) -> list[Any]:
+        """Messages the subscription holds now (rclpy's own take, as its executor does)."""
+        out: list[Any] = []
+        try:
+            while len(out) < DRAIN_BATCH:
+                with sub.handle:
+                    got = sub.handle.take_message(sub.msg_type, sub.raw)
+                if got is None:
+                    break
+                out.append(got[0])
+        except Exception as exc:  # noqa: BLE001 - the subscription is going away, or rclpy changed:
+            self.w.say_once(f"drain{sub.topic_name}",   # the executor still takes one at a time
+                            f"{sub.topic_name}: cannot take queued messages in a batch ({exc!r})")
+        return out
+
+    def _send(self, codec: Any, counters: TopicCounters, msg: Any) -> None:
+        if self.echo_hazards and self._echo_blocked(codec):
+            return
+        try:
+            payload = codec.encode(msg)
+        except ValueError as exc:  # EncodeError: bounds, ranges, too long for the profile
+            counters.encode_errors += 1
+            self.w.say_once(f"enc{codec.id}{type(exc).__name__}",
+                            f"{codec.name}: message not sent, cannot encode: {exc}")
+            return
+        if self.w.send(codec.id, payload):
+            counters.offered += 1
+        else:
+            counters.refused += 1
 
     def _echo_blocked(self, codec: Any) -> bool:
         if codec.name in self.echo_hazards:

@@ -45,7 +45,7 @@ class Wiring:
     loops: LoopGuard = field(init=False)       # services/actions another bridge here handles
 
     def __post_init__(self) -> None:
-        self.throttle = LogThrottle(self.log.error, self.clock)
+        self.throttle = LogThrottle(self.log.error, self.clock, warn=self.log.warning)
         self.loops = LoopGuard(self.node, self.log)
 
     def say_once(self, key: str, text: str) -> None:

@@ -166,6 +166,11 @@ class Lowering:
         if isinstance(enc, Octets):
             return [f"x = _octets({expr}, {p})", *self._length_check(enc.array, enc.size, p, count=False),
                     "out.append(x)"]
+        if isinstance(enc, NumberArray) and enc.tag is not None:
+            counted = enc.array is not ArrayKind.FIXED
+            return [f"x = _numeric_sequence({expr}, {p})",
+                    *self._length_check(enc.array, enc.size, p, count=False),
+                    f"out += _number_array(x, {enc.code!r}, {counted}, {p})  # items, or a typed array (tag {enc.tag})"]
         lines = [f"x = _as_list({expr}, {p})"]
         if isinstance(enc, NumberArray):
             lines += self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED)
@@ -270,12 +275,27 @@ class Lowering:
             if not_read(leaf, enc, body, value_of):
                 continue
             var = fresh()
-            body.extend(self._decode_leaf(leaf, enc, var, ct.profile_suffix))
+            lines = self._decode_leaf(leaf, enc, var, ct.profile_suffix)
+            if isinstance(enc, NumberArray) and enc.tag is not None:
+                lines = self._typed_or_items(leaf, enc, var, lines)
+            body.extend(lines)
             value_of[leaf.path] = self._ros_value(enc, var)
         self.construct(ct.root, value_of, body, "i")
         return Function(func_name("dec", ct.name, ct.suffix), "v, i, C",
                         f"Read a {ct.full_name} ({ct.profile} profile) from items `v` at `i`; "
                         "return (message, next index).", body)
+
+    @staticmethod
+    def _typed_or_items(leaf: Node, enc: NumberArray, var: str, items: list[str]) -> list[str]:
+        """A numeric array's decoder: one typed array item (section 4.1), else `items`."""
+        p = repr(leaf.path)
+        fixed = enc.array is ArrayKind.FIXED
+        return [f"if i >= len(v): raise _short({p})",
+                f"if type(v[i]) is _Tag:  # a typed array (tag {enc.tag})",
+                f"    {var} = _typed_array(v[i], {enc.code!r}, {p}, {enc.size}, {fixed})",
+                "    i += 1",
+                "else:",
+                *(f"    {line}" for line in items)]
 
     @staticmethod
     def _ros_value(enc, var: str) -> str:
@@ -389,6 +409,8 @@ class Lowering:
                 args.append(f"{child.name}={self._construct(child, value_of, body, depth + 1, temps)}")
             elif isinstance(child.encoding, (Absent, Filler)):
                 continue
+            elif isinstance(child.encoding, NumberArray) and child.encoding.tag is not None:
+                args.append(f"{child.name}=C.numbers({value_of[child.path]})")   # a list or an array
             else:
                 args.append(f"{child.name}={value_of[child.path]}")
         expr = f"C.{node.class_key}({', '.join(args)})"

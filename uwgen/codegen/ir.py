@@ -13,6 +13,7 @@ messages refer to the element type's own codec by name.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import struct
 from fractions import Fraction
 from typing import Iterator
 
@@ -22,7 +23,7 @@ from uwgen.manifest.model import (
     ENUM, MAX_COUNT, MAX_LENGTH, NATIVE, OMIT, PACKED, QUANTIZE, RMW_DESERT, STATIC, TIME_OF_DAY,
     TIME_SINCE_EPOCH, FieldEncoding,
 )
-from uwgen.runtime.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES
+from uwgen.runtime.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES, TYPED_TAGS, head_size
 from uwgen.runtime.framing import MAX_PAYLOAD
 
 
@@ -88,12 +89,21 @@ class Octets:
 
 @dataclass(frozen=True)
 class NumberArray:
+    """An array of integers or floats: its items (after a count for sequences), or, where
+    `tag` is set (profile native, wire format section 4.1), one RFC 8746 typed array
+    (byte string tagged `tag`) whenever that is no larger than the items."""
     prim: str
     code: str
     array: ArrayKind
     size: int | None
     elem_range: tuple[int, int] | None
+    tag: int | None = None
     kind: str = "number_array"
+
+    @property
+    def width(self) -> int:
+        """Bytes of one element in a typed array."""
+        return struct.calcsize("<" + self.code)
 
 
 @dataclass(frozen=True)
@@ -443,8 +453,9 @@ class IRBuilder:
             return Node(name, path, TextArray(ftype.array, ftype.size, text,
                                               fixed_count=rmw and ftype.array is ArrayKind.FIXED))
         code = "f" if rmw and base == "float64" else STRUCT_CODES[base]
+        tag = TYPED_TAGS.get(code) if profile == NATIVE else None
         return Node(name, path, NumberArray(base, code, ftype.array, ftype.size,
-                                            INTEGER_RANGES.get(base)))
+                                            INTEGER_RANGES.get(base), tag))
 
     @staticmethod
     def _scalar(base: str, bound: int | None, rmw: bool) -> Encoding:
@@ -482,6 +493,10 @@ class IRBuilder:
             return _Size(1, None, 1)
         if isinstance(enc, Octets):
             return _Size(1, 1, 1 + enc.size)
+        if isinstance(enc, NumberArray) and enc.tag is not None:   # items, or one typed array
+            typed = 2 + head_size(enc.size * enc.width) + enc.size * enc.width
+            per = 3 if enc.prim.startswith("float") else 1
+            return _Size(1, None, min(enc.size * per, typed))
         if isinstance(enc, (NumberArray, BoolArray, TextArray)):
             count = 1 if getattr(enc, "fixed_count", False) else 0
             per = 3 if isinstance(enc, NumberArray) and enc.prim.startswith("float") else 1

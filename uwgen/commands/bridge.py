@@ -22,6 +22,7 @@ import yaml
 
 from uwgen.bridge.main import EXIT_USAGE, add_link_arguments
 from uwgen.bridge.plan import PlanError, import_package
+from uwgen.commands.options import add_manifest
 
 HELP = "run the bridge node of one manifest side against its DESERT node"
 
@@ -29,7 +30,7 @@ log = logging.getLogger("uwgen.bridge")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("-m", "--manifest", type=Path, required=True, help="the manifest (YAML)")
+    add_manifest(parser, required=True)
     parser.add_argument("--side", required=True, help="which side of the manifest to bridge")
     parser.add_argument("--package-dir", type=Path, default=None,
                         help="folder holding the generated package (default: generated/ in the "

@@ -15,11 +15,12 @@ from uwgen.errors import ErrorList
 from uwgen.codegen.generator import plan_build, render_package, stale_files, write_package
 from uwgen.codegen.ir import ProfileError
 from uwgen.codegen.vendor import VendorError
+from uwgen.commands.options import add_folders, add_manifest
 from uwgen.manifest.model import NATIVE, PROFILES
 from uwgen.idl.model import DefinitionError
 from uwgen.manifest.loader import MANIFEST_NAME, ManifestError, find_manifest
 
-HELP = "generate CBOR codecs and bridge nodes from .msg/.srv folders and a manifest"
+HELP = "generate CBOR codecs and bridge nodes from .msg/.srv/.action folders and a manifest"
 EXIT_STALE = 1
 EXIT_INPUT = 2
 
@@ -27,17 +28,16 @@ log = logging.getLogger("uwgen.build")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("folders", nargs="*", type=Path, metavar="DIR",
-                   help="folders of interfaces (<package>/msg/*.msg, <package>/srv/*.srv); every "
-                        "interface in them is built. With none, the builds listed under "
-                        "[tool.uwgen] in ./pyproject.toml are run")
-    p.add_argument("-m", "--manifest", type=Path,
-                   help=f"the network manifest (default: DIR/{MANIFEST_NAME} of the first DIR, if present)")
+    add_folders(p, "folders of interfaces (<package>/msg/*.msg, <package>/srv/*.srv, "
+                   "<package>/action/*.action); every interface in them is built. With none "
+                   "(and no -m), the builds listed under [tool.uwgen] in ./pyproject.toml are run")
+    add_manifest(p, help=f"default: DIR/{MANIFEST_NAME} of the first DIR, if present")
     p.add_argument("-o", "--out", type=Path,
                    help="the package folder to write (default: generated/<package>)")
     p.add_argument("--package", help="generated package name (default: the manifest's, or uwgen_<DIR name>)")
     p.add_argument("--type", dest="types", action="append", default=[], metavar="TYPE",
-                   help="also build this installed type (pkg/msg/Name or pkg/srv/Name); repeatable")
+                   help="also build this installed type (pkg/msg/Name, pkg/srv/Name or "
+                        "pkg/action/Name); repeatable")
     p.add_argument("--all-installed", action="store_true",
                    help="also build every interface installed in the environment")
     p.add_argument("--profile", dest="profiles", action="append", choices=PROFILES,

@@ -28,6 +28,8 @@ import sys
 import time
 from pathlib import Path
 
+from uwgen.commands.options import old_spelling
+from uwgen.emulator.physics import DEFAULT_PHY, PHYS, phy
 from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
 
 HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
@@ -51,8 +53,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--distance", type=float, default=300.0, help="metres between the nodes")
     parser.add_argument("--per", type=float, default=0.05,
                         help="packet error rate on top of collisions (default 0.05)")
+    parser.add_argument("--phy", choices=tuple(PHYS), default=DEFAULT_PHY, metavar="NAME",
+                        help=f"the emulated channel's SNR model: {', '.join(PHYS)} (default "
+                             f"{DEFAULT_PHY}: DESERT's stock two-node scenario, delivery ends "
+                             "near 3.8 km; see `uwgen emulate --help`)")
     parser.add_argument("--seed", type=int, default=1, help="emulator random seed")
-    parser.add_argument("--side", type=float, default=4.0, help="square side in metres")
+    parser.add_argument("--square-size", dest="square_size", type=float, default=4.0, metavar="M",
+                        help="length of a side of the square the operator drives, in metres")
+    # --side is a manifest side everywhere else; it was this command's square size.
+    old_spelling(parser, "--side", "--square-size", "square_size", "demo", type=float)
     parser.add_argument("--laps", type=int, default=1, help="laps of the square")
     parser.add_argument("--timeout", type=float, default=180.0,
                         help="give up if the operator has not finished after this many seconds")
@@ -170,7 +179,8 @@ def run(args: argparse.Namespace) -> int:
 
     scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle"),
                            NodeSpec("vehicle", port=0, position=(args.distance, 0.0, 0.0), dest="surface")],
-                    period=0.2, max_read_length=64, bitrate=4800.0, per=args.per, seed=args.seed)
+                    period=0.2, max_read_length=64, bitrate=4800.0, per=args.per, seed=args.seed,
+                    snr=phy(args.phy))
     vdom, sdom = domains()
     py = sys.executable
     procs: list[Proc] = []
@@ -185,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
             say(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
                 f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, "
                 f"{scen.max_read_length} B every {scen.period:g} s at {scen.bitrate:g} bit/s, "
-                f"packet error rate {args.per:g} plus collisions")
+                f"PHY {args.phy}, packet error rate {args.per:g} plus collisions")
         say(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
         venv = _env(vdom, [str(GENERATED)], iface)
         senv = _env(sdom, [str(GENERATED)], iface)
@@ -199,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
                                           str(out / "vehicle.jsonl")], venv, out, not quiet))
             operator = Proc("operator", [py, "-m", "uwgen.demo.operator", "--record",
-                                         str(out / "operator.jsonl"), "--side", str(args.side),
+                                         str(out / "operator.jsonl"), "--square-size", str(args.square_size),
                                          "--laps", str(args.laps)], senv, out, not quiet)
             procs.append(operator)
             try:
@@ -220,7 +230,7 @@ def run(args: argparse.Namespace) -> int:
     title = (f"uwgen demo: DESERT at {_endpoint(endpoints['surface'])} and {_endpoint(endpoints['vehicle'])}"
              if args.desert else
              f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "
-             f"{scen.period:g} s, PER {args.per:g}")
+             f"{scen.period:g} s, PHY {args.phy}, PER {args.per:g}")
     plot = plot_paths(report, out / "demo-path.png", title)
     if args.docs:
         plot_paths(report, ROOT / "docs" / "demo-path.png", title)

@@ -16,6 +16,11 @@ import sys
 import threading
 from pathlib import Path
 
+from uwgen.commands.options import add_manifest
+from uwgen.emulator.physics import DEFAULT_PHY, PHYS
+
+PHY_NAMES = tuple(PHYS)
+
 HELP = "run emulated DESERT nodes (TCP sockets + acoustic channel), or print a PDR sweep"
 
 EXIT_USAGE = 2
@@ -31,15 +36,15 @@ COUNTER_COLUMNS = ("bytes_in", "packets_queued", "packets_sent", "packets_delive
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", nargs="?", type=Path,
                         help="YAML scenario (msg_samples/scenarios/*.yaml); flags override it")
-    parser.add_argument("-m", "--manifest", type=Path, default=None,
-                        help="uwgen manifest: one node per side, named after it, with its port "
-                             "and link settings; a scenario file then only adds physics "
-                             "(positions, waypoints, snr, tdma, seed, ...)")
+    add_manifest(parser, help="one node per side, named after it, with its port and link "
+                              "settings; a scenario file then only adds physics (positions, "
+                              "waypoints, snr, tdma, seed, ...)")
     g = parser.add_argument_group("nodes (without a scenario file)")
     g.add_argument("--nodes", type=int, default=None, metavar="N",
                    help="number of nodes, on a line, each sending to the next (default 2)")
-    g.add_argument("--ports", type=int, nargs="+", default=None, metavar="PORT",
-                   help="one TCP port per node (default 4000, 4001, ...; 0 = any free port)")
+    g.add_argument("--ports", nargs="+", default=None, metavar="PORT",
+                   help="one TCP port per node (default 4000, 4001, ...; 0 = any free port); "
+                        "a scenario file may follow them")
     g.add_argument("--distance", type=float, default=None, metavar="M",
                    help="metres between neighbouring nodes (default 1000)")
     link = parser.add_argument_group("link and channel")
@@ -49,13 +54,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="bytes per packet (default 64, at most 4096)")
     link.add_argument("--bitrate", type=float, default=None, metavar="BPS",
                       help="acoustic bit rate (default 4800)")
-    link.add_argument("--per", type=float, default=None, help="fixed packet error rate 0..1")
+    link.add_argument("--per", type=float, default=None,
+                      help="fixed packet error rate 0..1 on top of the channel model (default: none)")
     link.add_argument("--seed", type=int, default=None, help="random seed (default 1)")
+    link.add_argument("--phy", choices=PHY_NAMES, default=None, metavar="NAME",
+                      help=f"the channel's SNR model by name: {', '.join(PHY_NAMES)} (default: "
+                           f"{DEFAULT_PHY}, the PHY of DESERT's stock two-node scenario, as the "
+                           "calibration traces: delivery ends near 3.8 km; thesis: full delivery "
+                           "to ~7 km; none: no SNR losses). A scenario file's `snr:` is kept "
+                           "unless --phy is given")
     link.add_argument("--wind", type=float, nargs="+", default=None, metavar="M_S",
-                      help="wind speed: turns on the SNR channel model (several values "
-                           "with --pdr-sweep; default there 0 5 10)")
+                      help="wind speed of the SNR model (several values with --pdr-sweep; "
+                           "default 0, there 0 5 10)")
     link.add_argument("--tdma", type=float, default=None, metavar="FRAME",
-                      help="use TDMA with this frame length in seconds (slot = frame / nodes)")
+                      help="use TDMA with this frame length in seconds (slot = frame / nodes; "
+                           "default: no TDMA, every node sends when it has data)")
     link.add_argument("--guard", type=float, default=None, metavar="S",
                       help="TDMA guard time in seconds (default 0.05)")
     run_g = parser.add_argument_group("running")
@@ -94,13 +107,33 @@ def run(args: argparse.Namespace) -> int:
     return _serve(scenario, args.duration, args.crash_every, args.crash_down)
 
 
+def split_ports(args: argparse.Namespace) -> argparse.Namespace:
+    """`--ports 4900 4901 scen.yaml`: the ports, and the scenario file after them (argparse
+    gives `--ports` every word up to the next option)."""
+    from uwgen.emulator.scenario import ScenarioError
+
+    if args.ports is None:
+        return args
+    ports, rest = [], []
+    for word in args.ports:
+        (rest if rest or not word.isdigit() else ports).append(word)
+    if rest and (len(rest) > 1 or args.scenario is not None):
+        raise ScenarioError(f"--ports: expected port numbers, got {' '.join(rest)}")
+    bad = [p for p in ports if not 0 <= int(p) <= 65535]
+    if bad:
+        raise ScenarioError(f"--ports: {bad[0]} is not a TCP port (0..65535)")
+    return argparse.Namespace(**{**vars(args), "ports": [int(p) for p in ports],
+                                 "scenario": Path(rest[0]) if rest else args.scenario})
+
+
 def build_scenario(args: argparse.Namespace):
     """The scenario from the YAML file (if any) with the command-line flags applied."""
     from dataclasses import replace
 
-    from uwgen.emulator.physics import SnrModel
     from uwgen.emulator.scenario import NodeSpec, Scenario, ScenarioError, TdmaSpec, \
         load_scenario
+
+    args = split_ports(args)
 
     if args.wind is not None and len(args.wind) != 1:
         raise ScenarioError("--wind takes one value when running nodes "
@@ -122,12 +155,7 @@ def build_scenario(args: argparse.Namespace):
         value = getattr(args, key)
         if value is not None:
             changes[key] = value
-    if args.wind is not None:
-        snr = base.snr if base is not None and base.snr is not None else SnrModel()
-        try:
-            changes["snr"] = replace(snr, wind=args.wind[0])
-        except ValueError as exc:
-            raise ScenarioError(f"--wind: {exc}") from None
+    changes["snr"] = channel_model(args, base)
     if args.tdma is not None or args.guard is not None:
         tdma = base.tdma if base is not None and base.tdma is not None else TdmaSpec()
         if args.tdma is not None:
@@ -160,6 +188,40 @@ def build_scenario(args: argparse.Namespace):
     return replace(base, **changes)
 
 
+def channel_model(args: argparse.Namespace, base):
+    """The SNR model: --phy's if given, else the scenario file's `snr:`, else the default
+    PHY (DESERT's stock scenario's); --wind applies to it."""
+    from dataclasses import replace
+
+    from uwgen.emulator.physics import phy
+    from uwgen.emulator.scenario import ScenarioError
+
+    if args.phy is not None:
+        snr = phy(args.phy)
+    elif base is not None and base.snr is not None:
+        snr = base.snr
+    else:
+        snr = phy(DEFAULT_PHY)
+    if args.wind is not None:
+        if snr is None:
+            raise ScenarioError("--wind needs an SNR model: --phy desert-stock or --phy thesis")
+        try:
+            snr = replace(snr, wind=args.wind[0])
+        except ValueError as exc:
+            raise ScenarioError(f"--wind: {exc}") from None
+    return snr
+
+
+def phy_name(snr) -> str:
+    """How the log names a scenario's SNR model: its PHY's name, with the wind if not 0."""
+    from dataclasses import replace
+    if snr is None:
+        return "no SNR losses (--phy none)"
+    name = next((n for n, m in PHYS.items() if m is not None and replace(snr, wind=m.wind) == m), None)
+    wind = f", wind {snr.wind:g} m/s" if snr.wind else ""
+    return f"SNR model {name}{wind}" if name else f"SNR model of the scenario{wind}"
+
+
 def _refuse(value, flag: str):
     from uwgen.emulator.scenario import ScenarioError
     if value is not None:
@@ -174,9 +236,9 @@ def _serve(scenario, duration: float | None, crash_every: float | None = None,
     emu = Emulator(scenario)
     try:
         emu.start()
-    except EmulatorError as exc:
+    except EmulatorError as exc:   # a port taken: bad input, as every other error
         print(f"uwgen emulate: {exc}", file=sys.stderr)
-        return EXIT_FAILED
+        return EXIT_USAGE
     feeds = None
     if any(n.pose_topic is not None for n in scenario.nodes):
         from uwgen.emulator.ros_pose import PoseFeedError, PoseFeeds
@@ -193,7 +255,7 @@ def _serve(scenario, duration: float | None, crash_every: float | None = None,
         log.info("emulator: DESERT will crash at random, every %.3g s on average, down %.3g s",
                  crash_every, crash_down)
     mode = "TDMA" if scenario.tdma else "CSMA-ALOHA"
-    channel = (f"SNR model (wind {scenario.snr.wind:g} m/s)" if scenario.snr else "no SNR losses")
+    channel = phy_name(scenario.snr)
     periods = sorted({scenario.period_of(n) for n in scenario.names()})
     lengths = sorted({scenario.max_read_length_of(n) for n in scenario.names()})
     log.info("emulating %d DESERT nodes (%s): period %s s, max_read_length %s, %g bit/s, %s, "
@@ -247,21 +309,28 @@ def format_counters(counters: dict[str, dict[str, int]]) -> str:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from uwgen.emulator.physics import SnrModel
+    from dataclasses import replace
+
+    from uwgen.emulator.physics import phy
     from uwgen.emulator.sweep import DEFAULT_WINDS, format_table, pdr_sweep, plot
 
     winds = args.wind if args.wind is not None else DEFAULT_WINDS
     if args.packets < 1:
         print("uwgen emulate: --packets must be at least 1", file=sys.stderr)
         return EXIT_USAGE
+    base = phy(args.phy or DEFAULT_PHY)
+    if base is None:
+        print("uwgen emulate: --pdr-sweep needs an SNR model (--phy desert-stock or thesis)",
+              file=sys.stderr)
+        return EXIT_USAGE
     try:
         for w in winds:
-            SnrModel(wind=w)
+            replace(base, wind=w)
     except ValueError as exc:
         print(f"uwgen emulate: --wind: {exc}", file=sys.stderr)
         return EXIT_USAGE
     seed = args.seed if args.seed is not None else 1
-    result = pdr_sweep(winds=winds, packets=args.packets, seed=seed,
+    result = pdr_sweep(winds=winds, packets=args.packets, seed=seed, base=base,
                        payload=args.max_read_length or 64)
     print(format_table(result), flush=True)
     if args.plot is not None:

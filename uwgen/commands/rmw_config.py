@@ -1,8 +1,10 @@
 """`uwgen rmw-config`: rmw_desert's id table from a manifest, a manifest from an id table.
 
-    uwgen rmw-config export -m MANIFEST [-o FILE] [--include-native]
-    uwgen rmw-config import CONF --side-of NAME=SIDE ... [--type NAME=TYPE ...] -o FILE
-    uwgen rmw-config beacons -m MANIFEST --side SIDE [--frames]
+    uwgen rmw-config export -m MANIFEST [DIR ...] [-o FILE] [--include-native]
+    uwgen rmw-config import CONF [DIR ...] --side-of NAME=SIDE ... [--type NAME=TYPE ...] -o FILE
+    uwgen rmw-config beacons -m MANIFEST [DIR ...] --side SIDE [--frames]
+
+DIR: folders of interface packages, as in every command (-I DIR, the old spelling, still works).
 
 Exit status 0 on success, 2 on bad input (with a message saying what and where).
 """
@@ -13,6 +15,8 @@ import os
 import sys
 import tempfile
 from pathlib import Path
+
+from uwgen.commands.options import add_folders, add_manifest, old_spelling
 
 HELP = "write rmw_desert's ros_allowed_topics.conf from a manifest, or start a manifest from one"
 EXIT_OK = 0
@@ -26,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                          description="Write rmw_desert's id table for MANIFEST. With profile "
                                      "rmw_desert it holds /discovery (1), /discovery_request "
                                      "(2) and the rmw_desert topics and services.")
-    _manifest_args(exp)
+    _manifest_args(exp, "export")
     exp.add_argument("-o", "--output", type=Path, metavar="FILE",
                      help="write here instead of standard output")
     exp.add_argument("--include-native", action="store_true",
@@ -38,6 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                     "CONF; every name needs its type (--type, --types, or a well-known name) "
                     "and the side that publishes or serves it (--side-of or --default-side).")
     imp.add_argument("conf", type=Path, metavar="CONF", help="ros_allowed_topics.conf to read")
+    add_folders(imp, "folders of interface packages (besides the output's folder and the installed ones)")
+    _old_interfaces(imp, "import")
     imp.add_argument("-o", "--output", type=Path, metavar="FILE", required=True,
                      help="manifest to write (e.g. <folder>/uwgen.yaml)")
     imp.add_argument("--side-of", action="append", default=[], metavar="NAME=SIDE",
@@ -59,26 +65,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="DESERT max_read_length written for every side (default 64)")
     imp.add_argument("--period", type=float, default=1.0,
                      help="DESERT period_ in seconds written for every side (default 1.0)")
-    imp.add_argument("-I", "--interfaces", action="append", default=[], type=Path,
-                     metavar="DIR", help="folder of interface packages (besides the output's "
-                                         "folder and the installed ones)")
     imp.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
 
     bea = sub.add_parser("beacons", help="show the beacons a side's bridge announces",
                          description="List the rmw_desert discovery beacons the bridge of "
                                      "SIDE sends for MANIFEST.")
-    _manifest_args(bea)
+    _manifest_args(bea, "beacons")
     bea.add_argument("--side", required=True, help="the bridge's side")
     bea.add_argument("--node", help="node name announced (default uwgen_<side>)")
     bea.add_argument("--frames", action="store_true", help="also print each framed beacon in hex")
 
 
-def _manifest_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("-m", "--manifest", type=Path, required=True, metavar="MANIFEST",
-                        help="manifest file, or a folder holding uwgen.yaml")
-    parser.add_argument("-I", "--interfaces", action="append", default=[], type=Path,
-                        metavar="DIR", help="folder of interface packages (besides the "
-                                            "manifest's folder and the installed ones)")
+def _manifest_args(parser: argparse.ArgumentParser, action: str) -> None:
+    add_manifest(parser, required=True)
+    add_folders(parser, "folders of interface packages (besides the manifest's folder and the "
+                        "installed ones)")
+    _old_interfaces(parser, action)
+
+
+def _old_interfaces(parser: argparse.ArgumentParser, action: str) -> None:
+    # Interface folders are DIR arguments in every command; -I DIR was this command's own.
+    old_spelling(parser, ("-I", "--interfaces"), "a DIR argument", "old_interfaces",
+                 f"rmw-config {action}", append=True, type=Path, metavar="DIR")
+
+
+def _folders(args) -> list[Path]:
+    return [*args.folders, *(getattr(args, "old_interfaces", None) or [])]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -136,7 +148,7 @@ def _library(home: Path, interfaces: list[Path]):
 def _export(args) -> int:
     from uwgen.interop.rmw_config import export_conf
 
-    manifest = _load(args.manifest, args.interfaces)
+    manifest = _load(args.manifest, _folders(args))
     result = export_conf(manifest, include_native=args.include_native)
     for note in result.omitted:
         print(f"uwgen rmw-config: left out {note}", file=sys.stderr)
@@ -211,7 +223,7 @@ def _import(args) -> int:
     out = args.output
     if out.exists() and not args.force:
         raise RmwConfigError(f"{out} exists; pass --force to overwrite it")
-    lib = _library(out.parent, args.interfaces)
+    lib = _library(out.parent, _folders(args))
     hints = read_hints(args.types) if args.types else {}
     types = resolve_types(names, lib, _pairs(args.type, "--type"), hints,
                           builtin=not args.no_builtin_hints)
@@ -241,7 +253,7 @@ def _beacons(args) -> int:
     from uwgen.interop.rmw_config import RmwConfigError
     from uwgen.runtime.framing import encode_frame
 
-    manifest = _load(args.manifest, args.interfaces)
+    manifest = _load(args.manifest, _folders(args))
     if args.side not in manifest.sides:
         raise RmwConfigError(f"side {args.side!r} is not in the manifest "
                              f"(sides: {', '.join(manifest.sides)})")

@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 from pathlib import Path
 
 HELP = "build rclpy type support for the interface packages in folders (cached), or run a program with it"
 TAKES_COMMAND = True   # everything after `--` is the program to run
 
+ENV_KEYS = ("PYTHONPATH", "AMENT_PREFIX_PATH", "LD_LIBRARY_PATH")   # what --print-env prints
 EXIT_FAILED = 1
 EXIT_USAGE = 2
 
@@ -33,7 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--prune", action="store_true",
                         help="also remove the cached builds of earlier versions of these packages")
     parser.add_argument("--print-env", action="store_true",
-                        help="print the environment a program needs to import them (sh syntax)")
+                        help="print the three variables a program needs to import them "
+                             "(PYTHONPATH, AMENT_PREFIX_PATH, LD_LIBRARY_PATH; sh syntax)")
     parser.usage = ("uwgen ros-interfaces [-h] [--cache DIR] [--prune] [--print-env] DIR [DIR ...] "
                     "[-- PROGRAM [ARG ...]]")
     parser.epilog = "After `--`: a program to run with the packages importable, e.g. -- python3 talker.py"
@@ -98,9 +101,9 @@ def run(args: argparse.Namespace) -> int:
         env = e.child_env(env)
     command = getattr(args, "command_line", [])
     if args.print_env:
-        for key in ("PYTHONPATH", "AMENT_PREFIX_PATH", "LD_LIBRARY_PATH"):
-            if env.get(key) != os.environ.get(key):
-                print(f"export {key}='{env[key]}'")
+        for key in ENV_KEYS:   # all three, as the program needs them (not only what changed)
+            if env.get(key):
+                print(f"export {key}={shlex.quote(env[key])}")
     elif not command:
         for e in envs:
             where = e.prefix if e.prefix is not None else "installed"

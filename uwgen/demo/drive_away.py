@@ -105,13 +105,33 @@ def plot(curves: dict[str, list[Bin]], path: Path, title: str) -> Path:
     return path
 
 
-def scenario(start: float, end: float, duration: float, wind: float, seed: int):
-    from uwgen.emulator import NodeSpec, Scenario, SnrModel
+def channel(phy_name: str, wind: float):
+    """The SNR model the drive runs through: the named PHY (the demo's --phy) at `wind`."""
+    from dataclasses import replace
+
+    from uwgen.emulator.physics import phy
+    model = phy(phy_name)
+    if model is None:
+        raise ValueError(f"--drive-away needs a channel that fades: --phy {phy_name} has no SNR losses")
+    return replace(model, wind=wind)
+
+
+def expected_fade(snr) -> tuple[float, float]:
+    """(metres up to which one-way delivery is full, metres from which nothing arrives) of
+    `snr` (simulated, one way, 200 packets per 250 m): where the drive's checks look."""
+    from uwgen.emulator.sweep import DEFAULT_DISTANCES, full_delivery_range, pdr_at, zero_delivery_distance
+    points = [pdr_at(d, snr, packets=200, seed=1 + i) for i, d in enumerate(DEFAULT_DISTANCES)]
+    return full_delivery_range(points), zero_delivery_distance(points) or DEFAULT_DISTANCES[-1]
+
+
+def scenario(start: float, end: float, duration: float, wind: float, seed: int,
+             phy_name: str = "desert-stock"):
+    from uwgen.emulator import NodeSpec, Scenario
     track = ((0.0, start, 0.0, 0.0), (HOLD, start, 0.0, 0.0), (HOLD + duration, end, 0.0, 0.0))
     return Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle"),
                            NodeSpec("vehicle", dest="surface", waypoints=track)],
                     period=0.2, max_read_length=64, bitrate=4800.0, seed=seed,
-                    snr=SnrModel(wind=wind))
+                    snr=channel(phy_name, wind))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -143,10 +163,18 @@ def run(args: argparse.Namespace) -> int:
         return 1
     key_args = key.bridge_args() if key else []
     start, end, duration = args.distance, args.drive_to, args.drive_time
-    scen = scenario(start, end, duration, args.wind, args.seed)
+    phy_name = getattr(args, "phy", "desert-stock")
+    try:
+        scen = scenario(start, end, duration, args.wind, args.seed, phy_name)
+    except ValueError as exc:
+        print(f"uwgen demo: {exc}", file=sys.stderr)
+        return 2
+    full, none = expected_fade(scen.snr)
     speed = (end - start) / duration
     print(f"uwgen demo --drive-away: the vehicle waits {HOLD:g} s at {start:g} m, then drives "
-          f"away to {end / 1000:g} km at {speed:.0f} m/s (time-lapse), wind {args.wind:g} m/s")
+          f"away to {end / 1000:g} km at {speed:.0f} m/s (time-lapse), PHY {phy_name}, wind "
+          f"{args.wind:g} m/s (one way: full delivery to {full / 1000:g} km, none from "
+          f"{none / 1000:g} km)")
     vdom, sdom = domains()
     py = sys.executable
     procs: list = []
@@ -164,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
                                           str(out / "vehicle.jsonl")], venv, out, not args.quiet))
             operator = Proc("operator", [py, "-m", "uwgen.demo.operator", "--record",
-                                         str(out / "operator.jsonl"), "--side", str(args.side),
+                                         str(out / "operator.jsonl"), "--square-size", str(args.square_size),
                                          "--laps", "100", "--max-drive", str(HOLD + duration)],
                             senv, out, not args.quiet)
             procs.append(operator)
@@ -193,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
           "and pose and sends one 64 B packet per 0.2 s each way")
     print(format_bins("cmd_vel (surface -> vehicle)", cmd))
     print(format_bins("pose (vehicle -> surface)", pose))
-    title = (f"uwgen demo --drive-away: 64 B / 0.2 s at 4800 bit/s, SNR model, "
+    title = (f"uwgen demo --drive-away: 64 B / 0.2 s at 4800 bit/s, PHY {phy_name}, "
              f"wind {args.wind:g} m/s")
     curves = {"cmd_vel (surface → vehicle)": cmd, "pose (vehicle → surface)": pose}
     png = plot(curves, out / "drive-away.png", title)
@@ -207,8 +235,8 @@ def run(args: argparse.Namespace) -> int:
         return 1
     # Ratios are of published messages: the link keeps only the latest cmd_vel and pose
     # and carries one packet per 0.2 s each way, so even near the station it is well under 1.
-    near = [b for b in cmd + pose if b.start + b.width <= 5000.0 and b.sent]
-    far = [b for b in cmd + pose if b.start >= 9000.0 and b.sent]
+    near = [b for b in cmd + pose if b.start + b.width <= full and b.sent]
+    far = [b for b in cmd + pose if b.start >= none + 500.0 and b.sent]
     if not near or min(b.ratio for b in near) == 0.0:
         print("uwgen demo: the link did not work near the surface station", file=sys.stderr)
         return 1

@@ -292,6 +292,14 @@ def _ms(x: float | None) -> str:
     return "-" if x is None else f"{x * 1000:.0f} ms"
 
 
+COLUMNS = """\
+  taken: by the sending bridge from its local graph; sub drop: messages the sending bridge's
+  subscription lost before it took them (its ROS queue overflowed); on link: put on the wire;
+  policy: dropped by the topic's link policy (superseded by a newer one, rate, ttl, overflow);
+  lost (seen): put on the link, never received by the far bridge; (seen) of those, how many the
+  far bridge knew it missed (fragments of a message that never completed)"""
+
+
 def format_report(report: Report) -> str:
     lines = []
     head = (f"{'topic':<20} {'direction':<18} {'published':>9} {'taken':>6} {'sub drop':>8} "
@@ -304,6 +312,7 @@ def format_report(report: Report) -> str:
     for r in report.topics:
         for problem in r.imbalances:
             lines.append(f"  {r.name}: counters do not add up: {problem}")
+    lines += COLUMNS.splitlines()
     lines.append("")
     shead = (f"{'service':<28} {'calls':>5} {'ok':>4} {'failed':>6} {'policy':>6} "
              f"{'round trip p50':>14} {'p95':>8}")
@@ -313,9 +322,10 @@ def format_report(report: Report) -> str:
                      f"{_ms(median(s.rtts) if s.rtts else None):>14} {_ms(percentile(s.rtts, 95)):>8}")
     lines.append("")
     for m in report.missions:
+        turned = m.get("status") == "succeeded" and m.get("delta") is not None
         lines.append(f"action {m.get('name')}: {m.get('status')} after {m.get('rtt', 0):.2f} s, "
                      f"{m.get('feedback', 0)} feedback messages"
-                     + (f", turned {m['delta']:.2f} rad" if m.get("delta") is not None else ""))
+                     + (f", turned {m['delta']:.2f} rad" if turned else ""))
     if report.deviation_mean is not None:
         lines.append(f"path: the poses the surface received stay within {report.deviation_max:.2f} m "
                      f"of the commanded square (mean {report.deviation_mean:.2f} m)"
@@ -406,6 +416,18 @@ def _vec(twist_cls, x: float, z: float = 0.0):
 
 
 def plot_paths(report: Report, path: Path, title: str = "") -> Path:
+    import matplotlib.pyplot as plt
+
+    fig = path_figure(report, title)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def path_figure(report: Report, title: str = ""):
+    """The figure of the commanded and reported paths (the caller saves and closes it)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -424,11 +446,8 @@ def plot_paths(report: Report, path: Path, title: str = "") -> Path:
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper left", fontsize=8)
+    # Below the axes, never over the square: the paths fill the plot.
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8, frameon=False)
     ax.set_title(title or "uwgen demo: commanded vs reported path", fontsize=10)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return fig

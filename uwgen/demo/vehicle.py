@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 from uwgen.demo.records import Recorder, f32
+from uwgen.demo.shutdown import init_ros, spin_until_stopped
 
 CMD_TIMEOUT = 1.0        # s: a command this old means stop (turtlesim's rule)
 STEP = 0.02              # s: integration step
@@ -82,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     from turtlesim.srv import SetPen, TeleportAbsolute
 
     record = Recorder(args.record)
-    rclpy.init(args=["vehicle", *ros_args])
+    stop = init_ros(["vehicle", *ros_args])   # a signal only stops the spinning (uwgen.demo.shutdown)
     node = rclpy.create_node("vehicle_sim")
     log = node.get_logger()
     sim = VehicleSim()
@@ -195,11 +196,12 @@ def main(argv: list[str] | None = None) -> int:
     node.create_timer(BATTERY_PERIOD, publish_battery)
     say("vehicle simulator up at x=5.50 y=5.50")
     try:
-        rclpy.spin(node)
+        spin_until_stopped(node, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        record("end", odometer=sim.odometer)
+        # ros_ok: the signal left the ROS context valid until ROS was shut down here.
+        record("end", odometer=sim.odometer, ros_ok=rclpy.ok())
         record.close()
         node.destroy_node()
         if rclpy.ok():

@@ -24,17 +24,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from uwgen.emulator.core import EmulatorCore
-from uwgen.emulator.physics import SnrModel
+from uwgen.emulator.physics import DESERT_STOCK
 from uwgen.emulator.scenario import NodeSpec, Scenario
 
 SIDES = ("A", "B")
 _TAGS = {b"A>": "A", b"B>": "B"}
 _PARAM = re.compile(r"(\w+)=([-\w.+]+)")
 
-# The traced PHY (README: UW/PHYSICAL, 25 kHz, 5 kHz, 4800 bit/s, acquisition threshold
-# 5 dB, 150 dB source level, practical spreading 1.75, wind 0, shipping 0.5, no fading).
-TRACE_PHY = SnrModel(wind=0.0, shipping=0.5, frequency=25000.0, bandwidth=5000.0,
-                     spreading=1.75, tx_power_db=150.0, threshold_db=5.0, fading_db=0.0)
+# The traced PHY: DESERT's stock scenario's, the emulator's default (physics.DESERT_STOCK).
+TRACE_PHY = DESERT_STOCK
 
 
 def find_trace_dir() -> Path | None:

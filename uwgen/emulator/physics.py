@@ -125,3 +125,31 @@ class SnrModel:
     def snr_db(self, distance_m: float) -> float:
         """Mean SNR in dB at `distance_m` (before fading)."""
         return self.received_db(distance_m) - self.noise_db()
+
+
+# -- named PHYs ---------------------------------------------------------------------------
+
+# DESERT's stock two-node scenario, the one the calibration traces were measured on
+# (/work/shared/calibration README: UW/PHYSICAL, 25 kHz, 5 kHz, 4800 bit/s, acquisition
+# threshold 5 dB, 150 dB source level, practical spreading 1.75, wind 0, shipping 0.5, no
+# fading). One-way delivery falls through 0.9 at 3.4 km and ends near 3.8 km, as on DESERT.
+DESERT_STOCK = SnrModel(wind=0.0, shipping=0.5, frequency=25000.0, bandwidth=5000.0,
+                        spreading=1.75, tx_power_db=150.0, threshold_db=5.0, fading_db=0.0)
+
+# By name (`uwgen emulate --phy NAME`, `uwgen demo --phy NAME`): the stock scenario's (the
+# default), the thesis-calibrated one (chapter 7: full delivery to ~7 km with no wind), and
+# none (no SNR losses: only collisions and a fixed packet error rate).
+PHYS: dict[str, SnrModel | None] = {
+    "desert-stock": DESERT_STOCK,
+    "thesis": SnrModel(),
+    "none": None,
+}
+DEFAULT_PHY = "desert-stock"
+
+
+def phy(name: str) -> SnrModel | None:
+    """The SnrModel named `name` (None for "none"); KeyError names the known ones."""
+    try:
+        return PHYS[name]
+    except KeyError:
+        raise KeyError(f"no PHY named {name!r} (known: {', '.join(PHYS)})") from None

@@ -21,6 +21,7 @@ Notes on the language (checked against rosidl_adapter, Jazzy):
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from uwgen.idl import names
@@ -250,12 +251,7 @@ def parse_service_string(text: str, package: str, name: str, path: Path | str = 
     lines = text.splitlines()
     separators = [i for i, line in enumerate(lines) if line == SEPARATOR]
     if not separators:
-        for i, line in enumerate(lines):
-            if line.replace("\t", " ").strip() == SEPARATOR:
-                raise DefinitionError(
-                    SourceRef(path, i + 1, 1),
-                    "a service separator must be exactly '---', alone on its line without spaces",
-                )
+        _check_separator_lines(lines, path, "a service")
         raise DefinitionError(SourceRef(path, 1, 1), "missing '---' between the request and the response of a service")
     if len(separators) > 1:
         raise DefinitionError(
@@ -276,12 +272,7 @@ def parse_action_string(text: str, package: str, name: str, path: Path | str = "
     lines = text.splitlines()
     separators = [i for i, line in enumerate(lines) if line == SEPARATOR]
     if len(separators) != 2:
-        for i, line in enumerate(lines):
-            if line != SEPARATOR and line.replace("\t", " ").strip() == SEPARATOR:
-                raise DefinitionError(
-                    SourceRef(path, i + 1, 1),
-                    "an action separator must be exactly '---', alone on its line without spaces",
-                )
+        _check_separator_lines(lines, path, "an action")
         if len(separators) > 2:
             raise DefinitionError(
                 SourceRef(path, separators[2] + 1, 1),
@@ -295,6 +286,23 @@ def parse_action_string(text: str, package: str, name: str, path: Path | str = "
         parse_message_lines(lines[a:b], package, f"{name}_{part}", path, "action", a + 1)
         for part, (a, b) in zip(ACTION_PARTS, bounds))
     return ActionDef(package, name, goal, result, feedback, source=path)
+
+
+# A line that was meant as a separator: dashes (or dash-like characters) and spaces only,
+# maybe a comment after them.
+_SEPARATOR_LIKE = re.compile(r"\s*[-\u2012\u2013\u2014\u2015][-\u2012\u2013\u2014\u2015\s]*(#.*)?")
+
+
+def _check_separator_lines(lines: list[str], path: Path, what: str) -> None:
+    """A separator written wrongly (`----`, ` ---`, `--- `, an em dash) is an error at its own
+    line and column, not a missing separator at the start of the file."""
+    for i, line in enumerate(lines):
+        if line != SEPARATOR and _SEPARATOR_LIKE.fullmatch(line):
+            column = len(line) - len(line.lstrip()) + 1
+            raise DefinitionError(
+                SourceRef(path, i + 1, column),
+                f"{what} separator must be exactly '---', alone on its line without spaces: "
+                f"got {line.strip()!r}")
 
 
 def _check_names(package: str, name: str, path: Path) -> None:

@@ -25,8 +25,8 @@ def read_action(b: Any, node: yaml.Node, sides: dict[str, Side], security: str =
     link policy keys as for services; `security` is the network's default mode)."""
     r = b.r
     entries, name, ident, type_text, label = b.common(node, "action", ACTION_KEYS)
-    type_name, definition = resolve_action(b, entries["type"][1], type_text, label)
-    server = b.side_ref(entries, "server", node, label, sides)
+    type_name, definition = b.checked((None, None), resolve_action, b, entries["type"][1], type_text, label)
+    server = b.checked(None, b.side_ref, entries, "server", node, label, sides)
     base = Action.__dataclass_fields__
     accept_timeout, result_timeout = base["accept_timeout"].default, base["result_timeout"].default
     if "accept_timeout" in entries:
@@ -75,7 +75,8 @@ def resolve_action(b: Any, type_node: yaml.Node, type_text: str, label: str) -> 
         for other, kind in (("msg", "a message"), ("srv", "a service")):
             if ns in (None, other) and f"{pkg}/{other}/{name}" in b.lib:
                 raise r.error(type_node, f"type '{type_text}' is {kind}, but {label} needs an action type (pkg/action/Name)")
-        raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found (looked in: {b.lib.looked_in()})")
+        raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found"
+                                 f"{b.did_you_mean(full)} (looked in: {b.lib.looked_in()})")
     definition = b.lib.get(full)
     if not isinstance(definition, ActionDef):  # an action's part, e.g. pkg/action/Name_Goal
         raise r.error(type_node, f"type '{type_text}' of {label} is not an action")

@@ -7,9 +7,11 @@ the manifest names surfaces as the parser's own `DefinitionError` (located in th
 """
 from __future__ import annotations
 
+import difflib
 import ipaddress
 import keyword
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,6 +72,10 @@ HOSTNAME_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
 ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
+class _Reported(Exception):
+    """An entry whose errors are already in the builder's collector: skip building it."""
+
+
 class ManifestErrors(ManifestError, ErrorList):
     """Several problems in one manifest (each in `errors`, located); str() has one per line."""
 
@@ -104,7 +110,9 @@ def load_sides(path: Path) -> tuple[str, dict[str, Side]]:
         raise ManifestError(SourceRef(r.path, 1, 1), "empty manifest: expected a mapping with at least 'network' and 'sides'")
     top = r.mapping(root, "the manifest", TOP_KEYS)
     network = r.string(r.require(top, "network", root, "the manifest"), "network")
-    return network, builder.sides(r.require(top, "sides", root, "the manifest"))
+    sides = builder.sides(r.require(top, "sides", root, "the manifest"))
+    builder.errors.raise_if_any(ManifestErrors)   # every broken side, each located
+    return network, sides
 
 
 def validate_ros_name(name: str) -> str | None:
@@ -162,6 +170,34 @@ class _ManifestBuilder:
         self.repair_nodes: dict[str, yaml.Node] = {}    # "topic /x" -> its repair: value node
         self.sec = SecurityCheck(reader)
         self.senders: dict[str, int] = {}
+        # Every independent mistake is reported in one pass (not one per run): each check
+        # that can go wrong on its own runs under `attempt`/`checked` and lands here.
+        self.errors = Collector()
+        self.declared: set[str] | None = None   # side names written (None: sides unreadable)
+
+    @contextmanager
+    def attempt(self):
+        with self.errors.attempt(ManifestError, DefinitionError):
+            yield
+
+    def checked(self, fallback, check, *args):
+        """check(*args), or `fallback` when it fails (its error collected)."""
+        with self.attempt():
+            return check(*args)
+        return fallback
+
+    def entry(self, read, *args):
+        """One topic, service or action: the entry, or None when it had errors (collected)."""
+        start = self.errors.count
+        try:
+            with self.attempt():
+                item = read(*args)
+                if self.errors.count > start:
+                    raise _Reported
+                return item
+        except _Reported:
+            pass
+        return None
 
     # -- top level -------------------------------------------------------------------
 
@@ -170,61 +206,49 @@ class _ManifestBuilder:
         if root is None:
             raise ManifestError(SourceRef(r.path, 1, 1), "empty manifest: expected a mapping with at least 'network' and 'sides'")
         top = r.mapping(root, "the manifest", TOP_KEYS)
+        errors = self.errors
 
-        network_node = r.require(top, "network", root, "the manifest")
-        network = r.string(network_node, "network")
-        if not NETWORK_NAME.fullmatch(network):
-            raise r.error(network_node, f"network '{network}' must be lower case letters, digits and '_', starting with a letter")
-
+        network = self.checked("network", self.network, top, root)
         package = f"uwgen_{network}"
         if "package" in top:
-            node = top["package"][1]
-            package = r.string(node, "package")
-            if not PYTHON_PACKAGE.fullmatch(package) or keyword.iskeyword(package):
-                raise r.error(node, f"package '{package}' must be a valid Python package name")
+            package = self.checked(package, self.package, top["package"][1])
 
         profile = NATIVE
         if "profile" in top:
-            profile = r.choice(top["profile"][1], "profile", PROFILES)
+            profile = self.checked(NATIVE, r.choice, top["profile"][1], "profile", PROFILES)
 
         security = Security()
         if "security" in top:
             self.sec.block = top["security"][1]
-            security = network_security(r, self.sec.block)
+            security = self.checked(security, network_security, r, self.sec.block)
             if isinstance(self.sec.block, yaml.MappingNode):
                 self.sec.mode_node = next((v for k, v in self.sec.block.value if k.value == "mode"),
                                           self.sec.block)
 
-        sides_node = r.require(top, "sides", root, "the manifest")
-        sides = self.sides(sides_node)
+        sides = self.checked({}, self.sides, r.require(top, "sides", root, "the manifest"))
 
         # Policy keys from `defaults` stay nodes (merged per key into each topic, errors
         # located); validated here even if no topic uses them. Their qos is read once.
         defaults: dict = {}
         default_qos = Qos()
         if "defaults" in top:
-            defaults = r.mapping(top["defaults"][1], "defaults", DEFAULTS_KEYS)
-            self.policy(defaults, {}, LinkPolicy(), "defaults", is_defaults=True)
+            defaults = self.checked({}, r.mapping, top["defaults"][1], "defaults", DEFAULTS_KEYS)
+            self.checked(None, self.policy, defaults, {}, LinkPolicy(), "defaults", True)
             if "qos" in defaults:
-                default_qos = self.qos(defaults["qos"][1], default_qos)
+                default_qos = self.checked(default_qos, self.qos, defaults["qos"][1], default_qos)
 
-        # Each entry is checked on its own: every broken one is reported, not just the first.
-        errors = Collector()
-        topics = []
-        if "topics" in top:
-            for node in r.sequence(top["topics"][1], "topics"):
-                with errors.attempt(ManifestError, DefinitionError):
-                    topics.append(self.topic(node, sides, defaults, default_qos, profile, security.mode))
-        services = []
-        if "services" in top:
-            for node in r.sequence(top["services"][1], "services"):
-                with errors.attempt(ManifestError, DefinitionError):
-                    services.append(self.service(node, sides, profile, security.mode))
-        actions = []
-        if "actions" in top:
-            for node in r.sequence(top["actions"][1], "actions"):
-                with errors.attempt(ManifestError, DefinitionError):
-                    actions.append(self.action(node, sides, security.mode))
+        # Each entry is checked on its own, and within it each key that can be: every
+        # mistake is reported, not just the first.
+        topics, services, actions = [], [], []
+        for key, items, read, args in (
+                ("topics", topics, self.topic, (sides, defaults, default_qos, profile, security.mode)),
+                ("services", services, self.service, (sides, profile, security.mode)),
+                ("actions", actions, self.action, (sides, security.mode))):
+            if key in top:
+                for node in self.checked([], r.sequence, top[key][1], key):
+                    item = self.entry(read, node, *args)
+                    if item is not None:
+                        items.append(item)
         for entries, kind in ((topics, "topic"), (services, "service"), (actions, "action")):
             with errors.attempt(ManifestError):
                 self.unique_names(entries, kind)
@@ -265,6 +289,20 @@ class _ManifestBuilder:
         self.check_repair(manifest)
         return manifest
 
+    def network(self, top: dict, root: yaml.Node) -> str:
+        r = self.r
+        network_node = r.require(top, "network", root, "the manifest")
+        network = r.string(network_node, "network")
+        if not NETWORK_NAME.fullmatch(network):
+            raise r.error(network_node, f"network '{network}' must be lower case letters, digits and '_', starting with a letter")
+        return network
+
+    def package(self, node: yaml.Node) -> str:
+        package = self.r.string(node, "package")
+        if not PYTHON_PACKAGE.fullmatch(package) or keyword.iskeyword(package):
+            raise self.r.error(node, f"package '{package}' must be a valid Python package name")
+        return package
+
     # -- sides -----------------------------------------------------------------------
 
     def sides(self, node: yaml.Node) -> dict[str, Side]:
@@ -272,33 +310,41 @@ class _ManifestBuilder:
         entries = r.open_mapping(node, "sides")
         if not entries:
             raise r.error(node, "sides must name at least one side, e.g. surface: {port: 4000}")
+        self.declared = set(entries)
         sides: dict[str, Side] = {}
         endpoints: dict[tuple[str, int], str] = {}
         for name, (key_node, value_node) in entries.items():
-            if not SIDE_NAME.fullmatch(name):
-                raise r.error(key_node, f"side name '{name}' must be letters, digits and '_', starting with a letter")
-            what = f"side '{name}'"
-            fields = r.mapping(value_node, what, SIDE_KEYS)
-            host = "127.0.0.1"
-            if "host" in fields:
-                host_node = fields["host"][1]
-                host = r.string(host_node, f"host of {what}")
-                if not _valid_host(host):
-                    raise r.error(host_node, f"host '{host}' of {what} is neither an IP address nor a host name")
-            port_node = r.require(fields, "port", value_node, what)
-            port = r.integer(port_node, f"port of {what}", 1, 65535)
-            if (host, port) in endpoints:
-                raise r.error(port_node, f"{what} uses {host}:{port}, already used by side '{endpoints[host, port]}' (DESERT serves one client per port)")
-            endpoints[host, port] = name
-            link = LinkConfig()
-            if "link" in fields:
-                link = self.link(fields["link"][1], what)
-            self.sec.side_nodes[name] = value_node
-            if "sender_id" in fields:
-                self.sec.sender_nodes[name] = fields["sender_id"][1]
-                self.senders[name] = sender_id(r, fields["sender_id"][1], name)
-            sides[name] = Side(name, host, port, link, r.where(value_node))
+            side = self.checked(None, self.side, name, key_node, value_node, endpoints)
+            if side is not None:
+                sides[name] = side
         return sides
+
+    def side(self, name: str, key_node: yaml.Node, value_node: yaml.Node,
+             endpoints: dict[tuple[str, int], str]) -> Side:
+        r = self.r
+        if not SIDE_NAME.fullmatch(name):
+            raise r.error(key_node, f"side name '{name}' must be letters, digits and '_', starting with a letter")
+        what = f"side '{name}'"
+        fields = r.mapping(value_node, what, SIDE_KEYS)
+        host = "127.0.0.1"
+        if "host" in fields:
+            host_node = fields["host"][1]
+            host = r.string(host_node, f"host of {what}")
+            if not _valid_host(host):
+                raise r.error(host_node, f"host '{host}' of {what} is neither an IP address nor a host name")
+        port_node = r.require(fields, "port", value_node, what)
+        port = r.integer(port_node, f"port of {what}", 1, 65535)
+        if (host, port) in endpoints:
+            raise r.error(port_node, f"{what} uses {host}:{port}, already used by side '{endpoints[host, port]}' (DESERT serves one client per port)")
+        endpoints[host, port] = name
+        link = LinkConfig()
+        if "link" in fields:
+            link = self.link(fields["link"][1], what)
+        self.sec.side_nodes[name] = value_node
+        if "sender_id" in fields:
+            self.sec.sender_nodes[name] = fields["sender_id"][1]
+            self.senders[name] = sender_id(r, fields["sender_id"][1], name)
+        return Side(name, host, port, link, r.where(value_node))
 
     def link(self, node: yaml.Node, what: str) -> LinkConfig:
         r = self.r
@@ -356,19 +402,31 @@ class _ManifestBuilder:
         if ns == other:
             raise r.error(type_node, f"{label} needs a {'message' if want == 'msg' else 'service'} type pkg/{want}/Name, got '{type_text}'")
         if not known:
-            raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found (looked in: {self.lib.looked_in()})")
+            raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found"
+                                     f"{self.did_you_mean(full)} (looked in: {self.lib.looked_in()})")
         definition = self.lib.get(full)
         expected = MessageDef if want == "msg" else ServiceDef
         if not isinstance(definition, expected):  # a service's part, e.g. pkg/srv/Name_Request as a service
             raise r.error(type_node, f"type '{type_text}' of {label} is not a {want}")
         return full, definition
 
+    def did_you_mean(self, full: str) -> str:
+        """'; did you mean pkg/kind/Name?' for an unknown type: the same name in another
+        package, else the closest spelling of its kind; '' when nothing is close."""
+        pkg, kind, name = full.split("/")
+        names = [n for n in self.lib.all_names() if n.split("/")[1] == kind]
+        same = [n for n in names if n.split("/")[2].lower() == name.lower() and n != full]
+        close = same or difflib.get_close_matches(full, names, n=1, cutoff=0.8)
+        if not close:
+            return ""
+        return f"; did you mean {' or '.join(close[:2])}?"
+
     def side_ref(self, entries: dict, key: str, owner: yaml.Node, label: str, sides: dict[str, Side]) -> str:
         r = self.r
         node = r.require(entries, key, owner, label)
         side = r.string(node, f"{key} of {label}")
-        if side not in sides:
-            declared = ", ".join(sides)
+        if self.declared is not None and side not in self.declared:
+            declared = ", ".join(sorted(self.declared))
             raise r.error(node, f"{key} '{side}' of {label} is not a declared side (sides: {declared})")
         return side
 
@@ -376,30 +434,37 @@ class _ManifestBuilder:
               security: str = "off") -> Topic:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "topic", TOPIC_KEYS)
-        type_name, definition = self.resolve(entries["type"][1], type_text, "msg", label)
-        publisher = self.side_ref(entries, "publisher", node, label, sides)
-        policy = self.policy(entries, defaults, LinkPolicy(), label)
-        qos = self.qos(entries["qos"][1], default_qos) if "qos" in entries else default_qos
-        topic_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        fields = self.fields(entries, "fields", definition, label, topic_profile)
-        mode = self.sec.entry_mode(entries, label, name, security)
+        type_name, definition = self.checked((None, None), self.resolve, entries["type"][1], type_text, "msg", label)
+        publisher = self.checked(None, self.side_ref, entries, "publisher", node, label, sides)
+        policy = self.checked(None, self.policy, entries, defaults, LinkPolicy(), label)
+        qos = self.checked(None, self.qos, entries["qos"][1], default_qos) if "qos" in entries else default_qos
+        topic_profile = self.checked(profile, r.choice, entries["profile"][1], f"profile of {label}", PROFILES) \
+            if "profile" in entries else profile
+        fields = self.checked((), self.fields, entries, "fields", definition, label, topic_profile) \
+            if definition is not None else ()
+        mode = self.checked("off", self.sec.entry_mode, entries, label, name, security)
         return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields,
                      security=mode)
 
     def service(self, node: yaml.Node, sides: dict[str, Side], profile: str, security: str = "off") -> Service:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "service", SERVICE_KEYS)
-        type_name, definition = self.resolve(entries["type"][1], type_text, "srv", label)
-        server = self.side_ref(entries, "server", node, label, sides)
+        type_name, definition = self.checked((None, None), self.resolve, entries["type"][1], type_text, "srv", label)
+        server = self.checked(None, self.side_ref, entries, "server", node, label, sides)
         timeout = Service.__dataclass_fields__["timeout"].default
         if "timeout" in entries:
-            timeout = r.number(entries["timeout"][1], f"timeout of {label}")
+            timeout = self.checked(timeout, r.number, entries["timeout"][1], f"timeout of {label}")
         base = Service.__dataclass_fields__["policy"].default_factory()
-        policy = self.policy(entries, {}, base, label)
-        service_profile = r.choice(entries["profile"][1], f"profile of {label}", PROFILES) if "profile" in entries else profile
-        request_fields = self.fields(entries, "request_fields", definition.request, f"the request of {label}", service_profile)
-        response_fields = self.fields(entries, "response_fields", definition.response, f"the response of {label}", service_profile)
-        mode = self.sec.entry_mode(entries, label, name, security)
+        policy = self.checked(None, self.policy, entries, {}, base, label)
+        service_profile = self.checked(profile, r.choice, entries["profile"][1], f"profile of {label}", PROFILES) \
+            if "profile" in entries else profile
+        request_fields = response_fields = ()
+        if definition is not None:
+            request_fields = self.checked((), self.fields, entries, "request_fields", definition.request,
+                                          f"the request of {label}", service_profile)
+            response_fields = self.checked((), self.fields, entries, "response_fields", definition.response,
+                                           f"the response of {label}", service_profile)
+        mode = self.checked("off", self.sec.entry_mode, entries, label, name, security)
         return Service(name, ident, type_name, definition, server, timeout, policy, service_profile, r.where(node),
                        request_fields, response_fields, security=mode)
 

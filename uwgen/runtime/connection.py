@@ -131,6 +131,7 @@ class DesertConnection:
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
         self._wake_r, self._wake_w = socket.socketpair()
+        self._woken = False           # a wake-up byte is on its way (wake())
         self._wake_r.setblocking(False)
         self._wake_w.setblocking(False)
 
@@ -163,7 +164,14 @@ class DesertConnection:
                 pass
 
     def wake(self) -> None:
-        """Something was offered: look at the source now instead of at the next timer."""
+        """Something was offered: look at the source now instead of at the next timer.
+
+        Coalesced: one byte (one system call, one wake-up of the thread) until the thread
+        has taken it, however many messages are offered meanwhile. The thread clears the
+        flag before it drains the socket, so an offer after that writes again."""
+        if self._woken:
+            return
+        self._woken = True
         try:
             self._wake_w.send(b"\0")
         except OSError:          # full (already woken) or closed (stopping)
@@ -239,6 +247,7 @@ class DesertConnection:
             self._maybe_more = self.outbox.pending or len(batch) > self.pacer.max_bytes - MIN_FRAME
         readable, _, _ = select.select([sock, self._wake_r], [], [], self._wait_time(self.clock.now()))
         if self._wake_r in readable:
+            self._woken = False
             try:
                 while self._wake_r.recv(4096):
                     pass

@@ -41,6 +41,11 @@ class PlainClasses:
         raise AttributeError(name)
 
     @staticmethod
+    def numbers(values) -> list:
+        """A numeric array as plain classes hold it: a list (typed arrays decode to array.array)."""
+        return values if type(values) is list else list(values)
+
+    @staticmethod
     def octet_list(data: bytes) -> bytes:
         return data
 
@@ -117,8 +122,16 @@ class RosClasses:
 
     @staticmethod
     def array(values, code: str) -> array.array:
-        """A numeric sequence as rclpy keeps it: an array.array of type `code`."""
+        """A numeric sequence as rclpy keeps it: an array.array of type `code` (a decoded
+        typed array already is one, fresh: it is kept)."""
+        if type(values) is array.array and values.typecode == code:
+            return values
         return array.array(code, values)
+
+    @staticmethod
+    def numbers(values):
+        """A numeric array for rclpy's constructors, which take a list or an array.array."""
+        return values
 
     @staticmethod
     def octet_list(data: bytes) -> list[bytes]:

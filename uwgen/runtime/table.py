@@ -42,9 +42,10 @@ class TypeCodec:
     def plain_class(self) -> type:
         return getattr(self.plain, self.class_key)
 
-    def encode(self, msg: Any, header: list) -> bytes:
-        """The payload: `header` items, then the message's fields."""
-        out = header
+    def encode(self, msg: Any, header: list | None = None) -> bytes:
+        """The payload: `header` items, then the message's fields. Without a header, the
+        bytes of the bare message (its fields alone; `decode_message` reads them back)."""
+        out = [] if header is None else header
         try:
             self.enc(msg, out)
         except CodecError:
@@ -62,6 +63,11 @@ class TypeCodec:
                 raise EncodeError("", f"{len(data)}-byte payload: over the {MAX_PAYLOAD} bytes an rmw_desert "
                                       "receiver takes (no fragmentation in this profile)")
         return data
+
+    def decode_message(self, payload: bytes, ros: bool = True) -> Any:
+        """The message of `encode(msg)`'s bytes (a bare message, no header); `ros=False`:
+        the generated plain class even where rclpy is importable."""
+        return self.decode(payload, (), ros)[0]
 
     def decode(self, payload: bytes, header: tuple, ros: bool = True) -> tuple[Any, list]:
         """(message, header items). `header` gives the expected kind and id; a header
@@ -142,6 +148,20 @@ class ServiceCodec:
     def decode_response(self, payload: bytes, ros: bool = True) -> tuple[int, Any]:
         msg, head = self.response.decode(payload, (KIND_RESPONSE, self.id, None), ros)
         return head[2], msg
+
+
+def find_codec(codecs: dict, type_name: str, profile: str) -> TypeCodec:
+    """codecs[(type_name, profile)], else a KeyError saying what the package has."""
+    try:
+        return codecs[(type_name, profile)]
+    except KeyError:
+        pass
+    profiles = sorted(p for t, p in codecs if t == type_name)
+    if profiles:
+        raise KeyError(f"{type_name} has no {profile} codec in this package, only {', '.join(profiles)} "
+                       f"(give profile=...)") from None
+    raise KeyError(f"{type_name} has no codec in this package: the manifest may give it field "
+                   f"encodings (use its entry in TOPICS, SERVICES or ACTIONS), or it was not built") from None
 
 
 def _seq(seq: int) -> int:

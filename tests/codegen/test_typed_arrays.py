@@ -1,0 +1,174 @@
+"""Numeric arrays as RFC 8746 typed arrays (wire-format.md section 4.1): the page's worked
+bytes, the choice that is never larger than the items, both forms decoded, bad typed arrays
+refused with the field's path, and none of them in profile rmw_desert."""
+from __future__ import annotations
+
+import array
+import math
+import re
+from pathlib import Path
+
+import cbor2
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from sensor_msgs.msg import BatteryState, ChannelFloat32, LaserScan
+from std_msgs.msg import Int16MultiArray
+
+from uwgen.codegen import generate
+from uwgen.runtime import codec as rt
+from uwgen.runtime.codec import DecodeError, pack_items
+
+DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
+TYPES = ["sensor_msgs/msg/ChannelFloat32", "std_msgs/msg/Int16MultiArray", "sensor_msgs/msg/LaserScan",
+         "sensor_msgs/msg/BatteryState", "geometry_msgs/msg/PoseWithCovariance"]
+EXAMPLES = {
+    "halves": ChannelFloat32(name="r", values=[0.5, 1.5, 100.0]),
+    "singles": ChannelFloat32(name="r", values=[3.95, 0.1]),
+    "items": ChannelFloat32(name="r", values=[0.0, 3.95]),
+    "empty": ChannelFloat32(name="r", values=[]),
+    "int16": Int16MultiArray(data=[1000, -1000, 300]),
+    "int16-small": Int16MultiArray(data=[1, 2, 3]),
+}
+
+
+@pytest.fixture(scope="module")
+def pkg(tmp_path_factory):
+    return generate(tmp_path_factory.mktemp("typed"), "uwgen_typed", names=TYPES, profiles=("native", "rmw_desert"))
+
+
+def doc_rows() -> dict[str, tuple[str, str]]:
+    """example -> (payload hex, the 'sent' column), from section 4.1's table."""
+    section = DOC.read_text().split("### 4.1", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| ([a-z0-9-]+) \| [^|]+ \| `([0-9A-F ]+)` \| ([^|]+) \|$", section, re.M)
+    return {name: (payload, sent.strip()) for name, payload, sent in rows}
+
+
+def test_every_example_row_of_section_4_1_is_checked():
+    assert set(doc_rows()) == set(EXAMPLES)
+
+
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_section_4_1_worked_bytes_and_sizes(pkg, name):
+    msg = EXAMPLES[name]
+    codec = pkg.codec(f"{type(msg).__module__.split('.')[0]}/msg/{type(msg).__name__}")
+    payload = codec.encode(msg, [0, 4])
+    want, sent = doc_rows()[name]
+    assert payload.hex(" ").upper() == want
+    # The sizes the 'sent' column states, recomputed from the formulas of the section.
+    values = list(msg.values if isinstance(msg, ChannelFloat32) else msg.data)
+    n, w = len(values), (4 if isinstance(msg, ChannelFloat32) else 2)
+    h = rt.head_size
+    sizes = {"I": len(pack_items([n, *values])), "T": 2 + h(w * n) + w * n, "H": 2 + h(2 * n) + 2 * n}
+    for letter, stated in re.findall(r"([ITH]) = (\d+)", sent):
+        assert sizes[letter] == int(stated), (letter, sizes)
+    back, _ = codec.decode(payload, (0, 4))
+    assert list(back.values if isinstance(msg, ChannelFloat32) else back.data) == \
+        [float(array.array("f", [v])[0]) if w == 4 else v for v in values]
+
+
+def scan(ranges, intensities) -> LaserScan:
+    return LaserScan(angle_min=-1.0, angle_max=1.0, range_max=30.0, ranges=ranges, intensities=intensities)
+
+
+def items_of(pkg, msg, type_name) -> list:
+    return cbor2.loads(b"\x9f" + pkg.codec(type_name).encode(msg, [0, 4]) + b"\xff")
+
+
+def test_laser_ranges_travel_as_float32_and_integer_intensities_as_halves(pkg):
+    msg = scan([0.5 + 20 * abs(math.sin(k * 0.05)) for k in range(360)], [float(100 + k % 50) for k in range(360)])
+    tags = [item.tag for item in items_of(pkg, msg, "sensor_msgs/msg/LaserScan") if isinstance(item, cbor2.CBORTag)]
+    assert tags == [85, 84]
+    payload = pkg.codec("sensor_msgs/msg/LaserScan").encode(msg, [0, 4])
+    back, _ = pkg.codec("sensor_msgs/msg/LaserScan").decode(payload, (0, 4))
+    assert back.ranges == array.array("f", msg.ranges) and back.intensities == msg.intensities
+    assert type(back.ranges) is array.array and back.ranges.typecode == "f"
+
+
+def test_a_covariance_of_mostly_zeros_stays_items_and_an_exact_one_goes_typed(pkg):
+    from geometry_msgs.msg import PoseWithCovariance
+
+    name = "geometry_msgs/msg/PoseWithCovariance"
+    sparse = PoseWithCovariance(covariance=[0.05 if k % 7 == 0 else 0.0 for k in range(36)])
+    assert not any(isinstance(i, cbor2.CBORTag) for i in items_of(pkg, sparse, name))
+    dense = PoseWithCovariance(covariance=[1 / (k + 3) for k in range(36)])
+    assert [i.tag for i in items_of(pkg, dense, name) if isinstance(i, cbor2.CBORTag)] == [86]
+    for msg in (sparse, dense):
+        back, _ = pkg.codec(name).decode(pkg.codec(name).encode(msg, [0, 4]), (0, 4))
+        assert list(back.covariance) == list(msg.covariance)
+
+
+FLOATS = st.one_of(st.sampled_from([0.0, -0.0, 1.0, 0.5, 100.0, 65504.0, 1e-45, 2.0 ** -24, math.inf, -math.inf]),
+                   st.floats(width=32, allow_nan=False))
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.lists(FLOATS, max_size=60), code=st.sampled_from("fd"), counted=st.booleans())
+def test_the_choice_is_never_larger_than_the_items_and_decodes_back(values, code, counted):
+    got = rt.number_array(values, code, counted, "x")
+    items = ([len(values)] if counted else []) + array.array(code, values).tolist()
+    assert len(pack_items([0, *got])) <= len(pack_items([0, *items]))
+    typed = 2 + rt.head_size(len(values) * (4 if code == "f" else 8)) + len(values) * (4 if code == "f" else 8)
+    if typed <= len(pack_items([0, *items])) - 1:
+        assert isinstance(got[0], cbor2.CBORTag)       # typed wherever no larger
+    if got and isinstance(got[0], cbor2.CBORTag):
+        back = rt.typed_array(got[0], code, "x", None, False).tolist()
+        assert array.array(code, back).tobytes() == array.array(code, values).tobytes()
+
+
+def test_without_numpy_halves_convert_the_same(monkeypatch):
+    values = [float(k % 40) for k in range(200)]
+    with_numpy = rt.number_array(values, "f", True, "x")
+    monkeypatch.setattr(rt, "_np", None)
+    without = rt.number_array(values, "f", True, "x")
+    assert with_numpy == without and without[0].tag == 84
+    assert rt.typed_array(without[0], "f", "x", None, False).tolist() == values
+
+
+def test_both_forms_of_the_same_array_decode_to_the_same_message(pkg):
+    codec = pkg.codec("sensor_msgs/msg/ChannelFloat32")
+    as_items = pack_items([0, 4, "r", 2, 3.5, 0.25])
+    typed = pack_items([0, 4, "r", cbor2.CBORTag(85, array.array("f", [3.5, 0.25]).tobytes())])
+    halves = pack_items([0, 4, "r", cbor2.CBORTag(84, bytes.fromhex("00 43 00 34"))])
+    decoded = [list(codec.decode(p, (0, 4))[0].values) for p in (as_items, typed, halves)]
+    assert decoded == [[3.5, 0.25]] * 3
+
+
+@pytest.mark.parametrize("item, message", [
+    (cbor2.CBORTag(86, bytes(8)), "expected a typed array (tag 85 or, for floats, 84"),
+    (cbor2.CBORTag(85, bytes(6)), "not a whole number of 4-byte elements"),
+    (cbor2.CBORTag(84, bytes(3)), "not a whole number of 2-byte elements"),
+    (cbor2.CBORTag(85, "text"), "got tag 85"),
+])
+def test_a_bad_typed_array_is_refused_with_the_field_path(pkg, item, message):
+    codec = pkg.codec("sensor_msgs/msg/ChannelFloat32")
+    with pytest.raises(DecodeError) as err:
+        codec.decode(pack_items([0, 4, "r", item]), (0, 4))
+    assert err.value.path == "values" and message in str(err.value)
+
+
+def test_a_typed_fixed_array_must_have_its_size(pkg):
+    name = "geometry_msgs/msg/PoseWithCovariance"
+    good = items_of(pkg, __import__("geometry_msgs.msg").msg.PoseWithCovariance(), name)
+    short = [*good[:-1], cbor2.CBORTag(86, bytes(8 * 35))]
+    with pytest.raises(DecodeError, match="35 elements in a fixed array of 36") as err:
+        pkg.codec(name).decode(pack_items(short), (0, 4))
+    assert err.value.path == "covariance"
+
+
+def test_profile_rmw_desert_never_sends_a_typed_array(pkg):
+    msg = BatteryState(cell_voltage=[3.95, 3.96, 3.94, 3.95], cell_temperature=[21.0, 21.5, 22.0, 21.5])
+    payload = pkg.codec("sensor_msgs/msg/BatteryState", "rmw_desert").encode(msg, [0, 4])
+    items = cbor2.loads(b"\x9f" + payload + b"\xff")
+    assert not any(isinstance(i, cbor2.CBORTag) for i in items)
+    assert 3.950000047683716 in items          # the cells are items, one by one
+
+
+def test_a_remembered_choice_is_the_same_as_a_fresh_one_and_is_not_shared(monkeypatch):
+    values = [0.05, 0.0, 0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 0.05]
+    fresh = rt._choose(array.array("d", values).tobytes(), "d", False)
+    first, second = rt.number_array(values, "d", False, "x"), rt.number_array(list(values), "d", False, "x")
+    assert first == second == fresh == values
+    out = [0, 4]
+    out += first                       # how generated encoders use it: copied, never mutated
+    assert rt.number_array(values, "d", False, "x") == values
