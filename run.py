@@ -17,6 +17,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
@@ -80,17 +81,32 @@ def ros_env() -> dict[str, str]:
     return env
 
 
-def run(cmd: list[str]) -> int:
+def run(cmd: list[str], extra_env: dict[str, str] | None = None) -> int:
     log("$ " + " ".join(cmd))
-    return subprocess.run(cmd, cwd=ROOT, env=ros_env()).returncode
+    return subprocess.run(cmd, cwd=ROOT, env={**ros_env(), **(extra_env or {})}).returncode
+
+
+def test_workers(extra: list[str]) -> list[str]:
+    """pytest-xdist options: one worker per core (at least 2: most tests wait on sockets, ROS
+    and the emulator, not on the CPU), unless the caller chose (`-n ...`, `-p no:xdist`)."""
+    if any(a == "-n" or a.startswith(("-n", "--numprocesses", "--dist")) or a == "no:xdist"
+           for a in extra):
+        return []
+    return ["-n", str(max(2, min(os.cpu_count() or 2, 4)))]
 
 
 def cmd_test(extra: list[str]) -> int:
-    rc = run([str(VENV / "bin" / "uwgen"), "build", "--check"])
-    if rc != 0:
-        log("generated/ is stale: run `.venv/bin/uwgen build` and commit the result")
-        return rc
-    rc = run([str(PY), "-m", "pytest", *extra])
+    # Everything the run writes goes to one temporary folder, removed at its end: uwgen's
+    # cache, Hypothesis's and pytest's, the bytecode (tests/conftest.py), never the checkout
+    # or ~/.cache/uwgen.
+    with tempfile.TemporaryDirectory(prefix="uwgen-test-") as run_dir:
+        extra_env = {"UWGEN_TEST_RUN_DIR": run_dir, "UWGEN_CACHE": str(Path(run_dir) / "cache"),
+                     "PYTHONPYCACHEPREFIX": str(Path(run_dir) / "pycache")}
+        rc = run([str(VENV / "bin" / "uwgen"), "build", "--check"], extra_env)
+        if rc != 0:
+            log("generated/ is stale: run `.venv/bin/uwgen build` and commit the result")
+            return rc
+        rc = run([str(PY), "-m", "pytest", *test_workers(extra), *extra], extra_env)
     if rc == 5:  # pytest: no tests collected; a suite that runs nothing must not pass
         log("pytest collected no tests")
         return 1

@@ -1,7 +1,93 @@
-"""Shared test set-up: every ROS process the tests start stays on this machine."""
+"""Shared test set-up: every ROS process the tests start stays on this machine, every file
+the tests write goes to a temporary folder of this run.
+
+- ROS: discovery on localhost only, and a block of domain ids for each pytest process
+  (tests/ros_domains.py), so parallel workers (pytest-xdist) never share a domain.
+- Files: uwgen's cache ($UWGEN_CACHE: type-support builds, the demo's fall-backs) and
+  Hypothesis's example database are a folder made for this run, shared by its workers and
+  removed at its end; the user's ~/.cache/uwgen is never touched. `run.py test` makes that
+  folder (and sends Python's bytecode there too); a bare `pytest` makes its own.
+- At the end of the run the checkout must hold no file it did not hold at its start
+  (`git status --ignored`); a run that left one fails and names it. pytest's own cache is
+  in the run's folder too (pyproject: cache_dir), so `--lf` knows only the current run.
+"""
 import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import ros_domains
+
+RUN_DIR_ENV = "UWGEN_TEST_RUN_DIR"
+ROOT = Path(__file__).resolve().parents[1]
 
 # Before anything imports rclpy: discovery only on localhost, and a domain of our own.
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+ros_domains.setup()
+
+# The run's folder: made by run.py, or here by the run's first process (xdist's controller
+# runs this file before it starts the workers, which inherit the variable).
+_OWN_RUN_DIR = RUN_DIR_ENV not in os.environ
+if _OWN_RUN_DIR:
+    os.environ[RUN_DIR_ENV] = tempfile.mkdtemp(prefix="uwgen-test-")
+RUN_DIR = Path(os.environ[RUN_DIR_ENV])
+os.environ["UWGEN_CACHE"] = str(RUN_DIR / "cache")
+os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = str(RUN_DIR / "hypothesis")
+# Bytecode of the checkout's modules, here and in every child process (run.py sets it too).
+os.environ.setdefault("PYTHONPYCACHEPREFIX", str(RUN_DIR / "pycache"))
+sys.pycache_prefix = os.environ["PYTHONPYCACHEPREFIX"]
+
+from hypothesis import settings  # noqa: E402  (after its storage folder is set)
+from hypothesis.database import DirectoryBasedExampleDatabase  # noqa: E402
+
+settings.register_profile("uwgen", database=DirectoryBasedExampleDatabase(str(RUN_DIR / "hypothesis")))
+settings.load_profile("uwgen")
+
+
+def _checkout_files() -> set[str] | None:
+    """Every path `git status` reports in the checkout, ignored ones included (None: no git)."""
+    try:
+        res = subprocess.run(["git", "status", "--porcelain", "--ignored", "--untracked-files=all"],
+                             cwd=ROOT, capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    if res.returncode != 0:
+        return None
+    paths = {line[3:] for line in res.stdout.splitlines()}
+    return {p for p in paths if not p.startswith((".venv/", "uwgen.egg-info/"))}
+
+
+def _is_worker(config) -> bool:
+    return hasattr(config, "workerinput")
+
+
+def pytest_configure(config):
+    if not _is_worker(config):
+        config._uwgen_checkout_before = _checkout_files()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    config = session.config
+    if _is_worker(config):
+        return
+    before = getattr(config, "_uwgen_checkout_before", None)
+    after = _checkout_files()
+    if before is None or after is None:
+        return
+    left = sorted(after - before)
+    if left:
+        reporter = config.pluginmanager.get_plugin("terminalreporter")
+        text = "the tests left files in the checkout (write them under tmp_path):\n  " + "\n  ".join(left)
+        if reporter:
+            reporter.write_line(text, red=True)
+        else:
+            print(text)
+        session.exitstatus = 1
+
+
+def pytest_unconfigure(config):
+    if _OWN_RUN_DIR and not _is_worker(config):
+        shutil.rmtree(RUN_DIR, ignore_errors=True)

@@ -32,4 +32,7 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except KeyboardInterrupt:   # Ctrl-C before the bridge took over SIGINT: nothing started yet
+        sys.exit(130)

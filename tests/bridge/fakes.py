@@ -8,14 +8,14 @@ duplicate deliveries.
 """
 from __future__ import annotations
 
-import itertools
-import os
 import queue
 import threading
 import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 from typing import Any
+
+import ros_domains  # tests/ros_domains.py
 
 from rclpy.serialization import deserialize_message, serialize_message
 
@@ -204,13 +204,9 @@ class LinkPair:
         return link
 
 
-_domains = itertools.count()
-
-
 def next_domain() -> int:
-    """A ROS domain id of its own for every context a test creates (0..232 valid)."""
-    base = int(os.environ.get("ROS_DOMAIN_ID", "1"))
-    return 100 + (base * 7 + next(_domains)) % 130
+    """A ROS domain id of its own for every context a test creates (tests/ros_domains.py)."""
+    return ros_domains.next_domain()
 
 
 def wait_for(cond, timeout: float = 10.0, what: str = "condition") -> None:

@@ -81,6 +81,7 @@ def test_a_package_using_another_of_yours_is_keyed_by_both(tmp_path):
     assert build_digest(root / "ts_report_msgs") != before
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(400)
 def test_ros_interfaces_builds_a_package_using_another_and_runs_a_program_with_them(tmp_path):
     root = two_packages(tmp_path / "interfaces")
@@ -100,6 +101,7 @@ def test_ros_interfaces_builds_a_package_using_another_and_runs_a_program_with_t
     assert res.stdout.strip().splitlines()[-1] == "12.5 ok"
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(400)
 def test_ros_interfaces_builds_actions_too(tmp_path):
     pkg = tmp_path / "ts_action_msgs" / "action"

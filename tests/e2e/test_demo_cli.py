@@ -46,6 +46,7 @@ def test_read_only_checkout_writes_to_the_cache(monkeypatch, tmp_path):
         assert key.path == tmp_path / "demo" / "keys" / "demo.key" and key.created
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(240)
 def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     # A DESERT someone else started (here the emulator, as another program would be).
@@ -54,7 +55,8 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
                     period=0.2, max_read_length=64, bitrate=4800.0, per=0.0, seed=3)
     with run_emulator(scen) as emu:
         res = uwgen("--quiet", "demo", "--desert", f"127.0.0.1:{emu.port('s')},127.0.0.1:{emu.port('v')}",
-                    "--square-size", "1", "--out", str(tmp_path), "--timeout", "150", timeout=220)
+                    "--square-size", "1", "--out", str(tmp_path), "--timeout", "150",
+                    "--key-file", str(tmp_path / "keys" / "demo.key"), timeout=220)
         counters = emu.all_counters()
     assert res.returncode == 0, res.stdout + res.stderr
     # The demo used the given nodes, started no emulator of its own.
@@ -64,11 +66,17 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     # The secure link was on (issue 9): both bridges protected and verified, nothing dropped.
     import json
     import re
-    security = re.search(r"^security: surface protected (\d+) verified (\d+) dropped (\d+); "
-                         r"vehicle protected (\d+) verified (\d+) dropped (\d+)$", res.stdout, re.M)
+    why = r"(?: \((?:[a-z_]+ \d+(?:, )?)+\))?"
+    security = re.search(rf"^security: surface protected (\d+) verified (\d+) dropped (\d+){why}; "
+                         rf"vehicle protected (\d+) verified (\d+) dropped (\d+){why}$", res.stdout, re.M)
     assert security, res.stdout
     s_prot, s_ver, s_drop, v_prot, v_ver, v_drop = map(int, security.groups())
-    assert min(s_prot, s_ver, v_prot, v_ver) > 0 and s_drop == v_drop == 0
+    assert min(s_prot, s_ver, v_prot, v_ver) > 0
+    # A genuine run drops nothing but, at most, frames sealed before the other bridge started
+    # (still queued in DESERT then: a bridge cannot tell them from replays).
+    for side, dropped in (("surface", s_drop), ("vehicle", v_drop)):
+        status = json.loads((tmp_path / f"bridge_{side}.json").read_text())["security"]
+        assert status["dropped"] == dropped == status["before_start"], status
     vehicle = json.loads((tmp_path / "bridge_vehicle.json").read_text())["security"]
     assert vehicle["verified"] == v_ver and vehicle["unprotected"] == 0
     assert "/turtle1/cmd_vel 22 B = 12 B with packed + field encodings + 10 B encrypt" in res.stdout

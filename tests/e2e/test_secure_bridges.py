@@ -201,8 +201,8 @@ def test_frames_replayed_after_a_bridge_restart_are_rejected(secure_package):
             wait_for(lambda: new.status()["security"]["dropped"] >= 3, what="replays counted")
         sec = new.status()["security"]
         # the restarted bridge kept nothing, yet takes no frame sealed before it started: the
-        # three (sync) frames of the surface's epoch are stale
-        assert sec["stale"] == 3 and sec["dropped"] == 3
+        # three (sync) frames of the surface's epoch are refused
+        assert sec["before_start"] == 3 and sec["dropped"] == 3
         assert new.status()["topics"]["/cmd_vel"]["published"] == 0 and len(got) == 3
         # the operator goes on: heard from the surface's next sync frame (1 in 64, or after
         # 30 s), so it repeats the command until it is obeyed, as a joystick does

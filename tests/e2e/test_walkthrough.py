@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from ros_domains import next_domain
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGE = ROOT / "docs" / "walkthrough.md"
@@ -48,11 +49,11 @@ def test_the_page_has_every_step_marked():
     assert PAGE.read_text().count("```sh") == len(kinds)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(600)
 def test_walkthrough_own_message_crosses_the_emulated_link(tmp_path):
     ports = [str(p) for p in free_ports(2)]
-    base = int(os.environ["ROS_DOMAIN_ID"]) % 100 + 100
-    domains = [f"ROS_DOMAIN_ID={base}", f"ROS_DOMAIN_ID={base + 1}"]
+    domains = [f"ROS_DOMAIN_ID={next_domain()}", f"ROS_DOMAIN_ID={next_domain()}"]
 
     def literal(text: str) -> str:
         for old, new in (*zip(PORTS, ports), *zip(DOMAINS, domains)):

@@ -139,3 +139,12 @@ def test_demo_battery_signed_still_fits_one_packet(demo_guards):
     sealed = guards["vehicle"].protect(6, payload)            # the first frame: a sync frame (+23)
     assert len(sealed) == len(payload) + 23
     assert len(sealed) + OVERHEAD <= pkg.MANIFEST.sides["vehicle"].link.max_read_length
+
+
+def test_a_given_key_file_is_used_instead_of_the_manifests(tmp_path):
+    m = manifest(tmp_path / "samples")
+    given = tmp_path / "elsewhere" / "net.key"
+    with demo_key(m, tmp_path / "out", given) as key:
+        assert key.path == given and key.created
+        assert given.with_name("net.key.lock").exists()
+    assert not (tmp_path / "samples" / "keys").exists()     # the manifest's key was not made

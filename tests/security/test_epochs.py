@@ -151,7 +151,7 @@ def test_a_frame_sealed_a_moment_before_the_receiver_started_is_refused(tmp_path
     frame = s.protect(4, twist(1.0))
     wall.advance(0.1)                                   # well within the clock tolerance
     v = vehicle(tmp_path, wall=wall)
-    assert v.unprotect(frame) is None and v.stats()["stale"] == 1
+    assert v.unprotect(frame) is None and v.stats()["before_start"] == 1
 
 
 def test_a_sync_frame_of_an_epoch_let_go_is_not_taken_again(tmp_path):

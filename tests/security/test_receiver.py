@@ -45,9 +45,9 @@ def test_without_a_sync_packet_nothing_is_taken():
     assert r.admit(packet(7), 120.0, genuine) == "unsynced"
 
 
-def test_a_sync_packet_sealed_before_the_receiver_started_is_stale():
+def test_a_sync_packet_sealed_before_the_receiver_started_is_refused():
     r, _ = receiver()
-    assert r.admit(packet(3, sync=True, time=WALL0 - 1.0), 120.0, genuine) == "stale"
+    assert r.admit(packet(3, sync=True, time=WALL0 - 1.0), 120.0, genuine) == "before_start"
 
 
 def test_a_bad_tag_changes_nothing():

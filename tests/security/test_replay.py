@@ -91,7 +91,7 @@ def test_a_receiver_restarted_without_state_takes_no_recorded_frame(tmp_path, st
     wall.advance(CLOCK_TOLERANCE + 1.0)         # restarted a few seconds later
     v2 = vehicle(tmp_path, wall=wall)
     assert [v2.unprotect(f) for f in frames] == [None] * 40
-    assert v2.stats()["stale"] == 3 and v2.stats()["unsynced"] == 37   # 3 sync frames, 37 not
+    assert v2.stats()["before_start"] == 3 and v2.stats()["unsynced"] == 37   # 3 sync frames, 37 not
     live = [v2.unprotect(s.protect(4, twist(100 + i))) for i in range(SYNC_EVERY)]
     assert live[-1] == twist(100 + SYNC_EVERY - 1)      # heard again from its next sync frame
     assert v2.stats()["verified"] >= 1

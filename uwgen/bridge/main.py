@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 from pathlib import Path
 from types import ModuleType
 from typing import Any, Sequence
 
+from uwgen.argtypes import number, whole
 from uwgen.bridge.plan import TIMEOUT_REPLIES, BridgePlan, PlanError, import_package
 from uwgen.bridge.security import check_security
 
@@ -26,13 +29,13 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
     """Flags common to `uwgen bridge` and the generated modules."""
     parser.add_argument("--host", help="DESERT node host (default: the manifest's side entry)")
     parser.add_argument("--port", type=int, help="DESERT node TCP port (default: the manifest's)")
-    parser.add_argument("--max-read-length", type=int, metavar="BYTES",
+    parser.add_argument("--max-read-length", type=whole(1, 4096), metavar="BYTES",
                         help="bytes per acoustic packet (DESERT's max_read_length; default: "
                              "the manifest's side entry)")
-    parser.add_argument("--period", type=float, metavar="SECONDS",
+    parser.add_argument("--period", type=number(0.001, 3600), metavar="SECONDS",
                         help="seconds between packets (DESERT's period_; default: the "
                              "manifest's side entry)")
-    parser.add_argument("--status-period", type=float, default=2.0, metavar="SECONDS",
+    parser.add_argument("--status-period", type=number(0, 3600), default=2.0, metavar="SECONDS",
                         help="seconds between ~/status messages (default 2; 0: none)")
     parser.add_argument("--timeout-reply", choices=TIMEOUT_REPLIES, default="none",
                         help="what a stand-in service answers when its bridged call times out: "
@@ -57,8 +60,10 @@ def options_from_args(plan: BridgePlan, args: argparse.Namespace):
 
 
 def run(package: ModuleType, side: str, args: argparse.Namespace,
-        ros_args: Sequence[str] | None = None, link_factory: Any = None) -> int:
-    """Run the bridge until SIGINT/SIGTERM. `ros_args` go to rclpy.init (e.g. --ros-args ...)."""
+        ros_args: Sequence[str] | None = None, link_factory: Any = None,
+        stop: threading.Event | None = None) -> int:
+    """Run the bridge until SIGINT/SIGTERM (or `stop`, set by the caller's own handlers).
+    `ros_args` go to rclpy.init (e.g. --ros-args ...)."""
     # A package of another uwgen first: nothing else it says can be trusted (its key set-up included).
     from uwgen.codegen.vendor import foreign_runtime
     problem = foreign_runtime(package)
@@ -73,9 +78,33 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         print(f"uwgen bridge: {exc}", file=sys.stderr)
         return EXIT_USAGE
 
-    import signal
-    import threading
+    # SIGINT/SIGTERM from here on (while rclpy still imports, too) only ask the bridge to stop.
+    stop, previous = catch_stop_signals() if stop is None else (stop, {})
+    try:
+        return _run(package, side, plan, options, ros_args, link_factory, stop)
+    finally:
+        restore_signals(previous)
 
+
+def catch_stop_signals() -> tuple[threading.Event, dict]:
+    """Make SIGINT and SIGTERM set an event instead of raising KeyboardInterrupt wherever the
+    program happens to be (importing rclpy takes a second): the bridge then stops cleanly,
+    with its final status, or before it started. Returns the event and the old handlers."""
+    stop = threading.Event()
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda *_: stop.set())
+    return stop, previous
+
+
+def restore_signals(previous: dict) -> None:
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)
+
+
+def _run(package: ModuleType, side: str, plan: BridgePlan, options, ros_args, link_factory,
+         stop: threading.Event) -> int:
     from uwgen.typesupport import BuildError, activate_recorded
     no_support = ""
     try:  # the type support of the package's own interfaces (uwgen ros-interfaces builds it)
@@ -91,12 +120,11 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
 
     from uwgen.bridge.node import BridgeNode, default_link_factory
 
+    if stop.is_set():
+        log.info("stopped before the bridge started")
+        return 0
     # Our own SIGINT/SIGTERM handling: stop spinning, then close the node (final status, link
     # stopped) while the ROS context is still valid, then shut ROS down.
-    stop = threading.Event()
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        previous[sig] = signal.signal(sig, lambda *_: stop.set())
     rclpy.init(args=["uwgen-bridge", *(ros_args or [])],
                signal_handler_options=SignalHandlerOptions.NO)
     node = None
@@ -123,8 +151,6 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
                 node_log.info("final status: %s", _summary(status))
         if rclpy.ok():
             rclpy.shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
     return 0
 
 
@@ -175,6 +201,15 @@ def _summary(status: dict) -> str:
 def main(package: str | ModuleType, side: str | None = None,
          argv: Sequence[str] | None = None) -> int:
     """Entry point of a generated `bridge_<side>` module."""
+    stop, previous = catch_stop_signals()    # before anything imports rclpy
+    try:
+        return _main(package, side, argv, stop)
+    finally:
+        restore_signals(previous)
+
+
+def _main(package: str | ModuleType, side: str | None, argv: Sequence[str] | None,
+          stop: threading.Event) -> int:
     from rclpy.utilities import remove_ros_args
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -203,4 +238,4 @@ def main(package: str | ModuleType, side: str | None = None,
         print(f"uwgen bridge: {problem}", file=sys.stderr)
         return EXIT_USAGE
     # rclpy.init reads only the --ros-args sections of argv and leaves the rest alone.
-    return run(module, side or args.side, args, argv)
+    return run(module, side or args.side, args, argv, stop=stop)

@@ -254,6 +254,8 @@ class BridgeNode(Node):
         self.inbox.close()
         status = self.status()
         self.reporter.write(json.dumps(status, sort_keys=True, default=str))
+        self.reporter.final_report(status)     # drops and errors not yet in a log line
+        self.wiring.throttle.flush()
         if self.context.ok():
             self.destroy_node()   # raises only on a bug: let it be seen
         else:

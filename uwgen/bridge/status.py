@@ -15,11 +15,29 @@ from uwgen.bridge.counters import DropReporter
 from uwgen.bridge.wiring import Wiring
 
 
+# Drop lines: at most one per entry (topic, service, action, the bridge's own) per this many
+# seconds, however fast drops happen (docs/link-robustness.md, "Log volume").
+REPORT_EVERY = 60.0
+
+
+def _drop_sections(status: dict):
+    """(label, [(section, name, counts), ...]) of every entry whose drops are reported."""
+    for name, entry in status["topics"].items():
+        yield name, [("topic", name, entry), ("link", name, entry.get("link", {}))]
+    for name, entry in status["services"].items():
+        yield name, [("service", name, {**entry, **entry.get("calls", {})}),
+                     ("link", name, entry.get("link", {}))]
+    for name, entry in status.get("actions", {}).items():
+        yield name, [("action", name, entry), ("link", name, entry.get("link", {}))]
+    yield "payloads", [("bridge", "", status["bridge"])]
+
+
 class StatusReporter:
     def __init__(self, wiring: Wiring, network: str, side: str):
         self.w = wiring
         self.network, self.side = network, side
         self._drops = DropReporter()
+        self._quiet_until: dict[str, float] = {}    # entry -> no drop line before this time
         self._pub = wiring.node.create_publisher(string_class(), "~/status", 10)
 
     def snapshot(self, link_stats: Any, **sections: Any) -> dict:
@@ -44,29 +62,31 @@ class StatusReporter:
         return status
 
     def _report_drops(self, status: dict) -> None:
-        log = self.w.log
+        """One line per entry whose drops increased, at most one per entry per REPORT_EVERY
+        seconds whatever the input rate: the first at once, then the sum of the quiet time."""
+        log, now = self.w.log, self.w.clock.now()
         for name, entry in status["topics"].items():
             if entry.get("link", {}).get("superseded") and f"sup{name}" not in self.w.said:
                 self.w.said.add(f"sup{name}")
                 log.info(f"{name}: published faster than its link policy sends; older "
                          "messages are superseded by newer ones (counted in ~/status)")
-            parts = self._drops.changes("topic", name, entry)
-            parts += self._drops.changes("link", name, entry.get("link", {}))
+        for label, sections in _drop_sections(status):
+            if now < self._quiet_until.get(label, float("-inf")):
+                continue      # still counted: the next line after the quiet time has it
+            parts = [part for section in sections for part in self._drops.changes(*section)]
             if parts:
-                log.warning(f"{name}: dropped since last report: {', '.join(parts)}")
-        for name, entry in status["services"].items():
-            parts = self._drops.changes("service", name, {**entry, **entry.get("calls", {})})
-            parts += self._drops.changes("link", name, entry.get("link", {}))
-            if parts:
-                log.warning(f"{name}: dropped since last report: {', '.join(parts)}")
-        for name, entry in status.get("actions", {}).items():
-            parts = self._drops.changes("action", name, entry)
-            parts += self._drops.changes("link", name, entry.get("link", {}))
-            if parts:
-                log.warning(f"{name}: dropped since last report: {', '.join(parts)}")
-        parts = self._drops.changes("bridge", "", status["bridge"])
+                log.warning(f"{label}: dropped since last report: {', '.join(parts)}")
+                self._quiet_until[label] = now + REPORT_EVERY
+
+    def final_report(self, status: dict) -> None:
+        """At shutdown: one line with every drop not yet reported (nothing if none)."""
+        parts = []
+        for label, sections in _drop_sections(status):
+            changes = [part for section in sections for part in self._drops.changes(*section)]
+            if changes:
+                parts.append(f"{label} {', '.join(changes)}")
         if parts:
-            log.warning(f"payloads dropped since last report: {', '.join(parts)}")
+            self.w.log.warning(f"at shutdown, dropped since the last report: {'; '.join(parts)}")
 
     def write(self, text: str) -> None:
         """Replace the stats file (if any) with `text`, atomically."""

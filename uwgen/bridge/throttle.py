@@ -49,6 +49,13 @@ class LogThrottle:
         if now < self._next:
             return
         self._next = now + self.every
+        self._summarise()
+
+    def flush(self) -> None:
+        """At shutdown: the summary of whatever was counted since the last one."""
+        self._summarise()
+
+    def _summarise(self) -> None:
         for key, n in sorted(self._since.items()):
             if n:
                 self._say(key)(f"{n} more since the last summary ({self.totals[key]} in all) like: "

@@ -6,6 +6,7 @@ import json
 import sys
 from pathlib import Path
 
+from uwgen.argtypes import number
 from uwgen.commands.options import add_folders, add_manifest
 from uwgen.idl.model import DefinitionError
 from uwgen.manifest.loader import MANIFEST_NAME, ManifestError
@@ -18,7 +19,7 @@ EXIT_OVER = 1
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_folders(p, "folders of interfaces the manifest's types come from (installed ones are found too)")
     add_manifest(p, help=f"default: DIR/{MANIFEST_NAME} of the first DIR, else ./{MANIFEST_NAME}")
-    p.add_argument("--bitrate", type=float, default=None, metavar="BPS",
+    p.add_argument("--bitrate", type=number(1, 1e9), default=None, metavar="BPS",
                    help="the modem's bit rate for air times (default 4800 bit/s, DESERT's default modem)")
     p.add_argument("--json", action="store_true", help="print the analysis as JSON (for tools)")
     p.add_argument("--strict", action="store_true",

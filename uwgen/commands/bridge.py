@@ -20,6 +20,7 @@ from types import ModuleType
 
 import yaml
 
+from uwgen import yamltext
 from uwgen.bridge.main import EXIT_USAGE, add_link_arguments
 from uwgen.bridge.plan import PlanError, import_package
 from uwgen.commands.options import add_manifest
@@ -48,7 +49,7 @@ def package_name(manifest: Path) -> str:
     package, and the package carries everything the bridge needs.
     """
     try:
-        data = yaml.safe_load(manifest.read_text(encoding="utf-8"))
+        data = yamltext.safe_load(manifest.read_text(encoding="utf-8"))
     except OSError as exc:
         raise PlanError(f"{manifest}: cannot read: {exc.strerror}") from None
     except yaml.YAMLError as exc:
@@ -103,13 +104,19 @@ def check_fresh(package: ModuleType, manifest: Path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from uwgen.bridge.main import run as run_bridge
+    from uwgen.bridge.main import catch_stop_signals, restore_signals, run as run_bridge
+    # Before the generated package (and with it rclpy's messages) is imported: a SIGINT
+    # while starting stops the bridge cleanly instead of raising KeyboardInterrupt.
+    stop, previous = catch_stop_signals()
     try:
-        name = package_name(args.manifest)
-        package = find_package(name, args.manifest, args.package_dir)
-        check_fresh(package, args.manifest)
-    except PlanError as exc:
-        print(f"uwgen bridge: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    ros_args = ["--ros-args", *args.ros_args] if args.ros_args else []
-    return run_bridge(package, args.side, args, ros_args)
+        try:
+            name = package_name(args.manifest)
+            package = find_package(name, args.manifest, args.package_dir)
+            check_fresh(package, args.manifest)
+        except PlanError as exc:
+            print(f"uwgen bridge: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        ros_args = ["--ros-args", *args.ros_args] if args.ros_args else []
+        return run_bridge(package, args.side, args, ros_args, stop=stop)
+    finally:
+        restore_signals(previous)

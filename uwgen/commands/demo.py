@@ -28,6 +28,7 @@ import sys
 import time
 from pathlib import Path
 
+from uwgen.argtypes import number, whole
 from uwgen.commands.options import old_spelling
 from uwgen.emulator.physics import DEFAULT_PHY, PHYS, phy
 from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
@@ -48,22 +49,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run against a running DESERT instead of the emulator: the surface "
                              "node's and the vehicle's application sockets (the bridges use the "
                              "manifest's link settings, 64 B every 0.2 s)")
+    parser.add_argument("--key-file", type=Path, default=None, metavar="PATH",
+                        help="the network key both bridges use (created when missing; default: "
+                             "the manifest's msg_samples/keys/demo.key, or in uwgen's cache if "
+                             "the checkout is read-only); its sequence state files stay next to it")
     parser.add_argument("--docs", action="store_true",
                         help="also write the plot to docs/demo-path.png")
-    parser.add_argument("--distance", type=float, default=300.0, help="metres between the nodes")
-    parser.add_argument("--per", type=float, default=0.05,
+    parser.add_argument("--distance", type=number(1, 1e5), default=300.0, help="metres between the nodes")
+    parser.add_argument("--per", type=number(0, 1), default=0.05,
                         help="packet error rate on top of collisions (default 0.05)")
     parser.add_argument("--phy", choices=tuple(PHYS), default=DEFAULT_PHY, metavar="NAME",
                         help=f"the emulated channel's SNR model: {', '.join(PHYS)} (default "
                              f"{DEFAULT_PHY}: DESERT's stock two-node scenario, delivery ends "
                              "near 3.8 km; see `uwgen emulate --help`)")
-    parser.add_argument("--seed", type=int, default=1, help="emulator random seed")
-    parser.add_argument("--square-size", dest="square_size", type=float, default=4.0, metavar="M",
-                        help="length of a side of the square the operator drives, in metres")
+    parser.add_argument("--seed", type=whole(0, 2 ** 64 - 1), default=1, help="emulator random seed")
+    parser.add_argument("--square-size", dest="square_size", type=number(0, 1e3, above=True), default=4.0,
+                        metavar="M", help="length of a side of the square the operator drives, in metres")
     # --side is a manifest side everywhere else; it was this command's square size.
-    old_spelling(parser, "--side", "--square-size", "square_size", "demo", type=float)
-    parser.add_argument("--laps", type=int, default=1, help="laps of the square")
-    parser.add_argument("--timeout", type=float, default=180.0,
+    old_spelling(parser, "--side", "--square-size", "square_size", "demo", type=number(0, 1e3, above=True))
+    parser.add_argument("--laps", type=whole(1, 100), default=1, help="laps of the square")
+    parser.add_argument("--timeout", type=number(1, 1e6), default=180.0,
                         help="give up if the operator has not finished after this many seconds")
     parser.add_argument("--quiet", dest="quiet_command", action="store_true",
                         help="print only the report and problems (node errors): no relayed node logs, no INFO "
@@ -72,11 +77,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     away.add_argument("--drive-away", action="store_true",
                       help="the vehicle drives away from --distance until the link fades; plots "
                            "delivery ratio and latency against distance (drive-away.png)")
-    away.add_argument("--drive-to", type=float, default=10000.0, metavar="M",
+    away.add_argument("--drive-to", type=number(1, 1e5), default=10000.0, metavar="M",
                       help="with --drive-away: final distance in metres (default 10000)")
-    away.add_argument("--drive-time", type=float, default=75.0, metavar="S",
+    away.add_argument("--drive-time", type=number(1, 1e5), default=75.0, metavar="S",
                       help="with --drive-away: seconds the drive takes (default 75, time-lapse)")
-    away.add_argument("--wind", type=float, default=0.0, metavar="M_S",
+    away.add_argument("--wind", type=number(0, 100), default=0.0, metavar="M_S",
                       help="with --drive-away: wind speed of the SNR model (default 0)")
 
 
@@ -172,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_FAILED
 
     keys = contextlib.ExitStack()
-    key = network_key(keys, out, say)
+    key = network_key(keys, out, say, args.key_file)
     if key is False:
         return EXIT_FAILED
     key_args = key.bridge_args() if key else []

@@ -16,6 +16,7 @@ import sys
 import threading
 from pathlib import Path
 
+from uwgen.argtypes import number, whole
 from uwgen.commands.options import add_manifest
 from uwgen.emulator.physics import DEFAULT_PHY, PHYS
 
@@ -33,6 +34,10 @@ COUNTER_COLUMNS = ("bytes_in", "packets_queued", "packets_sent", "packets_delive
                    "queue_bytes", "max_queue_bytes", "dropped_restart", "clients")
 
 
+# More nodes than any acoustic network has: the emulator runs one socket server per node.
+MAX_NODES = 256
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", nargs="?", type=Path,
                         help="YAML scenario (msg_samples/scenarios/*.yaml); flags override it")
@@ -40,51 +45,51 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                               "settings; a scenario file then only adds physics (positions, "
                               "waypoints, snr, tdma, seed, ...)")
     g = parser.add_argument_group("nodes (without a scenario file)")
-    g.add_argument("--nodes", type=int, default=None, metavar="N",
+    g.add_argument("--nodes", type=whole(1, MAX_NODES), default=None, metavar="N",
                    help="number of nodes, on a line, each sending to the next (default 2)")
     g.add_argument("--ports", nargs="+", default=None, metavar="PORT",
                    help="one TCP port per node (default 4000, 4001, ...; 0 = any free port); "
                         "a scenario file may follow them")
-    g.add_argument("--distance", type=float, default=None, metavar="M",
+    g.add_argument("--distance", type=number(0, 1e6), default=None, metavar="M",
                    help="metres between neighbouring nodes (default 1000)")
     link = parser.add_argument_group("link and channel")
-    link.add_argument("--period", type=float, default=None, metavar="S",
+    link.add_argument("--period", type=number(0.001, 3600), default=None, metavar="S",
                       help="seconds between packets of a node (DESERT period_, default 0.2)")
     link.add_argument("--max-read-length", type=int, default=None, metavar="BYTES",
                       help="bytes per packet (default 64, at most 4096)")
-    link.add_argument("--bitrate", type=float, default=None, metavar="BPS",
+    link.add_argument("--bitrate", type=number(1, 1e9), default=None, metavar="BPS",
                       help="acoustic bit rate (default 4800)")
-    link.add_argument("--per", type=float, default=None,
+    link.add_argument("--per", type=number(0, 1), default=None,
                       help="fixed packet error rate 0..1 on top of the channel model (default: none)")
-    link.add_argument("--seed", type=int, default=None, help="random seed (default 1)")
+    link.add_argument("--seed", type=whole(0, 2 ** 64 - 1), default=None, help="random seed (default 1)")
     link.add_argument("--phy", choices=PHY_NAMES, default=None, metavar="NAME",
                       help=f"the channel's SNR model by name: {', '.join(PHY_NAMES)} (default: "
                            f"{DEFAULT_PHY}, the PHY of DESERT's stock two-node scenario, as the "
                            "calibration traces: delivery ends near 3.8 km; thesis: full delivery "
                            "to ~7 km; none: no SNR losses). A scenario file's `snr:` is kept "
                            "unless --phy is given")
-    link.add_argument("--wind", type=float, nargs="+", default=None, metavar="M_S",
+    link.add_argument("--wind", type=number(0, 100), nargs="+", default=None, metavar="M_S",
                       help="wind speed of the SNR model (several values with --pdr-sweep; "
                            "default 0, there 0 5 10)")
-    link.add_argument("--tdma", type=float, default=None, metavar="FRAME",
+    link.add_argument("--tdma", type=number(0.001, 3600), default=None, metavar="FRAME",
                       help="use TDMA with this frame length in seconds (slot = frame / nodes; "
                            "default: no TDMA, every node sends when it has data)")
-    link.add_argument("--guard", type=float, default=None, metavar="S",
+    link.add_argument("--guard", type=number(0, 3600), default=None, metavar="S",
                       help="TDMA guard time in seconds (default 0.05)")
     run_g = parser.add_argument_group("running")
-    run_g.add_argument("--duration", type=float, default=None, metavar="S",
+    run_g.add_argument("--duration", type=number(0, 1e9), default=None, metavar="S",
                        help="stop after S seconds (default: until Ctrl-C / SIGTERM)")
     run_g.add_argument("--crash-every", type=float, default=None, metavar="S",
                        help="make DESERT crash at random, on average every S seconds (every "
                             "client disconnected, queues lost), as real DESERT does under load")
-    run_g.add_argument("--crash-down", type=float, default=1.0, metavar="S",
+    run_g.add_argument("--crash-down", type=number(0, 1e9), default=1.0, metavar="S",
                        help="with --crash-every: seconds DESERT stays down (default 1)")
     sweep = parser.add_argument_group("PDR sweep (simulated, no sockets)")
     sweep.add_argument("--pdr-sweep", action="store_true",
                        help="print the delivery ratio against distance for each --wind")
     sweep.add_argument("--plot", type=Path, default=None, metavar="PNG",
                        help="with --pdr-sweep: also save the plot here")
-    sweep.add_argument("--packets", type=int, default=400,
+    sweep.add_argument("--packets", type=whole(1, 100_000), default=400,
                        help="with --pdr-sweep: packets per distance (default 400)")
 
 

@@ -16,6 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from uwgen.argtypes import number, whole
 from uwgen.commands.options import add_folders, add_manifest, old_spelling
 
 HELP = "write rmw_desert's ros_allowed_topics.conf from a manifest, or start a manifest from one"
@@ -61,9 +62,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     imp.add_argument("--no-builtin-hints", action="store_true",
                      help="do not take types of well-known names (turtlesim, /chatter, ...)")
     imp.add_argument("--network", default="rmw_desert", help="network name (default rmw_desert)")
-    imp.add_argument("--max-read-length", type=int, default=64,
+    imp.add_argument("--max-read-length", type=whole(1, 4096), default=64,
                      help="DESERT max_read_length written for every side (default 64)")
-    imp.add_argument("--period", type=float, default=1.0,
+    imp.add_argument("--period", type=number(0.001, 3600), default=1.0,
                      help="DESERT period_ in seconds written for every side (default 1.0)")
     imp.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
 

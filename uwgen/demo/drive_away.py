@@ -158,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 1
     keys = contextlib.ExitStack()
-    key = network_key(keys, out, lambda *a: None if args.quiet else print(*a))
+    key = network_key(keys, out, lambda *a: None if args.quiet else print(*a),
+                      getattr(args, "key_file", None))
     if key is False:
         return 1
     key_args = key.bridge_args() if key else []

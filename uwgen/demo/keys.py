@@ -21,8 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
 
-import yaml
-
+from uwgen import yamltext
 from uwgen.security.keys import read_key_file, write_key_file
 
 
@@ -44,7 +43,7 @@ class DemoKey:
 def manifest_key_file(manifest: Path) -> Path | None:
     """The manifest's `security: {key_file: ...}`, relative to its folder (None: no security).
     The manifest was loaded by `uwgen build` already; this only needs the one key."""
-    data = yaml.safe_load(Path(manifest).read_text(encoding="utf-8")) or {}
+    data = yamltext.safe_load(Path(manifest).read_text(encoding="utf-8")) or {}
     security = data.get("security") if isinstance(data, dict) else None
     key_file = security.get("key_file") if isinstance(security, dict) else None
     if not key_file:
@@ -78,15 +77,18 @@ def _ensure(path: Path) -> bool:
 
 
 @contextmanager
-def demo_key(manifest: Path, out: Path) -> Iterator[DemoKey | None]:
-    """The key the demo's bridges use (None when the manifest protects nothing), locked for
-    this demo while the context is open. Raises SecurityError or OSError with the reason."""
+def demo_key(manifest: Path, out: Path, key_file: Path | None = None) -> Iterator[DemoKey | None]:
+    """The key the demo's bridges use (None when the manifest protects nothing): `key_file`
+    if given (`uwgen demo --key-file`), else the manifest's; locked for this demo while the
+    context is open. Raises SecurityError or OSError with the reason."""
     wanted = manifest_key_file(manifest)
     if wanted is None:
         yield None
         return
+    if key_file is not None:
+        wanted = Path(key_file).expanduser()
     path, note = wanted, ""
-    if not _writable(wanted.parent):
+    if key_file is None and not _writable(wanted.parent):
         path, note = _cache_key(wanted.name), f"{wanted.parent} is read-only"
     created = _ensure(path)
     with open(path.with_name(path.name + ".lock"), "a", encoding="utf-8") as lock:

@@ -89,13 +89,14 @@ def _env(domain: int, extra_paths: list[str], iface_env) -> dict:
     return iface_env.child_env(env)
 
 
-def network_key(stack: contextlib.ExitStack, out: Path, say):
-    """The demo's network key, held (locked) by `stack` while the bridges run: a DemoKey,
-    None when the manifest protects nothing, False (after saying why) when it is unusable."""
+def network_key(stack: contextlib.ExitStack, out: Path, say, key_file: Path | None = None):
+    """The demo's network key (`key_file`, else the manifest's), held (locked) by `stack` while
+    the bridges run: a DemoKey, None when the manifest protects nothing, False (after saying
+    why) when it is unusable."""
     from uwgen.demo.keys import demo_key
     from uwgen.security.keys import SecurityError
     try:
-        key = stack.enter_context(demo_key(DEMO_MANIFEST, out))
+        key = stack.enter_context(demo_key(DEMO_MANIFEST, out, key_file))
     except (SecurityError, OSError) as exc:
         print(f"uwgen demo: cannot set up the network key: {exc}", file=sys.stderr)
         return False

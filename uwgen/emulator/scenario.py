@@ -14,6 +14,7 @@ from typing import Any
 
 import yaml
 
+from uwgen import yamltext
 from uwgen.emulator.motion import PoseFeed, Position, Track, check_waypoints
 from uwgen.emulator.physics import SnrModel
 
@@ -288,7 +289,7 @@ def load_scenario(path: Path | str, base_nodes: list[NodeSpec] | None = None) ->
         raise ScenarioError(f"cannot read scenario: {exc.strerror or exc}", str(path)) from None
     doc = _Doc(path)
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = yaml.compose(text, Loader=yamltext.Loader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)

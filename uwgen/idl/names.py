@@ -13,8 +13,11 @@ PACKAGE_NAME = re.compile(r"(?!.*__)(?!.*_$)[a-z][a-z0-9_]*")
 FIELD_NAME = PACKAGE_NAME
 # CamelCase type names.
 MESSAGE_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
-# UPPER_CASE constants, no "__", no leading or trailing "_".
-CONSTANT_NAME = re.compile(r"[A-Z](?:[A-Z0-9_]?[A-Z0-9]+)*")
+# UPPER_CASE constants, no "__", no leading or trailing "_". Every character has exactly one
+# way to match (an "_" only before a letter or digit), so matching is linear in the length;
+# rosidl's own spelling of it, `[A-Z]([A-Z0-9_]?[A-Z0-9]+)*`, backtracks exponentially on a
+# name that fails late (`POWER_SUPPLY_TECHNOLOGY_UNKNOWNxx`: 34 s).
+CONSTANT_NAME = re.compile(r"[A-Z](?:_?[A-Z0-9])*")
 
 # Suffixes rosidl accepts after a message name (the parts of services and actions).
 _MESSAGE_SUFFIXES = ("_Request", "_Response", "_Goal", "_Result", "_Feedback")

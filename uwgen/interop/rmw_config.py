@@ -19,6 +19,7 @@ from pathlib import Path
 
 import yaml
 
+from uwgen import yamltext
 from uwgen.idl import names as idl_names
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import SourceRef
@@ -234,7 +235,7 @@ def resolve_types(names: list[str], lib: InterfaceLibrary, explicit: dict[str, s
 def read_hints(path: Path) -> dict[str, str]:
     """A hints file: a YAML (or JSON) mapping of name to type."""
     try:
-        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+        data = yamltext.safe_load(Path(path).read_text(encoding="utf-8"))
     except OSError as exc:
         raise RmwConfigError(f"cannot read hints: {exc.strerror or exc}", str(path)) from None
     except yaml.YAMLError as exc:

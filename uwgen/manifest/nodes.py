@@ -13,7 +13,20 @@ from pathlib import Path
 import yaml
 from yaml.constructor import ConstructorError, SafeConstructor
 
+from uwgen import yamltext
 from uwgen.idl.model import SourceRef
+
+
+# Integers a manifest may hold (any field type's range: int64, uint64), and the range of the
+# numbers that become times and rates (1e9 s is 31 years; 1e-6 s a microsecond).
+LARGEST_INT = 2 ** 64 - 1
+MAX_NUMBER = 1e9
+MIN_POSITIVE = 1e-6
+
+
+def _shorten(text: str, keep: int = 24) -> str:
+    """A value as the file spells it, cut short when long (a 400-digit number)."""
+    return text if len(text) <= keep else f"{text[:keep]}... ({len(text)} characters)"
 
 
 class ManifestError(Exception):
@@ -34,7 +47,7 @@ def compose(path: Path) -> yaml.Node | None:
     except OSError as exc:
         raise ManifestError(None, f"{path}: cannot read manifest: {exc.strerror or exc}") from None
     try:
-        return yaml.compose(text, Loader=yaml.SafeLoader)
+        return yaml.compose(text, Loader=yamltext.Loader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = SourceRef(path, mark.line + 1, mark.column + 1) if mark else SourceRef(path, 1, 1)
@@ -119,9 +132,13 @@ class Reader:
         if not isinstance(node, yaml.ScalarNode):
             return node
         try:
-            return self._constructor.construct_object(node, deep=True)
+            value = self._constructor.construct_object(node, deep=True)
         except (ConstructorError, ValueError) as exc:
             raise self.error(node, f"cannot read value: {exc}") from None
+        if isinstance(value, int) and not isinstance(value, bool) and not -LARGEST_INT <= value <= LARGEST_INT:
+            raise self.error(node, f"the integer {_shorten(node.value)} is out of range: no value in "
+                                   f"a manifest is beyond 64 bits (±{LARGEST_INT})")
+        return value
 
     def describe(self, node: yaml.Node) -> str:
         if isinstance(node, yaml.MappingNode):
@@ -157,6 +174,8 @@ class Reader:
         return value
 
     def number(self, node: yaml.Node, what: str, positive: bool = True) -> float:
+        """A finite number within ±MAX_NUMBER; with `positive`, at least MIN_POSITIVE (rates,
+        periods, timeouts and ttls: anything else overflows the timers it ends up in)."""
         value = self.value(node)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(node, f"{what} must be a number, got {self.describe(node)}")
@@ -164,6 +183,9 @@ class Reader:
             raise self.error(node, f"{what} must be a finite number, got {value}")
         if positive and value <= 0:
             raise self.error(node, f"{what} must be > 0, got {value}")
+        if abs(value) > MAX_NUMBER or (positive and value < MIN_POSITIVE):
+            span = f"{MIN_POSITIVE:g}..{MAX_NUMBER:g}" if positive else f"-{MAX_NUMBER:g}..{MAX_NUMBER:g}"
+            raise self.error(node, f"{what} must be in {span}, got {_shorten(node.value)}")
         return float(value)
 
     def optional_number(self, node: yaml.Node, what: str) -> float | None:

@@ -22,6 +22,8 @@ WHY = {
                "(refused: one frame may not move the window that far)",
     "stale": "older than its entry's max age (a recorded or held-back frame), or stamped by a "
              "clock further from ours than the tolerance",
+    "before_start": "a sync frame of a new epoch sealed before this side started (recorded and "
+                    "replayed, or still on its way at the start: taken from the sender's next one)",
     "unknown_sender": "a sender id no side of the manifest has",
     "reflected": "this side's own sender id (a frame sent back to us)",
     "unsynced": "no epoch of this sender yet; waiting for one of its sync frames",

@@ -36,8 +36,8 @@ from uwgen.security.keys import new_epoch, working_key
 from uwgen.security.receiver import Numbering, Receiver
 from uwgen.security.window import WINDOW
 
-DROP_REASONS = ("bad_tag", "replay", "too_old", "too_far", "stale", "unknown_sender", "reflected",
-                "unsynced", "unprotected", "truncated", "malformed")
+DROP_REASONS = ("bad_tag", "replay", "too_old", "too_far", "stale", "before_start", "unknown_sender",
+                "reflected", "unsynced", "unprotected", "truncated", "malformed")
 COUNTERS = ("protected", "sync_sent", "verified", "epochs_seen", "protect_failed", *DROP_REASONS)
 SYNC_FIRST = 3          # the first frames of an epoch carry the sync word
 SYNC_EVERY = 64         # then every frame whose number is a multiple of this,

@@ -8,7 +8,8 @@ which checks the frame's tag under a working key and number and returns what the
 protects (or None). It returns that, or the drop reason:
 
 - a sync frame must be fresh (`stale`); an epoch never heard is taken only from a sync frame
-  sealed after this side started (`stale`), numbered below `EPOCH_NUMBERS` (`too_far`), and
+  sealed after this side started (`before_start`: a replay, or a frame still on its way when
+  this side started; it cannot tell which), numbered below `EPOCH_NUMBERS` (`too_far`), and
   not one this side let go (`too_old`); every number below that frame's counts as seen;
 - a frame without a sync word needs a known epoch (`unsynced`) and is tried under the most
   recent first, its number reconstructed from its low bits;
@@ -66,7 +67,7 @@ class Receiver:
                 if peer.retired(n.sync.epoch):
                     return "too_old"         # an epoch this side let go
                 if self.freshness.before(n.sync.time, wall, self.started):
-                    return "stale"           # sealed before this side started
+                    return "before_start"    # sealed before this side started
                 if seq >= EPOCH_NUMBERS:     # no sender gets that far in one epoch
                     return "too_far"
                 entry = PeerEpoch(n.sync.epoch, self._aead_for(n.sender, n.sync.epoch), None)

@@ -1,0 +1,60 @@
+"""ROS domain ids of the tests: every pytest process gets a block of ids of its own.
+
+With parallel workers (pytest-xdist) each worker is one process with its own block, so two
+workers never share a domain; without them the one process has the whole range. Inside its
+block a process uses its ROS_DOMAIN_ID (and the id after it, as `uwgen demo` does) for
+children that take the domain from the environment, and `next_domain()` for the contexts a
+test creates itself. The starting points come from the ROS_DOMAIN_ID the run was given
+(run.py derives it from its pid), so two runs on one machine are unlikely to meet.
+"""
+from __future__ import annotations
+
+import itertools
+import os
+
+FIRST, LAST = 1, 231          # valid ids for Fast DDS on Linux: 0..232; 0 is everyone's default
+DEMO_LIMIT = 199              # `uwgen demo` takes ROS_DOMAIN_ID % 200 and the id after it
+SEED_ENV = "UWGEN_TEST_DOMAIN_SEED"
+
+
+def _worker() -> tuple[int, int]:
+    """(index, count) of this pytest process among the run's workers."""
+    name = os.environ.get("PYTEST_XDIST_WORKER", "")
+    count = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
+    index = int(name[2:]) if name.startswith("gw") and name[2:].isdigit() else 0
+    return index, max(count, index + 1)
+
+
+def block() -> range:
+    index, count = _worker()
+    size = (LAST - FIRST + 1) // count
+    return range(FIRST + index * size, FIRST + (index + 1) * size)
+
+
+def _seed() -> int:
+    return int(os.environ[SEED_ENV])
+
+
+def setup() -> int:
+    """Set this process's ROS_DOMAIN_ID (inside its block) once; returns it."""
+    if SEED_ENV not in os.environ:      # the run's first process: remember what it was given
+        os.environ[SEED_ENV] = os.environ.get("ROS_DOMAIN_ID") or str(1 + os.getpid() % 100)
+    ids = block()
+    choices = max(1, min(len(ids) - 1, DEMO_LIMIT - ids.start))
+    domain = ids.start + _seed() % choices
+    os.environ["ROS_DOMAIN_ID"] = str(domain)
+    return domain
+
+
+_counter = itertools.count()
+
+
+def next_domain() -> int:
+    """A ROS domain id of this process's block for every context a test creates, never the
+    process's ROS_DOMAIN_ID nor the one after it."""
+    ids = block()
+    own = int(os.environ["ROS_DOMAIN_ID"])
+    while True:
+        domain = ids.start + (_seed() * 7 + next(_counter)) % len(ids)
+        if domain not in (own, own + 1):
+            return domain
