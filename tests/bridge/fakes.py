@@ -138,7 +138,7 @@ class FakeLink:
         self.channels[key] = policy
         self.whole[key] = whole
 
-    def offer(self, key: int, payload: bytes) -> bool:
+    def offer(self, key: int, payload: bytes, published: float | None = None) -> bool:
         if key not in self.channels or not self.accept:
             return False
         if self.stopped:

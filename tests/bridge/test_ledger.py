@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import pytest
+
 from uwgen.bridge import ledger
 from uwgen.bridge.counters import TopicCounters
 from uwgen.manifest.model import LinkPolicy, Qos
@@ -56,3 +58,20 @@ def test_final_summary_states_the_books_per_topic():
                                          "accounting": inc}}})
     assert text == ("/cmd published 10 taken 9 sent 5 dropped 4 queued 0; "
                     "/log received 3 lost on link 1 delivered 3")
+
+
+# -- publication time (issue 16: ttl runs from publication) ------------------------------
+
+def test_publication_time_comes_from_the_source_timestamp():
+    from uwgen.bridge.topics import publication_time
+    info = {"source_timestamp": 1_700_000_000_250_000_000, "received_timestamp": 0}
+    assert publication_time(info, now=50.0, wall=1_700_000_002.0) == pytest.approx(48.25)
+
+
+@pytest.mark.parametrize("info", [None, {}, {"source_timestamp": 0},
+                                  {"source_timestamp": 1_700_000_009_000_000_000},   # ahead
+                                  {"source_timestamp": 1_600_000_000_000_000_000}],  # ages ago
+                         ids=["none", "empty", "zero", "future", "other clock"])
+def test_an_untrustworthy_source_timestamp_means_now(info):
+    from uwgen.bridge.topics import publication_time
+    assert publication_time(info, now=50.0, wall=1_700_000_002.0) is None

@@ -238,6 +238,43 @@ def test_request_that_comes_before_the_server_is_discovered_waits_for_it(pair):
     assert bridges["surface"].service_counters[ECHO.id].timeouts == 0
 
 
+def lose_next(link, kind: int, count: int = 1) -> list:
+    """Make `link` lose its next `count` payloads of `kind`; returns what it lost."""
+    lost, offer = [], link.offer
+
+    def lossy(key, payload):
+        if payload[0] == kind and len(lost) < count:
+            lost.append(payload)
+            return True
+        return offer(key, payload)
+    link.offer = lossy
+    return lost
+
+
+@pytest.mark.parametrize("side, kind", [("surface", 2), ("vehicle", 3)],
+                         ids=["request lost", "response lost"])
+def test_a_call_whose_request_or_response_is_lost_is_served_once(pair, side, kind):
+    surface, vehicle, bridges, links = pair
+    served = []
+
+    def serve(req, resp):
+        served.append(req.int32_value)
+        resp.int32_value = req.int32_value * 2
+        return resp
+    vehicle.node("server").create_service(BasicTypes, "/echo", serve)
+    vb = bridges["vehicle"]
+    wait_for(lambda: vb._served[ECHO.id][1].service_is_ready(), what="server visible")
+    lost = lose_next(links.links[side], kind)
+    client = surface.node("caller").create_client(BasicTypes, "/echo")
+    assert client.wait_for_service(timeout_sec=5.0)
+    future = client.call_async(BasicTypes.Request(int32_value=4))
+    wait_for(future.done, what="the response after a resend")
+    assert future.result().int32_value == 8 and served == [4] and len(lost) == 1
+    assert bridges["surface"].service_counters[ECHO.id].request_resends >= 1
+    if kind == 3:
+        assert vb.service_counters[ECHO.id].repeated_replies == 1
+
+
 def test_encode_error_is_counted_and_nothing_is_sent():
     tight = FakeTopicCodec(4, "/cmd", String, "surface", policy=LinkPolicy(queue="fifo", depth=4), max_len=20)
     package = fake_package([tight])
@@ -365,7 +402,7 @@ def test_a_burst_on_a_latest_only_topic_offers_only_the_newest_and_books_the_res
     topics = bridges["surface"].topics
     first, *more = twists(1, 2, 3, 4)
     topics._subscription_of[CMD.id] = FakeSubscription(more)
-    topics._taker(CMD)(first)   # as the executor calls it, with three more already queued
+    topics._taker(CMD)(first, {})   # as the executor calls it, with three more already queued
     counters = topics.counters[CMD.id]
     assert (counters.taken, counters.superseded, counters.offered) == (4, 3, 1)
     offered = [p for k, p in links.links["surface"].offers if k == CMD.id]
@@ -382,7 +419,7 @@ def test_a_burst_on_a_fifo_topic_offers_every_message_in_order():
         topics = bridges["surface"].topics
         first, *more = twists(1, 2, 3)
         topics._subscription_of[fifo.id] = FakeSubscription(more)
-        topics._taker(fifo)(first)
+        topics._taker(fifo)(first, {})
         assert [p for k, p in links.links["surface"].offers if k == fifo.id] == \
             [fifo.encode(m) for m in (first, *more)]
         counters = topics.counters[fifo.id]

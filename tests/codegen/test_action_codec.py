@@ -57,6 +57,8 @@ def test_worked_bytes_of_section_13(action):
         "result": (action.encode_result(7, SUCCEEDED, Fibonacci.Result(sequence=[0, 1, 1, 2, 3, 5])),
                    "03 09 07 04 06 00 01 01 02 03 05"),
         "aborted": (action.encode_result(7, ABORTED, Fibonacci.Result()), "03 09 07 06 00"),
+        "result received": (action.encode_result_status(7, received=True), "02 09 18 1F 00"),
+        "result wanted": (action.encode_result_status(7, received=False), "02 09 18 1F 01"),
     }
     spec = section_13()
     for name, (data, wire) in vectors.items():
@@ -68,6 +70,16 @@ def test_requests_decode_to_goal_or_cancel(action):
     handle, goal = action.decode_request(action.encode_goal(23, Fibonacci.Goal(order=40)))
     assert (handle, type(goal), goal.order) == (23, Fibonacci.Goal, 40)
     assert action.decode_request(bytes.fromhex("020900")) == (0, None)
+
+
+def test_result_status_requests_are_told_from_goals_and_cancels(action):
+    assert action.decode_result_status(bytes.fromhex("0209181f00")) == (7, True)
+    assert action.decode_result_status(bytes.fromhex("0209182f01")) == (23, False)
+    assert action.decode_result_status(action.encode_goal(7, Fibonacci.Goal(order=5))) is None
+    assert action.decode_result_status(action.encode_cancel(0)) is None
+    for bad in ("0209181f02", "0209181f", "0209183001", "0209181f0000"):   # code, cut, 48, extra
+        with pytest.raises(DecodeError):
+            action.decode_result_status(bytes.fromhex(bad))
 
 
 def test_responses_decode_to_answers_or_results(action):

@@ -148,12 +148,15 @@ def test_goal_accepted_with_feedback_and_result(net):
     for side in ("surface", "vehicle"):
         schema = net.bridges[side].status()["schema"]
         assert schema["heard"].get(str(ACTION_ID)) == own and schema["refused"] == 0
-    # One goal, one answer, one result (plus repeats if an answer was slow): no get_result,
-    # no status on the action's channel; feedback went on its own channel.
-    assert net.bridges["surface"].link.stats()["channels"][ACTION_ID]["sent"] == \
-        1 + surface["goal_resends"]
+    # One goal and the result's acknowledgement, one answer and one result (plus repeats if
+    # an answer or the ack was slow): no get_result, no status on the action's channel;
+    # feedback went on its own channel.
+    wait_for(lambda: counters(net, "surface")["result_acks"] == 1
+             and net.bridges["surface"].link.stats()["channels"][ACTION_ID]["sent"]
+             == 2 + counters(net, "surface")["goal_resends"], what="the ack sent")
+    vehicle = counters(net, "vehicle")
     assert net.bridges["vehicle"].link.stats()["channels"][ACTION_ID]["sent"] == \
-        2 + vehicle["repeated_replies"]
+        2 + vehicle["repeated_replies"] + vehicle["results_resent"]
 
 
 def test_cancel_crosses_and_the_goal_ends_canceled(net):
@@ -264,3 +267,24 @@ def test_bridges_sharing_one_graph_do_not_loop_a_goal(action_package):
         assert real.goals == [4]
         assert vb.status()["actions"]["/fibonacci"]["goal_requests"] == 0
         assert sb.link.stats()["channels"][ACTION_ID]["offered"] == 0
+
+
+def test_a_result_lost_once_is_sent_again_and_delivered(net):
+    real = FibonacciServer(net.vehicle.node("fibonacci_server"))
+    link = net.bridges["vehicle"].link
+    dropped, offer = [], link.offer
+
+    def lose_first_result(key, payload, *args, **kwargs):
+        if key == ACTION_ID and payload[0] == 3 and len(payload) > 4 and not dropped:
+            dropped.append(payload)                     # lost on the way
+            return True
+        return offer(key, payload, *args, **kwargs)
+    link.offer = lose_first_result
+    client = ready_client(net)
+    goal_handle = send(client, 6)
+    assert goal_handle.accepted
+    result = result_of(goal_handle)
+    assert result.status == GoalStatus.STATUS_SUCCEEDED
+    assert list(result.result.sequence) == [0, 1, 1, 2, 3, 5, 8] and real.goals == [6]
+    assert len(dropped) == 1 and counters(net, "vehicle")["results_resent"] >= 1
+    wait_for(lambda: counters(net, "vehicle")["results_acked"] == 1, what="the result acknowledged")

@@ -294,6 +294,8 @@ def test_a_secured_action_runs_and_forged_goals_and_cancels_never_reach_the_serv
         assert list(result.result.sequence) == [0, 1, 1, 2, 3, 5]
         assert feedback                                        # protected feedback arrived too
         assert real.goals == [5] and heard
+        wait_for(lambda: net.bridges["vehicle"].status()["actions"]["/fibonacci"]["results_acked"] == 1,
+                 what="the result's acknowledgement, protected too")
         _, _, n = wire.header_length(heard[0])
         handle = load_items(heard[0][:n])[2]                  # the header stays readable
         assert pack_items([5]) not in heard[0][n:]            # the goal's order does not

@@ -1,6 +1,8 @@
 """The reliability engine (uwgen.runtime.reliable): acks, loss, retransmission, delivery once."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from uwgen.runtime.reliable import (AckError, ReliableLink, Report, RttEstimator, Sent,
@@ -14,10 +16,16 @@ def engine(me: int, rto: float = 6.0) -> ReliableLink:
     return ReliableLink(me, RttEstimator(rto, 1.0, 60.0, 0.5), ack_delay=2.0, bitmap_bytes=1)
 
 
+def wire_format_15() -> str:
+    text = (Path(__file__).resolve().parents[2] / "docs" / "wire-format.md").read_text()
+    return text[text.index("## 15. Reliable delivery"):]
+
+
 def test_a_report_has_the_bytes_of_the_worked_example():
-    # wire-format 15.3: vehicle acks surface's packet 0x105, 0x104 missing, 0x103..0xFE got.
+    # wire-format 15.2: vehicle acks surface's packet 0x105, 0x104 missing, 0xFD..0x103 got.
     report = Report(SURFACE, 0x105, 0b0111_1111, 1, 1.3)
     assert encode_reports([report]).hex(" ") == "11 51 05 7f"
+    assert "`11 51 05 7f`" in wire_format_15() and "`04 11 51 05 7f`" in wire_format_15()
     back = decode_reports(bytes.fromhex("11 51 05 7f"))[0]
     assert (back.peer, back.largest, back.bitmap, back.nbytes, back.delay) == (1, 0x105, 0x7F, 1, 1.25)
     got, missing = back.numbers()
@@ -43,6 +51,7 @@ def test_rto_follows_rfc_6298_from_the_measured_round_trip():
     assert rtt.rto == pytest.approx(11.75)
     rtt.backoff()
     assert rtt.rto == pytest.approx(23.5)
+    assert "RTO 12 s then 11.75 s" in wire_format_15() and "to 23.5 s" in wire_format_15()
 
 
 def exchange(sender: ReliableLink, receiver: ReliableLink, numbers, arrives, now: float):

@@ -119,6 +119,17 @@ def test_message_older_than_ttl_is_dropped_never_sent():
     assert s.stats()[4]["expired"] == 1
 
 
+def test_ttl_runs_from_publication_not_from_the_offer():
+    clock = ManualClock(10.0)
+    s = LinkScheduler(clock)
+    s.add_channel(4, LinkPolicy(queue="fifo", depth=10, ttl=1.0))
+    s.offer(4, msg(4, 0), published=8.5)        # published 1.5 s before the bridge took it
+    s.offer(4, msg(4, 1), published=9.5)
+    s.offer(4, msg(4, 2), published=11.0)      # a stamp ahead of the clock counts as now
+    assert [serial(p) for _, p in drain(s, 10.8)] == [2]
+    assert s.stats()[4]["expired"] == 2
+
+
 def test_message_exactly_ttl_old_is_still_sent():
     clock = ManualClock()
     s = LinkScheduler(clock)

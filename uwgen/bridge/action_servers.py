@@ -31,6 +31,7 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.plan import FEEDBACK_KEY_BASE
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.reliable import RttEstimator, command_rtt
 from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, RESULTS)
 
 SERVER_GONE_GRACE = 1.0   # seconds the local server may be missing before its goals abort
@@ -38,6 +39,17 @@ RECENT_RESULTS = 8        # finished goals per action whose result is kept for a
 REPEAT_WINDOW = 1.5       # accept_timeouts after a goal first came in which a copy is a repeat
                           # (the client side sends copies within one accept_timeout, and
                           # reuses a handle only 2 accept_timeouts after its goal ended)
+
+
+@dataclass
+class Unacked:
+    """A result sent and not yet acknowledged by the client side (server side)."""
+
+    payload: bytes
+    first_sent: float
+    next_send: float
+    until: float                  # no copy after this: the client side may reuse the handle
+    sends: int = 1
 
 
 @dataclass
@@ -63,6 +75,8 @@ class ActionServers:
         self._gone_since: dict[int, float] = {}
         # id -> handle -> (goal payload, result payload, when the goal first came)
         self.finished: dict[int, OrderedDict[int, tuple[bytes, bytes, float]]] = {}
+        self.unacked: dict[int, dict[int, Unacked]] = {}   # id -> handle -> result to re-send
+        self.rtt: dict[int, RttEstimator] = {}             # id -> result round trip
         for codec in codecs:
             counters[codec.id] = ActionCounters()
             cls = wiring.ros_class(codec, "action")
@@ -73,6 +87,8 @@ class ActionServers:
             wiring.loops.watch_server(codec.name, action=True)
             self.goals[codec.id] = {}
             self.finished[codec.id] = OrderedDict()
+            self.unacked[codec.id] = {}
+            self.rtt[codec.id] = command_rtt(codec.accept_timeout, wiring.options.link.period)
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.served:
@@ -108,6 +124,12 @@ class ActionServers:
             finished.popitem(last=False)
         if self._offer(ident, payload, "result"):
             self.counters[ident].results_sent += 1
+        now = self.w.clock.now()
+        codec = self.served[ident][0]
+        # Sent again until acknowledged, for at most 2 accept_timeouts: the client side gives
+        # the handle to a new goal only 2 accept_timeouts after this goal ended there.
+        self.unacked[ident][handle] = Unacked(payload, now, now + self.rtt[ident].rto,
+                                              now + 2 * codec.accept_timeout)
 
     # -- the link (executor thread) --------------------------------------------------------
 
@@ -115,6 +137,10 @@ class ActionServers:
         codec, client = self.served[ident]
         counters, goals = self.counters[ident], self.goals[ident]
         try:
+            status = codec.decode_result_status(payload)
+            if status is not None:
+                self._result_status(ident, *status)
+                return
             handle, goal = codec.decode_request(payload)
         except ValueError as exc:
             counters.decode_errors += 1
@@ -131,6 +157,7 @@ class ActionServers:
             counters.duplicate_goals += 1
             return
         self.finished[ident].pop(handle, None)     # a new goal on a handle used before
+        self.unacked[ident].pop(handle, None)
         now = self.w.clock.now()
         # A goal waits for the local server at most half its accept_timeout: the client
         # side's clock started before the goal's trip, and the answer needs one too.
@@ -156,6 +183,50 @@ class ActionServers:
         for handle, entry in list(self.goals[ident].items()):
             if entry.sent is None:
                 self._send_goal(ident, handle, entry)
+
+    def _result_status(self, ident: int, handle: int, received: bool) -> None:
+        """The client side has the result of goal `handle` (stop sending it), or wants it."""
+        counters, now = self.counters[ident], self.w.clock.now()
+        if received:
+            unacked = self.unacked[ident].pop(handle, None)
+            if unacked is not None:
+                counters.results_acked += 1
+                if unacked.sends == 1:     # Karn: only an unambiguous round trip is a sample
+                    self.rtt[ident].sample(now - unacked.first_sent)
+            return
+        counters.result_queries += 1
+        entry = self.goals[ident].get(handle)
+        if entry is not None:
+            if entry.goal_handle is not None:
+                self._answer(ident, handle, ACCEPTED)     # still running
+            return
+        recent = self.finished[ident].get(handle)
+        if recent is not None:
+            counters.results_resent += 1
+            self._offer(ident, recent[1], "result")
+            return
+        # Neither running nor finished here (e.g. this bridge restarted): the goal is lost.
+        counters.lost_goals += 1
+        codec = self.served[ident][0]
+        self.w.throttle.report(f"alost{ident}", f"{codec.name}: the client side asks for the "
+                                                f"result of goal {handle}, unknown here: aborted")
+        self._offer(ident, codec.encode_result(handle, ABORTED, codec.ros_class().Result()), "result")
+
+    def _resend_results(self, ident: int, now: float) -> None:
+        """Results not acknowledged within the RTO go again, until their `until`."""
+        rtt = self.rtt[ident]
+        for handle, unacked in list(self.unacked[ident].items()):
+            if unacked.next_send > now:
+                continue
+            if now >= unacked.until:
+                del self.unacked[ident][handle]
+                self.counters[ident].results_unacked += 1
+                continue
+            rtt.backoff()
+            unacked.sends += 1
+            unacked.next_send = now + rtt.rto
+            self.counters[ident].results_resent += 1
+            self._offer(ident, unacked.payload, "result")
 
     def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
         """Answer a goal that came again; True when it was one (then it is not run)."""
@@ -228,7 +299,9 @@ class ActionServers:
     def _cancel(self, ident: int, handle: int) -> None:
         entry = self.goals[ident].get(handle)
         if entry is None:
-            self._answer(ident, handle, CANCEL_REFUSED)   # finished: its result is on its way
+            # Finished: its result is on its way, or the client side has given up on it.
+            self.unacked[ident].pop(handle, None)
+            self._answer(ident, handle, CANCEL_REFUSED)
             return
         if entry.sent is None:                             # still waiting for the local server
             del self.goals[ident][handle]
@@ -253,6 +326,7 @@ class ActionServers:
             codec, client = self.served[ident]
             counters = self.counters[ident]
             self._send_waiting(ident)
+            self._resend_results(ident, now)
             for handle, entry in list(goals.items()):
                 if entry.deadline > now:
                     continue

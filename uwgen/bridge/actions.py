@@ -11,8 +11,13 @@ published to the local client. The status topic is the local ActionServer's own.
 from the local client goes out as `[2, id, handle]` and its answer decides the local
 cancel response.
 
-Losses: a goal with no answer is sent again (same handle and bytes) after a third and two
-thirds of `accept_timeout`; no answer at all rejects the goal (or refuses the cancel) and
+Results: each result that arrives is acknowledged (`[2, id, 24 + handle, 0]`), also a
+copy (the server side re-sends a result until acknowledged); an accepted goal with no
+result asks for it (`[2, id, 24 + handle, 1]`) every accept_timeout.
+
+Losses: a goal with no answer is sent again (same handle and bytes) every retransmission
+timeout (reliable.command_rtt: measured from this action's goal/answer round trips, at
+most a quarter of `accept_timeout`); no answer at all rejects the goal (or refuses the cancel) and
 sends a cancel, in case only the answer was lost; no result within `result_timeout` aborts
 the goal locally and sends a cancel for it. Every such case is logged and counted in
 ~/status under `actions`.
@@ -32,10 +37,10 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.wiring import Wiring
 from uwgen.manifest.model import ACTION_HANDLES
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.reliable import RttEstimator, command_rtt
 from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCELED, CANCELING, REJECTED, RESULTS,
                                  SUCCEEDED)
 
-GOAL_SENDS = 3   # a goal goes out at most this many times within accept_timeout
 
 
 @dataclass
@@ -54,6 +59,8 @@ class GoalState:
     payload: bytes = b""                          # the goal as sent (sent again unchanged)
     sends: int = 1
     next_send: float = 0.0                        # when to send it again while unanswered
+    next_query: float = 0.0                       # accepted, no result: when to ask for it
+    sent_at: float = 0.0                          # when the goal first left
 
 
 class ActionStandIns:
@@ -64,6 +71,7 @@ class ActionStandIns:
         self.counters = counters
         self.offered: dict[int, Any] = {}            # id -> codec
         self.tables: dict[int, CallTable] = {}       # id -> goal handles in flight
+        self.rtt: dict[int, RttEstimator] = {}       # id -> goal round trip (goal to answer)
         self.handles: dict[int, range] = {}          # id -> this side's handles
         self.servers: dict[int, Any] = {}    # id -> the stand-in ActionServer (absent: withdrawn)
         self._states: dict[int, GoalState] = {}      # id(goal message) -> its goal
@@ -80,6 +88,7 @@ class ActionStandIns:
             table.set_seq_range(codec.id, first, last)
             self.handles[codec.id] = range(first, last + 1)
             self.tables[codec.id] = table
+            self.rtt[codec.id] = command_rtt(codec.accept_timeout, wiring.options.link.period)
             self.offered[codec.id] = codec
             self._offer(codec, cls)
             wiring.loops.watch_standin(codec.name, action=True,
@@ -136,7 +145,8 @@ class ActionStandIns:
                 log.error(f"{codec.name}: goal rejected: the link refused it (see ~/status)")
                 return GoalResponse.REJECT
             state.payload = payload
-            state.next_send = self.w.clock.now() + codec.accept_timeout / GOAL_SENDS
+            state.sent_at = self.w.clock.now()
+            state.next_send = state.sent_at + self.rtt[codec.id].rto
             if await state.answer != ACCEPTED:
                 return GoalResponse.REJECT
             self._states[id(goal)] = state
@@ -208,6 +218,9 @@ class ActionStandIns:
             counters.other_sides += 1       # an answer or result for another client side
             return
         if code in RESULTS:
+            # Acknowledged whatever became of it: a copy means our last ack was lost.
+            if self.w.send(ident, codec.encode_result_status(handle, received=True)):
+                counters.result_acks += 1
             pending = table.complete(ident, handle)
             if pending is None:
                 counters.unknown += 1
@@ -225,15 +238,20 @@ class ActionStandIns:
             if code == ACCEPTED:     # a goal given up here (accept timeout) runs there: stop it
                 self.w.send(ident, codec.encode_cancel(handle))
         elif code in (ACCEPTED, REJECTED) and not state.answer.done():
+            if state.sends == 1:             # Karn: only an unambiguous round trip
+                self.rtt[ident].sample(self.w.clock.now() - state.sent_at)
             if code == ACCEPTED:
                 counters.accepted += 1
                 pending.deadline = self.w.clock.now() + codec.result_timeout
+                state.next_query = self.w.clock.now() + codec.accept_timeout
             else:
                 counters.rejected += 1
                 table.complete(ident, handle)
             state.answer.set_result(code)
         elif code not in (ACCEPTED, REJECTED) and state.cancel is not None and not state.cancel.done():
             state.cancel.set_result(code)
+        elif code == ACCEPTED and state.answer.done() and state.next_query:
+            pass                      # the goal still runs: the reply to our result request
         else:
             counters.unknown += 1     # a repeated answer
 
@@ -287,10 +305,17 @@ class ActionStandIns:
                 state.result.set_result((ABORTED, codec.ros_class().Result()))
             for pending in table.pending(ident):
                 state = pending.token
-                if (not state.answer.done() and state.sends < GOAL_SENDS
-                        and state.next_send <= now):
+                if state.answer.done() and not state.result.done() and state.next_query <= now:
+                    # Accepted, no result yet: ask (the server side re-sends it, says the
+                    # goal still runs, or reports it aborted when it does not know it).
+                    state.next_query = now + codec.accept_timeout
+                    counters.result_queries += 1
+                    self.w.send(ident, codec.encode_result_status(state.handle, received=False))
+                if not state.answer.done() and state.next_send <= now:
+                    rtt = self.rtt[ident]
+                    rtt.backoff()
                     state.sends += 1
-                    state.next_send = now + codec.accept_timeout / GOAL_SENDS
+                    state.next_send = now + rtt.rto
                     counters.goal_resends += 1
                     self.w.send(ident, state.payload)
         for state in list(self._states.values()):

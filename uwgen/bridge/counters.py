@@ -34,6 +34,7 @@ class ServiceCounters:
     refused: int = 0          # requests the link or the call table refused (no response sent)
     responses: int = 0        # responses returned to local callers
     timeouts: int = 0         # calls that got no response before the manifest timeout
+    request_resends: int = 0  # requests sent again (same seq) after an RTO without response
     decode_errors: int = 0    # responses (or requests) that did not decode
     # serving side
     requests: int = 0         # requests that came over the link
@@ -46,6 +47,7 @@ class ServiceCounters:
     server_timeouts: int = 0  # the real service did not answer within the manifest timeout
     server_errors: int = 0    # the real service's call failed
     replies: int = 0          # responses offered back to the link
+    repeated_replies: int = 0  # responses sent again for a copy of an answered request
     reply_refused: int = 0    # responses the link refused
 
 
@@ -60,6 +62,7 @@ class ActionCounters:
     results: int = 0          # results delivered to local clients
     result_timeouts: int = 0  # goals with no result within result_timeout (aborted locally)
     goal_resends: int = 0     # goals sent again because no answer had come (same handle)
+    result_acks: int = 0      # results acknowledged to the server side (copies too)
     cancels: int = 0          # cancel requests sent over the link
     cancel_timeouts: int = 0  # cancels with no answer within accept_timeout (refused locally)
     feedback: int = 0         # feedback messages published to local clients
@@ -80,6 +83,12 @@ class ActionCounters:
     answers: int = 0          # answers offered to the link
     repeated_replies: int = 0  # answers or results sent again for a goal that came again
     results_sent: int = 0     # results offered to the link
+    results_resent: int = 0   # results sent again: unacknowledged within the RTO, or asked for
+    results_acked: int = 0    # results the client side acknowledged
+    results_unacked: int = 0  # results never acknowledged within 2 accept_timeouts (given up)
+    result_queries: int = 0   # requests for a result not (yet) received: sent by the client
+                              # side, received by the server side
+    lost_goals: int = 0       # asked for a goal unknown here (e.g. after a restart): aborted
     feedback_sent: int = 0    # feedback offered to the link (latest-only: may be superseded)
     encode_errors: int = 0    # feedback or results that could not be encoded
     reply_refused: int = 0    # answers, results or feedback the link refused
@@ -103,7 +112,8 @@ DROP_FIELDS = {
                 "late", "duplicate", "unknown", "loop_guard"),
     "action": ("refused", "accept_timeouts", "result_timeouts", "cancel_timeouts", "unknown",
                "decode_errors", "duplicate_goals", "no_server", "server_timeouts", "server_gone",
-               "server_errors", "encode_errors", "reply_refused", "loop_guard"),
+               "server_errors", "encode_errors", "reply_refused", "loop_guard", "results_unacked",
+               "lost_goals"),
     "bridge": tuple(f.name for f in fields(BridgeCounters)),
     # "superseded" is what a `latest` queue is for (a newer message replaced an older one):
     # it is counted in ~/status and said once, not warned about every report.

@@ -182,9 +182,12 @@ class BridgeNode(Node):
 
     # -- link <-> executor -----------------------------------------------------------------
 
-    def _send(self, ident: int, payload: bytes) -> bool:
-        """Every payload the parts send goes through here to the link."""
-        return self.link.offer(ident, payload)
+    def _send(self, ident: int, payload: bytes, published: float | None = None) -> bool:
+        """Every payload the parts send goes through here to the link (`published`: on the
+        link's clock, when known; see topics.publication_time)."""
+        if published is None:
+            return self.link.offer(ident, payload)
+        return self.link.offer(ident, payload, published=published)
 
     def _on_link_payload(self, payload: bytes) -> None:
         """Called by the link, on the link's thread: hand over, touch nothing else."""

@@ -27,7 +27,8 @@ responses, hence not the default).
 from __future__ import annotations
 
 import random
-from dataclasses import asdict
+from collections import OrderedDict
+from dataclasses import asdict, dataclass
 from typing import Any, Callable
 
 from rclpy.task import Future
@@ -38,11 +39,28 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.plan import TIMEOUT_REPLY_DEFAULT, is_rmw_desert
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE
+from uwgen.runtime.reliable import RttEstimator, command_rtt
 
 WAIT_SHARE = 0.5      # of the manifest timeout a request may wait for the local server (the
                       # rest is for its trip and the response's: the caller's clock started
                       # before it was sent)
 WAITING_LIMIT = 32    # requests per service waiting for the local server; more: no_server
+RECENT_REPLIES = 32   # answered requests per service whose response is kept for a copy
+
+
+@dataclass
+class Outgoing:
+    """A request sent and not yet answered (calling side): sent again after each RTO."""
+
+    payload: bytes
+    first_sent: float
+    next_send: float
+    sends: int = 1
+
+
+def service_rtt(codec: Any, period: float) -> RttEstimator:
+    """The retransmission timer of one service's requests (reliable.command_rtt)."""
+    return command_rtt(codec.timeout, period)
 
 
 class StandIns:
@@ -55,6 +73,8 @@ class StandIns:
         self.counters = counters
         self.calls = CallTable(wiring.clock, rng=rng)
         self.called: dict[int, Any] = {}     # id -> codec
+        self.outgoing: dict[tuple[int, int], Outgoing] = {}   # (id, seq) -> request in flight
+        self.rtt: dict[int, RttEstimator] = {}
         self.services: dict[int, Any] = {}   # id -> the stand-in service (absent: withdrawn)
         for codec in codecs:
             counters[codec.id] = ServiceCounters()
@@ -67,6 +87,8 @@ class StandIns:
             self.called[codec.id] = codec
             if is_rmw_desert(codec):
                 self.calls.set_seq_range(codec.id, *RMW_DESERT_SEQ_RANGE)
+            else:   # an rmw_desert server would run a copy again: never re-sent to one
+                self.rtt[codec.id] = service_rtt(codec, wiring.options.link.period)
 
     def _offer(self, codec: Any, cls: Any) -> None:
         srv = self.w.node.create_service(cls, codec.name, self._standin(codec),
@@ -115,6 +137,10 @@ class StandIns:
                 log.error(f"{codec.name}: call seq {pending.seq} failed: the link refused "
                           "the request (queue full or too large; see ~/status)")
                 return self._failed_reply(response)
+            rtt = self.rtt.get(codec.id)
+            if rtt is not None:
+                now = self.w.clock.now()
+                self.outgoing[(codec.id, pending.seq)] = Outgoing(payload, now, now + rtt.rto)
             result = await future
             if result is None:
                 return self._failed_reply(response)
@@ -136,11 +162,25 @@ class StandIns:
                             f"{codec.name}: response dropped, does not decode: {exc}")
             return
         pending = self.calls.complete(ident, seq)
+        outgoing = self.outgoing.pop((ident, seq), None)
+        if pending is not None and outgoing is not None and outgoing.sends == 1:
+            self.rtt[ident].sample(self.w.clock.now() - outgoing.first_sent)   # Karn
         if pending is not None and not pending.token.done():
             pending.token.set_result(resp)
 
     def expire(self) -> None:
+        now = self.w.clock.now()
+        for (ident, seq), outgoing in list(self.outgoing.items()):
+            if outgoing.next_send > now:
+                continue
+            rtt = self.rtt[ident]
+            rtt.backoff()
+            outgoing.sends += 1
+            outgoing.next_send = now + rtt.rto
+            self.counters[ident].request_resends += 1
+            self.w.send(ident, outgoing.payload)          # same seq: served once there
         for pending in self.calls.expire():
+            self.outgoing.pop((pending.service_id, pending.seq), None)
             codec = self.called[pending.service_id]
             self.counters[pending.service_id].timeouts += 1
             self.w.throttle.report(f"timeout{pending.service_id}",
@@ -163,6 +203,8 @@ class Servers:
         self.serving: dict[int, dict[int, tuple[Future, float]]] = {}  # id -> seq -> call
         # id -> seq -> (request, deadline): requests waiting for the local server
         self.waiting: dict[int, dict[int, tuple[Any, float]]] = {}
+        # id -> seq -> (response payload, when): answered requests, for copies of them
+        self.replied: dict[int, OrderedDict[int, tuple[bytes, float]]] = {}
         for codec in codecs:
             counters[codec.id] = ServiceCounters()
             cls = wiring.ros_class(codec, "srv")
@@ -173,6 +215,7 @@ class Servers:
             wiring.loops.watch_server(codec.name)
             self.serving[codec.id] = {}
             self.waiting[codec.id] = {}
+            self.replied[codec.id] = OrderedDict()
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.served:
@@ -194,6 +237,12 @@ class Servers:
             return
         if seq in self.serving[ident] or seq in self.waiting[ident]:
             counters.duplicate_requests += 1
+            return
+        replied = self.replied[ident].get(seq)
+        if replied is not None and self.w.clock.now() - replied[1] < codec.timeout:
+            counters.duplicate_requests += 1          # a copy: its response was lost
+            counters.repeated_replies += 1
+            self.w.send(ident, replied[0])
             return
         now = self.w.clock.now()
         if not client.service_is_ready():
@@ -253,6 +302,11 @@ class Servers:
             counters.server_errors += 1
             self.w.throttle.report(f"srvenc{ident}", f"{codec.name}: response for seq {seq} cannot be encoded: {exc}")
             return
+        replied = self.replied[ident]
+        replied[seq] = (payload, self.w.clock.now())
+        replied.move_to_end(seq)
+        while len(replied) > RECENT_REPLIES:
+            replied.popitem(last=False)
         if self.w.send(ident, payload):
             counters.replies += 1
         else:

@@ -26,6 +26,24 @@ from uwgen.runtime.codec import KIND_TOPIC
 DRAIN_BATCH = 256     # most messages one subscription callback takes in one go
 
 
+MAX_AGE_TRUSTED = 3600.0   # s: a source stamp older than this is not a publication time
+
+
+def publication_time(info: Any, now: float, wall: float) -> float | None:
+    """When a taken message was published, on the bridge's clock (`now` is that clock's
+    reading, `wall` the system clock's, both at take): from the message info's
+    `source_timestamp` (ns since the epoch, stamped by the publisher's rmw on this
+    machine's system clock). None when there is none, or it is in the future or older
+    than MAX_AGE_TRUSTED (a publisher on another clock): then the ttl runs from now."""
+    stamp = info.get("source_timestamp") if isinstance(info, dict) else None
+    if not isinstance(stamp, int) or stamp <= 0:
+        return None
+    age = wall - stamp / 1e9
+    if not 0.0 <= age <= MAX_AGE_TRUSTED:
+        return None
+    return now - age
+
+
 class TopicBridge:
     def __init__(self, wiring: Wiring, outgoing: list[Any], incoming: list[Any]):
         self.w = wiring
@@ -67,7 +85,7 @@ class TopicBridge:
 
     # -- outgoing ----------------------------------------------------------------------
 
-    def _taker(self, codec: Any) -> Callable[[Any], None]:
+    def _taker(self, codec: Any) -> Callable[[Any, Any], None]:
         """The subscription's callback. It takes, in the same call, what else the
         subscription already holds (up to DRAIN_BATCH): one executor wake-up per burst, not
         per message. On a latest-only topic only the newest of them is encoded and offered;
@@ -75,33 +93,35 @@ class TopicBridge:
         counters = self.counters[codec.id]
         latest = getattr(codec.policy, "queue", "latest") == "latest"
 
-        def take(msg: Any) -> None:
+        def take(msg: Any, info: Any) -> None:    # two arguments: rclpy passes MessageInfo
             sub = self._subscription_of.get(codec.id)
-            batch = [msg, *self._more(sub)] if sub is not None else [msg]
+            batch = [(msg, info), *self._more(sub)] if sub is not None else [(msg, info)]
             counters.taken += len(batch)
             if latest and len(batch) > 1:
                 counters.superseded += len(batch) - 1
                 batch = batch[-1:]
-            for m in batch:
-                self._send(codec, counters, m)
+            for m, minfo in batch:
+                self._send(codec, counters, m, minfo)
         return take
 
-    def _more(self, sub: Any) -> list[Any]:
-        """Messages the subscription holds now (rclpy's own take, as its executor does)."""
-        out: list[Any] = []
+    def _more(self, sub: Any) -> list[tuple[Any, Any]]:
+        """(message, message info) the subscription holds now (rclpy's own take, as its
+        executor does)."""
+        out: list[tuple[Any, Any]] = []
         try:
             while len(out) < DRAIN_BATCH:
                 with sub.handle:
                     got = sub.handle.take_message(sub.msg_type, sub.raw)
                 if got is None:
                     break
-                out.append(got[0])
+                out.append((got[0], got[1] if len(got) > 1 else None))
         except Exception as exc:  # noqa: BLE001 - the subscription is going away, or rclpy changed:
             self.w.say_once(f"drain{sub.topic_name}",   # the executor still takes one at a time
                             f"{sub.topic_name}: cannot take queued messages in a batch ({exc!r})")
         return out
 
-    def _send(self, codec: Any, counters: TopicCounters, msg: Any) -> None:
+    def _send(self, codec: Any, counters: TopicCounters, msg: Any, info: Any) -> None:
+        published = publication_time(info, self.w.clock.now(), self.w.wall())
         if self.echo_hazards and self._echo_blocked(codec):
             return
         try:
@@ -111,7 +131,7 @@ class TopicBridge:
             self.w.say_once(f"enc{codec.id}{type(exc).__name__}",
                             f"{codec.name}: message not sent, cannot encode: {exc}")
             return
-        if self.w.send(codec.id, payload):
+        if self.w.send(codec.id, payload, published=published):
             counters.offered += 1
         else:
             counters.refused += 1

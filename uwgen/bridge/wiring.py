@@ -6,6 +6,7 @@ into each other; the node builds one `Wiring` and hands it to each of them.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -17,7 +18,7 @@ from uwgen.bridge.throttle import LogThrottle
 from uwgen.manifest.model import Qos
 from uwgen.runtime.clock import Clock
 
-Send = Callable[[int, bytes], bool]
+Send = Callable[..., bool]   # (id, payload, published=None) -> accepted
 
 
 def qos_profile(qos: Qos) -> QoSProfile:
@@ -33,13 +34,14 @@ def qos_profile(qos: Qos) -> QoSProfile:
 @dataclass
 class Wiring:
     node: Any                      # the rclpy Node the parts create their entities on
-    send: Send                     # the link's offer(id, payload) -> accepted
+    send: Send                     # the link's offer(id, payload[, published]) -> accepted
     clock: Clock
     options: BridgeOptions
     log: Any                       # the node's rclpy logger
     main_group: Any                # mutually exclusive callback group (executor thread)
     service_group: Any             # reentrant group: stand-in calls await futures
     unavailable: dict[str, str] = field(default_factory=dict)  # entry name -> why not bridged
+    wall: Callable[[], float] = time.time   # the system clock ROS stamps messages with
     said: set[str] = field(default_factory=set)
     throttle: LogThrottle = field(init=False)  # error lines a remote peer can cause: bounded
     loops: LoopGuard = field(init=False)       # services/actions another bridge here handles

@@ -7,6 +7,7 @@ the manifest names surfaces as the parser's own `DefinitionError` (located in th
 """
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import ipaddress
 import keyword
@@ -60,7 +61,9 @@ POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair", "strict")
 MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
-TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security")
+TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security",
+              "reliability")
+LINK_RELIABILITY = ("best_effort", "reliable")
 SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
                 "request_fields", "response_fields", "security")
 
@@ -443,8 +446,23 @@ class _ManifestBuilder:
         fields = self.checked((), self.fields, entries, "fields", definition, label, topic_profile) \
             if definition is not None else ()
         mode = self.checked("off", self.sec.entry_mode, entries, label, name, security)
+        policy = self.checked(policy, self.reliability, entries, policy, topic_profile, label)
         return Topic(name, ident, type_name, definition, publisher, policy, qos, topic_profile, r.where(node), fields,
                      security=mode)
+
+    def reliability(self, entries: dict, policy: LinkPolicy, profile: str, label: str) -> LinkPolicy:
+        """`reliability:` of a topic on the link: best_effort (default) or reliable."""
+        if "reliability" not in entries:
+            return policy
+        r = self.r
+        node = entries["reliability"][1]
+        if r.choice(node, f"reliability of {label}", LINK_RELIABILITY) != "reliable":
+            return policy
+        if profile == RMW_DESERT:
+            raise r.error(node, f"reliability of {label}: profile rmw_desert cannot be reliable "
+                                "(rmw_desert nodes read no acknowledgements and wire format 1 has "
+                                "none); use profile native or packed, or best_effort")
+        return dataclasses.replace(policy, reliable=True)
 
     def service(self, node: yaml.Node, sides: dict[str, Side], profile: str, security: str = "off") -> Service:
         r = self.r

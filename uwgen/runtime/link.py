@@ -140,8 +140,10 @@ class Link:
         self.scheduler.add_channel(key, policy, name=f"channel {key} ({name})" if name else None,
                                    whole=whole)
 
-    def offer(self, key: int, payload: bytes) -> bool:
-        """Queue an unframed payload; False (and a counted, logged drop) if it can never be sent."""
+    def offer(self, key: int, payload: bytes, *, published: float | None = None) -> bool:
+        """Queue an unframed payload; False (and a counted, logged drop) if it can never be sent.
+        `published`: when its ROS publisher published it, on the link's clock; the channel's
+        ttl runs from then (docs/seams.md section 4)."""
         if self.packed_ids and payload and payload[0] < 24 and _wire_id(payload) in self.packed_ids:
             try:
                 payload = strip_packed_head(payload)
@@ -150,7 +152,7 @@ class Link:
                           "[%s] channel %d: refused a payload of a packed id that is not packed: %s",
                           self.name, key, e)
                 return False
-        ok = self.scheduler.offer(key, payload)
+        ok = self.scheduler.offer(key, payload, published)
         if ok:
             self.connection.wake()
         return ok

@@ -266,8 +266,10 @@ class LinkScheduler:
 
     # -- producer side -------------------------------------------------------------------------
 
-    def offer(self, key: int, payload: bytes) -> bool:
-        """Queue one unframed payload; False (and a counted drop) if it can never be sent."""
+    def offer(self, key: int, payload: bytes, published: float | None = None) -> bool:
+        """Queue one unframed payload; False (and a counted drop) if it can never be sent.
+        `published`: when it was published, on this scheduler's clock (docs/seams.md
+        section 4); its ttl runs from then, not from now. None: now."""
         ch = self._channel(key)
         now = self.clock.now()
         with self._lock:
@@ -285,7 +287,8 @@ class LinkScheduler:
                           "[%s] %s: refused a %d-byte payload: a frame holds at most %d bytes; %s",
                           self.name, ch.name, n, MAX_PAYLOAD, why)
                 return False
-            for _, reason in ch.queue_kind.push(ch.queue, Message(bytes(payload), now)):
+            born = now if published is None else min(now, published)
+            for _, reason in ch.queue_kind.push(ch.queue, Message(bytes(payload), born)):
                 c.inc(reason)
             return True
 

@@ -197,6 +197,9 @@ CANCELED = 5
 ABORTED = 6
 ANSWERS = (REJECTED, ACCEPTED, CANCEL_REFUSED, CANCELING)
 RESULTS = (SUCCEEDED, CANCELED, ABORTED)
+# What follows 24 + handle in a result status request (kind 2).
+RESULT_RECEIVED = 0  # the client side has the goal's result: stop sending it
+RESULT_WANTED = 1    # the client side has an accepted goal and no result: send it again
 
 
 @dataclass(frozen=True)
@@ -208,6 +211,7 @@ class ActionCodec:
     - answer (server side -> client side): `[3, id, handle, REJECTED|ACCEPTED|CANCEL_REFUSED|CANCELING]`
     - result (server side -> client side): `[3, id, handle, SUCCEEDED|CANCELED|ABORTED, result fields...]`
     - feedback (server side -> client side): `[0, id, handle, feedback fields...]`
+    - result status (client side -> server side): `[2, id, 24 + handle, RESULT_RECEIVED|RESULT_WANTED]`
     """
 
     id: int
@@ -237,6 +241,24 @@ class ActionCodec:
 
     def encode_cancel(self, handle: int) -> bytes:
         return pack_items([KIND_REQUEST, self.id, _handle(handle)])
+
+    def encode_result_status(self, handle: int, received: bool) -> bytes:
+        return pack_items([KIND_REQUEST, self.id, ACTION_HANDLES + _handle(handle),
+                           RESULT_RECEIVED if received else RESULT_WANTED])
+
+    def decode_result_status(self, payload: bytes) -> tuple[int, bool] | None:
+        """(handle, received) when the payload is a result status request, else None (a
+        goal or a cancel: decode_request reads it). Its third item is 24 + handle, above
+        any handle (CBOR `18 18`..`18 2f`): a goal or a cancel has a handle 0..23 there (one
+        byte), and, unsigned, the item is read by the security header (section 12) too."""
+        at = 2 if len(payload) > 1 and payload[1] < 0x18 else 3
+        if len(payload) <= at + 1 or payload[at] != 0x18:
+            return None
+        v = load_items(payload)
+        if len(v) != 4 or v[:2] != [KIND_REQUEST, self.id] or type(v[2]) is not int \
+                or type(v[3]) is not int or v[3] not in (RESULT_RECEIVED, RESULT_WANTED):
+            raise DecodeError("status", f"not a result status request: {v!r}")
+        return _handle(v[2] - ACTION_HANDLES, DecodeError), v[3] == RESULT_RECEIVED
 
     def decode_request(self, payload: bytes, ros: bool = True) -> tuple[int, Any]:
         """(handle, goal), or (handle, None) for a cancel."""

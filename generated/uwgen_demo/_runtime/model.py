@@ -46,6 +46,8 @@ class LinkPolicy:
     priority: int = 0           # a larger share of a busy link (weight priority + 1)
     repair: int = 0             # repair fragments per fragmented message (erasure code; 0: none)
     strict: bool = False        # served before every non-strict entry whenever it has a message
+    reliable: bool = False      # acknowledged and re-sent until its ttl (topics with
+                                # `reliability: reliable`; wire format 15); never rmw_desert
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,247 @@
+#!/usr/bin/env python3
+"""Commands benchmark (issue 16): service calls and action goals over the emulated acoustic
+link at several packet error rates (plus the emulator's collisions), with two-way topic
+traffic as in the demo, against the same workload without issue 16's retries, same run.
+
+    .venv/bin/python benchmarks/commands_bench.py [--per 0,0.1,0.2,0.3] [--calls 12]
+                                                  [--goals 6] [--seed 3]
+
+Per rate and mode it prints: calls and goals that succeeded within their timeouts with the
+real result (the server's own response / Fibonacci sequence), duplicate executions at the
+real server (a request or goal run more than once), and the air time spent on retries and
+acknowledgements (copies of requests, goals, results and answers; result acknowledgements
+and requests; 4 bytes of framing each) as a share of all bytes the two sides wrote.
+
+Modes: `retries` is this build; `reference` is the same build with issue 16's retries off
+(no request copies, no result copies, no result acknowledgements or requests; goals are
+still sent again while unanswered, as wire format 1 always did).
+
+The link is the demo's: 64 B every 0.2 s, 4800 bit/s, 1000 m (about 0.67 s each way).
+"""
+from __future__ import annotations
+
+import argparse
+import random
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import rclpy
+from rclpy.action import ActionClient, ActionServer
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
+from std_msgs.msg import String
+from test_msgs.action import Fibonacci
+from test_msgs.srv import BasicTypes
+
+from uwgen.bridge.node import BridgeNode
+from uwgen.bridge.plan import BridgePlan, import_package
+from uwgen.emulator import NodeSpec, Scenario, run_emulator
+from uwgen.runtime.framing import OVERHEAD
+
+MANIFEST = """\
+network: cmdbench
+package: uwgen_cmdbench
+sides:
+  surface: {port: 4000, link: {max_read_length: 64, period: 0.2}}
+  vehicle: {port: 4001, link: {max_read_length: 64, period: 0.2}}
+topics:
+  - {name: /cmd, id: 4, type: std_msgs/msg/String, publisher: surface, queue: latest, rate: 2, ttl: 2}
+  - {name: /pose, id: 5, type: std_msgs/msg/String, publisher: vehicle, queue: latest, rate: 1, ttl: 2}
+services:
+  - {name: /echo, id: 20, type: test_msgs/srv/BasicTypes, server: vehicle, timeout: 12}
+actions:
+  - {name: /fib, id: 9, type: test_msgs/action/Fibonacci, server: vehicle, accept_timeout: 12,
+     result_timeout: 30, max_goals: 2, feedback: false}
+"""
+COMMAND_IDS = (9, 20)
+
+
+def build_package():
+    from uwgen.cli import main as uwgen_main
+    root = Path(tempfile.mkdtemp(prefix="uwgen_cmdbench_"))
+    (root / "uwgen.yaml").write_text(MANIFEST)
+    if uwgen_main(["--quiet", "build", "-m", str(root / "uwgen.yaml"),
+                   "-o", str(root / "generated" / "uwgen_cmdbench")]) != 0:
+        sys.exit("uwgen build of the benchmark manifest failed")
+    return import_package("uwgen_cmdbench", root / "generated")
+
+
+def fibonacci(n: int) -> list[int]:
+    seq = [0, 1]
+    while len(seq) < n + 1:
+        seq.append(seq[-1] + seq[-2])
+    return seq[:max(2, n + 1)]
+
+
+class Side:
+    """One ROS domain with its executor thread."""
+
+    domains = iter(range(150, 230))
+
+    def __init__(self, name: str):
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=next(Side.domains),
+                   signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
+        self.node = rclpy.create_node(f"bench_{name}", context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        try:
+            self.executor.spin()
+        except Exception:
+            pass
+
+    def close(self):
+        for node in list(self.executor.get_nodes()):
+            self.executor.remove_node(node)
+            close = getattr(node, "close", None)
+            try:
+                close() if close else node.destroy_node()
+            except Exception:
+                pass
+        self.executor.shutdown(timeout_sec=1.0)
+        rclpy.shutdown(context=self.context)
+
+
+class Overhead:
+    """Counts the bytes a bridge offers on command ids that are retries or acks."""
+
+    def __init__(self, bridge: BridgeNode, retries: bool):
+        self.bytes = 0
+        self.seen: set[tuple[int, bytes]] = set()
+        send = bridge.wiring.send
+
+        def counted(key: int, payload: bytes, **kw) -> bool:
+            if key in COMMAND_IDS:
+                status = payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18   # result status
+                if status and not retries:
+                    return True                     # reference: no result status at all
+                if status or (key, payload) in self.seen:
+                    self.bytes += len(payload) + OVERHEAD
+                self.seen.add((key, payload))
+            return send(key, payload, **kw)
+        bridge.wiring.send = counted
+        if not retries:
+            bridge.standins.rtt.clear()                                  # no request copies
+            bridge.action_servers._resend_results = lambda ident, now: None   # no result copies
+
+
+def run(package, per: float, seed: int, calls: int, goals: int, retries: bool) -> dict:
+    scen = Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle"),
+                           NodeSpec("vehicle", position=(1000.0, 0.0, 0.0), dest="surface")],
+                    period=0.2, max_read_length=64, bitrate=4800.0, per=per, seed=seed)
+    executed = {"calls": [], "goals": []}
+    with run_emulator(scen) as emu:
+        surface, vehicle = Side("surface"), Side("vehicle")
+        try:
+            bridges, overhead = {}, {}
+            for name, side in (("surface", surface), ("vehicle", vehicle)):
+                plan = BridgePlan.from_package(package, name)
+                node = BridgeNode(plan, plan.options(port=emu.port(name), status_period=0),
+                                  context=side.context, rng=random.Random(seed))
+                side.executor.add_node(node)
+                bridges[name] = node
+                overhead[name] = Overhead(node, retries)
+
+            def serve(req, resp):
+                executed["calls"].append(req.int32_value)
+                resp.int32_value = req.int32_value * 3
+                return resp
+            vehicle.node.create_service(BasicTypes, "/echo", serve)
+
+            def execute(goal_handle):
+                executed["goals"].append(goal_handle.request.order)
+                goal_handle.succeed()
+                return Fibonacci.Result(sequence=fibonacci(goal_handle.request.order))
+            ActionServer(vehicle.node, Fibonacci, "/fib", execute)
+            cmd = surface.node.create_publisher(String, "/cmd", 10)
+            pose = vehicle.node.create_publisher(String, "/pose", 10)
+            stop = threading.Event()
+
+            def chatter():               # two-way traffic, as the demo's cmd_vel and pose
+                k = 0
+                while not stop.wait(0.5):
+                    k += 1
+                    cmd.publish(String(data=f"v={k % 7}.{k % 10} w=0.{k % 9}"))
+                    if k % 2 == 0:
+                        pose.publish(String(data=f"x={k % 11}.25 y={k % 13}.5 th=0.{k % 7}"))
+            threading.Thread(target=chatter, daemon=True).start()
+
+            client = surface.node.create_client(BasicTypes, "/echo")
+            action = ActionClient(surface.node, Fibonacci, "/fib")
+            client.wait_for_service(timeout_sec=10.0)
+            action.wait_for_server(timeout_sec=10.0)
+            time.sleep(3.0)                   # links up, graphs discovered (as the demo waits)
+            started = time.monotonic()
+            ok_calls = ok_goals = 0
+            for i in range(max(calls, goals)):
+                if i < calls:
+                    future = client.call_async(BasicTypes.Request(int32_value=1000 + i))
+                    deadline = time.monotonic() + 12.0
+                    while not future.done() and time.monotonic() < deadline:
+                        time.sleep(0.05)
+                    if future.done() and future.result() is not None \
+                            and future.result().int32_value == 3 * (1000 + i):
+                        ok_calls += 1
+                    else:
+                        client.remove_pending_request(future)
+                if i < goals:
+                    order = 3 + i
+                    sent = action.send_goal_async(Fibonacci.Goal(order=order))
+                    deadline = time.monotonic() + 12.0
+                    while not sent.done() and time.monotonic() < deadline:
+                        time.sleep(0.05)
+                    if sent.done() and sent.result().accepted:
+                        result = sent.result().get_result_async()
+                        deadline = time.monotonic() + 31.0
+                        while not result.done() and time.monotonic() < deadline:
+                            time.sleep(0.05)
+                        if result.done() and result.result().status == 4 \
+                                and list(result.result().result.sequence) == fibonacci(order):
+                            ok_goals += 1
+            elapsed = time.monotonic() - started
+            stop.set()
+            time.sleep(1.0)
+            written = sum(b.link.stats()["connection"]["bytes_sent"] for b in bridges.values())
+            extra = sum(o.bytes for o in overhead.values())
+        finally:
+            surface.close()
+            vehicle.close()
+    dup = (len(executed["calls"]) - len(set(executed["calls"]))
+           + len(executed["goals"]) - len(set(executed["goals"])))
+    capacity = 2 * elapsed / 0.2 * (64 + OVERHEAD)
+    return {"calls": f"{ok_calls}/{calls}", "goals": f"{ok_goals}/{goals}", "dup": dup,
+            "share": extra / written if written else 0.0, "capacity": extra / capacity,
+            "time": elapsed}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--per", default="0,0.1,0.2,0.3")
+    ap.add_argument("--calls", type=int, default=12)
+    ap.add_argument("--goals", type=int, default=6)
+    ap.add_argument("--seed", type=int, default=3)
+    args = ap.parse_args()
+    package = build_package()
+    print("| PER | mode | calls ok | goals ok (real result) | duplicate runs | "
+          "retry+ack bytes / bytes written | / link capacity | s |")
+    print("|---|---|---|---|---|---|---|---|")
+    for per in (float(p) for p in args.per.split(",")):
+        for retries in (True, False):
+            r = run(package, per, args.seed, args.calls, args.goals, retries)
+            print(f"| {per:.0%} | {'retries' if retries else 'reference'} | {r['calls']} | "
+                  f"{r['goals']} | {r['dup']} | {r['share']:.1%} | {r['capacity']:.1%} | "
+                  f"{r['time']:.0f} |", flush=True)
+    print("\nReliable topics: not measured (they need the envelope of wire format 2; see "
+          "wire-format.md section 15.4).")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
