@@ -23,11 +23,14 @@ from uwgen.codegen.ir import (
 from uwgen.idl.model import ArrayKind
 from uwgen.manifest.model import NATIVE, PACKED, RMW_DESERT, Manifest
 from uwgen.runtime.bits import text_width
+from uwgen.codegen.fingerprint import wire_format_of
+from uwgen.runtime.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
 from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
 
 TYPICAL_TEXT = 8            # bytes of a typical string
 TYPICAL_COUNT = 4           # elements of a typical sequence
 DESERT_PACKET_OVERHEAD = 4  # bytes DESERT adds per packet (UDP and IP headers; wire format section 1)
+PACKET_ALONE = FRAME_OVERHEAD + ENVELOPE_HEAD   # wire format 2: frame, P and W around one message
 DEFAULT_BITRATE = 4800.0    # bit/s of DESERT's default modem settings used by the emulator
 
 
@@ -282,6 +285,7 @@ class Analysis:
     bitrate: float
     entries: list[EntryCost]
     budgets: list[SideBudget]
+    wire_format: int = 2
 
     def warnings(self) -> list[str]:
         out = []
@@ -321,6 +325,8 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     """The costs of every manifest entry. `lookup(full_name) -> MessageDef`."""
     builder = IRBuilder(lookup)
     sizer = Sizer(builder)
+    wire = wire_format_of(manifest)
+    sizer.wire = wire
     entries: list[EntryCost] = []
     for t in manifest.topics:
         entries.append(_entry(builder, sizer, "topic", t.name, t.id, t.type_name, t.publisher, t.policy.rate,
@@ -358,7 +364,7 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
             typical += e.rate * frame.typical
             worst = None if worst is None or frame.max is None else worst + e.rate * frame.max
         budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema, limit))
-    return Analysis(manifest.network, bitrate, entries, budgets)
+    return Analysis(manifest.network, bitrate, entries, budgets, wire)
 
 
 def _schema_rate(manifest: Manifest) -> float:
@@ -374,6 +380,8 @@ def _schema_rate(manifest: Manifest) -> float:
                                  *getattr(manifest, "actions", ()))})
     payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids], request=False)
     signed = _SECURED.typical if manifest.protected() else 0   # signed with security on
+    if wire_format_of(manifest) == 2:     # each in a packet of its own: H instead of kind and id
+        return sum(v1_message_size(p, last=True) + PACKET_ALONE + signed for p in payloads) / period
     return sum(len(p) + FRAME_OVERHEAD + signed for p in payloads) / period
 
 
@@ -393,7 +401,11 @@ def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
 
 def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, profile, fields, variant,
            header_items, security: Size = _UNSECURED) -> EntryCost:
-    head = Size(2, 2, 2) if ident < 24 else Size(3, 3, 3)
+    wire = getattr(sizer, "wire", 1)
+    if wire == 2:                         # H: one byte for ids up to 31, else two
+        head = Size(1, 1, 1) if ident <= 31 else Size(2, 2, 2)
+    else:
+        head = Size(2, 2, 2) if ident < 24 else Size(3, 3, 3)
     if kind in ACTION_KINDS:
         head = head + Size(header_items - 2, header_items - 2, header_items - 2)  # handle (+ status)
     elif header_items == 3:
@@ -411,9 +423,10 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
         ct = builder.codec(msg, prof, f, var)
         body = sizer.message(ct)
         if prof == PACKED:
-            body = Size(*(None if b is None else _packed_bytes(b) for b in (body.min, body.typical, body.max)))
+            body = Size(*(None if b is None else _packed_bytes(b, wire) for b in (body.min, body.typical, body.max)))
         payload = head + body
-        frame = payload + security + Size(FRAME_OVERHEAD, FRAME_OVERHEAD, FRAME_OVERHEAD)
+        alone = PACKET_ALONE if wire == 2 else FRAME_OVERHEAD
+        frame = payload + security + Size(alone, alone, alone)
         costs.append(ProfileCost(label, ct is configured, payload, frame))
     leaves = []
     for leaf in configured.root.leaves():
@@ -424,10 +437,11 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
     return EntryCost(kind, name, ident, type_name, sender, rate, leaves, costs)
 
 
-def _packed_bytes(bits: int) -> int:
-    """Bytes of the packed byte string item: its head, then the bits padded to bytes."""
+def _packed_bytes(bits: int, wire: int = 1) -> int:
+    """Bytes of the packed fields: the bits padded to bytes, after a byte string head in wire
+    format 1 (wire format 2 says the length once, in the envelope)."""
     n = (bits + 7) // 8
-    return n + (1 if n < 24 else 2 if n < 256 else 3)
+    return n if wire == 2 else n + (1 if n < 24 else 2 if n < 256 else 3)
 
 
 # --- output -------------------------------------------------------------------------------
@@ -439,6 +453,10 @@ def _b(x: int | None) -> str:
 def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
     lines = [f"network {a.network}: message sizes (payload and frame bytes; typical / worst) and air time "
              f"at {a.bitrate:g} bit/s"]
+    if a.wire_format == 2:
+        lines.append("wire format 2: payload = the message in its packet's envelope (header H, no kind "
+                     "and id items); frame = that message alone in a packet (+ 4 frame, + 3 P and W); "
+                     "messages sharing a packet pay 1 length byte each instead")
     for e in a.entries:
         rate = "no rate limit" if e.rate is None else f"{e.rate:g}/s"
         sender = "each client side" if e.sender == "*" else e.sender

@@ -107,7 +107,7 @@ ROS_INTERFACES = {
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("3ff9da87")
+SCHEMA_DIGEST = bytes.fromhex("e52770cd")
 
 MANIFEST = ManifestInfo(
     network="demo",
@@ -151,50 +151,50 @@ TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="packed",
-        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0, reliable=False),
+        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t4"],
-        fingerprint=bytes.fromhex("4eaa7bae")),
+        fingerprint=bytes.fromhex("c280d66e")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="vehicle", profile="packed",
-        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0, reliable=False),
+        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t5"],
-        fingerprint=bytes.fromhex("c48d8a2e")),
+        fingerprint=bytes.fromhex("bc80a5ec")),
     6: TopicCodec(
         id=6, name="/vehicle/battery", type_name="sensor_msgs/msg/BatteryState",
         publisher="vehicle", profile="native",
-        policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1, repair=0, reliable=False),
+        policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t6"],
-        fingerprint=bytes.fromhex("fa9a22d1")),
+        fingerprint=bytes.fromhex("399f5423")),
     7: TopicCodec(
         id=7, name="/vehicle/log", type_name="std_msgs/msg/String",
         publisher="vehicle", profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=8, ttl=60.0, priority=0, repair=0, reliable=False),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=8, ttl=60.0, priority=0, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("std_msgs/msg/String", "native")],
-        fingerprint=bytes.fromhex("8de1dd8e")),
+        fingerprint=bytes.fromhex("a825686a")),
 }
 
 SERVICES = {
     20: ServiceCodec(
         id=20, name="/turtle1/teleport_absolute", type_name="turtlesim/srv/TeleportAbsolute",
         server="vehicle", timeout=10.0, profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0, reliable=False),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0, strict=False, reliable=False),
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "native")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
-        fingerprint=bytes.fromhex("55b81224")),
+        fingerprint=bytes.fromhex("2d69ff10")),
     21: ServiceCodec(
         id=21, name="/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="vehicle", timeout=10.0, profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0, reliable=False),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0, strict=False, reliable=False),
         request=CODECS[("turtlesim/srv/SetPen_Request", "native")],
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),
-        fingerprint=bytes.fromhex("8863fbb2")),
+        fingerprint=bytes.fromhex("15262f9f")),
 }
 
 ACTIONS = {
@@ -202,11 +202,11 @@ ACTIONS = {
         id=30, name="/turtle1/rotate_absolute", type_name="turtlesim/action/RotateAbsolute",
         server="vehicle", accept_timeout=10.0, result_timeout=60.0,
         max_goals=4, profile="native",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=4, repair=0, reliable=False),
-        feedback_policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=2.0, priority=2, repair=0, reliable=False),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=4, repair=0, strict=False, reliable=False),
+        feedback_policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=2.0, priority=2, repair=0, strict=False, reliable=False),
         goal=CODECS[("turtlesim/action/RotateAbsolute_Goal", "native")],
         result=CODECS[("turtlesim/action/RotateAbsolute_Result", "native")],
         feedback=CODECS[("turtlesim/action/RotateAbsolute_Feedback", "native")],
         ros_import=("turtlesim.action", "RotateAbsolute"),
-        fingerprint=bytes.fromhex("8ad2442a")),
+        fingerprint=bytes.fromhex("8db9f99a")),
 }

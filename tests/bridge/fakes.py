@@ -113,7 +113,8 @@ def fake_package(topics, services=(), network="fake", fragment_id=250,
 class FakeLink:
     """One side's link. `peer` receives what this side offers (if not muted)."""
 
-    def __init__(self, host, port, config, on_payload, fragment_id=None, clock=None, name=""):
+    def __init__(self, host, port, config, on_payload, fragment_id=None, clock=None, name="",
+                 **wire):
         self.host, self.port, self.config, self.name = host, port, config, name
         self.on_payload = on_payload
         self.fragment_id = fragment_id

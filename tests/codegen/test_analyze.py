@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import Twist
 
+from uwgen.runtime.envelope import from_v1, strip_packed_head
 from uwgen.analyze import air_time, analyze
 from uwgen.codegen import generate
 from uwgen.idl.loader import InterfaceLibrary
@@ -51,6 +52,11 @@ def demo_pkg(tmp_path_factory):
                     manifest=SAMPLES / "uwgen.yaml", names=["geometry_msgs/msg/Twist"])
 
 
+def on_air(payload: bytes, packed: bool = False) -> int:
+    """Bytes of a generated codec's payload as a message of a wire format 2 envelope."""
+    return from_v1(strip_packed_head(payload) if packed else payload).size()
+
+
 def entry(analysis, kind, name):
     return next(e for e in analysis.entries if e.kind == kind and e.name == name)
 
@@ -61,10 +67,10 @@ def test_packed_sizes_are_what_the_codec_sends(demo, demo_pkg):
     assert cmd.label == "packed + fields" and cmd.payload.min == cmd.payload.max
     t = Twist()
     t.linear.x, t.linear.z, t.angular.z = 0.4, 1234.0, -0.3
-    assert len(demo_pkg.TOPICS[4].encode(t)) == cmd.payload.typical == 8
+    assert on_air(demo_pkg.TOPICS[4].encode(t), packed=True) == cmd.payload.typical == 6
     pose = entry(a, "topic", "/turtle1/pose").configured
     p = demo_pkg.TOPICS[5].codec.plain_class()(x=5.5, y=7.1, theta=1.2, linear_velocity=0.4, angular_velocity=0.1)
-    assert len(demo_pkg.TOPICS[5].encode(p)) == pose.payload.typical == 10
+    assert on_air(demo_pkg.TOPICS[5].encode(p), packed=True) == pose.payload.typical == 8
 
 
 def test_native_typical_and_worst_bracket_real_messages(demo, demo_pkg):
@@ -73,8 +79,8 @@ def test_native_typical_and_worst_bracket_real_messages(demo, demo_pkg):
     codec = demo_pkg.codec("geometry_msgs/msg/Twist", "native")
     t = Twist()
     t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z = 0.4, 0.1, 0.7, 0.2, 0.9, 0.3
-    assert len(codec.encode(t, [0, 4])) == native.payload.typical == native.payload.max == 56
-    assert len(codec.encode(Twist(), [0, 4])) == native.payload.min == 20
+    assert on_air(codec.encode(t, [0, 4])) == native.payload.typical == native.payload.max == 55
+    assert on_air(codec.encode(Twist(), [0, 4])) == native.payload.min == 19
 
 
 def test_field_bits_are_listed_per_field(demo):
@@ -86,12 +92,14 @@ def test_field_bits_are_listed_per_field(demo):
 def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     _manifest, a = demo
     surface = next(b for b in a.budgets if b.side == "surface")
-    # 5 cmd_vel frames of 12 bytes per second, each 10 bytes more encrypted (security word
-    # and tag), plus the schema announcement of the 7 ids (a 47-byte payload: 00 18 F9 00,
-    # then id + 44 + 4 bytes each, id 30 taking 2 bytes; a 51-byte frame, 61 signed) every
-    # 600 s. The action's goals have no rate: warned about below.
-    assert surface.schema == pytest.approx((51 + 10) / 600)
-    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (12 + 10) + (51 + 10) / 600)
+    # 5 cmd_vel messages of 6 bytes per second, each alone in a packet (+ 4 frame, + 3 P and
+    # W: 13), each 10 bytes more encrypted (security word and tag), plus the schema
+    # announcement of the 7 ids (a 47-byte payload: 00 18 F9 00, then id + 44 + 4 bytes each,
+    # id 30 taking 2 bytes; a 46-byte message behind H 00 F9, 53 alone, 63 signed) every 600 s.
+    # The action's goals have no rate: warned about below.
+    assert a.wire_format == 2
+    assert surface.schema == pytest.approx((53 + 10) / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 10) + (53 + 10) / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
     assert not any("cannot fit" in w for w in a.warnings())
 
@@ -100,7 +108,7 @@ def test_traffic_that_cannot_fit_is_a_clear_warning_and_strict_fails(tmp_path):
     (tmp_path / "uwgen.yaml").write_text(TIGHT)
     res = run_cli("-m", tmp_path / "uwgen.yaml", "--strict")
     assert res.returncode == 1, res.stderr
-    assert "WARNING: side surface: configured traffic needs 300.0 B/s" in res.stdout   # 5/s x 60-byte frames
+    assert "WARNING: side surface: configured traffic needs 310.0 B/s" in res.stdout   # 5/s x 62-byte packets
     assert "DOES NOT FIT" in res.stdout
 
 
@@ -131,13 +139,14 @@ def test_an_action_costs_its_goal_result_and_feedback(demo, demo_pkg):
     name = "/turtle1/rotate_absolute"                  # id 30, RotateAbsolute: one float32 each
     goal, result, feedback = (entry(a, kind, name) for kind in ("goal", "result", "feedback"))
     assert (goal.sender, result.sender, feedback.sender, feedback.rate) == ("*", "vehicle", "vehicle", 1.0)
-    # What the generated codec sends: 02 18 1E h, then the float32 as half (3) or single (5)
+    # What the generated codec sends: 02 18 1E h, then the float32 as half (3) or single (5);
+    # in the envelope H (id 30 fits it), h, the float
     codec = demo_pkg.ACTIONS[30]
     Goal, Result = codec.goal.plain_class(), codec.result.plain_class()
-    goals = [len(codec.encode_goal(7, Goal(theta=t))) for t in (1.5, 0.1)]
-    results = [len(codec.encode_result(7, 4, Result(delta=d))) for d in (1.5, 0.1)]
-    assert (goal.configured.payload.min, goal.configured.payload.max) == tuple(goals) == (7, 9)
-    assert (result.configured.payload.min, result.configured.payload.max) == tuple(results) == (8, 10)
+    goals = [on_air(codec.encode_goal(7, Goal(theta=t))) for t in (1.5, 0.1)]
+    results = [on_air(codec.encode_result(7, 4, Result(delta=d))) for d in (1.5, 0.1)]
+    assert (goal.configured.payload.min, goal.configured.payload.max) == tuple(goals) == (5, 7)
+    assert (result.configured.payload.min, result.configured.payload.max) == tuple(results) == (6, 8)
     assert [p.label for p in goal.profiles] == ["native"]                              # native only
     vehicle = next(b for b in a.budgets if b.side == "vehicle")
     surface = next(b for b in a.budgets if b.side == "surface")
@@ -163,14 +172,15 @@ topics:
 
 def test_capacity_is_limited_by_the_bit_rate_as_well_as_by_the_period(tmp_path):
     # 64 B every 0.2 s is 320 B/s, but a 200 bit/s modem carries 25 B/s, 64 of every 68
-    # of them payload (DESERT adds 4 bytes per packet): 23.5 B/s. Five 15-byte frames a
-    # second (each 0.76 s on the air) cannot fit.
+    # of them payload (DESERT adds 4 bytes per packet): 23.5 B/s. Five 17-byte packets a
+    # second (wire format 2: a 15-byte frame's message, 1 byte shorter, + 3 bytes of P and W;
+    # each 0.84 s on the air) cannot fit.
     (tmp_path / "uwgen.yaml").write_text(SLOW_MODEM)
     res = subprocess.run([str(UWGEN), "analyze", "-m", str(tmp_path / "uwgen.yaml"), "--bitrate", "200",
                           "--strict"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 1, res.stdout + res.stderr
     surface = next(line.split() for line in res.stdout.splitlines() if line.startswith("  surface "))
-    assert surface == ["surface", "23.5", "bit", "rate", "75.0", "75.0", "DOES", "NOT", "FIT"]
+    assert surface == ["surface", "23.5", "bit", "rate", "85.0", "85.0", "DOES", "NOT", "FIT"]
     assert "200 bit/s" in res.stdout
     fast = subprocess.run([str(UWGEN), "analyze", "-m", str(tmp_path / "uwgen.yaml"), "--strict"],
                           capture_output=True, text=True, timeout=60)

@@ -20,6 +20,7 @@ from uwgen.bridge import ledger
 from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
+from uwgen.runtime import envelope
 from uwgen.runtime.framing import FrameDecoder
 from uwgen.runtime.link import Link
 
@@ -46,8 +47,10 @@ def lossy_network(package, per: float):
 
 
 def frames_with_header(deliveries, node: str, header: bytes) -> int:
+    """Messages (wire format 2: inside each packet's envelope) whose payload starts with header."""
     stream = b"".join(d.data for d in deliveries if d.node == node)
-    return sum(1 for p in FrameDecoder().feed(stream) if p.startswith(header))
+    return sum(1 for f in FrameDecoder().feed(stream) for m in envelope.decode(f).messages
+               if envelope.to_v1(m).startswith(header))
 
 
 def test_counters_of_a_lossy_run_add_up_exactly(e2e_package):

@@ -58,8 +58,8 @@ def test_repair_fragments_rebuild_reports_over_a_lossy_link(fec_package):
         pub = vehicle.node("sim").create_publisher(String, "/report", 50)
         wait_for(lambda: all(b.link.stats()["connected"] for b in bridges.values())
                  and pub.get_subscription_count(), what="bridges up")
-        texts = [f"report {i:02d}: " + "depth ok, battery ok, thruster ok; " * 5 for i in range(30)]
-        for text in texts:                     # 190-byte payloads: 4 data + 2 repair fragments each
+        texts = [f"report {i:02d}: " + "depth ok, battery ok, thruster ok; " * 4 for i in range(30)]
+        for text in texts:                     # 155-byte payloads: 4 data + 2 repair fragments each
             pub.publish(String(data=text))
             time.sleep(0.02)
         vb, sb = bridges["vehicle"], bridges["surface"]

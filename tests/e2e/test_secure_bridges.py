@@ -20,6 +20,7 @@ from std_srvs.srv import SetBool
 
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 from uwgen.runtime.codec import load_items, pack_items
+from uwgen.runtime.envelope import Envelope, from_v1
 from uwgen.runtime.framing import encode_frame
 from uwgen.security import wire
 from uwgen.security.guard import GuardConfig, LinkGuard
@@ -93,6 +94,11 @@ def tap(link, prefix: bytes) -> list[bytes]:
     return heard
 
 
+def on_air(payload: bytes) -> bytes:
+    """The frame a forger writes: one envelope (wire format 2) holding the payload's message."""
+    return encode_frame(Envelope(sender=1, number=0, messages=(from_v1(payload),)).encode())
+
+
 CMD_VEL = bytes([0, 4])         # kind 0, id 4
 REQUEST = bytes([2, 20])        # kind 2, id 20
 
@@ -134,7 +140,7 @@ def test_forged_cmd_vel_never_reaches_ros(secure_package, tmp_path):
                   + list(heard))                                       # replays of real frames
         with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
             for frame in forged:
-                forger.sendall(encode_frame(frame))
+                forger.sendall(on_air(frame))
                 time.sleep(0.06)                             # about one packet per period
             wait_for(lambda: security(net, "vehicle")["dropped"] >= len(forged), timeout=15,
                      what="every forged frame counted")
@@ -165,8 +171,8 @@ def test_secured_service_is_answered_once_and_only_when_authentic(secure_package
         wait_for(future.done, what="the secured response")
         assert future.result().success and calls == [True]
         with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
-            forger.sendall(encode_frame(heard[0]))             # the request, replayed
-            forger.sendall(encode_frame(pack_items([2, 20, 99, True])))   # a request in the clear
+            forger.sendall(on_air(heard[0]))             # the request, replayed
+            forger.sendall(on_air(pack_items([2, 20, 99, True])))   # a request in the clear
             wait_for(lambda: security(net, "vehicle")["dropped"] >= 2, what="forgeries counted")
         time.sleep(0.3)
         assert calls == [True]
@@ -190,7 +196,7 @@ def test_frames_replayed_after_a_bridge_restart_are_rejected(secure_package):
         wait_for(lambda: new.link.stats()["connected"], what="restarted vehicle bridge up")
         with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
             for frame in heard:
-                forger.sendall(encode_frame(frame))
+                forger.sendall(on_air(frame))
                 time.sleep(0.06)
             wait_for(lambda: new.status()["security"]["dropped"] >= 3, what="replays counted")
         sec = new.status()["security"]
@@ -223,7 +229,7 @@ def test_schema_announcements_are_signed_and_forged_ones_cannot_refuse_an_id(sch
             # again and again: a copy may collide with the bridges' own announcements
             deadline = time.monotonic() + 10
             while security(net, "vehicle")["unprotected"] < 3 and time.monotonic() < deadline:
-                forger.sendall(encode_frame(forged))
+                forger.sendall(on_air(forged))
                 time.sleep(0.2)
         assert security(net, "vehicle")["unprotected"] >= 3
         assert vehicle.status()["schema"]["mismatched"] == {}
@@ -250,7 +256,7 @@ def test_a_forged_response_never_completes_a_call(secure_package, tmp_path):
         plain = pack_items([3, 20, seq, True, "forged"])
         with socket.create_connection(("127.0.0.1", net.emu.port("forger_s"))) as forger:
             for frame in (plain, stranger.protect(20, plain)):
-                forger.sendall(encode_frame(frame))
+                forger.sendall(on_air(frame))
                 time.sleep(0.1)
             wait_for(lambda: security(net, "surface")["dropped"] >= 2, what="forged responses counted")
         surface = net.bridges["surface"]
@@ -307,7 +313,7 @@ def test_a_secured_action_runs_and_forged_goals_and_cancels_never_reach_the_serv
                   pack_items([2, 9, handle])]                  # a cancel in the clear
         with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
             for frame in forged + heard:                       # and the real goal, replayed
-                forger.sendall(encode_frame(frame))
+                forger.sendall(on_air(frame))
                 time.sleep(0.06)
             wait_for(lambda: security(net, "vehicle")["dropped"] >= len(forged) + len(heard),
                      timeout=15, what="every forged goal and cancel counted")

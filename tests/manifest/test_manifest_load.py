@@ -197,3 +197,25 @@ def test_schema_announcements_are_off_by_default_and_period_may_be_null(tmp_path
     assert m.schema_id is None and m.schema_period == 600.0
     m = load_text(tmp_path, SIDES + "        schema_id: 249\n        schema_period: null\n")
     assert m.schema_id == 249 and m.schema_period is None
+
+
+def test_strict_priority_only_where_the_manifest_asks(tmp_path):
+    m = load_text(tmp_path, SIDES + """
+        topics:
+          - {name: /alarm, id: 3, type: std_msgs/msg/String, publisher: surface, strict: true}
+          - {name: /b, id: 4, type: std_msgs/msg/String, publisher: surface, priority: 9}
+        services:
+          - {name: /s, id: 5, type: std_srvs/srv/Trigger, server: surface, strict: true}
+        """)
+    assert [t.policy.strict for t in m.topics] == [True, False]
+    assert m.services[0].policy.strict
+
+
+def test_strict_must_be_a_boolean(tmp_path):
+    import pytest
+    from uwgen.manifest.loader import ManifestError
+    with pytest.raises(ManifestError, match=r"strict of .* must be true or false"):
+        load_text(tmp_path, SIDES + """
+        topics:
+          - {name: /alarm, id: 3, type: std_msgs/msg/String, publisher: surface, strict: 1}
+        """)

@@ -122,9 +122,10 @@ def test_the_room_left_is_filled_with_frames_that_fit_and_the_held_one_goes_firs
         sim.sender.offer(3, b"\x00\x03" + bytes(6))      # 12-byte frames
     sim.run(2.0)
     writes = [[p[1] for p in FrameDecoder().feed(d.data)] for d in sim.packets]
-    # 1 + (1 held: 34 > 30 left) + the 12-byte ones that fit; then the held 1 first, 2 held...
-    assert writes == [[1, 3, 3], [1], [2], [2]]
-    assert [len(d.data) for d in sim.packets] == [58, 34, 36, 36]
+    # 1, then 2 (its turn: priorities share the link) held, 36 > 30 left, and the 12-byte ones
+    # that fit; then the held 2 first, 1 held (34 > 28 left); then 1; then the last 2
+    assert writes == [[1, 3, 3], [2], [1], [2]]
+    assert [len(d.data) for d in sim.packets] == [58, 36, 34, 36]
 
 
 @settings(max_examples=40, deadline=None)

@@ -354,3 +354,63 @@ def test_every_offered_message_is_accounted_for_exactly_once(policies, ops, frag
         if pol.rate is not None:
             times = [t0 for _, t0, _ in mine]
             assert all(b - a >= 1 / pol.rate - 1e-9 for a, b in zip(times, times[1:])), "rate exceeded"
+
+
+# -- shares: a claim that grows with waiting, strict only where asked -------------------------
+
+def served_keys(s: LinkScheduler, clock: ManualClock, n: int, step: float = 0.2) -> list[int]:
+    out = []
+    for _ in range(n):
+        clock.advance(step)
+        got = s.next_payload()
+        if got is not None:
+            out.append(got[0])
+    return out
+
+
+def test_saturated_channels_are_served_in_proportion_to_priority_plus_one():
+    clock = ManualClock()
+    s = LinkScheduler(clock)
+    for key, prio in ((1, 0), (2, 1), (3, 3)):
+        s.add_channel(key, LinkPolicy(queue="fifo", depth=5000, priority=prio))
+        for n in range(3000):
+            s.offer(key, msg(key, n % 200))
+    keys = served_keys(s, clock, 4000)
+    share = {k: keys.count(k) / len(keys) for k in (1, 2, 3)}
+    assert abs(share[1] - 1 / 7) < 0.01 and abs(share[2] - 2 / 7) < 0.01 and abs(share[3] - 4 / 7) < 0.01
+
+
+def test_a_flooding_top_priority_channel_no_longer_silences_the_others():
+    clock = ManualClock()
+    s = LinkScheduler(clock)
+    s.add_channel(1, LinkPolicy(queue="fifo", depth=1000, priority=10))
+    for key in range(2, 6):
+        s.add_channel(key, LinkPolicy(priority=0))
+        s.offer(key, msg(key, 0))
+    for n in range(1000):
+        s.offer(1, msg(1, n % 200))
+    keys = served_keys(s, clock, 20)
+    assert set(keys) == {1, 2, 3, 4, 5}
+
+
+def test_a_strict_channel_goes_before_all_others_whenever_it_is_ready():
+    clock = ManualClock()
+    s = LinkScheduler(clock)
+    s.add_channel(1, LinkPolicy(queue="fifo", depth=100, priority=0, strict=True))
+    s.add_channel(2, LinkPolicy(queue="fifo", depth=100, priority=50))
+    for n in range(10):
+        s.offer(1, msg(1, n))
+        s.offer(2, msg(2, n))
+    assert served_keys(s, clock, 20) == [1] * 10 + [2] * 10
+
+
+def test_a_channel_idle_for_long_is_served_at_once_when_a_message_comes():
+    clock = ManualClock()
+    s = LinkScheduler(clock)
+    s.add_channel(1, LinkPolicy(queue="fifo", depth=100, priority=10))
+    s.add_channel(2, LinkPolicy(priority=0))
+    for n in range(100):
+        s.offer(1, msg(1, n))
+    served_keys(s, clock, 30)
+    s.offer(2, msg(2, 0))
+    assert served_keys(s, clock, 1) == [2]

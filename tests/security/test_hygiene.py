@@ -80,7 +80,7 @@ def test_the_security_mode_is_in_the_schema_fingerprint():
     lib = InterfaceLibrary([], installed=True)
     ct = IRBuilder(lib.get).codec(lib.get("std_msgs/msg/Bool"), "native")
     fp = {mode: digest(description("topic", [0], 7, "native", "std_msgs/msg/Bool", [ct],
-                                   {ct.key: ct}, mode)) for mode in ("off", "sign", "encrypt")}
+                                   {ct.key: ct}, security=mode)) for mode in ("off", "sign", "encrypt")}
     assert len(set(fp.values())) == 3
     plain = description("topic", [0], 7, "native", "std_msgs/msg/Bool", [ct], {ct.key: ct})
-    assert digest(plain) == fp["off"] and len(plain) == 9      # unprotected ids: as before
+    assert digest(plain) == fp["off"] and len(plain) == 10     # unprotected ids: no mode item

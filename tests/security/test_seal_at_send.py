@@ -18,7 +18,8 @@ def starve(tmp_path, frames: int):
     clock = ManualClock()
     s, v = surface(tmp_path, clock=clock), vehicle(tmp_path, clock=clock)
     sched = LinkScheduler(clock, protect=s.protect, overhead=s.overhead)
-    sched.add_channel(HIGH, LinkPolicy(queue="fifo", depth=frames + 1, priority=5, rate=1000.0))
+    sched.add_channel(HIGH, LinkPolicy(queue="fifo", depth=frames + 1, priority=5, rate=1000.0,
+                                       strict=True))   # strict: it starves LOW while it has traffic
     sched.add_channel(LOW, LinkPolicy(queue="fifo", depth=4, priority=1))
     sched.offer(HIGH, twist(0.0))
     assert sched.next_payload(0.0)[0] == HIGH              # the high channel is now rate-held

@@ -98,7 +98,7 @@ class BridgeNode(Node):
         self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
-                                 clock=clock, name=plan.side,
+                                 clock=clock, name=plan.side, **plan.link_options(),
                                  **({"guard": self.guard} if self.guard is not None else {}))
         for key, policy, name, whole in plan.channels():
             self.link.add_channel(key, policy, name, whole=whole)

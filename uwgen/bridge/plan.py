@@ -23,7 +23,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from uwgen.manifest.model import NATIVE, RMW_DESERT, LinkConfig, LinkPolicy, handle_range  # RMW_DESERT: discovery, seqs 1..999
+from uwgen.manifest.model import NATIVE, PACKED, RMW_DESERT, LinkConfig, LinkPolicy, handle_range  # RMW_DESERT: discovery, seqs 1..999
 
 # What a stand-in service does when its bridged call gets no response in time.
 TIMEOUT_REPLY_NONE = "none"        # send no response: the client's own timeout detects it
@@ -84,6 +84,7 @@ class BridgePlan:
     security: Any = None          # manifest.model.SecurityPlan, None when nothing is protected
     manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
     manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
+    sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str,
@@ -119,6 +120,7 @@ class BridgePlan:
             security=getattr(manifest, "security", None),
             manifest_source=getattr(manifest, "source", "") or "",
             manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
+            sender_id=_sender_id(manifest, side),
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
@@ -150,6 +152,24 @@ class BridgePlan:
         """True when some entry is in profile rmw_desert: the bridge then runs discovery."""
         return any(is_rmw_desert(e) for e in (*self.topics, *self.services))
 
+    @property
+    def wire_format(self) -> int:
+        """2 (one envelope per packet) unless an entry is in profile rmw_desert: rmw_desert nodes
+        on the network read wire format 1 only, so the whole link keeps it."""
+        return 1 if self.uses_rmw_desert else 2
+
+    @property
+    def packed_ids(self) -> frozenset[int]:
+        """Ids in profile packed: in wire format 2 their fields travel without a byte-string head."""
+        return frozenset(e.id for e in (*self.topics, *self.services)
+                         if getattr(e, "profile", NATIVE) == PACKED)
+
+    def link_options(self) -> dict[str, Any]:
+        """Keyword arguments of `Link` that the plan decides (wire format and its sender id)."""
+        if self.wire_format == 1:
+            return {}
+        return {"wire_format": 2, "sender_id": self.sender_id, "packed_ids": self.packed_ids}
+
     def options(self, host: str | None = None, port: int | None = None,
                 max_read_length: int | None = None, period: float | None = None,
                 **extra: Any) -> BridgeOptions:
@@ -177,6 +197,13 @@ class BridgePlan:
                 + (f"; offers actions {names(self.offered_actions)}; serves actions "
                    f"{names(self.served_actions)}" if self.offered_actions or self.served_actions
                    else ""))
+
+
+def _sender_id(manifest: Any, side: str) -> int:
+    senders = getattr(getattr(manifest, "security", None), "senders", None) or {}
+    if side in senders:
+        return senders[side]
+    return sorted(manifest.sides).index(side) % 16
 
 
 def _own_manifest(package: Any) -> Path | None:

@@ -331,7 +331,8 @@ def logger_say(logger: Any) -> Callable[[str, str], None]:
 
 def channel_policy(parts: int, priorities: list[int]) -> LinkPolicy:
     """Announcements go before data (one above the highest priority) and queue two rounds."""
-    return LinkPolicy(queue="fifo", depth=max(2, 2 * parts), priority=max(priorities, default=0) + 1)
+    return LinkPolicy(queue="fifo", depth=max(2, 2 * parts), priority=max(priorities, default=0) + 1,
+                      strict=True)
 
 
 def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,

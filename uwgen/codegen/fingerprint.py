@@ -8,16 +8,17 @@ uwgen computes, at build time, for every topic, service and action of the manife
 
 The description (wire-format.md section 10) is the CBOR array
 
-    ["uwgen-schema", 1, entry, kinds, id, profile, type name, roots, types]
+    ["uwgen-schema", 2, entry, kinds, id, profile, type name, roots, types, wire format]
 
-plus, only for an id the secure link protects, a tenth item: its security mode ("sign" or
+plus, only for an id the secure link protects, an eleventh item: its security mode ("sign" or
 "encrypt"), so two builds that protect an id differently refuse each other (the description,
 and so the fingerprint, of an unprotected id is what it always was).
 
 where `entry` is "topic", "service" or "action", `kinds` the header kinds the id travels
 with ([0], [2, 3] for a service, [0, 2, 3] for an action), `roots` the codec keys of the
 message(s) (request then response for a service; goal, result, feedback for an action) and `types` every codec type they reach (inlined or through
-arrays), sorted by key, each written generically: a dataclass becomes a map of its
+arrays), sorted by key, and `wire format` 1 or 2 (wire-format.md section 14: 2 unless an
+entry of the manifest is in profile rmw_desert), each written generically: a dataclass becomes a map of its
 fields plus "@": its class name (leaving out fields marked `metadata={"schema": False}`,
 which name generated code and not bytes), an Enum its value, a list/tuple an array. Any IR
 node class added later is therefore covered without being named here.
@@ -42,7 +43,7 @@ from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 
 FINGERPRINT_BYTES = 4      # 2**-32 chance that two different schemas look alike (docs section 10)
 SCHEMA_MAGIC = "uwgen-schema"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2         # 2: the wire format version is item 9
 
 
 def canonical(value: Any, where: str = "") -> Any:
@@ -77,7 +78,8 @@ def canonical(value: Any, where: str = "") -> Any:
 
 
 def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type_name: str,
-                roots: list[CodecType], codecs: dict[str, CodecType], security: str = "off") -> list:
+                roots: list[CodecType], codecs: dict[str, CodecType], *, wire: int = 2,
+                security: str = "off") -> list:
     """The CBOR-able description of one manifest id (see the module docstring).
 
     `codecs` maps codec key -> CodecType for this profile; every type the roots reach
@@ -92,7 +94,7 @@ def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type
         todo.extend(codecs[key] for key in ct.uses)
     types = [canonical(reached[key], key) for key in sorted(reached)]
     out = [SCHEMA_MAGIC, SCHEMA_VERSION, entry, list(kinds), ident, profile, type_name,
-           [ct.key for ct in roots], types]
+           [ct.key for ct in roots], types, wire]
     return out if security == "off" else [*out, security]
 
 
@@ -102,23 +104,23 @@ def digest(data: Any) -> bytes:
 
 
 def topic_fingerprint(ident: int, profile: str, type_name: str, root: CodecType,
-                      codecs: dict[str, CodecType], security: str = "off") -> bytes:
+                      codecs: dict[str, CodecType], wire: int = 2, security: str = "off") -> bytes:
     return digest(description("topic", [KIND_TOPIC], ident, profile, type_name, [root], codecs,
-                              security))
+                              wire=wire, security=security))
 
 
 def service_fingerprint(ident: int, profile: str, type_name: str, request: CodecType,
-                        response: CodecType, codecs: dict[str, CodecType],
+                        response: CodecType, codecs: dict[str, CodecType], wire: int = 2,
                         security: str = "off") -> bytes:
     return digest(description("service", [KIND_REQUEST, KIND_RESPONSE], ident, profile, type_name,
-                              [request, response], codecs, security))
+                              [request, response], codecs, wire=wire, security=security))
 
 
 def action_fingerprint(ident: int, profile: str, type_name: str, goal: CodecType,
                        result: CodecType, feedback: CodecType,
-                       codecs: dict[str, CodecType], security: str = "off") -> bytes:
+                       codecs: dict[str, CodecType], wire: int = 2, security: str = "off") -> bytes:
     return digest(description("action", [KIND_TOPIC, KIND_REQUEST, KIND_RESPONSE], ident, profile,
-                              type_name, [goal, result, feedback], codecs, security))
+                              type_name, [goal, result, feedback], codecs, wire=wire, security=security))
 
 
 def package_digest(fingerprints: dict[tuple[str, int], bytes]) -> bytes:
@@ -158,19 +160,29 @@ def entry_codecs(manifest: Any, builder: Any) -> dict[tuple[str, int], tuple[lis
     return out
 
 
+def wire_format_of(manifest: Any) -> int:
+    """1 when an entry is in profile rmw_desert (its links keep wire format 1), else 2."""
+    entries = (*manifest.topics, *manifest.services, *getattr(manifest, "actions", ()))
+    return 1 if any(getattr(e, "profile", "native") == "rmw_desert" for e in entries) else 2
+
+
 def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], bytes]:
     """('topic' | 'service' | 'action', id) -> fingerprint for every entry of `manifest`."""
     entries = {**{("topic", t.id): t for t in manifest.topics},
                **{("service", s.id): s for s in manifest.services},
                **{("action", a.id): a for a in getattr(manifest, "actions", ())}}
     out: dict[tuple[str, int], bytes] = {}
+    wire = wire_format_of(manifest)
     for key, (roots, codecs) in entry_codecs(manifest, builder).items():
         entry = entries[key]
         mode = getattr(entry, "security", "off")
         if key[0] == "topic":
-            out[key] = topic_fingerprint(entry.id, entry.profile, entry.type_name, roots[0], codecs, mode)
+            out[key] = topic_fingerprint(entry.id, entry.profile, entry.type_name, roots[0], codecs,
+                                         wire, mode)
         elif key[0] == "action":
-            out[key] = action_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs, mode)
+            out[key] = action_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs,
+                                          wire, mode)
         else:
-            out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs, mode)
+            out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs,
+                                           wire, mode)
     return out

@@ -31,6 +31,7 @@ from typing import Iterable
 
 from uwgen.bridge import ledger
 from uwgen.demo.records import read_records
+from uwgen.runtime.pacing import PACKET_HEADER
 from uwgen.runtime.scheduler import DROP_REASONS
 
 
@@ -93,6 +94,20 @@ class Report:
     missions: list[dict] = field(default_factory=list)   # the operator's action goals
     sizes: list["FrameSize"] = field(default_factory=list)
     security: dict[str, dict] = field(default_factory=dict)   # side -> its bridge's security counts
+    air: dict[str, tuple[int, int]] = field(default_factory=dict)   # side -> (air bytes, packets)
+    wire_format: int | None = None
+
+    @property
+    def messages_delivered(self) -> int:
+        """Topic messages delivered, both payloads of each answered call, and each mission's
+        goal, answer, feedback and result."""
+        return (sum(r.delivered for r in self.topics) + sum(2 * s.ok for s in self.services)
+                + sum(3 + int(m.get("feedback", 0)) for m in self.missions))
+
+    @property
+    def air_per_message(self) -> float | None:
+        n = self.messages_delivered
+        return sum(b for b, _ in self.air.values()) / n if n and self.air else None
 
 
 @dataclass(frozen=True)
@@ -215,9 +230,19 @@ def build_report(out_dir: Path) -> Report:
         end_error = math.dist(commanded[-1], truth[-1])
     security = {side: status["security"] for side, status in (("surface", surface), ("vehicle", vehicle))
                 if isinstance(status.get("security"), dict)}
+    air, wire = {}, None
+    for side, status in (("surface", surface), ("vehicle", vehicle)):
+        link = status.get("link") or {}
+        conn = link.get("connection") or {}
+        if "bytes_sent" in conn:
+            # what DESERT puts on the water: the bytes written, plus its 4-byte header a packet
+            air[side] = (int(conn["bytes_sent"]) + PACKET_HEADER * int(conn.get("writes", 0)),
+                         int(conn.get("writes", 0)))
+            wire = link.get("wire_format", wire)
     return Report(rows, services, commanded, reported, truth,
                   (sum(dev) / len(dev)) if dev else None, max(dev) if dev else None,
-                  end_error, emulator, ev(op, "mission"), security=security)
+                  end_error, emulator, ev(op, "mission"), security=security, air=air,
+                  wire_format=wire)
 
 
 def paths(op: list[dict], veh: list[dict]):
@@ -309,6 +334,12 @@ def format_report(report: Report) -> str:
     if report.sizes:
         lines.append("frame sizes (one representative message): "
                      + "; ".join(_size(z) for z in report.sizes))
+    if report.air_per_message is not None:
+        lines.append(f"air bytes per delivered message: {report.air_per_message:.1f} "
+                     f"({report.messages_delivered} messages; "
+                     + "; ".join(f"{side} sent {b} B in {n} packets" for side, (b, n) in sorted(report.air.items()))
+                     + f"; wire format {report.wire_format or 1}, DESERT's 4-byte packet header "
+                       "included, announcements and security amortized)")
     if report.security:
         lines.append("security: " + "; ".join(_security(side, c) for side, c in sorted(report.security.items())))
     emu = report.emulator.get("nodes", {})

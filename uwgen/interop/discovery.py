@@ -97,8 +97,8 @@ def discovery_policies(beacon_count: int) -> dict[int, LinkPolicy]:
     `wait_for_service` blocks on them; never stale-dropped: beacons do not expire.
     """
     return {
-        DISCOVERY_ID: LinkPolicy(queue="fifo", depth=max(4, 2 * beacon_count), priority=100),
-        DISCOVERY_REQUEST_ID: LinkPolicy(queue="latest", depth=1, priority=100),
+        DISCOVERY_ID: LinkPolicy(queue="fifo", depth=max(4, 2 * beacon_count), priority=100, strict=True),
+        DISCOVERY_REQUEST_ID: LinkPolicy(queue="latest", depth=1, priority=100, strict=True),
     }
 
 

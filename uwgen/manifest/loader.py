@@ -57,7 +57,7 @@ TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id"
             "defaults", "topics", "services", "actions", "security")
 SIDE_KEYS = ("host", "port", "link", "sender_id")
 LINK_KEYS = ("max_read_length", "period")
-POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair")
+POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair", "strict")
 MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
@@ -511,7 +511,10 @@ class _ManifestBuilder:
             return None, False
 
         rate, ttl, priority, queue = base.rate, base.ttl, base.priority, base.queue
-        repair = base.repair
+        repair, strict = base.repair, base.strict
+        node, _ = pick("strict")
+        if node is not None:
+            strict = r.boolean(node, f"strict of {label}")
         node, _ = pick("repair")
         if node is not None:
             repair = r.integer(node, f"repair of {label}", 0, MAX_REPAIR)
@@ -540,7 +543,8 @@ class _ManifestBuilder:
             depth = base.depth if base.queue == "fifo" else FIFO_DEFAULT_DEPTH
             if depth_node is not None:
                 depth = r.integer(depth_node, f"depth of {label}", 1)
-        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority, repair=repair)
+        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority, repair=repair,
+                          strict=strict)
 
     def qos(self, node: yaml.Node, base: Qos) -> Qos:
         r = self.r

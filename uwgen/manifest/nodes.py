@@ -167,6 +167,12 @@ class Reader:
             raise self.error(node, f"{what} must be in {lo}..{hi}, got {value}")
         return value
 
+    def boolean(self, node: yaml.Node, what: str) -> bool:
+        value = self.value(node)
+        if not isinstance(value, bool):
+            raise self.error(node, f"{what} must be true or false, got {self.describe(node)}")
+        return value
+
     def number(self, node: yaml.Node, what: str, positive: bool = True) -> float:
         """A finite number within ±MAX_NUMBER; with `positive`, at least MIN_POSITIVE (rates,
         periods, timeouts and ttls: anything else overflows the timers it ends up in)."""

@@ -100,7 +100,8 @@ class DesertConnection:
                  stable_after: float = 1.0, pace_margin: float = DEFAULT_MARGIN,
                  bitrate: float | None = None, probation: float = 0.3,
                  unserved_after: float | None = None,
-                 source_fit: Callable[[float, int], bytes | None] | None = None):
+                 source_fit: Callable[[float, int], bytes | None] | None = None,
+                 one_frame: bool = False):
         self.host, self.port, self.config, self.name = host, port, config, name
         self.clock = clock
         self._source, self._on_frame = source, on_frame
@@ -114,7 +115,7 @@ class DesertConnection:
         self.connect_timeout, self.write_timeout, self.stable_after = connect_timeout, write_timeout, stable_after
 
         self.pacer = Pacer.for_link(config, pace_margin, bitrate)
-        self.outbox = Outbox(self.pacer)
+        self.outbox = Outbox(self.pacer, one_frame=one_frame)
         self.decoder = FrameDecoder()
         self.counters = Counters(CONNECTION_COUNTERS)
 

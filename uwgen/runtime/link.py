@@ -13,12 +13,19 @@ Incoming: frames are decoded, fragments reassembled, and `on_payload` receives e
 on the link's thread. Fragments are recognised by their header (kind 0, fragment_id); with
 fragment_id None nothing is treated as a fragment.
 
+Wire format 2 (`wire_format=2`, links of profiles native and packed): each write is one frame
+holding one envelope of several messages (uwgen.runtime.packets, envelope; wire format section
+14); profile-`packed` payloads (ids in `packed_ids`) travel without their byte string's head.
+`hooks` (packets.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
+(the default, and what rmw_desert-profile links use) writes one frame per payload.
+
 Security: with a `guard` (uwgen.security.guard.LinkGuard) a whole payload is protected when it
 leaves its queue, before it is fragmented, and every whole payload received (after reassembly)
 goes through `guard.unprotect`; only what it passes reaches `on_payload`.
 """
 from __future__ import annotations
 
+import logging
 import random
 from collections.abc import Callable
 from typing import Any
@@ -26,14 +33,20 @@ from typing import Any
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.connection import Backoff, DesertConnection
+from uwgen.runtime.envelope import EnvelopeError, add_packed_head, from_v1, strip_packed_head
 from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
-from uwgen.runtime.framing import MAX_PAYLOAD
+from uwgen.runtime.framing import MAX_FRAME, MAX_PAYLOAD
+from uwgen.runtime.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker, envelope_room,
+                                   message_measure)
 from uwgen.runtime.pacing import DEFAULT_MARGIN
 from uwgen.runtime.probation import reconnect_cap
 from uwgen.runtime.scheduler import LinkScheduler
-from uwgen.runtime.stats import Counters
+from uwgen.runtime.stats import Counters, log_count
 
-LINK_COUNTERS = ("payloads_delivered", "nested_fragments")
+log = logging.getLogger("uwgen.link")
+
+LINK_COUNTERS = ("payloads_delivered", "nested_fragments", "not_packed")
+WIRE_FORMATS = (1, 2)
 
 
 class Link:
@@ -51,14 +64,25 @@ class Link:
                  max_fragments: int = MAX_COUNT,
                  pace_margin: float = DEFAULT_MARGIN,
                  bitrate: float | None = None,
-                 guard: Any = None):
+                 guard: Any = None,
+                 wire_format: int = 1,
+                 sender_id: int = 0,
+                 packed_ids: frozenset[int] | set[int] = frozenset(),
+                 hooks: PacketHooks | None = None):
+        if wire_format not in WIRE_FORMATS:
+            raise ValueError(f"[{name}] wire format must be one of {WIRE_FORMATS}, got {wire_format}")
         self.config = config or LinkConfig()
+        self.wire_format = wire_format
+        self.packed_ids = frozenset(packed_ids) if wire_format == 2 else frozenset()
+        self.hooks = hooks or PacketHooks()
         self.name = name
         self.clock = clock
         self.fragment_id = fragment_id
         self._on_payload = on_payload
         self.guard = guard
         self.counters = Counters(LINK_COUNTERS)
+        self.packet_counters = Counters(PACKET_COUNTERS)
+        v2 = wire_format == 2
         self._pulled_key: int | None = None       # channel of the payload pulled last
         rng = rng or random.Random()
 
@@ -66,8 +90,12 @@ class Link:
         self.reassembler: Reassembler | None = None
         if fragment_id is not None:
             # A fragment frame fits one DESERT packet, so a lost packet costs whole fragments only.
+            # Wire format 2: a fragment message fits one envelope (its message cost is at most
+            # its wire format 1 length minus one, see packets.message_measure).
+            room = (envelope_room(self.config.max_read_length, self.hooks.overhead) if v2
+                    else fragment_payload_for(self.config.max_read_length))
             self.fragmenter = Fragmenter(fragment_id, rng=rng, max_fragments=max_fragments,
-                                         max_payload=fragment_payload_for(self.config.max_read_length))
+                                         max_payload=min(MAX_PAYLOAD, room))
             # Fragments of one message may be spread out by higher-priority traffic: be patient;
             # memory stays bounded by max_partial_* whatever the timeout.
             timeout = fragment_timeout if fragment_timeout is not None else max(30.0, 60 * self.config.period)
@@ -77,17 +105,28 @@ class Link:
         self.scheduler = LinkScheduler(
             clock, name=name,
             splitter=self.fragmenter.split if self.fragmenter else None,
-            max_message=self.fragmenter.max_message_size if self.fragmenter else MAX_PAYLOAD,
+            max_message=(self.fragmenter.max_message_size if self.fragmenter
+                         else envelope_room(MAX_FRAME, self.hooks.overhead) - 1 if v2 else MAX_PAYLOAD),
             fec_over=self.fragmenter.max_payload if self.fragmenter else MAX_PAYLOAD,
             max_message_for=self.fragmenter.max_message_for if self.fragmenter else None,
             protect=guard.protect if guard is not None else None,
-            overhead=guard.overhead if guard is not None else None)
+            overhead=guard.overhead if guard is not None else None,
+            measure=message_measure if v2 else len)
+        self.packer: Packer | None = None
+        self.unpacker: Unpacker | None = None
+        if v2:
+            self.packer = Packer(self.scheduler, sender=sender_id,
+                                 max_read_length=self.config.max_read_length, hooks=self.hooks,
+                                 counters=self.packet_counters, name=name)
+            self.unpacker = Unpacker(self.hooks, counters=self.packet_counters, name=name)
         self.connection = DesertConnection(
-            host, port, self.config, source=self._source, on_frame=self._on_frame, clock=clock,
+            host, port, self.config, clock=clock, one_frame=v2,
+            source=self.packer.next_packet if v2 else self._source,
+            on_frame=self._on_packet if v2 else self._on_frame,
             name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
             stall_timeout=stall_timeout,
             next_ready=self.scheduler.next_ready_time, on_tick=self._tick, pace_margin=pace_margin,
-            bitrate=bitrate, source_fit=self._source_fit)
+            bitrate=bitrate, source_fit=None if v2 else self._source_fit)
 
     # -- contract API --------------------------------------------------------------------------
 
@@ -105,6 +144,14 @@ class Link:
         """Queue an unframed payload; False (and a counted, logged drop) if it can never be sent.
         `published`: when its ROS publisher published it, on the link's clock; the channel's
         ttl runs from then (docs/seams.md section 4)."""
+        if self.packed_ids and payload and payload[0] < 24 and _wire_id(payload) in self.packed_ids:
+            try:
+                payload = strip_packed_head(payload)
+            except EnvelopeError as e:
+                log_count(log, logging.ERROR, self.counters.inc("not_packed"),
+                          "[%s] channel %d: refused a payload of a packed id that is not packed: %s",
+                          self.name, key, e)
+                return False
         ok = self.scheduler.offer(key, payload, published)
         if ok:
             self.connection.wake()
@@ -141,6 +188,8 @@ class Link:
             "connection": conn,
             "fragments": frag,
             "payloads_delivered": self.counters["payloads_delivered"],
+            "wire_format": self.wire_format,
+            "packets": self.packet_counters.as_dict() if self.wire_format == 2 else None,
             "security": self.guard.stats() if self.guard is not None else None,
         }
 
@@ -159,6 +208,10 @@ class Link:
         picked = self.scheduler.next_payload(now, max_size, exclude=held)
         return None if picked is None else picked[1]
 
+    def _on_packet(self, data: bytes) -> None:
+        for payload in self.unpacker.feed(data, self.clock.now()):
+            self._on_frame(payload)
+
     def _on_frame(self, payload: bytes) -> None:
         if self.reassembler is not None and is_fragment(payload, self.fragment_id):
             whole = self.reassembler.feed(payload)
@@ -172,6 +225,14 @@ class Link:
             payload = self.guard.unprotect(payload)
             if payload is None:
                 return                                   # counted by the guard
+        if self.packed_ids and _wire_id(payload) in self.packed_ids:
+            try:
+                payload = add_packed_head(payload)
+            except EnvelopeError as e:
+                log_count(log, logging.WARNING, self.counters.inc("not_packed"),
+                          "[%s] dropped a received payload of a packed id without its fields: %s",
+                          self.name, e)
+                return
         self.counters.inc("payloads_delivered")
         if self._on_payload is not None:
             self._on_payload(payload)
@@ -179,3 +240,11 @@ class Link:
     def _tick(self, now: float) -> None:
         if self.reassembler is not None:
             self.reassembler.expire(now)
+
+
+def _wire_id(payload: bytes) -> int | None:
+    """The id of a wire format 1 payload (None when it has none)."""
+    try:
+        return from_v1(payload).id
+    except EnvelopeError:
+        return None

@@ -107,9 +107,10 @@ class Outbox:
     written (it did not fit) survives a disconnect and goes first on the next connection.
     """
 
-    def __init__(self, pacer: Pacer, aligned: bool = True):
+    def __init__(self, pacer: Pacer, aligned: bool = True, one_frame: bool = False):
         self.pacer = pacer
         self.aligned = aligned
+        self.one_frame = one_frame   # wire format 2: one frame (one envelope) per write
         self.stats = OutboxStats()
         self._rest = b""             # unwritten pieces of the frame cut by the last write
         self._held = b""             # a whole frame pulled that did not fit the last write
@@ -157,6 +158,8 @@ class Outbox:
             if len(frame) <= room:
                 parts.append(frame)
                 room -= len(frame)
+                if self.one_frame:
+                    return parts, 1
             elif parts:
                 self._held = frame          # whole, at the start of the next write
                 break

@@ -8,7 +8,10 @@ channel (one topic or service id) has a LinkPolicy, turned into small policy obj
   one), `fifo` keeps `depth` messages and drops the OLDEST on overflow;
 - a rate limit: at most `rate` messages per second leave the channel (a token bucket of depth 1);
 - a time-to-live: a message older than `ttl` when it would be sent is dropped, never sent stale;
-- a priority: the highest-priority ready channel is served first; equal priorities take turns.
+- a priority and no starvation: each message served moves its channel's claim 1 / (priority
+  + 1) later in virtual time and the earliest claim goes next (see `claim`), so under
+  saturation every channel with traffic is served in proportion to priority + 1 and none
+  starves. A `strict` channel (manifest key `strict`) goes before all others whenever ready.
 
 `next_payload(now)` is called by the connection only when it may write (pull, not push). Every
 message offered is accounted for exactly once:
@@ -183,10 +186,16 @@ class Channel:
     split_over: int = MAX_PAYLOAD                # longer payloads are fragmented
     max_message: int = MAX_PAYLOAD               # longer payloads are refused (too_large)
     counters: Counters = field(default_factory=lambda: Counters(CHANNEL_COUNTERS))
+    tag: float = 0.0                             # virtual time when it is next due (see claim)
+    turn: int = 0                                # the scheduler's serve count when last served
 
     @property
     def priority(self) -> int:
         return self.policy.priority
+
+    @property
+    def weight(self) -> int:
+        return max(self.policy.priority, 0) + 1
 
     @property
     def queued(self) -> int:
@@ -214,8 +223,10 @@ class LinkScheduler:
     def __init__(self, clock: Clock = SYSTEM_CLOCK, *, splitter: Splitter | None = None,
                  max_message: int = MAX_PAYLOAD, name: str = "link",
                  fec_over: int = MAX_PAYLOAD, max_message_for: Callable[[int], int] | None = None,
-                 protect: Protect | None = None, overhead: Callable[[int], int] | None = None):
+                 protect: Protect | None = None, overhead: Callable[[int], int] | None = None,
+                 measure: Callable[[bytes], int] = len):
         self.clock = clock
+        self.measure = measure         # what a payload costs in the room `next_payload` fills
         self.splitter = splitter
         self.protect = protect
         self.overhead = overhead
@@ -224,8 +235,10 @@ class LinkScheduler:
         self._max_message_for = max_message_for
         self.name = name
         self._channels: dict[int, Channel] = {}
-        self._order: list[Channel] = []            # by priority (highest first), then key
-        self._last_served: dict[int, int] = {}     # priority -> key served last (round robin)
+        self._order: list[Channel] = []            # strict first, by priority, then key
+        self._last_served: dict[int, int] = {}     # strict priority -> key served last (turns)
+        self._turns = 0
+        self._vtime = 0.0                          # the claim served last (virtual time)
         self._lock = threading.Lock()
 
     # -- configuration -------------------------------------------------------------------------
@@ -248,7 +261,8 @@ class LinkScheduler:
                 ch.max_message = self._max_message_for(policy.repair)
         with self._lock:
             self._channels[key] = ch
-            self._order = sorted(self._channels.values(), key=lambda c: (-c.priority, c.key))
+            self._order = sorted(self._channels.values(),
+                                 key=lambda c: (not c.policy.strict, -c.priority, c.key))
 
     # -- producer side -------------------------------------------------------------------------
 
@@ -330,25 +344,53 @@ class LinkScheduler:
                 ch.counters.inc("expired")
 
     def _pick(self, now: float, max_size: int | None = None, exclude: int | None = None) -> Channel | None:
-        best: list[Channel] = []
+        """The channel to serve: a ready strict channel of the highest priority (in turns among
+        equals), else the ready channel with the earliest claim (see `claim`)."""
+        strict: list[Channel] = []
+        best: Channel | None = None
+        best_rank: tuple = ()
         for ch in self._order:
-            if best and ch.priority < best[0].priority:
-                break
             t = ch.ready_at(now)
             if t is None or ch.key == exclude:
                 continue
-            if t <= now:
-                if max_size is None or self._next_size(ch) <= max_size:
-                    best.append(ch)
-            elif not ch.queue[0].rate_held:
-                ch.queue[0].rate_held = True
-                ch.counters.inc("rate_limited")
-        if not best:
+            if t > now:
+                if not ch.queue[0].rate_held:
+                    ch.queue[0].rate_held = True
+                    ch.counters.inc("rate_limited")
+                continue
+            if max_size is not None and self._next_size(ch) > max_size:
+                continue
+            if ch.policy.strict:
+                if not strict or ch.priority == strict[0].priority:
+                    strict.append(ch)
+                continue
+            rank = (self.claim(ch), -ch.priority, ch.turn, ch.key)
+            if best is None or rank < best_rank:
+                best, best_rank = ch, rank
+        if strict:
+            last = self._last_served.get(strict[0].priority)
+            chosen = next((ch for ch in strict if last is not None and ch.key > last), strict[0])
+            self._last_served[chosen.priority] = chosen.key
+        elif best is not None:
+            chosen = best
+            self._vtime = self.claim(chosen)
+            chosen.tag = self._vtime + 1.0 / chosen.weight
+        else:
             return None
-        last = self._last_served.get(best[0].priority)
-        chosen = next((ch for ch in best if last is not None and ch.key > last), best[0])
-        self._last_served[chosen.priority] = chosen.key
+        self._turns += 1
+        chosen.turn = self._turns        # equal claims: the one served longest ago goes first
         return chosen
+
+    def claim(self, ch: Channel) -> float:
+        """When a channel is due in virtual time (start-time fair queuing): each message served
+        moves its channel's claim 1 / weight later, weight = priority + 1 (priorities below 0
+        weigh 1); a channel that waited, idle or held back, claims no earlier than the claim
+        served last. The earliest claim is served next, so while a channel waits every other
+        channel served moves behind it: its standing grows with the service the others get
+        (the intent of Goby3's DynamicBuffer, whose value grows with the time a queue waited,
+        scaled by its priority), and under saturation each channel with traffic is served in
+        proportion to its weight, however many messages one packet takes at one instant."""
+        return max(ch.tag, self._vtime)
 
     def _seal_head(self, ch: Channel) -> bool:
         """Protect the channel's next message as it is taken to be sent; False (the message
@@ -370,12 +412,13 @@ class LinkScheduler:
         """Length of the payload `_take` would return for this channel (a message about to be
         split: its first fragment, at most one packet's worth)."""
         if ch.in_progress is not None:
-            return len(ch.in_progress[0])
+            return self.measure(ch.in_progress[0])
         msg = ch.queue[0]
         n = len(msg.payload)
-        if self.overhead is not None and not msg.sealed:
-            n += self.overhead(ch.key)          # the most sealing it (as it leaves) may add
-        return n if n <= ch.split_over else min(n, self.fec_over)
+        extra = self.overhead(ch.key) if self.overhead is not None and not msg.sealed else 0
+        if n + extra > ch.split_over:
+            return self.fec_over
+        return self.measure(msg.payload) + extra   # the most sealing it (as it leaves) may add
 
     def _take(self, ch: Channel, now: float) -> bytes:
         c = ch.counters

@@ -43,8 +43,9 @@ class LinkPolicy:
     queue: str = "latest"       # "latest": keep only the newest; "fifo": keep `depth`, oldest first
     depth: int = 1              # queue depth (always 1 for "latest")
     ttl: float | None = None    # seconds; older messages are dropped, never sent stale
-    priority: int = 0           # higher is served first when the link is busy
+    priority: int = 0           # a larger share of a busy link (weight priority + 1)
     repair: int = 0             # repair fragments per fragmented message (erasure code; 0: none)
+    strict: bool = False        # served before every non-strict entry whenever it has a message
     reliable: bool = False      # acknowledged and re-sent until its ttl (topics with
                                 # `reliability: reliable`; wire format 15); never rmw_desert
 

@@ -1,0 +1,258 @@
+#!/usr/bin/env python3
+"""Wire format 2 against wire format 1, same run: air bytes per message, link use, shares.
+
+    .venv/bin/python benchmarks/envelope_bench.py [--seconds 300]
+
+Each run drives real uwgen Links (scheduler, fragments, security guard, pacer and Outbox) on
+simulated time: every write the sender's connection would make goes, lossless, into the
+receiver's decoder. Air bytes count each packet as DESERT sends it: the bytes written plus the
+4 bytes of UDP and IP header DESERT adds (docs/wire-format.md section 1).
+
+Table 1, the demo's mix, secured as the demo is (docs/demo.md): cmd_vel published at 10 Hz
+(encrypted, packed, rate 5), pose at 10 Hz (signed, packed, rate 2), battery at 1 Hz (signed,
+rate 0.2), 8 log lines every 20 s (not protected), an encrypted teleport request every 30 s, and
+each side's schema announcement (signed) at start; real messages through the demo package's
+codecs. Air bytes per delivered message, both directions; goal: wire format 2 <= half of 1.
+
+Table 2, link use under saturation (bytes written per second / (max_read_length / period)):
+FIFO channels always full, latest-only channels with a fresh message before every write, and a
+mix of both. Goal: >= 0.9 each with wire format 2. The pacer's margin (5 %) caps both formats at
+1 / 1.05 = 0.952.
+
+Table 3, shares of a saturated link with one unrated priority-10 topic and 49 priority-0 topics
+(all flooding): before (strict priority, what the scheduler did before wire format 2) and after
+(claims growing with waiting time; a share in proportion to priority + 1).
+"""
+from __future__ import annotations
+
+import argparse
+import random
+import sys
+import tempfile
+from pathlib import Path
+
+from uwgen.bridge.schema import encode_announcements
+from uwgen.manifest.model import LinkConfig, LinkPolicy
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.link import Link
+from uwgen.security.guard import GuardConfig, LinkGuard
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "generated"))
+import uwgen_demo as demo  # noqa: E402  (the demo's generated package)
+from uwgen_demo.geometry_msgs.msg import Twist, Vector3  # noqa: E402
+from uwgen_demo.sensor_msgs.msg import BatteryState  # noqa: E402
+from uwgen_demo.std_msgs.msg import String  # noqa: E402
+from uwgen_demo.turtlesim.msg import Pose  # noqa: E402
+from uwgen_demo.turtlesim.srv import TeleportAbsolute_Request  # noqa: E402
+
+CONFIG = LinkConfig(max_read_length=64, period=0.2)
+DESERT_HEADER = 4
+MASTER = bytes(range(32))
+SENDERS = {"surface": 1, "vehicle": 2}
+MODES = {4: "encrypt", 5: "sign", 6: "sign", 20: "encrypt", 21: "encrypt", 30: "encrypt", 249: "sign"}
+
+
+class Pair:
+    """A sending Link and a receiving Link on one ManualClock; `run` plays the writes."""
+
+    def __init__(self, wire: int, src: str = "a", dst: str = "b", *, secure_dir: Path | None = None,
+                 packed: frozenset[int] = frozenset(), fragment_id: int | None = 250):
+        self.clock = ManualClock()
+        self.delivered: list[bytes] = []
+        self.air = 0
+        self.packets = 0
+        self.written = 0
+        kw = dict(config=CONFIG, clock=self.clock, fragment_id=fragment_id, rng=random.Random(1))
+        if wire == 2:
+            kw.update(wire_format=2, packed_ids=packed)
+        guards = {}
+        if secure_dir is not None:
+            for side, other in ((src, dst), (dst, src)):
+                cfg = GuardConfig("demo", SENDERS[side], {SENDERS[other]: other}, MODES)
+                guards[side] = LinkGuard.for_key(MASTER, cfg, secure_dir / f"{wire}-{side}.state",
+                                                 clock=self.clock, name=side)
+        if wire == 2:
+            kw_src = dict(kw, sender_id=SENDERS.get(src, 0))
+        else:
+            kw_src = kw
+        self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}), **kw_src)
+        self.receiver = Link(name=dst, on_payload=self.delivered.append,
+                             **({"guard": guards[dst]} if guards else {}), **kw)
+
+    def run(self, seconds: float, before_write=None) -> None:
+        conn, rx = self.sender.connection, self.receiver.connection
+        box = conn.outbox
+        t = 0.0
+        while t <= seconds:
+            self.clock.set(t)
+            if before_write is not None:
+                before_write(t)
+            batch = box.take(t, conn._pull, conn._fit)
+            if batch:
+                box.sent(t)
+                self.packets += 1
+                self.written += len(batch)
+                self.air += len(batch) + DESERT_HEADER
+                rx._deliver(rx.decoder.feed(batch))
+            self.receiver._tick(t)
+            nxt = box.pacer.next_write_at
+            t = round(max(t + CONFIG.period / 16, nxt) if before_write is None else max(nxt, t + 1e-3), 9)
+
+
+# -- table 1: the demo's mix ------------------------------------------------------------------
+
+def twist(k: int) -> Twist:
+    return Twist(linear=Vector3(x=0.3 + 0.01 * (k % 50), y=0.0, z=float(k % 65536)),
+                 angular=Vector3(x=0.0, y=0.0, z=0.1 * (k % 7) - 0.3))
+
+
+def pose(k: int) -> Pose:
+    return Pose(x=5.5 + 0.01 * (k % 100), y=5.0 - 0.01 * (k % 80), theta=0.001 * (k % 3000) - 1.5,
+                linear_velocity=0.4, angular_velocity=0.1)
+
+
+def battery(k: int) -> BatteryState:
+    b = BatteryState()
+    b.voltage, b.current, b.percentage = 15.2 - 0.001 * k, -1.5, 0.9 - 0.0001 * k
+    b.power_supply_status, b.present = 2, True
+    return b
+
+
+def demo_mix(wire: int, seconds: float, tmp: Path) -> tuple[int, int]:
+    """Air bytes and delivered messages of both directions of the demo's traffic."""
+    t = demo.TOPICS
+    air = delivered = 0
+    ann = {side: encode_announcements(249, [(i, c.fingerprint) for i, c in sorted(
+        {**t, **demo.SERVICES}.items())], request=True) for side in SENDERS}
+    packed = frozenset(i for i, c in {**t, **demo.SERVICES}.items() if c.profile == "packed")
+    for src, dst in (("surface", "vehicle"), ("vehicle", "surface")):
+        pair = Pair(wire, src, dst, secure_dir=tmp, packed=packed)
+        link = pair.sender
+        link.add_channel(249, LinkPolicy(queue="fifo", depth=4, priority=11, strict=True))
+        for p in ann[src]:
+            pair.clock.set(0.0)
+            link.offer(249, p)
+        events: list[tuple[float, int, bytes]] = []
+        if src == "surface":
+            link.add_channel(4, t[4].policy)
+            link.add_channel(20, demo.SERVICES[20].policy)
+            events += [(k * 0.1, 4, t[4].encode(twist(k))) for k in range(int(seconds * 10))]
+            req = demo.SERVICES[20].encode_request(7, TeleportAbsolute_Request(x=5.5, y=5.5, theta=0.0))
+            events += [(k * 30.0 + 1.0, 20, req) for k in range(int(seconds / 30))]
+        else:
+            for key in (5, 6, 7):
+                link.add_channel(key, t[key].policy)
+            events += [(k * 0.1, 5, t[5].encode(pose(k))) for k in range(int(seconds * 10))]
+            events += [(k * 1.0, 6, t[6].encode(battery(k))) for k in range(int(seconds))]
+            events += [(k * 20.0 + 0.5, 7, t[7].encode(String(data=f"mission step {k}: depth 12.{j} m ok")))
+                       for k in range(int(seconds / 20)) for j in range(8)]
+        events.sort(key=lambda e: e[0])
+        pending = iter(events)
+        nxt = [next(pending, None)]
+
+        def offers(now: float) -> None:
+            while nxt[0] is not None and nxt[0][0] <= now:
+                _, key, payload = nxt[0]
+                link.offer(key, payload)
+                nxt[0] = next(pending, None)
+
+        pair.run(seconds, offers)
+        air += pair.air
+        delivered += sum(1 for p in pair.delivered if p[1] != 249 and not p.startswith(b"\x00\x18\xf9"))
+    return air, delivered
+
+
+# -- table 2: link use under saturation -------------------------------------------------------
+
+def head(key: int) -> bytes:
+    """CBOR kind 0 and id `key` (shortest form), the start of a wire format 1 topic payload."""
+    return bytes((0, key)) if key < 24 else bytes((0, 0x18, key))
+
+
+SIZES = (6, 8, 11, 14, 19, 22, 27, 37)     # wire format 1 payloads of the demo (packed, signed...)
+
+
+def saturated(wire: int, kind: str, seconds: float) -> float:
+    pair = Pair(wire, fragment_id=250)
+    link = pair.sender
+    fifo = {"fifo": SIZES[:4], "latest": (), "mixed": SIZES[:2]}[kind]
+    latest = {"fifo": (), "latest": SIZES, "mixed": SIZES[2:]}[kind]
+    keys = {}
+    for n, size in enumerate(fifo):
+        keys[10 + n] = ("fifo", size)
+        link.add_channel(10 + n, LinkPolicy(queue="fifo", depth=100_000))
+    for n, size in enumerate(latest):
+        keys[14 + n] = ("latest", size)
+        link.add_channel(14 + n, LinkPolicy(queue="latest"))
+    count = [0]
+
+    def top_up(now: float) -> None:
+        for key, (q, size) in keys.items():
+            if q == "latest" or link.queued(key) < 50:
+                for _ in range(1 if q == "latest" else 50):
+                    count[0] += 1
+                    link.offer(key, head(key) + count[0].to_bytes(4, "big") + bytes(size - 4 - len(head(key))))
+
+    pair.run(seconds, top_up)
+    return pair.written / (seconds / CONFIG.period * CONFIG.max_read_length)
+
+
+# -- table 3: shares per priority -------------------------------------------------------------
+
+def shares(strict: bool, seconds: float) -> dict[str, float]:
+    pair = Pair(2, fragment_id=None)
+    link = pair.sender
+    link.add_channel(1, LinkPolicy(queue="fifo", depth=100_000, priority=10, strict=strict))
+    for key in range(2, 51):
+        link.add_channel(key, LinkPolicy(queue="fifo", depth=1000, priority=0, strict=strict))
+
+    def top_up(now: float) -> None:
+        for key in range(1, 51):
+            while link.queued(key) < 20:
+                link.offer(key, head(key) + bytes((1, 2, 3, 4)))
+
+    pair.run(seconds, top_up)
+    counts = {k: 0 for k in range(1, 51)}
+    for p in pair.delivered:
+        counts[p[1] if p[1] < 24 else p[2]] += 1
+    total = sum(counts.values())
+    others = [counts[k] / total for k in range(2, 51)]
+    return {"top": counts[1] / total, "others": sum(others), "min_other": min(others),
+            "starved": sum(1 for k in range(2, 51) if counts[k] == 0), "messages": total}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=300.0, help="simulated seconds per run")
+    args = parser.parse_args()
+    s = args.seconds
+
+    print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions)")
+    print(f"{'wire format':<14}{'air bytes':>10}{'messages':>10}{'bytes/msg':>11}")
+    rows = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for wire in (1, 2):
+            air, n = demo_mix(wire, s, Path(tmp))
+            rows[wire] = air / n
+            print(f"{wire:<14}{air:>10}{n:>10}{air / n:>11.1f}")
+    ratio = rows[2] / rows[1]
+    print(f"wire format 2 / 1: {ratio:.2f}  (goal <= 0.5: {'ok' if ratio <= 0.5 else 'MISS'})")
+    print()
+    print("Table 2: link use under saturation (bytes written / (max_read_length / period))")
+    print(f"{'load':<10}{'wf 1':>8}{'wf 2':>8}")
+    for kind in ("fifo", "latest", "mixed"):
+        u1, u2 = saturated(1, kind, s / 5), saturated(2, kind, s / 5)
+        print(f"{kind:<10}{u1:>8.3f}{u2:>8.3f}  {'ok' if u2 >= 0.9 else 'MISS'}")
+    print("goal: >= 0.9 with wire format 2 (the 5 % pacing margin caps both at 0.952)")
+    print()
+    print("Table 3: shares of a saturated link, one priority-10 topic and 49 priority-0 topics")
+    print(f"{'scheduler':<26}{'top':>8}{'49 others':>11}{'least other':>13}{'starved':>9}")
+    for label, strict in (("before: strict priority", True), ("after: growing claims", False)):
+        r = shares(strict, s / 5)
+        print(f"{label:<26}{r['top']:>8.3f}{r['others']:>11.3f}{r['min_other']:>13.4f}{r['starved']:>9}")
+    print("after: expected top 11/60 = 0.183, each other 1/60 = 0.0167")
+
+
+if __name__ == "__main__":
+    main()

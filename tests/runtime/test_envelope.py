@@ -1,0 +1,164 @@
+"""The envelope codec of wire format 2: worked bytes, one encoding per envelope, a total decoder."""
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from uwgen.runtime.envelope import (Envelope, EnvelopeError, Message, Sync, decode, from_v1,
+                                    to_v1)
+
+
+def test_one_message_envelope_is_p_w_h_body():
+    env = Envelope(sender=1, number=5, messages=(Message(0, 4, b"\x7d\x23"),))
+    assert env.encode() == bytes.fromhex("40 10 05 04 7D 23")
+
+
+def test_every_message_but_the_last_carries_a_length():
+    env = Envelope(sender=2, number=0xABC, messages=(
+        Message(0, 4, b"\x7d\x23"), Message(2, 20, b"\x07\xf5"), Message(0, 250, b"\x2a\x00")))
+    # 84 02 = topic 4 with length 2; C4 02 = request 20... (kind 01, id 10100) with length 2;
+    # 00 FA = topic, id escaped (250), last: no length
+    assert env.encode() == bytes.fromhex("40 2A BC 84 02 7D 23 B4 02 07 F5 00 FA 2A 00")
+    assert decode(env.encode()) == env
+
+
+def test_optional_parts_come_in_order_k_t_a_c_and_the_tag_last():
+    env = Envelope(sender=3, number=1, messages=(Message(3, 7, b"\x01"),),
+                   sync=Sync(bytes.fromhex("A1A2A3A4A5A6"), 2), time=0x123456, ack=b"\xee",
+                   control=b"", tag=bytes(range(8)))
+    assert env.encode() == bytes.fromhex(
+        "5F 30 01 A1 A2 A3 A4 A5 A6 00 00 00 02 12 34 56 01 EE 00 47 01 00 01 02 03 04 05 06 07")
+    assert decode(env.encode()) == env
+    assert env.head_size() == 3 + 10 + 3 + 2 + 1 + 8
+
+
+def test_escaped_kind_carries_kind_and_id_bytes():
+    env = Envelope(sender=0, number=0, messages=(Message(9, 3, b"x"),))
+    assert env.encode() == bytes.fromhex("40 00 00 60 09 03 78")
+    assert decode(env.encode()) == env
+
+
+def test_an_envelope_may_carry_no_message():
+    env = Envelope(sender=4, number=9, ack=b"\x01\x02")
+    assert decode(env.encode()) == env
+    assert env.encode() == bytes.fromhex("42 40 09 02 01 02")
+
+
+@pytest.mark.parametrize("payload, message", [
+    ("00 04 7D 23", Message(0, 4, b"\x7d\x23")),
+    ("02 18 FA 07", Message(2, 250, b"\x07")),
+    ("03 14 07 F5", Message(3, 20, b"\x07\xf5")),
+])
+def test_v1_payloads_turn_into_messages_and_back(payload, message):
+    assert from_v1(bytes.fromhex(payload)) == message
+    assert to_v1(message) == bytes.fromhex(payload)
+
+
+@pytest.mark.parametrize("payload", ["", "00", "18 04 00", "00 18 04", "00 00 01", "00 19 01 00"])
+def test_v1_payload_without_kind_and_id_is_refused(payload):
+    with pytest.raises(EnvelopeError):
+        from_v1(bytes.fromhex(payload))
+
+
+@pytest.mark.parametrize("data, why", [
+    ("", "at least"),
+    ("40 00", "at least"),
+    ("00 04 F5", "version bits 0"),
+    ("E0 00 00", "version bits 7"),
+    ("50 00 00 01 02", "tag"),
+    ("48 00 00 01 02 03", "sync"),
+    ("44 00 00 01", "time"),
+    ("42 00 00 05 01", "acknowledgement"),
+    ("41 00 00", "control"),
+    ("40 00 00 84 02 01", "does not fit"),
+    ("40 00 00 84 01 01", "last message carries a length"),
+    ("40 00 00 00 04", "escaped although"),
+    ("40 00 00 00", "ends before its id"),
+    ("40 00 00 60 00 04", "kind 0 escaped"),
+    ("40 00 00 61 05 04", "id bits"),
+    ("40 00 00 60 05", "escaped header"),
+    ("40 00 00 60 05 00", "id 0"),
+    ("40 00 00 84", "before its length"),
+])
+def test_bad_envelopes_are_refused_with_a_reason(data, why):
+    with pytest.raises(EnvelopeError, match=why):
+        decode(bytes.fromhex(data))
+
+
+def test_a_v1_payload_is_recognised_by_its_version_bits():
+    with pytest.raises(EnvelopeError) as e:
+        decode(bytes.fromhex("00 04 F9 38 00"))
+    assert e.value.version == 0
+
+
+@pytest.mark.parametrize("env", [
+    Envelope(sender=16, number=0),
+    Envelope(sender=0, number=4096),
+    Envelope(sender=0, number=0, time=1 << 24),
+    Envelope(sender=0, number=0, tag=b"short"),
+    Envelope(sender=0, number=0, ack=bytes(256)),
+    Envelope(sender=0, number=0, sync=Sync(b"12345", 0)),
+    Envelope(sender=0, number=0, messages=(Message(0, 0, b""),)),
+    Envelope(sender=0, number=0, messages=(Message(0, 4, bytes(256)), Message(0, 5, b""))),
+    Envelope(sender=0, number=0, messages=(Message(0, 4, bytes(253)),)),
+])
+def test_encoder_refuses_what_does_not_fit(env):
+    with pytest.raises(EnvelopeError):
+        env.encode()
+
+
+messages = st.builds(Message, kind=st.sampled_from([0, 2, 3, 1, 7, 255]),
+                     id=st.integers(1, 255), body=st.binary(max_size=20))
+envelopes = st.builds(
+    Envelope, sender=st.integers(0, 15), number=st.integers(0, 4095),
+    messages=st.lists(messages, max_size=6).map(tuple),
+    sync=st.none() | st.builds(Sync, st.binary(min_size=6, max_size=6), st.integers(0, 2**32 - 1)),
+    time=st.none() | st.integers(0, 2**24 - 1), ack=st.none() | st.binary(max_size=10),
+    control=st.none() | st.binary(max_size=10), tag=st.none() | st.binary(min_size=8, max_size=8))
+
+
+@given(envelopes)
+@settings(max_examples=300)
+def test_every_envelope_decodes_to_itself(env):
+    assert decode(env.encode()) == env
+
+
+@given(st.binary(max_size=300))
+@settings(max_examples=1000)
+def test_decoder_is_total_and_what_it_accepts_has_one_encoding(data):
+    try:
+        env = decode(data)
+    except EnvelopeError:
+        return
+    assert env.encode() == data
+
+
+@given(envelopes, st.data())
+@settings(max_examples=300)
+def test_a_damaged_envelope_is_refused_or_reencodes_exactly(env, data):
+    raw = bytearray(env.encode())
+    i = data.draw(st.integers(0, len(raw) - 1))
+    raw[i] ^= data.draw(st.integers(1, 255))
+    try:
+        got = decode(raw)
+    except EnvelopeError:
+        return
+    assert got.encode() == bytes(raw)
+
+
+@pytest.mark.parametrize("v1, v2", [
+    ("00 05 42 7D 23", "00 05 7D 23"),                  # packed Twist: the 42 goes
+    ("02 14 19 01 4A 41 80", "02 14 19 01 4A 80"),      # packed request: seq stays, head goes
+    ("00 05 58 18" + " 00" * 24, "00 05" + " 00" * 24),
+])
+def test_packed_payloads_drop_their_byte_string_head_and_get_it_back(v1, v2):
+    from uwgen.runtime.envelope import add_packed_head, strip_packed_head
+    assert strip_packed_head(bytes.fromhex(v1)) == bytes.fromhex(v2)
+    assert add_packed_head(bytes.fromhex(v2)) == bytes.fromhex(v1)
+
+
+@pytest.mark.parametrize("v1", ["00 05", "00 05 41", "00 05 43 01", "00 05 F5", "02 14"])
+def test_a_packed_payload_without_its_byte_string_is_refused(v1):
+    from uwgen.runtime.envelope import strip_packed_head
+    with pytest.raises(EnvelopeError):
+        strip_packed_head(bytes.fromhex(v1))

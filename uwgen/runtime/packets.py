@@ -1,0 +1,167 @@
+"""Packets of wire format 2: one envelope per DESERT write, filled from the link scheduler.
+
+`Packer.next_packet(now)` is called by the connection when it may write; it pulls messages from
+the scheduler while they fit one packet (`max_read_length` minus the frame's 4 bytes, P, W and
+whatever the hooks add), builds the envelope at that moment (so a seal is never older than the
+packet), and tells the hooks which messages went in which packet number. `Unpacker.feed(payload)`
+opens one received frame's envelope and returns its messages as wire format 1 payloads, for the
+link's fragment, security and dispatch layers, which are unchanged.
+
+The seams of issues 16 and 17 (docs/seams.md section 5) are the `PacketHooks`:
+
+- `parts(now)` -> dict of extra `Envelope` fields (`time`, `ack`, `control`, `sync`) for the
+  packet being built; `overhead` is the most bytes they and the seal add to a packet;
+- `seal(envelope)` -> the packet's bytes (tag included); without it the envelope is sent as is;
+- `open(bytes)` -> an `Envelope`, or None when the packet is dropped (counted by its owner);
+  without it the bytes are decoded with `envelope.decode`;
+- `sent(number, [(channel key, payload), ...], now)` after each packet is built, with the
+  sender's full packet number (not reduced mod 4096);
+- `received(envelope, now)` for every envelope accepted, before its messages are delivered.
+"""
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from uwgen.runtime import envelope as env
+from uwgen.runtime.framing import MAX_FRAME, OVERHEAD
+from uwgen.runtime.stats import Counters, log_count
+
+log = logging.getLogger("uwgen.link.packets")
+
+PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
+                   "bad_envelopes", "version_1", "unknown_kind", "refused_payloads", "opened_none")
+
+
+@dataclass
+class PacketHooks:
+    """What reliability (issue 16) and the per-packet seal (issue 17) plug into; all optional."""
+
+    parts: Callable[[float], dict] | None = None
+    seal: Callable[[env.Envelope], bytes] | None = None
+    open: Callable[[bytes], env.Envelope | None] | None = None
+    sent: Callable[[int, list[tuple[int, bytes]], float], None] | None = None
+    received: Callable[[env.Envelope, float], None] | None = None
+    overhead: int = 0
+
+
+def envelope_room(max_read_length: int, overhead: int = 0) -> int:
+    """Bytes of messages one packet holds: the frame's payload minus P, W and `overhead`, plus
+    one (the last message has no length byte, and `message_measure` counts one per message)."""
+    return min(max_read_length, MAX_FRAME) - OVERHEAD - env.HEAD - overhead + 1
+
+
+def message_measure(payload: bytes) -> int:
+    """What a wire format 1 payload costs in a packet, length byte included (see envelope_room)."""
+    try:
+        return env.v1_message_size(payload) + 1
+    except env.EnvelopeError:
+        return len(payload) + 1
+
+
+class Packer:
+    """Builds one envelope per write from the scheduler's messages."""
+
+    def __init__(self, scheduler: Any, *, sender: int, max_read_length: int,
+                 hooks: PacketHooks | None = None, counters: Counters, name: str = "link"):
+        if not 0 <= sender <= env.MAX_SENDER:
+            raise ValueError(f"sender id must be 0..{env.MAX_SENDER}, got {sender}")
+        self.scheduler = scheduler
+        self.sender = sender
+        self.hooks = hooks or PacketHooks()
+        self.room = envelope_room(max_read_length, self.hooks.overhead)
+        self.counters = counters
+        self.name = name
+        self.number = 0                     # the next packet's number (full count)
+
+    def next_packet(self, now: float) -> bytes | None:
+        picked: list[tuple[int, bytes]] = []
+        messages: list[env.Message] = []
+        budget = self.room
+        while True:
+            got = self.scheduler.next_payload(now, budget if picked else None)
+            if got is None:
+                break
+            key, payload = got
+            try:
+                messages.append(env.from_v1(payload))
+            except env.EnvelopeError as e:
+                log_count(log, logging.ERROR, self.counters.inc("refused_payloads"),
+                          "[%s] channel %d: a payload that is no message was dropped: %s",
+                          self.name, key, e)
+                continue
+            picked.append((key, payload))
+            budget -= messages[-1].size(last=False)
+            if budget <= 1:
+                break
+        if not messages:
+            return None
+        h = self.hooks
+        envelope = env.Envelope(self.sender, self.number % env.NUMBER_MOD, tuple(messages),
+                                **(h.parts(now) if h.parts is not None else {}))
+        try:
+            data = h.seal(envelope) if h.seal is not None else envelope.encode()
+        except env.EnvelopeError as e:
+            log_count(log, logging.ERROR, self.counters.inc("refused_payloads", len(picked)),
+                      "[%s] a packet of %d message(s) could not be built and was dropped: %s",
+                      self.name, len(picked), e)
+            return None
+        if h.sent is not None:
+            h.sent(self.number, picked, now)
+        self.number += 1
+        self.counters.inc("packets_sent")
+        self.counters.inc("messages_sent", len(messages))
+        return data
+
+
+class Unpacker:
+    """Opens received envelopes; refuses (counted, logged once) what is not one."""
+
+    def __init__(self, hooks: PacketHooks | None = None, *, counters: Counters, name: str = "link"):
+        self.hooks = hooks or PacketHooks()
+        self.counters = counters
+        self.name = name
+
+    def feed(self, data: bytes, now: float) -> list[bytes]:
+        """The messages of one frame's payload, as wire format 1 payloads (kind, id, body)."""
+        c = self.counters
+        if self.hooks.open is not None:
+            try:
+                envelope = self.hooks.open(data)
+            except env.EnvelopeError as e:
+                return self._bad(data, e)
+            if envelope is None:
+                c.inc("opened_none")
+                return []
+        else:
+            try:
+                envelope = env.decode(data)
+            except env.EnvelopeError as e:
+                return self._bad(data, e)
+        c.inc("packets_received")
+        if self.hooks.received is not None:
+            self.hooks.received(envelope, now)
+        out = []
+        for m in envelope.messages:
+            if m.kind not in env.KIND_CODES:
+                log_count(log, logging.WARNING, c.inc("unknown_kind"),
+                          "[%s] dropped a message of kind %d (id %d) from sender %d: this build "
+                          "knows kinds 0, 2, 3 only", self.name, m.kind, m.id, envelope.sender)
+                continue
+            c.inc("messages_received")
+            out.append(env.to_v1(m))
+        return out
+
+    def _bad(self, data: bytes, e: env.EnvelopeError) -> list[bytes]:
+        if e.version == 0:
+            if self.counters.inc("version_1") == 1:
+                log.error("[%s] the far side speaks wire format 1 (its first byte %02X is a "
+                          "CBOR kind, not an envelope): its frames are refused. Rebuild it with "
+                          "this uwgen (wire format 2); further ones are only counted "
+                          "(version_1)", self.name, data[0])
+            return []
+        log_count(log, logging.WARNING, self.counters.inc("bad_envelopes"),
+                  "[%s] dropped a packet that is not a valid envelope: %s", self.name, e)
+        return []
