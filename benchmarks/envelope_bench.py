@@ -70,7 +70,7 @@ class Pair:
         if secure_dir is not None:
             for side, other in ((src, dst), (dst, src)):
                 cfg = GuardConfig("demo", SENDERS[side], {SENDERS[other]: other}, MODES)
-                guards[side] = LinkGuard.for_key(MASTER, cfg, secure_dir / f"{wire}-{side}.state",
+                guards[side] = LinkGuard.for_key(MASTER, cfg, secure_dir / f"{wire}-{src}{dst}-{side}.lock",
                                                  clock=self.clock, name=side)
         if wire == 2:
             kw_src = dict(kw, sender_id=SENDERS.get(src, 0))

@@ -157,7 +157,10 @@ def test_the_schema_fingerprint_is_authenticated(tmp_path):
                                                       {4: bytes(8)}), tmp_path / "v.lock",
                                     wall=ManualClock(WALL0))
     assert other_schema.unprotect(s.protect(4, twist())) is None
-    assert other_schema.stats()["bad_tag"] == 1
+    stats = other_schema.stats()
+    # refused by its tag; ciphertext that happens to read as CBOR items is counted as
+    # `unprotected` instead (the reason is a guess, the refusal is not)
+    assert (stats["bad_tag"] + stats["unprotected"], stats["verified"]) == (1, 0)
 
 
 def test_a_flood_of_forgeries_logs_a_few_lines_not_one_per_frame(tmp_path, caplog):

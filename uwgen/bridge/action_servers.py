@@ -206,11 +206,11 @@ class ActionServers:
             self._offer(ident, recent[1], "result")
             return
         # Neither running nor finished here (e.g. this bridge restarted): the goal is lost.
-        counters.lost_goals += 1
         codec = self.served[ident][0]
         self.w.throttle.report(f"alost{ident}", f"{codec.name}: the client side asks for the "
                                                 f"result of goal {handle}, unknown here: aborted")
         self._offer(ident, codec.encode_result(handle, ABORTED, codec.ros_class().Result()), "result")
+        counters.lost_goals += 1                          # counted once the aborted result is queued
 
     def _resend_results(self, ident: int, now: float) -> None:
         """Results not acknowledged within the RTO go again, until their `until`."""
