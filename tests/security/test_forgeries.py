@@ -74,7 +74,10 @@ def test_another_networks_key_is_rejected(tmp_path):
     v = vehicle(tmp_path / "b")
     frames = [stranger.protect(4, twist(i)) for i in range(100)]
     assert [v.unprotect(f) for f in frames] == [None] * 100
-    assert v.stats()["bad_tag"] + v.stats()["unsynced"] == 100
+    st = v.stats()
+    # every one refused; a ciphertext that happens to read as CBOR items (about 1 in 100) is
+    # counted `unprotected` rather than `bad_tag`: the reason is a guess, the refusal is not
+    assert (st["bad_tag"] + st["unsynced"] + st["unprotected"], st["verified"]) == (100, 0)
     assert v.stats()["bad_tag"] >= 3          # the sync frames reach the tag check
 
 
