@@ -10,7 +10,7 @@ from uwgen.runtime.codec import pack_items
 from uwgen.security import guard as guard_module
 from uwgen.security import wire
 from uwgen.security.epochs import PeerEpoch, PeerEpochs, SendSession
-from uwgen.security.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, sent_at, stamp
+from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, sent_at, stamp
 from uwgen.security.guard import GuardConfig, LinkGuard
 
 from .helpers import KEY, MODES, WALL0, config, surface, twist, vehicle

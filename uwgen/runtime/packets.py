@@ -47,6 +47,50 @@ class PacketHooks:
     overhead: int = 0
 
 
+def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
+    """One `PacketHooks` from several (reliability's and the seal's, docs/seams.md section 5).
+
+    `parts` are merged in order. T (`time`) may come from both (each stamps its own wall clock
+    as the packet is built, so they may differ by a tick): the first one given is kept. Any other
+    part two hooks give must have the same value, otherwise building the packet fails with
+    EnvelopeError.
+    At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise).
+    `sent` and `received` are called in order; `overhead` is the sum (an upper bound: a part two
+    hooks both give is counted twice)."""
+    given = [h for h in hooks if h is not None]
+    sealers = [h for h in given if h.seal is not None or h.open is not None]
+    if len(sealers) > 1:
+        raise ValueError("at most one of the joined hooks may seal and open packets")
+    sealer = sealers[0] if sealers else PacketHooks()
+    makers = [h.parts for h in given if h.parts is not None]
+    senders = [h.sent for h in given if h.sent is not None]
+    receivers = [h.received for h in given if h.received is not None]
+
+    def parts(now: float) -> dict:
+        out: dict = {}
+        for make in makers:
+            for name, value in make(now).items():
+                if name == "time" and name in out:
+                    continue
+                if name in out and out[name] != value:
+                    raise env.EnvelopeError(f"two hooks give the envelope's {name} part "
+                                            f"different values ({out[name]!r}, {value!r})")
+                out[name] = value
+        return out
+
+    def sent(number: int, picked: list[tuple[int, bytes]], now: float) -> None:
+        for tell in senders:
+            tell(number, picked, now)
+
+    def received(envelope: env.Envelope, now: float) -> None:
+        for tell in receivers:
+            tell(envelope, now)
+
+    return PacketHooks(parts=parts if makers else None, seal=sealer.seal, open=sealer.open,
+                       sent=sent if senders else None, received=received if receivers else None,
+                       overhead=sum(h.overhead for h in given))
+
+
 def envelope_room(max_read_length: int, overhead: int = 0) -> int:
     """Bytes of messages one packet holds: the frame's payload minus P, W and `overhead`, plus
     one (the last message has no length byte, and `message_measure` counts one per message)."""

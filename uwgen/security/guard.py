@@ -31,7 +31,7 @@ from uwgen.security.droplog import SUMMARY_PERIOD, DropLog
 from uwgen.security.epochs import EPOCH_NUMBERS, SendSession
 from uwgen.security.errors import SecurityError
 from uwgen.security.files import SideLock
-from uwgen.security.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, stamp
+from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, stamp
 from uwgen.security.keys import new_epoch, working_key
 from uwgen.security.receiver import Numbering, Receiver
 from uwgen.security.window import WINDOW

@@ -1,0 +1,53 @@
+"""Joining reliability's and the seal's packet hooks into one (docs/seams.md section 5)."""
+from __future__ import annotations
+
+import pytest
+
+from uwgen.runtime import envelope
+from uwgen.runtime.packets import PacketHooks, join_hooks
+
+
+def test_parts_of_joined_hooks_are_merged_and_overheads_added():
+    a = PacketHooks(parts=lambda now: {"time": 5, "ack": b"\x01"}, overhead=7)
+    b = PacketHooks(parts=lambda now: {"time": 5, "control": b"\x02"}, overhead=3)
+    joined = join_hooks(a, None, b)
+    assert joined.parts(0.0) == {"time": 5, "ack": b"\x01", "control": b"\x02"}
+    assert joined.overhead == 10
+
+
+def test_two_hooks_giving_one_part_different_values_fail_the_packet():
+    joined = join_hooks(PacketHooks(parts=lambda now: {"ack": b"\x01"}),
+                        PacketHooks(parts=lambda now: {"ack": b"\x02"}))
+    with pytest.raises(envelope.EnvelopeError, match="ack"):
+        joined.parts(0.0)
+
+
+def test_a_time_both_hooks_stamp_keeps_the_first_a_tick_apart_is_no_conflict():
+    joined = join_hooks(PacketHooks(parts=lambda now: {"time": 5}),
+                        PacketHooks(parts=lambda now: {"time": 6, "control": b""}))
+    assert joined.parts(0.0) == {"time": 5, "control": b""}
+
+
+def test_sent_and_received_reach_every_hook_in_order():
+    seen = []
+    a = PacketHooks(sent=lambda n, msgs, now: seen.append(("a-sent", n)),
+                    received=lambda e, now: seen.append(("a-received", e.number)))
+    b = PacketHooks(sent=lambda n, msgs, now: seen.append(("b-sent", n)),
+                    received=lambda e, now: seen.append(("b-received", e.number)))
+    joined = join_hooks(a, b)
+    joined.sent(4100, [], 1.0)
+    joined.received(envelope.Envelope(1, 4), 1.0)
+    assert seen == [("a-sent", 4100), ("b-sent", 4100), ("a-received", 4), ("b-received", 4)]
+
+
+def test_the_one_sealing_hook_seals_and_opens_the_joined_packets():
+    sealer = PacketHooks(seal=lambda e: b"sealed", open=lambda data: envelope.Envelope(2, 9))
+    joined = join_hooks(PacketHooks(parts=lambda now: {}), sealer)
+    assert joined.seal(envelope.Envelope(1, 1)) == b"sealed"
+    assert joined.open(b"x") == envelope.Envelope(2, 9)
+    assert join_hooks(PacketHooks()).seal is None and join_hooks().parts is None
+
+
+def test_two_sealing_hooks_are_refused():
+    with pytest.raises(ValueError, match="at most one"):
+        join_hooks(PacketHooks(seal=lambda e: b""), PacketHooks(open=lambda d: None))
