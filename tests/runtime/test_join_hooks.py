@@ -51,3 +51,25 @@ def test_the_one_sealing_hook_seals_and_opens_the_joined_packets():
 def test_two_sealing_hooks_are_refused():
     with pytest.raises(ValueError, match="at most one"):
         join_hooks(PacketHooks(seal=lambda e: b""), PacketHooks(open=lambda d: None))
+
+
+def test_reliabilitys_own_hooks_pass_through_the_join_and_timers_take_the_earliest():
+    heads = PacketHooks(stamp=lambda k, p, born, now: p + b"!", admit=lambda p, now: p[:-1],
+                        head_room=lambda k: 1, resend=lambda now, room: (4, b"again"),
+                        ack_only=lambda now: now > 5, next_time=lambda now: now + 3,
+                        stats=lambda: {"ledger": {4: {}}})
+    other = PacketHooks(next_time=lambda now: now + 1, ack_only=lambda now: False,
+                        stats=lambda: {"security": {}})
+    joined = join_hooks(heads, other)
+    assert joined.stamp(4, b"x", 0.0, 0.0) == b"x!" and joined.admit(b"x!", 0.0) == b"x"
+    assert joined.resend(0.0, 10) == (4, b"again") and joined.head_room(4) == 1
+    assert joined.next_time(10.0) == 11.0
+    assert joined.ack_only(6.0) and not joined.ack_only(4.0)
+    assert joined.stats() == {"ledger": {4: {}}, "security": {}}
+
+
+def test_two_hooks_giving_message_heads_or_resends_are_refused():
+    with pytest.raises(ValueError, match="message heads"):
+        join_hooks(PacketHooks(admit=lambda p, now: p), PacketHooks(stamp=lambda *a: b""))
+    with pytest.raises(ValueError, match="re-send"):
+        join_hooks(PacketHooks(resend=lambda now, room: None), PacketHooks(resend=lambda now, room: None))

@@ -75,12 +75,23 @@ def test_a_lost_reliable_message_is_due_again_and_counted_lost():
     assert s.rtt.samples == 1 and s.rtt.srtt == pytest.approx(1.0)    # 4.0 - 1.0 - 2.0 s held
 
 
-def test_an_unacknowledged_packet_times_out_and_backs_off():
-    s = engine(SURFACE, rto=6.0)
+def test_an_unacknowledged_packet_times_out_after_rto_plus_the_ack_delay_and_backs_off():
+    s = engine(SURFACE, rto=6.0)                 # the peer may hold its ack 2 s (ack_delay)
     s.sent(0, [Sent(20, "req", deadline=30.0)], 0.0)
-    assert s.due(5.9) == [] and s.next_timeout() == 6.0
-    assert [m.ref for m in s.due(6.0)] == ["req"]
+    assert s.due(7.9) == [] and s.next_timeout() == 8.0
+    assert [m.ref for m in s.due(8.0)] == ["req"]
     assert s.rtt.rto == 12.0 and s.next_timeout() is None
+
+
+def test_packets_no_ack_ever_named_are_forgotten_as_unacknowledged():
+    s = engine(SURFACE)
+    s.sent(0, [Sent(4, "a", None)], 0.0)
+    s.sent(1, [Sent(4, "b", None), Sent(5, "c", None)], 0.1)
+    s.sent(2, [Sent(5, "d", None)], 0.2)
+    assert s.in_flight() == {4: 2, 5: 2}
+    s.forget(2)
+    assert s.in_flight() == {5: 1}
+    assert (s.entry(4).unacknowledged, s.entry(5).unacknowledged) == (2, 1)
 
 
 def test_a_message_past_its_deadline_is_not_sent_again():
@@ -95,9 +106,9 @@ def test_a_message_past_its_deadline_is_not_sent_again():
 def test_a_late_ack_of_a_timed_out_packet_counts_a_spurious_retransmission():
     s, r = engine(SURFACE, rto=2.0), engine(VEHICLE)
     s.sent(0, [Sent(20, "req", deadline=30.0)], 0.0)
-    assert len(s.due(2.0)) == 1
-    exchange(s, r, [0], {0}, 2.5)
-    s.acked(r.ack_for(SURFACE, 3.0), 3.0)
+    assert len(s.due(4.0)) == 1
+    exchange(s, r, [0], {0}, 4.5)
+    s.acked(r.ack_for(SURFACE, 5.0), 5.0)
     assert s.spurious == 1 and s.entry(20).delivered == 1 and s.rtt.samples == 0   # Karn
 
 

@@ -13,7 +13,11 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
 
 def rows() -> list[list[str]]:
     text = DOC.read_text().split("<!-- envelope-examples -->", 1)[1]
-    table = [ln for ln in text.splitlines()[1:] if ln.startswith("|")]
+    table = []
+    for ln in text.splitlines()[1:]:         # the table: the lines up to the first other one
+        if not ln.startswith("|"):
+            break
+        table.append(ln)
     return [[c.strip() for c in ln.strip("|").split("|")] for ln in table[2:]]
 
 

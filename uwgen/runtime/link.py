@@ -110,8 +110,9 @@ class Link:
             fec_over=self.fragmenter.max_payload if self.fragmenter else MAX_PAYLOAD,
             max_message_for=self.fragmenter.max_message_for if self.fragmenter else None,
             protect=guard.protect if guard is not None else None,
-            overhead=guard.overhead if guard is not None else None,
-            measure=message_measure if v2 else len)
+            overhead=self._overhead_for(guard) if v2 else (guard.overhead if guard is not None else None),
+            measure=message_measure if v2 else len,
+            stamp=self.hooks.stamp if v2 else None)
         self.packer: Packer | None = None
         self.unpacker: Unpacker | None = None
         if v2:
@@ -125,7 +126,8 @@ class Link:
             on_frame=self._on_packet if v2 else self._on_frame,
             name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
             stall_timeout=stall_timeout,
-            next_ready=self.scheduler.next_ready_time, on_tick=self._tick, pace_margin=pace_margin,
+            next_ready=self._next_ready if v2 else self.scheduler.next_ready_time,
+            on_tick=self._tick, pace_margin=pace_margin,
             bitrate=bitrate, source_fit=None if v2 else self._source_fit)
 
     # -- contract API --------------------------------------------------------------------------
@@ -191,9 +193,26 @@ class Link:
             "wire_format": self.wire_format,
             "packets": self.packet_counters.as_dict() if self.wire_format == 2 else None,
             "security": self.guard.stats() if self.guard is not None else None,
+            **(self.hooks.stats() if self.wire_format == 2 and self.hooks.stats is not None else {}),
         }
 
     # -- wiring --------------------------------------------------------------------------------
+
+    def _overhead_for(self, guard: Any) -> Callable[[int], int] | None:
+        """What protection and the reliability head (wire format 2 hooks) add to a message."""
+        protect = guard.overhead if guard is not None else None
+        head = self.hooks.head_room
+        if protect is None and head is None:
+            return None
+        return lambda key: (protect(key) if protect else 0) + (head(key) if head else 0)
+
+    def _next_ready(self, now: float) -> float | None:
+        """When the packer will next have something: a queued message, or what the hooks
+        want (an acknowledgement that must go alone, a message to send again)."""
+        times = [t for t in (self.scheduler.next_ready_time(now),
+                             self.hooks.next_time(now) if self.hooks.next_time else None)
+                 if t is not None]
+        return min(times) if times else None
 
     def _source(self, now: float) -> bytes | None:
         picked = self.scheduler.next_payload(now)
@@ -225,6 +244,10 @@ class Link:
             payload = self.guard.unprotect(payload)
             if payload is None:
                 return                                   # counted by the guard
+        if self.wire_format == 2 and self.hooks.admit is not None:
+            payload = self.hooks.admit(payload, self.clock.now())
+            if payload is None:
+                return                                   # a copy, or stale: counted by the hook
         if self.packed_ids and _wire_id(payload) in self.packed_ids:
             try:
                 payload = add_packed_head(payload)

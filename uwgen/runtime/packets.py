@@ -17,6 +17,21 @@ The seams of issues 16 and 17 (docs/seams.md section 5) are the `PacketHooks`:
 - `sent(number, [(channel key, payload), ...], now)` after each packet is built, with the
   sender's full packet number (not reduced mod 4096);
 - `received(envelope, now)` for every envelope accepted, before its messages are delivered.
+
+Reliability (issue 16) also uses (docs/seams.md section 5, "Session 5"):
+
+- `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`;
+- `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
+  `message_measure`, or None: served before the scheduler's messages;
+- `ack_only(now)` -> True when a packet must leave even without messages (an acknowledgement
+  is due): the packer then builds one with only the hooks' parts;
+- `next_time(now)` -> when one of the above will next want a packet (None: never), so the
+  connection wakes up for it;
+- `stamp(key, payload, born, now)` -> the payload with its reliability head, as the scheduler
+  takes it to be sent (`born`: its publication time); `head_room(key)` the most bytes it adds;
+- `admit(payload, now)` -> the payload without its head, or None (a duplicate, a stale
+  command: counted by the hook), for every whole payload received;
+- `stats()` -> a JSON-able dict the link reports (e.g. the per-entry ledger).
 """
 from __future__ import annotations
 
@@ -32,7 +47,8 @@ from uwgen.runtime.stats import Counters, log_count
 log = logging.getLogger("uwgen.link.packets")
 
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
-                   "bad_envelopes", "version_1", "unknown_kind", "refused_payloads", "opened_none")
+                   "bad_envelopes", "version_1", "unknown_kind", "refused_payloads", "opened_none",
+                   "ack_only_sent")
 
 
 @dataclass
@@ -45,6 +61,14 @@ class PacketHooks:
     sent: Callable[[int, list[tuple[int, bytes]], float], None] | None = None
     received: Callable[[env.Envelope, float], None] | None = None
     overhead: int = 0
+    carrying: Callable[[list[tuple[int, bytes]], float], None] | None = None
+    resend: Callable[[float, int], tuple[int, bytes] | None] | None = None
+    ack_only: Callable[[float], bool] | None = None
+    next_time: Callable[[float], float | None] | None = None
+    stamp: Callable[[int, bytes, float, float], bytes] | None = None
+    head_room: Callable[[int], int] | None = None
+    admit: Callable[[bytes, float], bytes | None] | None = None
+    stats: Callable[[], dict] | None = None
 
 
 def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
@@ -55,8 +79,10 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     part two hooks give must have the same value, otherwise building the packet fails with
     EnvelopeError.
     At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise).
-    `sent` and `received` are called in order; `overhead` is the sum (an upper bound: a part two
-    hooks both give is counted twice)."""
+    `sent`, `received` and `carrying` are called in order; `overhead` is the sum (an upper bound:
+    a part two hooks both give is counted twice). Likewise at most one hook may give the
+    message heads (`stamp`, `head_room`, `admit`) and at most one `resend`; `ack_only` is any
+    hook's, `next_time` the earliest, `stats` the union of the hooks' dicts."""
     given = [h for h in hooks if h is not None]
     sealers = [h for h in given if h.seal is not None or h.open is not None]
     if len(sealers) > 1:
@@ -86,9 +112,46 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
         for tell in receivers:
             tell(envelope, now)
 
+    header = _one(given, ("stamp", "head_room", "admit"), "give message heads")
+    resender = _one(given, ("resend",), "re-send messages")
+    carriers = [h.carrying for h in given if h.carrying is not None]
+    askers = [h.ack_only for h in given if h.ack_only is not None]
+    timers = [h.next_time for h in given if h.next_time is not None]
+    reporters = [h.stats for h in given if h.stats is not None]
+
+    def carrying(picked: list[tuple[int, bytes]], now: float) -> None:
+        for tell in carriers:
+            tell(picked, now)
+
+    def ack_only(now: float) -> bool:
+        return any(ask(now) for ask in askers)
+
+    def next_time(now: float) -> float | None:
+        times = [t for when in timers if (t := when(now)) is not None]
+        return min(times) if times else None
+
+    def stats() -> dict:
+        out: dict = {}
+        for report in reporters:
+            out.update(report())
+        return out
+
     return PacketHooks(parts=parts if makers else None, seal=sealer.seal, open=sealer.open,
                        sent=sent if senders else None, received=received if receivers else None,
-                       overhead=sum(h.overhead for h in given))
+                       overhead=sum(h.overhead for h in given),
+                       carrying=carrying if carriers else None, resend=resender.resend,
+                       ack_only=ack_only if askers else None,
+                       next_time=next_time if timers else None,
+                       stamp=header.stamp, head_room=header.head_room, admit=header.admit,
+                       stats=stats if reporters else None)
+
+
+def _one(hooks: list[PacketHooks], names: tuple[str, ...], what: str) -> PacketHooks:
+    """The one hook that gives any of `names` (an empty PacketHooks when none does)."""
+    found = [h for h in hooks if any(getattr(h, n) is not None for n in names)]
+    if len(found) > 1:
+        raise ValueError(f"at most one of the joined hooks may {what}")
+    return found[0] if found else PacketHooks()
 
 
 def envelope_room(max_read_length: int, overhead: int = 0) -> int:
@@ -124,25 +187,30 @@ class Packer:
         picked: list[tuple[int, bytes]] = []
         messages: list[env.Message] = []
         budget = self.room
-        while True:
-            got = self.scheduler.next_payload(now, budget if picked else None)
-            if got is None:
-                break
-            key, payload = got
-            try:
-                messages.append(env.from_v1(payload))
-            except env.EnvelopeError as e:
-                log_count(log, logging.ERROR, self.counters.inc("refused_payloads"),
-                          "[%s] channel %d: a payload that is no message was dropped: %s",
-                          self.name, key, e)
-                continue
-            picked.append((key, payload))
-            budget -= messages[-1].size(last=False)
-            if budget <= 1:
-                break
-        if not messages:
-            return None
         h = self.hooks
+        # Messages the peer lost (reliable entries) go first, then the scheduler's.
+        sources = [] if h.resend is None else [lambda room: h.resend(now, room)]
+        sources.append(lambda room: self.scheduler.next_payload(now, room if picked else None))
+        for source in sources:
+            while budget > 1:
+                got = source(budget)
+                if got is None:
+                    break
+                key, payload = got
+                try:
+                    messages.append(env.from_v1(payload))
+                except env.EnvelopeError as e:
+                    log_count(log, logging.ERROR, self.counters.inc("refused_payloads"),
+                              "[%s] channel %d: a payload that is no message was dropped: %s",
+                              self.name, key, e)
+                    continue
+                picked.append((key, payload))
+                budget -= messages[-1].size(last=False)
+        if not messages:
+            if h.ack_only is None or not h.ack_only(now):
+                return None
+        if h.carrying is not None:
+            h.carrying(picked, now)
         envelope = env.Envelope(self.sender, self.number % env.NUMBER_MOD, tuple(messages),
                                 **(h.parts(now) if h.parts is not None else {}))
         try:
@@ -157,6 +225,8 @@ class Packer:
         self.number += 1
         self.counters.inc("packets_sent")
         self.counters.inc("messages_sent", len(messages))
+        if not messages:
+            self.counters.inc("ack_only_sent")
         return data
 
 

@@ -155,6 +155,7 @@ class EntryLedger:
     lost_on_link: int = 0           # copies the peer's acks say never arrived
     resent: int = 0                 # reliable messages handed back by due()
     expired: int = 0                # reliable messages lost with their deadline passed
+    unacknowledged: int = 0         # copies in packets no ack named before they were forgotten
 
 
 @dataclass
@@ -271,7 +272,7 @@ class ReliableLink:
         packets unacknowledged for an RTO (then the RTO backs off). Each is handed out once
         per loss; its next copy goes in a new packet with a new number."""
         for packet in self.outstanding.values():
-            if packet.timed_out or now - packet.at < self.rtt.rto:
+            if packet.timed_out or now - packet.at < self.rtt.rto + self.ack_delay:
                 continue
             if any(m.deadline is not None for m in packet.messages):
                 packet.timed_out = True
@@ -282,8 +283,12 @@ class ReliableLink:
         return out
 
     def next_timeout(self) -> float | None:
-        """When due() will next have something by timeout (None: nothing reliable waits)."""
-        times = [p.at + self.rtt.rto for p in self.outstanding.values()
+        """When due() will next have something (None: nothing reliable waits). The timer of
+        a packet is the RTO plus the peer's ack delay (an ack may wait that long for a
+        packet to ride on; the RTO itself is measured without it)."""
+        if self._due:
+            return float("-inf")
+        times = [p.at + self.rtt.rto + self.ack_delay for p in self.outstanding.values()
                  if not p.timed_out and any(m.deadline is not None for m in p.messages)]
         return min(times) if times else None
 
@@ -323,7 +328,27 @@ class ReliableLink:
                 r.eliciting_since = now
         return True
 
-    def ack_for(self, peer: int, now: float, *, any_news: bool = True) -> bytes | None:
+    def in_flight(self) -> dict[int, int]:
+        """Per entry, copies in packets not acknowledged nor known lost yet."""
+        out: dict[int, int] = {}
+        for packet in self.outstanding.values():
+            for m in packet.messages:
+                out[m.key] = out.get(m.key, 0) + 1
+        return out
+
+    def forget(self, below: int) -> None:
+        """Give up on packets numbered below `below` that no ack named (a peer that never
+        acknowledges, or numbers too old to name unambiguously): `unacknowledged`."""
+        while self.outstanding:
+            number, packet = next(iter(self.outstanding.items()))
+            if number >= below:
+                break
+            del self.outstanding[number]
+            for m in packet.messages:
+                self.entry(m.key).unacknowledged += 1
+
+    def ack_for(self, peer: int, now: float, *, any_news: bool = True,
+                nbytes: int | None = None) -> bytes | None:
         """The A part about `peer`'s packets for a packet leaving now (None: nothing to say).
         Sent when packets of the peer arrived since our last ack (`unacked`); with
         `any_news` False only when the peer waits for one (eliciting packets)."""
@@ -331,7 +356,7 @@ class ReliableLink:
         if r is None or r.largest is None or (r.unacked == 0 and r.eliciting_since is None
                                               and not any_news):
             return None
-        nbytes = self.bitmap_bytes
+        nbytes = self.bitmap_bytes if nbytes is None else max(0, min(MAX_BITMAP, nbytes))
         bitmap = 0
         for i in range(8 * nbytes):
             bitmap = bitmap << 1 | ((r.largest - 1 - i) in r.got)

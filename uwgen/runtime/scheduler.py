@@ -211,6 +211,7 @@ class Channel:
 
 Splitter = Callable[..., list[bytes]]          # (payload) or (payload, repair)
 Protect = Callable[[int, bytes], bytes]
+Stamp = Callable[[int, bytes, float, float], bytes]
 
 
 class LinkScheduler:
@@ -224,8 +225,9 @@ class LinkScheduler:
                  max_message: int = MAX_PAYLOAD, name: str = "link",
                  fec_over: int = MAX_PAYLOAD, max_message_for: Callable[[int], int] | None = None,
                  protect: Protect | None = None, overhead: Callable[[int], int] | None = None,
-                 measure: Callable[[bytes], int] = len):
+                 measure: Callable[[bytes], int] = len, stamp: Stamp | None = None):
         self.clock = clock
+        self.stamp = stamp             # (key, payload, born, now) -> payload with its head
         self.measure = measure         # what a payload costs in the room `next_payload` fills
         self.splitter = splitter
         self.protect = protect
@@ -310,7 +312,7 @@ class LinkScheduler:
                 ch = self._pick(now, max_size, exclude)
                 if ch is None:
                     return None
-                if self._seal_head(ch):        # sealed now, as it leaves (or nothing to seal)
+                if self._seal_head(ch, now):   # sealed now, as it leaves (or nothing to seal)
                     return ch.key, self._take(ch, now)
 
     def next_ready_time(self, now: float | None = None) -> float | None:
@@ -392,14 +394,19 @@ class LinkScheduler:
         proportion to its weight, however many messages one packet takes at one instant."""
         return max(ch.tag, self._vtime)
 
-    def _seal_head(self, ch: Channel) -> bool:
-        """Protect the channel's next message as it is taken to be sent; False (the message
-        dropped and counted, never sent in the clear) when it cannot be protected."""
-        if self.protect is None or ch.in_progress is not None or ch.queue[0].sealed:
+    def _seal_head(self, ch: Channel, now: float) -> bool:
+        """Stamp (reliability head: message number, age) and protect the channel's next
+        message as it is taken to be sent; False (the message dropped and counted, never
+        sent in the clear) when it cannot be protected."""
+        if (self.protect is None and self.stamp is None) or ch.in_progress is not None \
+                or ch.queue[0].sealed:
             return True
         msg = ch.queue[0]
         try:
-            msg.payload = self.protect(ch.key, msg.payload)
+            payload = msg.payload
+            if self.stamp is not None:
+                payload = self.stamp(ch.key, payload, msg.offered_at, now)
+            msg.payload = self.protect(ch.key, payload) if self.protect is not None else payload
             msg.sealed = True
             return True
         except Exception as exc:  # SecurityError: the guard cannot protect it

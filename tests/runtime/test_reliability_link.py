@@ -1,0 +1,188 @@
+"""Reliability wired into wire format 2 links (uwgen.runtime.reliability): acks ride on packets,
+lost reliable messages are sent again and delivered once, the ledger closes from packet numbers,
+stale commands are refused, bad input is counted."""
+from __future__ import annotations
+
+import logging
+
+from uwgen.emulator import NodeSpec, Scenario
+from uwgen.emulator.duplex import DuplexSim
+from uwgen.manifest.model import LinkPolicy
+from uwgen.runtime import envelope
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.framing import FrameDecoder
+from uwgen.runtime.reliability import Reliability
+
+RELIABLE = LinkPolicy(queue="fifo", depth=100, ttl=30.0, reliable=True)
+BEST_EFFORT = LinkPolicy(queue="fifo", depth=100, ttl=30.0)
+WALL0 = 1.7e9
+
+
+class Wall:
+    """A wall clock that follows the simulation's clock, `offset` seconds apart."""
+
+    def __init__(self, clock: ManualClock, offset: float = 0.0):
+        self.clock, self.offset = clock, offset
+
+    def now(self) -> float:
+        return WALL0 + self.clock.now() + self.offset
+
+
+def duplex(per: float = 0.0, seed: int = 1, *, max_ages=None, offsets=None) -> tuple[DuplexSim, dict]:
+    scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),
+                           NodeSpec("b", position=(300, 0, 0), dest="a")],
+                    period=0.5, max_read_length=64, per=per, seed=seed, bitrate=4800.0)
+    clock = ManualClock()
+    engines = {}
+
+    def hooks_for(side: str):
+        engines[side] = Reliability(1 if side == "a" else 2, period=0.5, reliable={7: 30.0},
+                                    max_ages=max_ages if max_ages is not None else {7: 30.0},
+                                    wall=Wall(clock, (offsets or {}).get(side, 0.0)), name=side)
+        return engines[side].hooks()
+    sim = DuplexSim(scen, ("a", "b"), hooks_for=hooks_for, wire_format=2, clock=clock)
+    return sim, engines
+
+
+def numbers(sim: DuplexSim, side: str, ident: int) -> list[int]:
+    return [p[2] for _, p in sim.received[side] if p[1] == ident]
+
+
+def closes(row: dict) -> bool:
+    return row["sent"] == row["delivered"] + row["lost_on_link"] + row["in_flight"] + row["unacknowledged"]
+
+
+def test_a_reliable_topic_arrives_complete_and_once_at_30_percent_loss():
+    sim, rel = duplex(per=0.3)
+    a, b = sim.links["a"], sim.links["b"]
+    a.add_channel(7, RELIABLE)
+    b.add_channel(4, BEST_EFFORT)
+    for i in range(40):
+        sim.at(i * 1.0, lambda i=i: a.offer(7, bytes((0, 7, i)) + bytes(10)))
+        sim.at(i * 1.0 + 0.3, lambda i=i: b.offer(4, bytes((0, 4, i)) + bytes(5)))
+    sim.run(120.0)
+    assert sorted(numbers(sim, "b", 7)) == list(range(40))          # all, each once
+    row = a.stats()["ledger"][7]
+    assert row["lost_on_link"] > 0 and row["resent"] >= row["lost_on_link"] - row["expired"]
+    assert closes(row) and row["in_flight"] == 0
+    assert b.stats()["ledger"][7]["duplicates"] == rel["b"].engine.duplicates.get(7, 0)
+
+
+def test_lost_on_link_is_exactly_what_the_peer_sent_and_never_arrived():
+    sim, _ = duplex(per=0.25, seed=3)
+    a, b = sim.links["a"], sim.links["b"]
+    a.add_channel(7, RELIABLE)
+    b.add_channel(4, BEST_EFFORT)
+    for i in range(40):
+        sim.at(i * 1.0, lambda i=i: a.offer(7, bytes((0, 7, i)) + bytes(10)))
+        sim.at(i * 1.0 + 0.3, lambda i=i: b.offer(4, bytes((0, 4, i)) + bytes(5)))
+    sim.run(90.0)
+    row = b.stats()["ledger"][4]
+    arrived = len(numbers(sim, "a", 4))
+    assert row["sent"] == 40 and arrived < 40
+    assert (row["delivered"], row["lost_on_link"], row["in_flight"]) == (arrived, 40 - arrived, 0)
+
+
+def test_a_message_lost_once_is_sent_again_and_delivered_once():
+    sim, _ = duplex()
+    a = sim.links["a"]
+    a.add_channel(7, RELIABLE)
+    sim.drop("a", 0)                       # the first packet, which carries message 0
+    sim.at(0.0, lambda: a.offer(7, bytes((0, 7, 0)) + bytes(10)))
+    sim.run(30.0)
+    assert numbers(sim, "b", 7) == [0]
+    row = a.stats()["ledger"][7]
+    assert (row["lost_on_link"], row["resent"], row["delivered"]) == (1, 1, 1)
+    assert a.stats()["packets"]["packets_sent"] >= 2
+
+
+def test_a_copy_sent_because_the_ack_was_lost_is_delivered_once_and_counted():
+    sim, _ = duplex()
+    a, b = sim.links["a"], sim.links["b"]
+    a.add_channel(7, RELIABLE)
+    sim.drop("b", 0)                        # b's ack (alone: b has nothing else) is lost
+    sim.at(0.0, lambda: a.offer(7, bytes((0, 7, 5)) + bytes(10)))
+    sim.run(40.0)
+    assert numbers(sim, "b", 7) == [5]
+    assert b.stats()["ledger"][7]["duplicates"] == 1
+    row = a.stats()["ledger"][7]
+    # both copies arrived (the first one's ack was lost): both are counted delivered
+    assert (row["sent"], row["resent"], row["delivered"], row["in_flight"]) == (2, 1, 2, 0)
+    assert a.stats()["reliability"]["spurious_resends"] == 1
+
+
+def test_acks_ride_on_packets_going_the_other_way_and_go_alone_only_when_due():
+    sim, _ = duplex()
+    a, b = sim.links["a"], sim.links["b"]
+    a.add_channel(7, RELIABLE)
+    b.add_channel(4, BEST_EFFORT)
+    for i in range(20):
+        sim.at(i * 1.0, lambda i=i: a.offer(7, bytes((0, 7, i)) + bytes(10)))
+        sim.at(i * 1.0 + 0.2, lambda i=i: b.offer(4, bytes((0, 4, i)) + bytes(5)))
+    sim.run(25.0)
+    assert a.stats()["ledger"][7]["delivered"] == 20
+    # b answers with its own traffic: acks ride on it, at most one goes alone at the end
+    assert b.stats()["packets"]["ack_only_sent"] <= 2
+    assert b.stats()["packets"]["packets_sent"] <= 22
+
+
+def test_a_command_older_than_its_max_age_is_refused_and_counted_stale(caplog):
+    sim, rel = duplex(max_ages={7: 30.0, 9: 2.0})
+    a = sim.links["a"]
+    a.add_channel(9, LinkPolicy(queue="fifo", depth=4))       # no ttl on the sending side
+    sim.clock.set(20.0)
+    with caplog.at_level(logging.WARNING, logger="uwgen.link.reliability"):
+        a.offer(9, bytes((2, 9, 1, 0xF5)), published=10.0)    # waited 10 s before leaving
+        a.offer(9, bytes((2, 9, 2, 0xF5)))                    # fresh
+        sim.run(30.0)
+    assert numbers(sim, "b", 9) == [2]
+    assert rel["b"].counters["stale"] == 1 and rel["b"].stale_by_id == {9: 1}
+    assert "max age is 2.0 s" in caplog.text
+
+
+def test_a_clock_offset_beyond_the_tolerance_is_reported_once_not_refusing_everything(caplog):
+    sim, rel = duplex(max_ages={7: 30.0, 9: 2.0}, offsets={"b": 60.0})
+    a = sim.links["a"]
+    a.add_channel(9, LinkPolicy(queue="fifo", depth=4))
+    with caplog.at_level(logging.ERROR, logger="uwgen.link.reliability"):
+        for i in range(3):
+            sim.at(i * 2.0, lambda i=i: a.offer(9, bytes((2, 9, i, 0xF5))))
+        sim.run(10.0)
+    assert numbers(sim, "b", 9) == [0, 1, 2]
+    assert rel["b"].counters["clock_offset"] == 3 and rel["b"].counters["stale"] == 0
+    assert caplog.text.count("sender 1's clock is about 60.") == 1 and "behind ours" in caplog.text
+
+
+def test_time_goes_only_on_packets_carrying_a_message_with_a_max_age():
+    sim, _ = duplex(max_ages={9: 5.0})
+    a = sim.links["a"]
+    a.add_channel(9, LinkPolicy(queue="fifo", depth=4))
+    a.add_channel(4, BEST_EFFORT)
+    sim.at(0.0, lambda: a.offer(4, bytes((0, 4, 1))))
+    sim.at(2.0, lambda: a.offer(9, bytes((2, 9, 1, 0xF5))))
+    sent = []
+    conn = a.connection
+    take = conn.outbox.take
+
+    def spy(now, pull, fit=None):
+        batch = take(now, pull, fit)
+        sent.extend(envelope.decode(f) for f in FrameDecoder().feed(batch))
+        return batch
+    conn.outbox.take = spy
+    sim.run(5.0)
+    by_id = {e.messages[0].id: e for e in sent if e.messages}
+    assert by_id[4].time is None
+    assert by_id[9].time == int((WALL0 + 2.0) * 32) % (1 << 24)
+
+
+def test_malformed_acks_and_heads_are_counted_and_logged_never_crash(caplog):
+    sim, rel = duplex(max_ages={7: 30.0, 9: 2.0})
+    b = sim.links["b"]
+    with caplog.at_level(logging.WARNING, logger="uwgen.link.reliability"):
+        for _ in range(3):
+            b._on_packet(envelope.Envelope(1, 0, (envelope.Message(0, 7, b""),),
+                                           ack=b"\x20\x00").encode())
+        b._on_packet(envelope.Envelope(1, 1, (envelope.Message(2, 9, b"\x19"),)).encode())
+    assert rel["b"].counters["bad_acks"] == 3 and rel["b"].counters["bad_heads"] == 4
+    assert sim.received["b"] == []
+    assert caplog.text.count("malformed") == 2          # throttled: first of each only
