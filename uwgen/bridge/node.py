@@ -33,12 +33,14 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
+from uwgen.bridge.reliability import link_ledger, reliability_for
 from uwgen.bridge.security import guard_for
 from uwgen.bridge.services import Servers, StandIns, service_status
 from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
 from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.packets import join_hooks
 
 __all__ = ["BridgeNode", "BRIDGE_NODE_PREFIX", "default_link_factory", "node_name_for",
            "qos_profile"]
@@ -96,10 +98,15 @@ class BridgeNode(Node):
         self.inbox = Inbox(self._wake.trigger)
         link_cfg = self.options.link
         self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
+        # Acks, re-sends of reliable topics, delivery once, stale commands (wire format 2 only;
+        # docs/seams.md section 5: joined with the per-packet seal's hooks when there is one).
+        self.reliability = reliability_for(plan, link_cfg.period, w.wall)
+        hooks = join_hooks(self.reliability.hooks()) if self.reliability is not None else None
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
                                  clock=clock, name=plan.side, **plan.link_options(),
-                                 **({"guard": self.guard} if self.guard is not None else {}))
+                                 **({"guard": self.guard} if self.guard is not None else {}),
+                                 **({"hooks": hooks} if hooks is not None else {}))
         for key, policy, name, whole in plan.channels():
             self.link.add_channel(key, policy, name, whole=whole)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
@@ -220,6 +227,8 @@ class BridgeNode(Node):
         """Everything the bridge and its link counted, as a JSON-able dict."""
         link_stats = link_stats_of(self.link)
         channels = channel_stats(link_stats)
+        for key, row in link_ledger(link_stats).items():   # what became of each copy sent
+            channels.setdefault(key, {})["on_link"] = row
         self.counters.inbox_overflow = self.inbox.overflow
         return self.reporter.snapshot(
             link_stats, discovery=self.discovery_status(),

@@ -52,6 +52,7 @@ from uwgen.emulator.scenario import NodeSpec, Scenario
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.link import Link
+from uwgen.runtime.reliability import Reliability
 from uwgen.runtime.scheduler import DROP_REASONS
 
 FRAGMENT_ID = 250
@@ -108,12 +109,9 @@ def rss_bytes() -> int:
 
 def link_ledger(sender_stats: dict, key: int) -> dict | None:
     """The sending link's own count of what became of entry `key` ({"sent", "delivered",
-    "lost_on_link"}), or None while the link does not report one.
-
-    HOOK for issue 16 (branch h16, uwgen/runtime/reliable.py EntryLedger): once the Link's
-    stats carry `ledger: {key: {sent, delivered, lost_on_link, ...}}`, the soak checks it
-    exactly against what arrived (Soak.check). Until then it checks the bounds that are exact
-    today (delivered <= sent, the receiver's seen losses <= what did not arrive)."""
+    "lost_on_link", "in_flight", "unacknowledged", ...}: uwgen.runtime.reliability, wire
+    format 2 links), or None when the link does not report one (wire format 1). Soak.check
+    holds it exactly against what arrived."""
     ledger = sender_stats.get("ledger")
     if not isinstance(ledger, dict):
         return None
@@ -168,6 +166,7 @@ class Soak:
     down_time: float = 5.0             # seconds DESERT stays down
     flows: tuple = DEMO_FLOWS
     clock: ManualClock = field(default_factory=ManualClock)
+    wire_format: int = 1               # 2: envelopes, acks and the links' own ledger (issue 16)
 
     def __post_init__(self) -> None:
         self.rng = random.Random(f"{self.seed}/soak")
@@ -178,10 +177,15 @@ class Soak:
                         bitrate=4800.0, per=self.per, seed=self.seed, snr=SnrModel())
         self.core = EmulatorCore(scen)
         self.sides = {}
-        for name in SIDES:
+        for i, name in enumerate(SIDES):
+            v2 = {}
+            if self.wire_format == 2:
+                hooks = Reliability(i + 1, period=LINK.period, reliable={}, max_ages={},
+                                    name=name).hooks()
+                v2 = {"wire_format": 2, "sender_id": i + 1, "hooks": hooks}
             link = Link(config=LINK, clock=self.clock, name=name, fragment_id=FRAGMENT_ID,
                         rng=random.Random(f"{self.seed}/{name}"),
-                        on_payload=lambda p, name=name: self._received(name, p))
+                        on_payload=lambda p, name=name: self._received(name, p), **v2)
             self.sides[name] = _Side(name, link)
             self.core.client_attached(name, 0.0)
         self.by_key = {}
@@ -313,7 +317,7 @@ class Soak:
             if conn.outbox.pending:
                 times.append(write_at)
             else:
-                ready = s.link.scheduler.next_ready_time(t)
+                ready = conn._next_ready(t) if conn._next_ready is not None else None
                 if ready is not None:
                     times.append(max(ready, write_at))
             if conn.decoder.buffered:
@@ -406,11 +410,21 @@ class Soak:
                 problems.append(f"{name}: the receiver saw {row['lost_seen']} lost, but only "
                                 f"{row['lost']} of {row['sent']} sent did not arrive")
             link = row["link"]
-            if drained and link is not None and (link["delivered"], link["lost_on_link"]) != (
-                    row["delivered"], row["lost"]):
-                problems.append(f"{name}: the link's ledger says delivered {link['delivered']} lost "
-                                f"{link['lost_on_link']}; sent {row['sent']} = delivered "
-                                f"{row['delivered']} + lost {row['lost']}")
+            if link is not None and link["sent"] != (link["delivered"] + link["lost_on_link"]
+                                                     + link.get("in_flight", 0)
+                                                     + link.get("unacknowledged", 0)):
+                problems.append(f"{name}: the link's ledger does not close: {link}")
+            flow = next(f for f in self.flows if f.name == name)
+            whole = max(flow.sizes) <= self.sides[flow.src].link.fragmenter.max_payload
+            if drained and whole and link is not None and (
+                    link["sent"], link["delivered"],
+                    link["lost_on_link"] + link.get("unacknowledged", 0)
+            ) != (row["sent"], row["delivered"], row["lost"]):
+                # unfragmented, never re-sent: the link's copies are the flow's messages
+                problems.append(f"{name}: the link's ledger says sent {link['sent']} delivered "
+                                f"{link['delivered']} lost {link['lost_on_link']} (+ "
+                                f"{link.get('unacknowledged', 0)} unacknowledged); sent {row['sent']} = "
+                                f"delivered {row['delivered']} + lost {row['lost']}")
         if drained:
             for src in SIDES:
                 dst = self._other(src)

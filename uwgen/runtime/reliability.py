@@ -34,8 +34,8 @@ from uwgen.runtime.clock import WALL_CLOCK, Clock
 from uwgen.runtime.freshness import stamp
 from uwgen.runtime.heads import HeadError, Heads
 from uwgen.runtime.packets import PacketHooks, message_measure
-from uwgen.runtime.reliable import (MAX_BITMAP, RECEIVED_WINDOW, ReliableLink, RttEstimator,
-                                    Sent, unwrap)
+from uwgen.runtime.reliable import (MAX_BITMAP, RECEIVED_WINDOW, REPORT_KEY, ReliableLink,
+                                    RttEstimator, Sent, unwrap)
 from uwgen.runtime.staleness import Staleness
 from uwgen.runtime.stats import Counters, log_count
 
@@ -79,7 +79,9 @@ class Reliability:
         self._timed = False                           # the packet being built needs T
         self._queue: deque[Sent] = deque()            # lost reliable messages to send again
         self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
-        self._reported: dict[int, deque[int]] = {}    # peer -> largest of our last 2 reports
+        self._confirmed: dict[tuple[int, bytes], int] = {}   # largest named by a report the
+                                                              # peer is known to have received
+        self._reports: list[tuple[int, bytes, int]] = []      # in the packet being built
         self._last_report: dict[int, float] = {}
         self._news: dict[int, float] = {}             # peer -> first packet since our last report
         self._epochs: dict[int, bytes] = {}
@@ -129,13 +131,15 @@ class Reliability:
                 now - self._last_report.get(peer, -math.inf) >= self.ack_interval
             if not (waited or news):
                 continue
-            history = self._reported.setdefault(peer, deque(maxlen=2))
-            low = history[0] if history else r.largest - 8
-            nbytes = max(1, min(MAX_BITMAP, -(-(r.largest - low) // 8)))
+            epoch = self._epochs.get(peer, b"")
+            low = self._confirmed.get((peer, epoch))
+            if low is None:
+                low = min(r.got, default=r.largest)
+            nbytes = max(0, min(MAX_BITMAP, -(-(r.largest - low) // 8)))
             report = self.engine.ack_for(peer, now, nbytes=nbytes)
             if report is not None and len(out) + len(report) <= env.MAX_PART:
                 out += report
-                history.append(r.largest)
+                self._reports.append((peer, epoch, r.largest))
                 self._last_report[peer] = now
                 self._news.pop(peer, None)
         return out
@@ -148,6 +152,10 @@ class Reliability:
                 deadline = again.deadline if again is not None else self._deadline_of.get(key)
                 messages.append(Sent(key, payload, deadline))
             self._resending.clear()
+            # The reports this packet carries: once it is acknowledged, the numbers they named
+            # need not be named again (as QUIC stops repeating acked ranges).
+            messages += [Sent(REPORT_KEY, named, None) for named in self._reports]
+            self._reports = []
             self.engine.sent(number, messages, now)
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
@@ -192,10 +200,15 @@ class Reliability:
             eliciting = any(m.id in self.heads.numbered and m.kind == 0 for m in envelope.messages)
             if not self.engine.received(peer, epoch, envelope.number, now, eliciting):
                 self.counters.inc("duplicate_packets")
-            self._news.setdefault(peer, now)
+            if envelope.messages:          # an ack-only packet asks for nothing (no ping-pong)
+                self._news.setdefault(peer, now)
             if envelope.ack is not None:
                 before = self.engine.bad_acks
                 self.engine.acked(envelope.ack, now)
+                for peer_, epoch_, largest in self.engine.confirmed:
+                    key = (peer_, epoch_)
+                    self._confirmed[key] = max(largest, self._confirmed.get(key, largest))
+                self.engine.confirmed.clear()
                 if self.engine.bad_acks > before:
                     log_count(log, logging.WARNING, self.counters.inc("bad_acks"),
                               "[%s] ignored an acknowledgement from sender %d that is malformed "
@@ -266,7 +279,7 @@ class Reliability:
         with self._lock:
             flying = self.engine.in_flight()
             out = {k: {**asdict(e), "in_flight": flying.get(k, 0)}
-                   for k, e in self.engine.ledger.items()}
+                   for k, e in self.engine.ledger.items() if k != REPORT_KEY}
             for k, n in self.engine.duplicates.items():
                 out.setdefault(k, {})["duplicates"] = n
             for k, n in self.stale_by_id.items():

@@ -32,6 +32,8 @@ LOSS_THRESHOLD = 1               # a packet is lost once one later packet is ack
 RECEIVED_WINDOW = 8 * MAX_BITMAP + 1   # numbers below the largest a receiver remembers
 DELIVERED_MEMORY = 128           # message numbers per entry remembered for delivery once
 MESSAGE_MOD = 256                # the reliable head's message number N is one byte
+REPORT_KEY = -1                  # Sent.key of an acknowledgement a packet carried (ref: what
+                                 # it named); not an entry: kept out of the ledger
 
 
 class AckError(ValueError):
@@ -197,6 +199,7 @@ class ReliableLink:
         self.duplicates: dict[int, int] = {}          # key -> reliable copies delivered twice
         self.spurious = 0                              # retransmissions whose first copy arrived
         self.bad_acks = 0
+        self.confirmed: list[Any] = []                 # refs of our reports the peer received
 
     def entry(self, key: int) -> EntryLedger:
         return self.ledger.setdefault(key, EntryLedger())
@@ -206,7 +209,8 @@ class ReliableLink:
     def sent(self, number: int, messages: list[Sent], now: float) -> None:
         """Packet `number` (unwrapped, growing) left now carrying `messages`."""
         for m in messages:
-            self.entry(m.key).sent += 1
+            if m.key != REPORT_KEY:
+                self.entry(m.key).sent += 1
         self.outstanding[number] = _Packet(number, now, list(messages))
         self.largest_sent = number
 
@@ -248,12 +252,17 @@ class ReliableLink:
 
     def _delivered_packet(self, packet: _Packet) -> None:
         for m in packet.messages:
+            if m.key == REPORT_KEY:
+                self.confirmed.append(m.ref)
+                continue
             self.entry(m.key).delivered += 1
         if packet.timed_out:
             self.spurious += 1
 
     def _lost(self, packet: _Packet, now: float) -> None:
         for m in packet.messages:
+            if m.key == REPORT_KEY:
+                continue
             self.entry(m.key).lost_on_link += 1
             if not packet.timed_out:
                 self._again(m, now)
@@ -333,7 +342,8 @@ class ReliableLink:
         out: dict[int, int] = {}
         for packet in self.outstanding.values():
             for m in packet.messages:
-                out[m.key] = out.get(m.key, 0) + 1
+                if m.key != REPORT_KEY:
+                    out[m.key] = out.get(m.key, 0) + 1
         return out
 
     def forget(self, below: int) -> None:
@@ -345,7 +355,8 @@ class ReliableLink:
                 break
             del self.outstanding[number]
             for m in packet.messages:
-                self.entry(m.key).unacknowledged += 1
+                if m.key != REPORT_KEY:
+                    self.entry(m.key).unacknowledged += 1
 
     def ack_for(self, peer: int, now: float, *, any_news: bool = True,
                 nbytes: int | None = None) -> bytes | None:

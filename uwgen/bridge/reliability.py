@@ -1,0 +1,61 @@
+"""Which entries of a side's plan the link makes reliable, and how old each may arrive
+(docs/wire-format.md sections 15.4-15.6), turned into the link's reliability hooks.
+
+- reliable (re-sent by the link, delivered once): topics with `reliability: reliable`;
+- max age (age item, T, `stale` at the receiver): a topic's `ttl`; a service's `ttl`, else
+  its `timeout`; an action's `ttl`, else its `accept_timeout`. Services and actions are
+  re-sent by the bridge (section 15.6), never by the link as well.
+
+Both sides compute the same from the same manifest. Wire format 1 links (a manifest with an
+rmw_desert entry) have none of this: `reliability_for` gives None.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from uwgen.bridge.plan import BridgePlan
+from uwgen.runtime.clock import WALL_CLOCK, Clock
+from uwgen.runtime.reliability import Reliability
+
+
+def reliable_topics(plan: BridgePlan) -> dict[int, float | None]:
+    """Topic id -> its ttl (the re-send deadline from publication), for reliable topics."""
+    return {t.id: t.policy.ttl for t in plan.topics if getattr(t.policy, "reliable", False)}
+
+
+def max_ages(plan: BridgePlan) -> dict[int, float]:
+    """Wire id -> the most a message of it may have aged when it arrives (section 15.5)."""
+    ages: dict[int, float] = {t.id: t.policy.ttl for t in plan.topics if t.policy.ttl is not None}
+    for s in plan.services:
+        limit = s.policy.ttl if s.policy.ttl is not None else getattr(s, "timeout", None)
+        if limit is not None:
+            ages[s.id] = float(limit)
+    for a in (*plan.offered_actions, *plan.served_actions):
+        limit = a.policy.ttl if a.policy.ttl is not None else getattr(a, "accept_timeout", None)
+        if limit is not None:
+            ages[a.id] = float(limit)
+    return ages
+
+
+class _Wall:
+    """A Clock reading a `() -> seconds` function (the bridge's wall time, injectable)."""
+
+    def __init__(self, read: Callable[[], float]):
+        self.now = read
+
+
+def reliability_for(plan: BridgePlan, period: float,
+                    wall: Clock | Callable[[], float] = WALL_CLOCK) -> Reliability | None:
+    """The link's reliability of this side (None on wire format 1). `wall`: the wall clock
+    T is stamped with and checked against (a Clock, or a function giving seconds)."""
+    if plan.wire_format != 2:
+        return None
+    clock = wall if hasattr(wall, "now") else _Wall(wall)
+    return Reliability(plan.sender_id, period=period, reliable=reliable_topics(plan),
+                       max_ages=max_ages(plan), wall=clock, name=plan.side)
+
+
+def link_ledger(link_stats: Any) -> dict[int, dict]:
+    """The link's per-entry ledger from its stats (keys as ints; JSON may have made them text)."""
+    ledger = link_stats.get("ledger") if isinstance(link_stats, dict) else None
+    return {int(k): v for k, v in (ledger or {}).items()}
