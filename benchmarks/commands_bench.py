@@ -17,6 +17,13 @@ Modes: `retries` is this build; `reference` is the same build with issue 16's re
 still sent again while unanswered, as wire format 1 always did).
 
 The link is the demo's: 64 B every 0.2 s, 4800 bit/s, 1000 m (about 0.67 s each way).
+
+Reliable topics (wire format 2, docs/wire-format.md section 15) are measured first, on
+simulated time (uwgen.emulator.duplex: both sides' real Link code and the emulator's core,
+the demo's two-way topic mix, 10 minutes per row): a mission topic of one 20-byte message
+every 2 s sent `best_effort` and then `reliable`, same seed: delivery ratio, latency p50/p95,
+and the air time of acknowledgements (A parts, ack-only packets) and retransmissions as a
+share of all bytes the two sides wrote.
 """
 from __future__ import annotations
 
@@ -39,7 +46,13 @@ from test_msgs.srv import BasicTypes
 from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan, import_package
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
-from uwgen.runtime.framing import OVERHEAD
+from uwgen.emulator.duplex import DuplexSim
+from uwgen.manifest.model import LinkPolicy
+from uwgen.runtime import envelope
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.framing import OVERHEAD, FrameDecoder
+from uwgen.runtime.packets import message_measure
+from uwgen.runtime.reliability import Reliability
 
 MANIFEST = """\
 network: cmdbench
@@ -221,13 +234,129 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool) -
             "time": elapsed}
 
 
+# The demo's topic mix (msg_samples/uwgen.yaml) plus the measured mission topic (id 8):
+# (side, id, size, every s, policy).
+TOPIC_MIX = (
+    ("surface", 4, 22, 0.2, LinkPolicy(rate=5, queue="latest", ttl=1.0, priority=10)),
+    ("vehicle", 5, 26, 0.5, LinkPolicy(rate=2, queue="latest", ttl=2.0, priority=5)),
+    ("vehicle", 6, 30, 5.0, LinkPolicy(rate=0.2, queue="latest", ttl=10.0, priority=1)),
+    ("vehicle", 7, 40, 15.0, LinkPolicy(queue="fifo", depth=8, ttl=60.0)),
+)
+MISSION = 8
+
+
+class _Wall:
+    def __init__(self, clock: ManualClock):
+        self.clock = clock
+
+    def now(self) -> float:
+        return 1.7e9 + self.clock.now()
+
+
+def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0) -> dict:
+    """One simulated run of the topic mix; the mission topic reliable or best effort."""
+    scen = Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle"),
+                           NodeSpec("vehicle", position=(1000.0, 0.0, 0.0), dest="surface")],
+                    period=0.2, max_read_length=64, bitrate=4800.0, per=per, seed=seed)
+    clock = ManualClock()
+    mission = LinkPolicy(queue="fifo", depth=20, ttl=30.0, priority=3, reliable=reliable)
+    rel: dict[str, Reliability] = {}
+    repair = {"ack": 0, "resent": 0}
+
+    def hooks_for(side: str):
+        r = rel[side] = Reliability(1 if side == "surface" else 2, period=0.2,
+                                    reliable={MISSION: 30.0} if reliable else {},
+                                    max_ages={i: p.ttl for _, i, _, _, p in TOPIC_MIX} | {MISSION: 30.0},
+                                    wall=_Wall(clock), name=side)
+        hooks = r.hooks()
+        resend = hooks.resend
+
+        def counted(now, room):
+            got = resend(now, room)
+            if got is not None:
+                repair["resent"] += message_measure(got[1])
+            return got
+        hooks.resend = counted
+        return hooks
+    sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,
+                    clock=clock, step=0.025)
+    for side, link in sim.links.items():
+        take = link.connection.outbox.take
+
+        def spy(now, pull, fit=None, take=take):
+            batch = take(now, pull, fit)
+            for frame in FrameDecoder().feed(batch):
+                env = envelope.decode(frame)
+                if not env.messages:
+                    repair["ack"] += len(frame) + OVERHEAD      # the whole ack-only packet
+                elif env.ack is not None:
+                    repair["ack"] += 1 + len(env.ack)
+            return batch
+        link.connection.outbox.take = spy
+    for side, ident, _, _, policy in TOPIC_MIX:
+        sim.links[side].add_channel(ident, policy)
+    sim.links["surface"].add_channel(MISSION, mission)
+    rng = random.Random(seed)
+    sent_at: dict[int, float] = {}
+    for side, ident, size, every, _ in TOPIC_MIX:
+        t = rng.uniform(0, every)
+        while t < seconds:
+            sim.at(t, lambda s=side, i=ident, n=size: sim.links[s].offer(i, bytes((0, i)) + bytes(n - 2)))
+            t += every
+    for k in range(int(seconds / 2.0)):
+        def send(k=k):
+            sent_at[k] = clock.now()
+            sim.links["surface"].offer(MISSION, bytes((0, MISSION)) + k.to_bytes(2, "big") + bytes(16))
+        sim.at(k * 2.0 + 0.3, send)
+    sim.run(seconds + 60.0)
+    got: dict[int, float] = {}
+    dup = 0
+    for t, p in sim.received["vehicle"]:
+        if p[1] == MISSION:
+            k = int.from_bytes(p[2:4], "big")
+            dup += k in got
+            got.setdefault(k, t)
+    lat = sorted(got[k] - sent_at[k] for k in got)
+    written = sum(link.connection.outbox.stats.bytes_sent for link in sim.links.values())
+    row = rel["surface"].ledger().get(MISSION, {})
+    return {"ratio": len(got) / len(sent_at), "p50": _pct(lat, 0.5), "p95": _pct(lat, 0.95),
+            "dup": dup, "ack_share": repair["ack"] / written,
+            "resent_share": repair["resent"] / written,
+            "lost_on_link": row.get("lost_on_link", 0), "expired": row.get("expired", 0)}
+
+
+def _pct(values: list[float], q: float) -> float:
+    return values[min(len(values) - 1, int(q * len(values)))] if values else float("nan")
+
+
+def topic_table(rates: list[float], seed: int) -> None:
+    print("| PER | mission topic | delivered | latency p50 / p95 (s) | duplicates | "
+          "lost on link (copies) | acks / bytes written | re-sends / bytes written | "
+          "acks + re-sends |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for per in rates:
+        for reliable in (False, True):
+            r = topic_run(per, seed, reliable)
+            print(f"| {per:.0%} | {'reliable' if reliable else 'best effort'} | {r['ratio']:.1%} | "
+                  f"{r['p50']:.2f} / {r['p95']:.2f} | {r['dup']} | {r['lost_on_link']} | "
+                  f"{r['ack_share']:.1%} | {r['resent_share']:.1%} | "
+                  f"{r['ack_share'] + r['resent_share']:.1%} |", flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--per", default="0,0.1,0.2,0.3")
     ap.add_argument("--calls", type=int, default=12)
     ap.add_argument("--goals", type=int, default=6)
     ap.add_argument("--seed", type=int, default=3)
+    ap.add_argument("--topics-only", action="store_true", help="only the reliable-topic table")
+    ap.add_argument("--no-topics", action="store_true", help="skip the reliable-topic table")
     args = ap.parse_args()
+    if not args.no_topics:
+        topic_table([float(p) for p in args.per.split(",")], args.seed)
+        print()
+    if args.topics_only:
+        return 0
     package = build_package()
     print("| PER | mode | calls ok | goals ok (real result) | duplicate runs | "
           "retry+ack bytes / bytes written | / link capacity | s |")
@@ -238,8 +367,6 @@ def main() -> int:
             print(f"| {per:.0%} | {'retries' if retries else 'reference'} | {r['calls']} | "
                   f"{r['goals']} | {r['dup']} | {r['share']:.1%} | {r['capacity']:.1%} | "
                   f"{r['time']:.0f} |", flush=True)
-    print("\nReliable topics: not measured (they need the envelope of wire format 2; see "
-          "wire-format.md section 15.4).")
     return 0
 
 
