@@ -77,6 +77,7 @@ class ServiceRow:
     ok: int = 0
     failed: int = 0
     policy: int = 0
+    lost_on_link: int | None = None   # copies the sending links' acks name lost (wire format 2)
     rtts: list[float] = field(default_factory=list)
 
 
@@ -96,6 +97,7 @@ class Report:
     security: dict[str, dict] = field(default_factory=dict)   # side -> its bridge's security counts
     air: dict[str, tuple[int, int]] = field(default_factory=dict)   # side -> (air bytes, packets)
     wire_format: int | None = None
+    action_links: dict[str, dict] = field(default_factory=dict)   # action -> its link ledger rows
 
     @property
     def messages_delivered(self) -> int:
@@ -159,6 +161,9 @@ def _topic_row(name: str, direction: str, sender: dict, receiver: dict) -> Row:
         row.policy, row.queued = sum(acc["dropped_by_policy"].values()), acc["queued"]
         flow = ledger.across(acc, rx)
         row.on_link, row.lost, row.lost_seen = flow["sent"], flow["lost"], flow["lost_on_link"]
+        exact = link.get("on_link")
+        if isinstance(exact, dict) and "lost_on_link" in exact:
+            row.lost_seen = int(exact["lost_on_link"])     # named by acks (wire-format 15.7)
         row.imbalances = ledger.imbalances(acc) + ledger.imbalances(rx)
         return row
     row.taken = out.get("taken", 0)
@@ -221,7 +226,16 @@ def build_report(out_dir: Path) -> Report:
         for side in (surface, vehicle):
             link = side.get("services", {}).get(name, {}).get("link", {}) or {}
             srow.policy += sum(int(link.get(r, 0)) for r in DROP_REASONS)
+            exact = link.get("on_link")
+            if isinstance(exact, dict) and "lost_on_link" in exact:
+                srow.lost_on_link = (srow.lost_on_link or 0) + int(exact["lost_on_link"])
         services.append(srow)
+    action_links: dict[str, dict] = {}
+    for side_name, side in (("surface", surface), ("vehicle", vehicle)):
+        for name, entry in (side.get("actions") or {}).items():
+            exact = (entry.get("link") or {}).get("on_link")
+            if isinstance(exact, dict) and "sent" in exact:
+                action_links.setdefault(name, {})[side_name] = exact
 
     commanded, reported, truth = paths(op, veh)
     dev = deviations(commanded, reported)
@@ -242,7 +256,7 @@ def build_report(out_dir: Path) -> Report:
     return Report(rows, services, commanded, reported, truth,
                   (sum(dev) / len(dev)) if dev else None, max(dev) if dev else None,
                   end_error, emulator, ev(op, "mission"), security=security, air=air,
-                  wire_format=wire)
+                  wire_format=wire, action_links=action_links)
 
 
 def paths(op: list[dict], veh: list[dict]):
@@ -296,8 +310,9 @@ COLUMNS = """\
   taken: by the sending bridge from its local graph; sub drop: messages the sending bridge's
   subscription lost before it took them (its ROS queue overflowed); on link: put on the wire;
   policy: dropped by the topic's link policy (superseded by a newer one, rate, ttl, overflow);
-  lost (seen): put on the link, never received by the far bridge; (seen) of those, how many the
-  far bridge knew it missed (fragments of a message that never completed)"""
+  lost (seen): put on the link, never received by the far bridge; (seen) of those, how many
+  the link knows were lost: on wire format 2 the copies the far side's acknowledgements name
+  missing (exact, wire-format 15.7), else fragments of a message that never completed"""
 
 
 def format_report(report: Report) -> str:
@@ -315,17 +330,25 @@ def format_report(report: Report) -> str:
     lines += COLUMNS.splitlines()
     lines.append("")
     shead = (f"{'service':<28} {'calls':>5} {'ok':>4} {'failed':>6} {'policy':>6} "
-             f"{'round trip p50':>14} {'p95':>8}")
+             f"{'lost on link':>12} {'round trip p50':>14} {'p95':>8}")
     lines += [shead, "-" * len(shead)]
     for s in report.services:
-        lines.append(f"{s.name:<28} {s.calls:>5} {s.ok:>4} {s.failed:>6} {s.policy:>6} "
+        lost = "-" if s.lost_on_link is None else str(s.lost_on_link)
+        lines.append(f"{s.name:<28} {s.calls:>5} {s.ok:>4} {s.failed:>6} {s.policy:>6} {lost:>12} "
                      f"{_ms(median(s.rtts) if s.rtts else None):>14} {_ms(percentile(s.rtts, 95)):>8}")
+    lines.append("  lost on link: requests and responses (copies included) the far side's "
+                 "acknowledgements name missing; re-sent by the bridges (wire-format 15.6)")
     lines.append("")
     for m in report.missions:
         turned = m.get("status") == "succeeded" and m.get("delta") is not None
         lines.append(f"action {m.get('name')}: {m.get('status')} after {m.get('rtt', 0):.2f} s, "
                      f"{m.get('feedback', 0)} feedback messages"
                      + (f", turned {m['delta']:.2f} rad" if turned else ""))
+    for name, sides in sorted(report.action_links.items()):
+        lines.append(f"action {name} on the link: " + "; ".join(
+            f"{side} sent {row['sent']}, delivered {row['delivered']}, lost {row['lost_on_link']}"
+            + (f", in flight {row['in_flight']}" if row.get("in_flight") else "")
+            for side, row in sorted(sides.items())))
     if report.deviation_mean is not None:
         lines.append(f"path: the poses the surface received stay within {report.deviation_max:.2f} m "
                      f"of the commanded square (mean {report.deviation_mean:.2f} m)"
