@@ -73,8 +73,9 @@ def test_lost_on_link_is_exactly_what_the_peer_sent_and_never_arrived():
     a, b = sim.links["a"], sim.links["b"]
     a.add_channel(7, RELIABLE)
     b.add_channel(4, BEST_EFFORT)
-    for i in range(40):
+    for i in range(80):                  # a goes on sending after b stopped: its acks ride
         sim.at(i * 1.0, lambda i=i: a.offer(7, bytes((0, 7, i)) + bytes(10)))
+    for i in range(40):
         sim.at(i * 1.0 + 0.3, lambda i=i: b.offer(4, bytes((0, 4, i)) + bytes(5)))
     sim.run(90.0)
     row = b.stats()["ledger"][4]

@@ -24,7 +24,6 @@ Everything is called on the link's thread except `stats()`; a lock keeps them ap
 from __future__ import annotations
 
 import logging
-import math
 import threading
 from collections import deque
 from dataclasses import asdict
@@ -34,8 +33,9 @@ from uwgen.runtime.clock import WALL_CLOCK, Clock
 from uwgen.runtime.freshness import stamp
 from uwgen.runtime.heads import HeadError, Heads
 from uwgen.runtime.packets import PacketHooks, message_measure
-from uwgen.runtime.reliable import (MAX_BITMAP, RECEIVED_WINDOW, REPORT_KEY, ReliableLink,
-                                    RttEstimator, Sent, unwrap)
+from uwgen.runtime.acks import AckPolicy
+from uwgen.runtime.reliable import (RECEIVED_WINDOW, REPORT_KEY, ReliableLink, RttEstimator,
+                                    Sent, unwrap)
 from uwgen.runtime.staleness import Staleness
 from uwgen.runtime.stats import Counters, log_count
 
@@ -79,11 +79,7 @@ class Reliability:
         self._timed = False                           # the packet being built needs T
         self._queue: deque[Sent] = deque()            # lost reliable messages to send again
         self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
-        self._confirmed: dict[tuple[int, bytes], int] = {}   # largest named by a report the
-                                                              # peer is known to have received
-        self._reports: list[tuple[int, bytes, int]] = []      # in the packet being built
-        self._last_report: dict[int, float] = {}
-        self._news: dict[int, float] = {}             # peer -> first packet since our last report
+        self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._epochs: dict[int, bytes] = {}
         self._restarts: dict[int, int] = {}
         self._rx: tuple[int, bytes, int | None] | None = None
@@ -115,34 +111,10 @@ class Reliability:
             out: dict = {}
             if self._timed:
                 out["time"] = stamp(self.wall.now())
-            ack = self._acks(now)
+            ack = self.acks.a_part(self._epochs, now)
             if ack:
                 out["ack"] = ack
             return out
-
-    def _acks(self, now: float) -> bytes:
-        out = b""
-        for peer in sorted({p for p, _ in self.engine.receipts}):
-            r = self.engine._current(peer)
-            if r is None or r.largest is None:
-                continue
-            waited = r.eliciting_since is not None
-            news = peer in self._news and \
-                now - self._last_report.get(peer, -math.inf) >= self.ack_interval
-            if not (waited or news):
-                continue
-            epoch = self._epochs.get(peer, b"")
-            low = self._confirmed.get((peer, epoch))
-            if low is None:
-                low = min(r.got, default=r.largest)
-            nbytes = max(0, min(MAX_BITMAP, -(-(r.largest - low) // 8)))
-            report = self.engine.ack_for(peer, now, nbytes=nbytes)
-            if report is not None and len(out) + len(report) <= env.MAX_PART:
-                out += report
-                self._reports.append((peer, epoch, r.largest))
-                self._last_report[peer] = now
-                self._news.pop(peer, None)
-        return out
 
     def sent(self, number: int, picked: list[tuple[int, bytes]], now: float) -> None:
         with self._lock:
@@ -152,10 +124,7 @@ class Reliability:
                 deadline = again.deadline if again is not None else self._deadline_of.get(key)
                 messages.append(Sent(key, payload, deadline))
             self._resending.clear()
-            # The reports this packet carries: once it is acknowledged, the numbers they named
-            # need not be named again (as QUIC stops repeating acked ranges).
-            messages += [Sent(REPORT_KEY, named, None) for named in self._reports]
-            self._reports = []
+            messages += self.acks.carried()      # its reports: confirmed once it is acked
             self.engine.sent(number, messages, now)
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
@@ -174,21 +143,15 @@ class Reliability:
             return None
 
     def ack_only(self, now: float) -> bool:
-        """A packet with only the A part: a peer has waited `ack_delay` for the ack of a
-        reliable message, or has had news unreported for 2 `ack_interval` (this side sends
-        nothing: the peer's ledger closes all the same)."""
         with self._lock:
-            return any(self.engine.ack_only_due(peer, now) for peer, _ in self.engine.receipts) \
-                or any(now - t >= 2 * self.ack_interval for t in self._news.values())
+            return self.acks.alone(now)
 
     def next_time(self, now: float) -> float | None:
         with self._lock:
             if self._queue:
                 return now
             times = [t for t in [self.engine.next_timeout()] if t is not None]
-            times += [r.eliciting_since + self.ack_delay for r in self.engine.receipts.values()
-                      if r.eliciting_since is not None]
-            times += [t + 2 * self.ack_interval for t in self._news.values()]
+            times += self.acks.next_times()
             return max(now, min(times)) if times else None
 
     # -- receiving ------------------------------------------------------------------------
@@ -200,15 +163,11 @@ class Reliability:
             eliciting = any(m.id in self.heads.numbered and m.kind == 0 for m in envelope.messages)
             if not self.engine.received(peer, epoch, envelope.number, now, eliciting):
                 self.counters.inc("duplicate_packets")
-            if envelope.messages:          # an ack-only packet asks for nothing (no ping-pong)
-                self._news.setdefault(peer, now)
+            self.acks.heard(peer, bool(envelope.messages), now)
             if envelope.ack is not None:
                 before = self.engine.bad_acks
                 self.engine.acked(envelope.ack, now)
-                for peer_, epoch_, largest in self.engine.confirmed:
-                    key = (peer_, epoch_)
-                    self._confirmed[key] = max(largest, self._confirmed.get(key, largest))
-                self.engine.confirmed.clear()
+                self.acks.confirm()
                 if self.engine.bad_acks > before:
                     log_count(log, logging.WARNING, self.counters.inc("bad_acks"),
                               "[%s] ignored an acknowledgement from sender %d that is malformed "

@@ -1,0 +1,84 @@
+"""When acknowledgements leave and what they name (docs/wire-format.md section 15.2).
+
+`AckPolicy` decides, for the packet being built, which peers get a report (a peer waits for
+the ack of a reliable message; or, at most every `ack_interval`, news or numbers no report
+the peer is known to have received has named yet), how far back
+each report's bitmap reaches (to the largest number named by a report the peer is known to
+have received: once a packet carrying a report is acknowledged, the numbers it named need
+not be named again, as QUIC stops repeating acknowledged ranges), and when a packet must
+leave with only the A part. It keeps its own state and reads the engine
+(`uwgen.runtime.reliable.ReliableLink`); the caller holds the lock and passes `now`.
+"""
+from __future__ import annotations
+
+import math
+
+from uwgen.runtime import envelope as env
+from uwgen.runtime.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink, Sent
+
+
+class AckPolicy:
+    def __init__(self, engine: ReliableLink, *, ack_delay: float, ack_interval: float):
+        self.engine, self.ack_delay, self.ack_interval = engine, ack_delay, ack_interval
+        self._confirmed: dict[tuple[int, bytes], int] = {}   # (peer, epoch) -> largest named
+        self._reports: list[tuple[int, bytes, int]] = []      # in the packet being built
+        self._last_report: dict[int, float] = {}
+        self._news: dict[int, float] = {}       # peer -> first packet since our last report
+
+    def heard(self, peer: int, with_messages: bool, now: float) -> None:
+        """A packet of `peer` arrived; an ack-only one asks for nothing (no ping-pong)."""
+        if with_messages:
+            self._news.setdefault(peer, now)
+
+    def a_part(self, epochs: dict[int, bytes], now: float) -> bytes:
+        """The A part of the packet being built (b"": none)."""
+        out = b""
+        for peer in sorted({p for p, _ in self.engine.receipts}):
+            r = self.engine._current(peer)
+            if r is None or r.largest is None:
+                continue
+            epoch = epochs.get(peer, b"")
+            low = self._confirmed.get((peer, epoch))
+            waited = r.eliciting_since is not None
+            # news, or numbers no report the peer received has named yet: those ride on
+            # packets leaving anyway, every ack_interval, until a report naming them is known
+            # to have arrived (then the peer's ledger has them)
+            unsettled = peer in self._news or low is None or low < r.largest
+            news = unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval
+            if not (waited or news):
+                continue
+            if low is None:
+                low = min(r.got, default=r.largest)
+            nbytes = max(0, min(MAX_BITMAP, -(-(r.largest - low) // 8)))
+            report = self.engine.ack_for(peer, now, nbytes=nbytes)
+            if report is not None and len(out) + len(report) <= env.MAX_PART:
+                out += report
+                self._reports.append((peer, epoch, r.largest))
+                self._last_report[peer] = now
+                self._news.pop(peer, None)
+        return out
+
+    def carried(self) -> list[Sent]:
+        """The reports of the packet just built, as pseudo-messages for the engine's `sent`."""
+        out = [Sent(REPORT_KEY, named, None) for named in self._reports]
+        self._reports = []
+        return out
+
+    def confirm(self) -> None:
+        """After an A part was taken in: our reports the peer is now known to have received."""
+        for peer, epoch, largest in self.engine.confirmed:
+            key = (peer, epoch)
+            self._confirmed[key] = max(largest, self._confirmed.get(key, largest))
+        self.engine.confirmed.clear()
+
+    def alone(self, now: float) -> bool:
+        """A packet with only the A part: a peer has waited `ack_delay` for the ack of a
+        reliable message, or has had news unreported for 2 `ack_interval` (this side sends
+        nothing: the peer's ledger closes all the same)."""
+        return any(self.engine.ack_only_due(peer, now) for peer, _ in self.engine.receipts) \
+            or any(now - t >= 2 * self.ack_interval for t in self._news.values())
+
+    def next_times(self) -> list[float]:
+        times = [r.eliciting_since + self.ack_delay for r in self.engine.receipts.values()
+                 if r.eliciting_since is not None]
+        return times + [t + 2 * self.ack_interval for t in self._news.values()]
