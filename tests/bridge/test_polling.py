@@ -11,7 +11,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
-from uwgen.bridge.polling import POLL_HISTORY, PolledGroup
+from uwgen.bridge.polling import POLL_HISTORY, PolledGroup, take_events
 from uwgen.manifest.model import LinkPolicy
 
 from .fakes import FakeTopicCodec, LinkPair, fake_package, wait_for
@@ -101,21 +101,43 @@ def test_the_newest_published_message_is_the_last_one_offered(surface):
     assert len(link.offered(CMD.id)) == counters.offered
 
 
-def test_qos_events_of_a_polled_subscription_are_still_handled(surface):
+def test_qos_events_of_a_polled_subscription_are_taken_by_the_poller(surface):
     side, bridge, _link = surface
     # A best-effort publisher cannot serve the bridge's reliable subscription: an
-    # incompatible-QoS event, which only the executor's wait on the handler can count.
+    # incompatible-QoS event, which no executor waits on; the poller takes it.
     side.node("op").create_publisher(Twist, "/cmd", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
     wait_for(lambda: bridge.status()["topics"]["/cmd"]["qos_incompatible"] >= 1,
              what="the incompatible-QoS event counted")
-    # Message-lost events go through the same group: they run, and are booked.
+    # Message-lost events are taken the same way, and booked as dropped by the subscription.
     polled = next(s for s in bridge.topics.subscriptions if s.topic_name == "/cmd")
     lost = next(h for h in polled.event_handlers
                 if h.event_type == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST)
-    assert lost.callback_group.can_execute(lost)
+    assert not lost.callback_group.can_execute(lost)      # never in the executor's wait set
     lost.callback(SimpleNamespace(total_count=3, total_count_change=3))
     acc = bridge.status()["topics"]["/cmd"]["accounting"]
     assert acc["dropped_by_subscription"] == 3 and acc["published"] == acc["taken"] + 3
+
+
+class FakeEventHandler:
+    """An rclpy EventHandler as take_events uses it: take_data only once a wait said ready."""
+
+    def __init__(self, change):
+        self.change, self.seen, self._ready_to_take_data = change, [], False
+
+    def take_data(self):
+        if not self._ready_to_take_data:
+            return None
+        self._ready_to_take_data = False
+        return SimpleNamespace(total_count=self.change, total_count_change=self.change)
+
+    def callback(self, info):
+        self.seen.append(info.total_count_change)
+
+
+def test_take_events_passes_on_changed_events_only():
+    quiet, lossy = FakeEventHandler(0), FakeEventHandler(2)
+    take_events([quiet, lossy])
+    assert (quiet.seen, lossy.seen) == ([], [2])
 
 
 def test_close_leaves_no_subscription_and_stops_polling(surface):
