@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import logging
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkPolicy
@@ -187,3 +190,18 @@ def test_malformed_acks_and_heads_are_counted_and_logged_never_crash(caplog):
     assert rel["b"].counters["bad_acks"] == 3 and rel["b"].counters["bad_heads"] == 4
     assert sim.received["b"] == []
     assert caplog.text.count("malformed") == 2          # throttled: first of each only
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=40), st.binary(max_size=12), st.integers(0, 4095), st.integers(0, 15))
+def test_any_a_part_and_any_body_are_taken_or_counted_never_raise(ack, body, number, sender):
+    rel = Reliability(2, period=0.5, reliable={7: 30.0}, max_ages={7: 30.0, 9: 2.0},
+                      wall=Wall(ManualClock()), name="fuzz")
+    hooks = rel.hooks()
+    for ident in (7, 9, 11):
+        hooks.received(envelope.Envelope(sender, number, (envelope.Message(0, ident, body),),
+                                         ack=ack or None), 1.0)
+        out = hooks.admit(bytes((0, ident)) + body, 1.0)
+        assert out is None or out.startswith(bytes((0, ident)))
+    counted = rel.counters["bad_heads"] + rel.counters["stale"] + sum(rel.engine.duplicates.values())
+    assert counted <= 3
