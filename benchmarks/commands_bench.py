@@ -267,7 +267,7 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0) -> 
         r = rel[side] = Reliability(1 if side == "surface" else 2, period=0.2,
                                     reliable={MISSION: 30.0} if reliable else {},
                                     max_ages={i: p.ttl for _, i, _, _, p in TOPIC_MIX} | {MISSION: 30.0},
-                                    wall=_Wall(clock), name=side)
+                                    wall=_Wall(clock), name=side, max_read_length=64)
         hooks = r.hooks()
         resend = hooks.resend
 

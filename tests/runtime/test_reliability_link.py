@@ -41,7 +41,8 @@ def duplex(per: float = 0.0, seed: int = 1, *, max_ages=None, offsets=None) -> t
     def hooks_for(side: str):
         engines[side] = Reliability(1 if side == "a" else 2, period=0.5, reliable={7: 30.0},
                                     max_ages=max_ages if max_ages is not None else {7: 30.0},
-                                    wall=Wall(clock, (offsets or {}).get(side, 0.0)), name=side)
+                                    wall=Wall(clock, (offsets or {}).get(side, 0.0)), name=side,
+                                    max_read_length=64)
         return engines[side].hooks()
     sim = DuplexSim(scen, ("a", "b"), hooks_for=hooks_for, wire_format=2, clock=clock)
     return sim, engines

@@ -100,7 +100,7 @@ class BridgeNode(Node):
         self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
         # Acks, re-sends of reliable topics, delivery once, stale commands (wire format 2 only;
         # docs/seams.md section 5: joined with the per-packet seal's hooks when there is one).
-        self.reliability = reliability_for(plan, link_cfg.period, w.wall)
+        self.reliability = reliability_for(plan, link_cfg, w.wall)
         hooks = join_hooks(self.reliability.hooks()) if self.reliability is not None else None
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,

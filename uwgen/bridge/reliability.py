@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import Any, Callable
 
 from uwgen.bridge.plan import BridgePlan
+from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import WALL_CLOCK, Clock
 from uwgen.runtime.reliability import Reliability
 
@@ -44,15 +45,16 @@ class _Wall:
         self.now = read
 
 
-def reliability_for(plan: BridgePlan, period: float,
+def reliability_for(plan: BridgePlan, link: LinkConfig,
                     wall: Clock | Callable[[], float] = WALL_CLOCK) -> Reliability | None:
     """The link's reliability of this side (None on wire format 1). `wall`: the wall clock
     T is stamped with and checked against (a Clock, or a function giving seconds)."""
     if plan.wire_format != 2:
         return None
     clock = wall if hasattr(wall, "now") else _Wall(wall)
-    return Reliability(plan.sender_id, period=period, reliable=reliable_topics(plan),
-                       max_ages=max_ages(plan), wall=clock, name=plan.side)
+    return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
+                       max_ages=max_ages(plan), wall=clock, name=plan.side,
+                       max_read_length=link.max_read_length)
 
 
 def link_ledger(link_stats: Any) -> dict[int, dict]:

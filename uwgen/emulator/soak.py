@@ -181,6 +181,7 @@ class Soak:
             v2 = {}
             if self.wire_format == 2:
                 hooks = Reliability(i + 1, period=LINK.period, reliable={}, max_ages={},
+                                    max_read_length=LINK.max_read_length,
                                     name=name).hooks()
                 v2 = {"wire_format": 2, "sender_id": i + 1, "hooks": hooks}
             link = Link(config=LINK, clock=self.clock, name=name, fragment_id=FRAGMENT_ID,

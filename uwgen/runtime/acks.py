@@ -13,8 +13,11 @@ from __future__ import annotations
 
 import math
 
-from uwgen.runtime import envelope as env
 from uwgen.runtime.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink, Sent
+
+BITMAP_ROOM = 4          # bitmap bytes a report may always carry: packets leave room for one
+                         # report of 33 numbers (the A part's length, R0-R2, 4 bytes: 8 bytes);
+A_ROOM = 1 + 3 + BITMAP_ROOM   # more when the packet being built has room left (`room`)
 
 
 class AckPolicy:
@@ -30,10 +33,13 @@ class AckPolicy:
         if with_messages:
             self._news.setdefault(peer, now)
 
-    def a_part(self, epochs: dict[int, bytes], now: float) -> bytes:
-        """The A part of the packet being built (b"": none)."""
+    def a_part(self, epochs: dict[int, bytes], now: float, room: int = A_ROOM) -> bytes:
+        """The A part of the packet being built (b"": none), at most `room` bytes with its
+        length byte (at least A_ROOM: what every packet leaves for it)."""
+        room = min(max(room, A_ROOM), 1 + 255)
         out = b""
-        for peer in sorted({p for p, _ in self.engine.receipts}):
+        peers = {p for p, _ in self.engine.receipts}      # the one reported longest ago first
+        for peer in sorted(peers, key=lambda p: (self._last_report.get(p, -math.inf), p)):
             r = self.engine._current(peer)
             if r is None or r.largest is None:
                 continue
@@ -49,9 +55,10 @@ class AckPolicy:
                 continue
             if low is None:
                 low = min(r.got, default=r.largest)
-            nbytes = max(0, min(MAX_BITMAP, -(-(r.largest - low) // 8)))
+            fits = max(0, min(MAX_BITMAP, room - 1 - len(out) - 3))
+            nbytes = max(0, min(fits, -(-(r.largest - low) // 8)))
             report = self.engine.ack_for(peer, now, nbytes=nbytes)
-            if report is not None and len(out) + len(report) <= env.MAX_PART:
+            if report is not None and 1 + len(out) + len(report) <= room:
                 out += report
                 self._reports.append((peer, epoch, r.largest))
                 self._last_report[peer] = now

@@ -30,10 +30,12 @@ from dataclasses import asdict
 
 from uwgen.runtime import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
+from uwgen.runtime.framing import MAX_FRAME
+from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.runtime.freshness import stamp
 from uwgen.runtime.heads import HeadError, Heads
 from uwgen.runtime.packets import PacketHooks, message_measure
-from uwgen.runtime.acks import AckPolicy
+from uwgen.runtime.acks import A_ROOM, AckPolicy
 from uwgen.runtime.reliable import (RECEIVED_WINDOW, REPORT_KEY, ReliableLink, RttEstimator,
                                     Sent, unwrap)
 from uwgen.runtime.staleness import Staleness
@@ -45,8 +47,8 @@ COUNTERS = ("stale", "clock_offset", "bad_heads", "bad_acks", "untimed", "restar
             "duplicate_packets")
 DEFAULT_DEADLINE = 120.0          # seconds: a reliable entry without a ttl
 FORGET_AFTER = 2048               # packets: older ones cannot be named unambiguously (12 bits)
-# T + its flag, an A part with a report of a full bitmap: what the hooks add to a packet.
-OVERHEAD = env.TIME_LEN + 1 + 3 + 4
+# T, and an A part of one report (acks.A_ROOM): the most the hooks add to a packet.
+OVERHEAD = env.TIME_LEN + A_ROOM
 
 
 def wire_id(key: int) -> int:
@@ -60,8 +62,14 @@ class Reliability:
     def __init__(self, sender: int, *, period: float, reliable: dict[int, float | None],
                  max_ages: dict[int, float], wall: Clock = WALL_CLOCK,
                  ack_delay: float | None = None, ack_interval: float | None = None,
-                 name: str = "link"):
+                 name: str = "link", max_read_length: int = MAX_FRAME,
+                 other_overhead: int = 0):
         self.sender, self.name, self.wall = sender, name, wall
+        # what a packet may hold besides P, W and the messages: the frame's payload minus what
+        # the other joined hooks (the seal) may add; the A part takes what is left (acks.A_ROOM
+        # at least, kept free by `overhead`)
+        self._part_room = min(max_read_length, MAX_FRAME) - FRAME_OVERHEAD - env.HEAD - other_overhead
+        self._room = 0
         self.deadlines = {k: (DEFAULT_DEADLINE if t is None else t) for k, t in reliable.items()}
         self.max_ages = dict(max_ages)
         self.heads = Heads(numbered=frozenset(wire_id(k) for k in reliable),
@@ -105,13 +113,15 @@ class Reliability:
 
     def carrying(self, picked: list[tuple[int, bytes]], now: float) -> None:
         self._timed = any(wire_id(key) in self.max_ages for key, _ in picked)
+        used = sum(message_measure(p) for _, p in picked) - (1 if picked else 0)
+        self._room = self._part_room - used - (env.TIME_LEN if self._timed else 0)
 
     def parts(self, now: float) -> dict:
         with self._lock:
             out: dict = {}
             if self._timed:
                 out["time"] = stamp(self.wall.now())
-            ack = self.acks.a_part(self._epochs, now)
+            ack = self.acks.a_part(self._epochs, now, self._room)
             if ack:
                 out["ack"] = ack
             return out
