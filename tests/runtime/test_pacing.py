@@ -297,6 +297,20 @@ def test_pacer_margin_stretches_the_interval():
         Pacer(64, 0.2, margin=-0.1)
 
 
+def test_a_write_late_by_less_than_the_margin_keeps_the_grid():
+    # The connection's thread wakes a little after the write was due: the next write is due one
+    # interval after the due time, not after the late write (the margin is the only loss)...
+    p = Pacer(64, 0.2, margin=0.05)
+    p.wrote(1.0)
+    assert p.next_write_at == pytest.approx(1.21)
+    p.wrote(1.215)
+    assert p.next_write_at == pytest.approx(1.42)
+    assert p.next_write_at - 1.215 >= 0.2                   # never two writes within a period
+    # ... and a write long after it was due (an idle link) starts a new grid.
+    p.wrote(1.6)
+    assert p.next_write_at == pytest.approx(1.81)
+
+
 def test_bitrate_stretches_the_interval_to_the_packets_air_time():
     # 64 + 4 header bytes at 4800 bit/s take 0.113 s on the air: more than a 0.05 s period.
     p = Pacer(64, 0.05, bitrate=4800)

@@ -34,6 +34,9 @@ socket occasionally lets two writes share one tick interval, so a second packet 
 states do not last, and it also absorbs clock drift between us and DESERT. Measured against the
 emulator (64 B / 0.2 s, 300 m, a 10 Hz command stream plus a flood): command latency median
 0.60 s and p95 0.80 s without the margin, 0.50 s and 0.62-0.70 s with 5 %, for 5 % less throughput.
+The margin is all the pace loses: a write the thread makes a little late (less than the margin)
+does not push the following ones back (`Pacer.wrote`), and a saturated link fills its packets
+(uwgen.runtime.filling), so link use is about 0.99 x 1 / 1.05 (benchmarks/envelope_bench.py).
 """
 from __future__ import annotations
 
@@ -50,7 +53,8 @@ PACKET_HEADER = 4        # bytes DESERT adds to each packet on the air (UDP and 
 
 
 class Pacer:
-    """At most one write, of at most `max_bytes`, per `period * (1 + margin)` seconds.
+    """At most one write, of at most `max_bytes`, per `period * (1 + margin)` seconds (writes due
+    on a grid of that interval while the link is busy; see `wrote`).
 
     With `bitrate` (bit/s) the interval after a write is also at least that packet's time on the
     air, for links whose modem cannot send a full packet within one period.
@@ -84,10 +88,17 @@ class Pacer:
         return now >= self._next
 
     def wrote(self, now: float, nbytes: int = 0) -> None:
+        """A write happened at `now`. A write late by less than the margin (the thread woke a
+        little after `next_write_at`) keeps the grid: the next interval counts from when this
+        write was due, so the margin is what the pace loses, not the margin plus every wake-up's
+        delay; two writes are still never less than one period apart. A later write (the link
+        was idle) starts a new grid."""
         interval = self.period
         if self.bitrate is not None:
             interval = max(interval, (nbytes + PACKET_HEADER) * 8 / self.bitrate)
-        self._next = now + interval * (1.0 + self.margin)
+        slack = interval * self.margin
+        base = self._next if 0.0 <= now - self._next <= slack else now
+        self._next = base + interval * (1.0 + self.margin)
 
 
 @dataclass
