@@ -124,14 +124,15 @@ def demo_mix(wire: int, seconds: float, tmp: Path) -> tuple[int, int]:
     """Air bytes and delivered messages of both directions of the demo's traffic."""
     t = demo.TOPICS
     air = delivered = 0
-    ann = {side: encode_announcements(249, [(i, c.fingerprint) for i, c in sorted(
-        {**t, **demo.SERVICES}.items())], request=True) for side in SENDERS}
+    fingerprints = [(i, c.fingerprint) for i, c in sorted({**t, **demo.SERVICES}.items())]
     packed = frozenset(i for i, c in {**t, **demo.SERVICES}.items() if c.profile == "packed")
     for src, dst in (("surface", "vehicle"), ("vehicle", "surface")):
         pair = Pair(wire, src, dst, secure_dir=tmp, packed=packed)
         link = pair.sender
         link.add_channel(249, LinkPolicy(queue="fifo", depth=4, priority=11, strict=True))
-        for p in ann[src]:
+        # split as the bridge splits them: each leaves whole in one packet
+        for p in encode_announcements(249, fingerprints, request=True,
+                                      max_payload=link.whole_payload(249)):
             pair.clock.set(0.0)
             link.offer(249, p)
         events: list[tuple[float, int, bytes]] = []

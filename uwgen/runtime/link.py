@@ -36,6 +36,7 @@ from uwgen.runtime.connection import Backoff, DesertConnection
 from uwgen.runtime.envelope import EnvelopeError, add_packed_head, from_v1, strip_packed_head
 from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
 from uwgen.runtime.framing import MAX_FRAME, MAX_PAYLOAD
+from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.runtime.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker, envelope_room,
                                    message_measure)
 from uwgen.runtime.pacing import DEFAULT_MARGIN
@@ -156,6 +157,16 @@ class Link:
         if ok:
             self.connection.wake()
         return ok
+
+    def whole_payload(self, key: int | None = None) -> int:
+        """The longest payload of channel `key` that leaves whole in one packet, protection
+        included: what a sender that splits its own data (schema announcements) aims for.
+        Wire format 2: a message of that payload fills an envelope's room (its message cost is
+        at most its payload length, packets.message_measure); 1: a frame of max_read_length."""
+        room = (envelope_room(self.config.max_read_length, self.hooks.overhead)
+                if self.wire_format == 2 else self.config.max_read_length - FRAME_OVERHEAD)
+        guard = self.guard.overhead(key) if self.guard is not None and key is not None else 0
+        return max(1, min(MAX_PAYLOAD, room - guard))
 
     def queued(self, key: int) -> int:
         """Messages waiting on channel `key` (one being sent in fragments included)."""
