@@ -192,7 +192,7 @@ class Unpacker:
             self.hooks.received(envelope, now)
         out = []
         for m in envelope.messages:
-            if m.kind not in env.KIND_CODES:
+            if m.kind not in env.KIND_CODES and m.kind != env.FRAGMENT:
                 log_count(log, logging.WARNING, c.inc("unknown_kind"),
                           "[%s] dropped a message of kind %d (id %d) from sender %d: this build "
                           "knows kinds 0, 2, 3 only", self.name, m.kind, m.id, envelope.sender)
