@@ -13,6 +13,9 @@ Table 1, the demo's mix, secured as the demo is (docs/demo.md): cmd_vel publishe
 rate 0.2), 8 log lines every 20 s (not protected), an encrypted teleport request every 30 s, and
 each side's schema announcement (signed) at start; real messages through the demo package's
 codecs. Air bytes per delivered message, both directions; goal: wire format 2 <= half of 1.
+Then what those bytes carry, per delivered message: DESERT's 4 bytes per packet, frames,
+packet heads (P, W, parts), message heads (kind and id items; H, id and length bytes), what
+protection added (measured at the receiver's guard) and the rest of the bodies.
 
 Table 2, link use under saturation (bytes written per second / (max_read_length / period)):
 FIFO channels always full, latest-only channels with a fresh message before every write, and a
@@ -35,6 +38,8 @@ from pathlib import Path
 from uwgen.bridge.schema import encode_announcements
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
+from uwgen.runtime import envelope
+from uwgen.runtime.framing import FrameDecoder
 from uwgen.runtime.link import Link
 from uwgen.security.guard import GuardConfig, LinkGuard
 
@@ -80,6 +85,42 @@ class Pair:
         self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}), **kw_src)
         self.receiver = Link(name=dst, on_payload=self.delivered.append,
                              **({"guard": guards[dst]} if guards else {}), **kw)
+        self.wire = wire
+        self.batches: list[bytes] = []
+        self.security = 0          # bytes protection added to the messages received
+        if guards:
+            unprotect = self.receiver.guard.unprotect
+
+            def counted(payload: bytes) -> bytes | None:
+                plain = unprotect(payload)
+                if plain is not None:
+                    self.security += len(payload) - len(plain)
+                return plain
+            self.receiver.guard.unprotect = counted
+
+    def breakdown(self) -> dict[str, int]:
+        """Air bytes by what they carry: DESERT's header, frames, packet heads (P, W and
+        parts; wire format 2), message heads (kind and id items; H, id and length bytes),
+        security (what protection added) and bodies (the rest: seq, handles, fields)."""
+        out = dict.fromkeys(("DESERT", "frame", "packet head", "message head", "security", "body"), 0)
+        out["DESERT"] = DESERT_HEADER * len(self.batches)
+        out["security"] = self.security
+        for batch in self.batches:
+            frames = FrameDecoder().feed(batch)
+            out["frame"] += 4 * len(frames)
+            for f in frames:
+                if self.wire == 2:
+                    e = envelope.decode(f)
+                    out["packet head"] += e.head_size()
+                    bodies = sum(len(m.body) for m in e.messages)
+                    out["message head"] += len(f) - e.head_size() - bodies
+                    out["body"] += bodies
+                else:
+                    m = envelope.from_v1(f)
+                    out["message head"] += len(f) - len(m.body)
+                    out["body"] += len(m.body)
+        out["body"] -= self.security
+        return out
 
     def run(self, seconds: float, before_write=None) -> None:
         conn, rx = self.sender.connection, self.receiver.connection
@@ -92,6 +133,7 @@ class Pair:
             batch = box.take(t, conn._pull, conn._fit)
             if batch:
                 box.sent(t)
+                self.batches.append(batch)
                 self.packets += 1
                 self.written += len(batch)
                 self.air += len(batch) + DESERT_HEADER
@@ -120,10 +162,12 @@ def battery(k: int) -> BatteryState:
     return b
 
 
-def demo_mix(wire: int, seconds: float, tmp: Path) -> tuple[int, int]:
-    """Air bytes and delivered messages of both directions of the demo's traffic."""
+def demo_mix(wire: int, seconds: float, tmp: Path) -> tuple[int, int, dict[str, int]]:
+    """Air bytes, delivered messages and the air bytes' breakdown of both directions of the
+    demo's traffic."""
     t = demo.TOPICS
     air = delivered = 0
+    parts: dict[str, int] = {}
     fingerprints = [(i, c.fingerprint) for i, c in sorted({**t, **demo.SERVICES}.items())]
     packed = frozenset(i for i, c in {**t, **demo.SERVICES}.items() if c.profile == "packed")
     for src, dst in (("surface", "vehicle"), ("vehicle", "surface")):
@@ -162,7 +206,10 @@ def demo_mix(wire: int, seconds: float, tmp: Path) -> tuple[int, int]:
         pair.run(seconds, offers)
         air += pair.air
         delivered += sum(1 for p in pair.delivered if p[1] != 249 and not p.startswith(b"\x00\x18\xf9"))
-    return air, delivered
+        for k, v in pair.breakdown().items():
+            parts[k] = parts.get(k, 0) + v
+    assert sum(parts.values()) == air, (parts, air)
+    return air, delivered, parts
 
 
 # -- table 2: link use under saturation -------------------------------------------------------
@@ -235,14 +282,19 @@ def main() -> None:
 
     print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions)")
     print(f"{'wire format':<14}{'air bytes':>10}{'messages':>10}{'bytes/msg':>11}")
-    rows = {}
+    rows, split = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         for wire in (1, 2):
-            air, n = demo_mix(wire, s, Path(tmp))
+            air, n, split[wire] = demo_mix(wire, s, Path(tmp))
             rows[wire] = air / n
             print(f"{wire:<14}{air:>10}{n:>10}{air / n:>11.1f}")
     ratio = rows[2] / rows[1]
     print(f"wire format 2 / 1: {ratio:.2f}  (goal <= 0.5: {'ok' if ratio <= 0.5 else 'MISS'})")
+    print("what the air bytes per delivered message carry:")
+    print(f"{'wire format':<14}" + "".join(f"{k:>14}" for k in split[1]))
+    for wire in (1, 2):
+        n = sum(split[wire].values()) / rows[wire]
+        print(f"{wire:<14}" + "".join(f"{v / n:>14.1f}" for v in split[wire].values()))
     print()
     print("Table 2: link use under saturation (bytes written / (max_read_length / period))")
     print(f"{'load':<10}{'wf 1':>8}{'fill':>7}{'pace':>7}{'wf 2':>8}{'fill':>7}{'pace':>7}")
