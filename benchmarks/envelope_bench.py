@@ -26,6 +26,9 @@ margin caps it at 1 / 1.05 = 0.952; DESERT sends one packet per period whatever 
 Table 3, shares of a saturated link with one unrated priority-10 topic and 49 priority-0 topics
 (all flooding): before (strict priority, what the scheduler did before wire format 2) and after
 (claims growing with waiting time; a share in proportion to priority + 1).
+
+Table 4: one large message alone (400 and 2000 bytes, with and without repair fragments):
+packets and bytes written with wire format 1 fragments and wire format 2 compact fragments.
 """
 from __future__ import annotations
 
@@ -274,6 +277,18 @@ def shares(strict: bool, seconds: float) -> dict[str, float]:
             "starved": sum(1 for k in range(2, 51) if counts[k] == 0), "messages": total}
 
 
+# -- table 4: fragments --------------------------------------------------------------------
+
+def fragments(wire: int, size: int, repair: int = 0) -> tuple[int, int, bool]:
+    """(packets, bytes written, delivered) for one `size`-byte message sent alone."""
+    pair = Pair(wire, fragment_id=250)
+    pair.sender.add_channel(7, LinkPolicy(queue="fifo", depth=4, repair=repair))
+    payload = head(7) + random.Random(size).randbytes(size - 2)
+    pair.sender.offer(7, payload)
+    pair.run(size / 40 * CONFIG.period + 5.0)
+    return pair.packets, pair.written, pair.delivered == [payload]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=300.0, help="simulated seconds per run")
@@ -311,6 +326,15 @@ def main() -> None:
         r = shares(strict, s / 5)
         print(f"{label:<26}{r['top']:>8.3f}{r['others']:>11.3f}{r['min_other']:>13.4f}{r['starved']:>9}")
     print("after: expected top 11/60 = 0.183, each other 1/60 = 0.0167")
+    print()
+    print("Table 4: one large message in fragments over 64-byte packets (packets, bytes written)")
+    print(f"{'message':<22}{'wf 1 packets':>13}{'bytes':>8}{'wf 2 packets':>14}{'bytes':>8}")
+    for size, repair in ((400, 0), (2000, 0), (2000, 4)):
+        (p1, b1, ok1), (p2, b2, ok2) = fragments(1, size, repair), fragments(2, size, repair)
+        assert ok1 and ok2
+        label = f"{size} B" + (f", {repair} repair" if repair else "")
+        print(f"{label:<22}{p1:>13}{b1:>8}{p2:>14}{b2:>8}")
+    print("wire format 2: compact fragment messages (H 61, 3 bytes of head, no chunk head)")
 
 
 if __name__ == "__main__":
