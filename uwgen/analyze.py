@@ -366,7 +366,8 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
             typical += e.rate * frame.typical
             worst = None if worst is None or frame.max is None else worst + e.rate * frame.max
         budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema, limit))
-    control = control_costs(manifest, bitrate, wire, _SECURED.max if manifest.protected() else 0)
+    sealed = (_SECURED.typical, _SECURED.max) if manifest.protected() else (0, 0)
+    control = control_costs(manifest, bitrate, wire, sealed)
     return Analysis(manifest.network, bitrate, entries, budgets, wire, control)
 
 

@@ -86,9 +86,11 @@ def _frame_item(what: str, payload: bytes, mrl: int, bitrate: float) -> ControlI
 
 
 def control_costs(manifest: Manifest, bitrate: float, wire: int,
-                  protection: int = 0) -> list[SideControl]:
-    """Each side's control traffic at start. `protection`: bytes the secure link adds to a
-    signed announcement (0 when the manifest protects nothing)."""
+                  protection: tuple[int, int] = (0, 0)) -> list[SideControl]:
+    """Each side's control traffic at start. `protection`: the bytes the secure link adds to a
+    signed announcement, typically and at most ((0, 0) when the manifest protects nothing);
+    announcements are sized for the most, as the bridge sizes them."""
+    typical, most = protection
     out = []
     rmw = manifest.uses_rmw_desert()
     schema_id = getattr(manifest, "schema_id", None)
@@ -106,16 +108,16 @@ def control_costs(manifest: Manifest, bitrate: float, wire: int,
                                             encode_beacon(b), mrl, bitrate))
         if schema_id is not None:
             from uwgen.bridge.schema import encode_announcements
-            size = whole_payload(wire, mrl, protection)
+            size = whole_payload(wire, mrl, most)
             payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids],
                                             request=True, max_payload=size)
             for k, p in enumerate(payloads, 1):
                 what = f"schema announcement {k}/{len(payloads)}"
                 if wire == 2:
-                    written = FRAME_OVERHEAD + ENVELOPE_HEAD + v1_message_size(p, last=True) + protection
+                    written = FRAME_OVERHEAD + ENVELOPE_HEAD + v1_message_size(p, last=True) + typical
                     sc.items.append(ControlItem(what, len(p), written, 1, air_time(written, 1, bitrate)))
                 else:
-                    sc.items.append(_frame_item(what, p + bytes(protection), mrl, bitrate))
+                    sc.items.append(_frame_item(what, p + bytes(typical), mrl, bitrate))
                     sc.items[-1].payload = len(p)
         out.append(sc)
     return out
