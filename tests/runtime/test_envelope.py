@@ -163,3 +163,11 @@ def test_a_packed_payload_without_its_byte_string_is_refused(v1):
     from uwgen.runtime.envelope import strip_packed_head
     with pytest.raises(EnvelopeError):
         strip_packed_head(bytes.fromhex(v1))
+
+
+def test_fragment_messages_are_recognised_in_both_forms():
+    from uwgen.runtime.envelope import is_fragment_message
+    assert is_fragment_message(Message(FRAGMENT, 0, b"\x01\x00\x02x"), None)
+    assert is_fragment_message(Message(0, 250, b"\x01"), 250)
+    assert not is_fragment_message(Message(0, 250, b"\x01"), None)
+    assert not is_fragment_message(Message(2, 250, b"\x01"), 250)

@@ -103,6 +103,14 @@ class Message:
         return len(self.header()) + len(self.body) + (0 if last else 1)
 
 
+def is_fragment_message(m: Message, fragment_id: int | None) -> bool:
+    """Whether `m` carries a fragment: a fragment message (H 61), or a topic message on the
+    manifest's `fragment_id` (fragments in wire format 1's form, which a receiver still takes).
+    What a fragment carries is known only once reassembled: a seal that decides per id treats
+    it like the most protected id."""
+    return m.kind == FRAGMENT or (fragment_id is not None and m.kind == 0 and m.id == fragment_id)
+
+
 @dataclass(frozen=True)
 class Sync:
     """K: the sender's epoch (6 bytes) and its packet number's bits 12-43."""
