@@ -18,6 +18,7 @@ from uwgen.runtime.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink, Sent
 BITMAP_ROOM = 4          # bitmap bytes a report may always carry: packets leave room for one
                          # report of 33 numbers (the A part's length, R0-R2, 4 bytes: 8 bytes);
 A_ROOM = 1 + 3 + BITMAP_ROOM   # more when the packet being built has room left (`room`)
+IDLE_REPEATS = 3         # reports sent alone about numbers not confirmed, after the last news
 
 
 class AckPolicy:
@@ -27,6 +28,7 @@ class AckPolicy:
         self._reports: list[tuple[int, bytes, int]] = []      # in the packet being built
         self._last_report: dict[int, float] = {}
         self._news: dict[int, float] = {}       # peer -> first packet since our last report
+        self._idle: dict[int, int] = {}         # peer -> reports sent alone since its news
 
     def heard(self, peer: int, with_messages: bool, now: float) -> None:
         """A packet of `peer` arrived; an ack-only one asks for nothing (no ping-pong)."""
@@ -62,7 +64,12 @@ class AckPolicy:
                 out += report
                 self._reports.append((peer, epoch, r.largest))
                 self._last_report[peer] = now
-                self._news.pop(peer, None)
+                if self._news.pop(peer, None) is not None:
+                    self._idle[peer] = 0
+                elif not waited and low is not None and low < r.largest:
+                    # alone again about numbers not confirmed: bounded (nobody acks an
+                    # ack-only packet, so its arrival is never confirmed)
+                    self._idle[peer] = self._idle.get(peer, 0) + 1
         return out
 
     def carried(self) -> list[Sent]:
@@ -80,12 +87,27 @@ class AckPolicy:
 
     def alone(self, now: float) -> bool:
         """A packet with only the A part: a peer has waited `ack_delay` for the ack of a
-        reliable message, or has had news unreported for 2 `ack_interval` (this side sends
-        nothing: the peer's ledger closes all the same)."""
+        reliable message, or has had news unreported for 2 `ack_interval`, or (at most
+        IDLE_REPEATS times, 2 `ack_interval` apart) numbers of it no confirmed report named
+        (this side sends nothing: the peer's ledger closes all the same)."""
         return any(self.engine.ack_only_due(peer, now) for peer, _ in self.engine.receipts) \
-            or any(now - t >= 2 * self.ack_interval for t in self._news.values())
+            or any(now - t >= 2 * self.ack_interval for t in self._news.values()) \
+            or any(now >= t for t in self._idle_times())
+
+    def _idle_times(self) -> list[float]:
+        out = []
+        for peer, tries in self._idle.items():
+            r = self.engine._current(peer)
+            low = None if r is None else self._confirmed.get((peer, self._epoch_of(peer)))
+            if r is not None and tries < IDLE_REPEATS and peer not in self._news and \
+                    (low is None or low < r.largest):
+                out.append(self._last_report.get(peer, 0.0) + 2 * self.ack_interval)
+        return out
+
+    def _epoch_of(self, peer: int) -> bytes:
+        return next((e for p, e in self.engine.receipts if p == peer), b"")
 
     def next_times(self) -> list[float]:
         times = [r.eliciting_since + self.ack_delay for r in self.engine.receipts.values()
                  if r.eliciting_since is not None]
-        return times + [t + 2 * self.ack_interval for t in self._news.values()]
+        return times + [t + 2 * self.ack_interval for t in self._news.values()] + self._idle_times()

@@ -161,9 +161,12 @@ def envelope_room(max_read_length: int, overhead: int = 0) -> int:
 
 
 def message_measure(payload: bytes) -> int:
-    """What a wire format 1 payload costs in a packet, length byte included (see envelope_room)."""
+    """What a wire format 1 payload costs in a packet, length byte included (see envelope_room):
+    its header and body plus one length byte, as `Message.size(last=False)` counts it (the
+    packer charges exactly that; counting the length byte twice here left a byte of every
+    packet's tail unused)."""
     try:
-        return env.v1_message_size(payload) + 1
+        return env.v1_message_size(payload)
     except env.EnvelopeError:
         return len(payload) + 1
 
@@ -190,7 +193,8 @@ class Packer:
         h = self.hooks
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         sources = [] if h.resend is None else [lambda room: h.resend(now, room)]
-        sources.append(lambda room: self.scheduler.next_payload(now, room if picked else None))
+        sources.append(lambda room: self.scheduler.next_payload(now, room if picked else None,
+                                                                fill=True))
         for source in sources:
             while budget > 1:
                 got = source(budget)
@@ -259,7 +263,7 @@ class Unpacker:
             self.hooks.received(envelope, now)
         out = []
         for m in envelope.messages:
-            if m.kind not in env.KIND_CODES:
+            if m.kind not in env.KIND_CODES and m.kind != env.FRAGMENT:
                 log_count(log, logging.WARNING, c.inc("unknown_kind"),
                           "[%s] dropped a message of kind %d (id %d) from sender %d: this build "
                           "knows kinds 0, 2, 3 only", self.name, m.kind, m.id, envelope.sender)
