@@ -205,7 +205,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool) -
                     else:
                         client.remove_pending_request(future)
                 if i < goals:
-                    order = 3 + i
+                    order = 3 + i % 20          # int32 sequence: fib(47) overflows
                     sent = action.send_goal_async(Fibonacci.Goal(order=order))
                     deadline = time.monotonic() + 12.0
                     while not sent.done() and time.monotonic() < deadline:
