@@ -15,8 +15,8 @@ import math
 
 from uwgen.runtime.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink, Sent
 
-BITMAP_ROOM = 4          # bitmap bytes a report may always carry: packets leave room for one
-                         # report of 33 numbers (the A part's length, R0-R2, 4 bytes: 8 bytes);
+BITMAP_ROOM = 2          # bitmap bytes a report may always carry: packets leave room for one
+                         # report of 17 numbers (the A part's length, R0-R2, 2 bytes: 6 bytes);
 A_ROOM = 1 + 3 + BITMAP_ROOM   # more when the packet being built has room left (`room`)
 IDLE_REPEATS = 3         # reports sent alone about numbers not confirmed, after the last news
 
