@@ -22,8 +22,6 @@ schema) fails the tag.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
-
 from cryptography.hazmat.primitives.ciphers.aead import AESCCM
 
 from uwgen.runtime import envelope as env
@@ -73,7 +71,12 @@ def aad(head: bytes, messages, flags: list[bool], fingerprint: Callable[[int], b
 
 def _head(envelope: env.Envelope) -> bytes:
     """P (S set), W and the optional parts of `envelope` as they are sent sealed."""
-    return replace(envelope, tag=bytes(wire.TAG_BYTES)).encode_head()
+    head = envelope.encode_head()
+    return bytes((head[0] | env.FLAG_S,)) + head[1:]
+
+
+def _with(e: env.Envelope, messages: tuple[env.Message, ...], tag: bytes | None) -> env.Envelope:
+    return env.Envelope(e.sender, e.number, messages, e.sync, e.time, e.ack, e.control, tag)
 
 
 def seal(aead: AESCCM, envelope: env.Envelope, seq: int, encrypts: Callable[[env.Message], bool],
@@ -89,7 +92,7 @@ def seal(aead: AESCCM, envelope: env.Envelope, seq: int, encrypts: Callable[[env
     plain = b"".join(m.body for m, enc in zip(messages, flags) if enc)
     sealed = aead.encrypt(wire.nonce(envelope.sender, seq), plain, a)
     cipher, tag = sealed[:len(plain)], sealed[len(plain):]
-    return replace(envelope, messages=_swap(messages, flags, cipher), tag=tag).encode()
+    return _with(envelope, _swap(messages, flags, cipher), tag).encode()
 
 
 def open_envelope(aead: AESCCM, envelope: env.Envelope, seq: int,
@@ -108,11 +111,13 @@ def open_envelope(aead: AESCCM, envelope: env.Envelope, seq: int,
         plain = aead.decrypt(wire.nonce(envelope.sender, seq), cipher + envelope.tag, a)
     except wire.InvalidTag:
         return None
-    return replace(envelope, messages=_swap(messages, flags, plain))
+    return _with(envelope, _swap(messages, flags, plain), envelope.tag)
 
 
 def _swap(messages, flags: list[bool], data: bytes) -> tuple[env.Message, ...]:
     """`messages` with the encrypted bodies replaced, in order, by the slices of `data`."""
+    if not data:
+        return tuple(messages)
     out, pos = [], 0
     for m, enc in zip(messages, flags):
         if enc:
