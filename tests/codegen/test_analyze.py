@@ -93,13 +93,13 @@ def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     _manifest, a = demo
     surface = next(b for b in a.budgets if b.side == "surface")
     # 5 cmd_vel messages of 6 bytes per second, each alone in a packet (+ 4 frame, + 3 P and
-    # W: 13), each 10 bytes more encrypted (security word and tag), plus the schema
-    # announcement of the 7 ids (a 47-byte payload: 00 18 F9 00, then id + 44 + 4 bytes each,
-    # id 30 taking 2 bytes; a 46-byte message behind H 00 F9, 53 alone, 63 signed) every 600 s.
-    # The action's goals have no rate: warned about below.
+    # W: 13), each packet 8 bytes more sealed (the tag, wire format section 12.2), plus the
+    # schema announcement of the 7 ids (a 47-byte payload: 00 18 F9 00, then id + 44 + 4 bytes
+    # each, id 30 taking 2 bytes; a 46-byte message behind H 00 F9, 53 alone, 61 sealed) every
+    # 600 s. The action's goals have no rate: warned about below.
     assert a.wire_format == 2
-    assert surface.schema == pytest.approx((53 + 10) / 600)
-    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 10) + (53 + 10) / 600)
+    assert surface.schema == pytest.approx((53 + 8) / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 8) + (53 + 8) / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
     assert not any("cannot fit" in w for w in a.warnings())
 
