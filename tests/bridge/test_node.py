@@ -397,20 +397,6 @@ def twists(*xs):
     return [Twist(linear=Vector3(x=float(x))) for x in xs]
 
 
-def test_a_burst_on_a_latest_only_topic_offers_only_the_newest_and_books_the_rest(pair):
-    surface, _vehicle, bridges, links = pair
-    topics = bridges["surface"].topics
-    first, *more = twists(1, 2, 3, 4)
-    topics._subscription_of[CMD.id] = FakeSubscription(more)
-    topics._taker(CMD)(first, {})   # as the executor calls it, with three more already queued
-    counters = topics.counters[CMD.id]
-    assert (counters.taken, counters.superseded, counters.offered) == (4, 3, 1)
-    offered = [p for k, p in links.links["surface"].offers if k == CMD.id]
-    assert offered == [CMD.encode(more[-1])]
-    acc = bridges["surface"].status()["topics"]["/cmd"]["accounting"]
-    assert acc["taken"] == 4 and acc["dropped_by_policy"]["superseded"] >= 3
-
-
 def test_a_burst_on_a_fifo_topic_offers_every_message_in_order():
     fifo = FakeTopicCodec(9, "/fifo", Twist, "surface", policy=LinkPolicy(queue="fifo", depth=8))
     links = LinkPair()

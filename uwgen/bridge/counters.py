@@ -15,7 +15,7 @@ from uwgen.runtime.scheduler import DROP_REASONS
 class TopicCounters:
     # outgoing (this side publishes)
     taken: int = 0            # local messages the bridge's subscription received
-    superseded: int = 0       # latest-only: taken in one burst with a newer one, never offered
+    superseded: int = 0       # latest-only: taken in one poll with a newer one, never offered
     encode_errors: int = 0    # messages that could not be encoded (counted, logged, not sent)
     offered: int = 0          # payloads the link accepted into its queue
     refused: int = 0          # payloads the link refused (its stats say why)

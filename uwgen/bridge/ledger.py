@@ -11,7 +11,7 @@ Where a message can go, on the side that publishes the topic:
   queue could);
 - dropped_by_policy, by reason: the link scheduler's drops (superseded, overflow, expired,
   too_large, invalid) plus the bridge's own (encode_error, echo_guard, and superseded for the
-  older messages of a latest-only topic taken in one burst: uwgen.bridge.topics);
+  older messages of a latest-only topic taken in one poll: uwgen.bridge.polling);
 - sent: handed to the link (whole, or all its fragments).
 
 On the side that receives it:
@@ -28,19 +28,23 @@ the demo report use it.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 from uwgen.runtime.scheduler import DROP_REASONS
 
 
 class SubscriptionLosses:
-    """Messages DDS reported lost to the bridge's local subscriptions (message-lost events)."""
+    """Messages DDS reported lost to the bridge's local subscriptions (message-lost events),
+    and publishers they could not match (incompatible-QoS events: their messages never
+    reach the bridge, so they are in no count but this one)."""
 
-    def __init__(self) -> None:
+    def __init__(self, warn: Callable[[str], None] | None = None) -> None:
         self.lost: dict[int, int] = {}
+        self.incompatible: dict[int, int] = {}
         self.unsupported: set[int] = set()
+        self.warn = warn
 
-    def callbacks(self, ident: int) -> Any:
+    def callbacks(self, ident: int, topic: str = "") -> Any:
         """`event_callbacks` for create_subscription of topic `ident` (None without rclpy)."""
         try:
             from rclpy.event_handler import SubscriptionEventCallbacks
@@ -49,7 +53,13 @@ class SubscriptionLosses:
 
         def on_lost(info: Any) -> None:
             self.lost[ident] = self.lost.get(ident, 0) + int(info.total_count_change)
-        return SubscriptionEventCallbacks(message_lost=on_lost)
+
+        def on_incompatible(info: Any) -> None:
+            self.incompatible[ident] = self.incompatible.get(ident, 0) + int(info.total_count_change)
+            if self.warn is not None:
+                self.warn(f"{topic}: a publisher offers QoS incompatible with the bridge's "
+                          f"subscription (policy {info.last_policy_kind}); its messages are not bridged")
+        return SubscriptionEventCallbacks(message_lost=on_lost, incompatible_qos=on_incompatible)
 
 
 def subscription_qos(codec: Any) -> Any:
@@ -64,7 +74,7 @@ def subscription_qos(codec: Any) -> Any:
 
 def outgoing(counters: Any, channel: dict, subscription_lost: int, echo_dropped: int) -> dict:
     policy = {reason: int(channel.get(reason, 0)) for reason in DROP_REASONS}
-    policy["superseded"] += getattr(counters, "superseded", 0)    # by the bridge, in a burst
+    policy["superseded"] += getattr(counters, "superseded", 0)    # by the bridge, in one poll
     policy["encode_error"] = counters.encode_errors
     policy["echo_guard"] = echo_dropped
     return {

@@ -20,6 +20,7 @@ from uwgen.bridge import ledger
 from uwgen.bridge.counters import TopicCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.loops import BRIDGE_NODE_PREFIX
+from uwgen.bridge.polling import LatestPoller
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.codec import KIND_TOPIC
 
@@ -44,6 +45,11 @@ def publication_time(info: Any, now: float, wall: float) -> float | None:
     return now - age
 
 
+def is_latest(codec: Any) -> bool:
+    """Whether the link keeps only the newest message of this topic."""
+    return getattr(codec.policy, "queue", "latest") == "latest"
+
+
 class TopicBridge:
     def __init__(self, wiring: Wiring, outgoing: list[Any], incoming: list[Any]):
         self.w = wiring
@@ -55,8 +61,11 @@ class TopicBridge:
         self.incoming: dict[int, tuple[Any, Any]] = {}  # id -> (codec, publisher)
         # Not `_subscriptions`: that is rclpy Node's own list, which destroy_node() empties.
         self.subscriptions: list[Any] = []
-        self.sub_losses = ledger.SubscriptionLosses()
+        self.sub_losses = ledger.SubscriptionLosses(warn=wiring.log.warning)
         self._subscription_of: dict[int, Any] = {}
+        # Latest-only topics are polled (uwgen.bridge.polling), the others taken on wake-ups.
+        self.poller = LatestPoller(wiring.node, wiring.main_group, self._send_newest, self.counters,
+                                   wiring.say_once)
         node = wiring.node
         for codec in outgoing:
             self.counters[codec.id] = TopicCounters()
@@ -64,9 +73,13 @@ class TopicBridge:
             if cls is None:
                 continue
             self.outgoing[codec.id] = codec
-            sub = node.create_subscription(
-                cls, codec.name, self._taker(codec), qos_profile(ledger.subscription_qos(codec)),
-                callback_group=wiring.main_group, event_callbacks=self.sub_losses.callbacks(codec.id))
+            qos = qos_profile(ledger.subscription_qos(codec))
+            events = self.sub_losses.callbacks(codec.id, codec.name)
+            if is_latest(codec):
+                sub = self.poller.subscribe(codec, cls, qos, events)
+            else:
+                sub = node.create_subscription(cls, codec.name, self._taker(codec), qos,
+                                               callback_group=wiring.main_group, event_callbacks=events)
             self.subscriptions.append(sub)
             self._subscription_of[codec.id] = sub
         for codec in incoming:
@@ -85,21 +98,20 @@ class TopicBridge:
 
     # -- outgoing ----------------------------------------------------------------------
 
+    def _send_newest(self, codec: Any, msg: Any, info: Any) -> None:
+        """What the poller took newest of a latest-only topic."""
+        self._send(codec, self.counters[codec.id], msg, info)
+
     def _taker(self, codec: Any) -> Callable[[Any, Any], None]:
-        """The subscription's callback. It takes, in the same call, what else the
-        subscription already holds (up to DRAIN_BATCH): one executor wake-up per burst, not
-        per message. On a latest-only topic only the newest of them is encoded and offered;
-        the others are counted as superseded, as the link queue would have."""
+        """The subscription's callback (fifo topics; latest-only ones are polled). It
+        takes, in the same call, what else the subscription already holds (up to
+        DRAIN_BATCH): one executor wake-up per burst, not per message. Each is offered."""
         counters = self.counters[codec.id]
-        latest = getattr(codec.policy, "queue", "latest") == "latest"
 
         def take(msg: Any, info: Any) -> None:    # two arguments: rclpy passes MessageInfo
             sub = self._subscription_of.get(codec.id)
             batch = [(msg, info), *self._more(sub)] if sub is not None else [(msg, info)]
             counters.taken += len(batch)
-            if latest and len(batch) > 1:
-                counters.superseded += len(batch) - 1
-                batch = batch[-1:]
             for m, minfo in batch:
                 self._send(codec, counters, m, minfo)
         return take
@@ -198,6 +210,7 @@ class TopicBridge:
                      "direction": "out" if out else "in", **asdict(self.counters[codec.id])}
             if out:
                 entry["echo_guard"] = self.echo_dropped.get(codec.id, 0)
+                entry["qos_incompatible"] = self.sub_losses.incompatible.get(codec.id, 0)
                 entry["link"] = channels.get(codec.id, {})
             entry["accounting"] = (ledger.outgoing(self.counters[codec.id], channels.get(codec.id, {}),
                                                    self.sub_losses.lost.get(codec.id, 0),

@@ -1,0 +1,156 @@
+"""Latest-only topics are polled (uwgen.bridge.polling): the newest wins, every message
+is counted, QoS events still reach the books, and nothing is left behind at shutdown."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+from geometry_msgs.msg import Twist, Vector3
+from rclpy.event_handler import QoSSubscriptionEventType
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from std_msgs.msg import String
+
+from uwgen.bridge.polling import POLL_HISTORY, PolledGroup, take_events
+from uwgen.manifest.model import LinkPolicy
+
+from .fakes import FakeTopicCodec, LinkPair, fake_package, wait_for
+from .harness import ros_sides, start_bridge
+
+CMD = FakeTopicCodec(4, "/cmd", Twist, "surface")                       # latest-only
+LOG = FakeTopicCodec(7, "/log", String, "surface", policy=LinkPolicy(queue="fifo", depth=8))
+
+
+@pytest.fixture
+def surface():
+    links = LinkPair()
+    with ros_sides("surface") as (side,):
+        bridge = start_bridge(side, fake_package([CMD, LOG]), links.factory)
+        yield side, bridge, links.links["surface"]
+
+
+def twist(x: float) -> Twist:
+    return Twist(linear=Vector3(x=float(x)))
+
+
+class RawSubscription:
+    """rclpy's subscription handle as the poller takes from it: raw messages and their info."""
+
+    def __init__(self, msgs):
+        self.queued = [(serialize_message(m), {"source_timestamp": 0}) for m in msgs]
+        self.msg_type, self.topic_name = Twist, "/cmd"
+        self.handle = self
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def take_message(self, msg_type, raw):
+        assert raw, "the poller takes serialized messages: only the newest is deserialized"
+        return self.queued.pop(0) if self.queued else None
+
+
+def test_latest_only_subscriptions_are_never_waited_on_and_fifo_ones_are(surface):
+    _side, bridge, _link = surface
+    by_topic = {s.topic_name: s for s in bridge.topics.subscriptions}
+    polled, fifo = by_topic["/cmd"], by_topic["/log"]
+    assert isinstance(polled.callback_group, PolledGroup)
+    assert not polled.callback_group.can_execute(polled)
+    assert not polled.callback_group.beginning_execution(polled)
+    assert fifo.callback_group.can_execute(fifo)
+    assert polled.qos_profile.depth >= POLL_HISTORY   # what arrives between polls is all taken
+
+
+def test_no_node_but_the_bridge_joins_the_graph(surface):
+    side, bridge, _link = surface
+    watcher = side.node("watcher")
+    wait_for(lambda: bridge.get_name() in watcher.get_node_names(), what="the bridge in the graph")
+    assert sorted(watcher.get_node_names()) == sorted([bridge.get_name(), "watcher"])
+    subs = watcher.get_subscriptions_info_by_topic("/cmd")
+    assert [s.node_name for s in subs] == [bridge.get_name()]
+
+
+def test_a_burst_between_two_polls_offers_only_the_newest_and_books_the_rest(surface):
+    side, bridge, link = surface
+    side.executor.remove_node(bridge)              # no timer poll races the one below
+    poller = bridge.topics.poller
+    burst = [twist(x) for x in (1, 2, 3, 4)]
+    poller.polled = [(CMD, RawSubscription(burst), Twist)]
+    poller.poll()
+    counters = bridge.topics.counters[CMD.id]
+    assert (counters.taken, counters.superseded, counters.offered) == (4, 3, 1)
+    assert link.offered(CMD.id) == [CMD.encode(burst[-1])]
+    poller.poll()                                  # nothing new: nothing offered again
+    assert link.offered(CMD.id) == [CMD.encode(burst[-1])]
+    acc = bridge.status()["topics"]["/cmd"]["accounting"]
+    assert (acc["taken"], acc["dropped_by_policy"]["superseded"]) == (4, 3)
+
+
+def test_the_newest_published_message_is_the_last_one_offered(surface):
+    side, bridge, link = surface
+    pub = side.node("op").create_publisher(Twist, "/cmd", 10)
+    wait_for(pub.get_subscription_count, what="the bridge subscribed")
+    for x in range(50):
+        pub.publish(twist(x))
+    counters = bridge.topics.counters[CMD.id]
+    wait_for(lambda: counters.taken == 50, what="all 50 taken")
+    wait_for(lambda: counters.offered + counters.superseded == 50, what="all 50 booked")
+    assert link.offered(CMD.id)[-1] == CMD.encode(twist(49))
+    assert len(link.offered(CMD.id)) == counters.offered
+
+
+def test_qos_events_of_a_polled_subscription_are_taken_by_the_poller(surface):
+    side, bridge, _link = surface
+    # A best-effort publisher cannot serve the bridge's reliable subscription: an
+    # incompatible-QoS event, which no executor waits on; the poller takes it.
+    side.node("op").create_publisher(Twist, "/cmd", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+    wait_for(lambda: bridge.status()["topics"]["/cmd"]["qos_incompatible"] >= 1,
+             what="the incompatible-QoS event counted")
+    # Message-lost events are taken the same way, and booked as dropped by the subscription.
+    polled = next(s for s in bridge.topics.subscriptions if s.topic_name == "/cmd")
+    lost = next(h for h in polled.event_handlers
+                if h.event_type == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST)
+    assert not lost.callback_group.can_execute(lost)      # never in the executor's wait set
+    lost.callback(SimpleNamespace(total_count=3, total_count_change=3))
+    acc = bridge.status()["topics"]["/cmd"]["accounting"]
+    assert acc["dropped_by_subscription"] == 3 and acc["published"] == acc["taken"] + 3
+
+
+class FakeEventHandler:
+    """An rclpy EventHandler as take_events uses it: take_data only once a wait said ready."""
+
+    def __init__(self, change):
+        self.change, self.seen, self._ready_to_take_data = change, [], False
+
+    def take_data(self):
+        if not self._ready_to_take_data:
+            return None
+        self._ready_to_take_data = False
+        return SimpleNamespace(total_count=self.change, total_count_change=self.change)
+
+    def callback(self, info):
+        self.seen.append(info.total_count_change)
+
+
+def test_take_events_passes_on_changed_events_only():
+    quiet, lossy = FakeEventHandler(0), FakeEventHandler(2)
+    take_events([quiet, lossy])
+    assert (quiet.seen, lossy.seen) == ([], [2])
+
+
+def test_close_leaves_no_subscription_and_stops_polling(surface):
+    side, bridge, link = surface
+    watcher = side.node("watcher")
+    pub = watcher.create_publisher(Twist, "/cmd", 10)
+    wait_for(pub.get_subscription_count, what="the bridge subscribed")
+    name, timer = bridge.get_name(), bridge.topics.poller.timer
+    side.executor.remove_node(bridge)
+    bridge.close()
+    wait_for(lambda: not watcher.get_subscriptions_info_by_topic("/cmd"), what="the subscription gone")
+    wait_for(lambda: name not in watcher.get_node_names(), what="the bridge gone from the graph")
+    assert timer not in list(bridge.timers) and list(bridge.subscriptions) == []
+    pub.publish(twist(1))
+    bridge.topics.poller.poll()                    # a late poll takes nothing, raises nothing
+    assert bridge.topics.counters[CMD.id].taken == 0 and link.offered(CMD.id) == []
