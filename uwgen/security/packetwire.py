@@ -88,11 +88,14 @@ def seal(aead: AESCCM, envelope: env.Envelope, seq: int, encrypts: Callable[[env
                                 f"{seq} (low bits {seq % env.NUMBER_MOD})")
     messages = envelope.messages
     flags = encrypted_flags(messages, encrypts)
-    a = aad(_head(envelope), messages, flags, fingerprint)
+    head = _head(envelope)
+    a = aad(head, messages, flags, fingerprint)
     plain = b"".join(m.body for m, enc in zip(messages, flags) if enc)
     sealed = aead.encrypt(wire.nonce(envelope.sender, seq), plain, a)
-    cipher, tag = sealed[:len(plain)], sealed[len(plain):]
-    return _with(envelope, _swap(messages, flags, cipher), tag).encode()
+    out = head + env.encode_messages(_swap(messages, flags, sealed[:len(plain)])) + sealed[len(plain):]
+    if len(out) > env.MAX_PAYLOAD:
+        raise env.EnvelopeError(f"envelope of {len(out)} bytes: a frame holds at most {env.MAX_PAYLOAD}")
+    return out
 
 
 def open_envelope(aead: AESCCM, envelope: env.Envelope, seq: int,
