@@ -127,3 +127,19 @@ def test_sync_packets_are_numbered_across_an_epoch_change():
         assert v.receive(s.send(log_line(str(i)))) == [log_line(str(i))]
     assert numbers == list(range(4096 + 5))                  # monotonic for reliability
     assert s.seal.session.epochs_started == 2 and v.stats()["epochs_seen"] == 2
+
+
+def test_a_flood_of_forged_packets_is_counted_and_logged_once(caplog):
+    import logging
+    s, v = surface(), vehicle()
+    assert v.receive(s.send(twist(0.0))) == [twist(0.0)]
+    genuine = s.send(twist(1.0))
+    with caplog.at_level(logging.WARNING, logger="uwgen.security"):
+        for k in range(200):
+            forged = bytearray(genuine)
+            forged[-1 - k % 8] ^= 1 + k // 8
+            assert v.receive(bytes(forged)) == []
+    assert v.stats()["bad_tag"] == 200
+    lines = [r for r in caplog.records if "dropped a packet" in r.getMessage()]
+    assert len(lines) == 1 and "sender 1" in lines[0].getMessage()
+    assert v.receive(genuine) == [twist(1.0)]
