@@ -130,7 +130,7 @@ class Queue:
     def __init__(self, payloads: list[bytes], protect=None):
         self.payloads, self.protect, self.left = payloads, protect, []
 
-    def next_payload(self, now, budget=None):
+    def next_payload(self, now, budget=None, exclude=None, *, fill=False):
         if not self.left:
             return None
         p = self.left.pop(0)

@@ -117,9 +117,9 @@ class PacketSeal:
     def _encrypts(self, m: env.Message) -> bool:
         """Whether message `m`'s body is encrypted: its id is `encrypt`, or it is a fragment and
         the network encrypts any id (what a fragment carries is known only once reassembled)."""
-        if self.config.modes.get(m.id) == wire.ENCRYPT:
-            return True
-        return self._encrypt_any and m.kind == 0 and m.id == self.fragment_id
+        if env.is_fragment_message(m, self.fragment_id):
+            return self._encrypt_any
+        return self.config.modes.get(m.id) == wire.ENCRYPT
 
     def _fingerprint(self, ident: int) -> bytes:
         return self.config.fingerprints.get(ident, b"")

@@ -7,8 +7,8 @@ optional parts, every message's H, escape and length bytes): a receiver can tell
 messages, and so their modes and fingerprints, before it checks anything. Then
 
 - plaintext = the bodies of the messages whose id is `encrypt`, one after the other (a
-  fragment message counts as `encrypt` when the network encrypts any id: what it carries is not
-  known until reassembly); on the wire each such body is replaced by its ciphertext, byte for
+  fragment message, `envelope.is_fragment_message`, counts as `encrypt` when the network
+  encrypts any id: what it carries is not known until reassembly); on the wire each such body is replaced by its ciphertext, byte for
   byte the same length (AES-CCM is a counter mode);
 - aad = `03` (this seal's version; the per-payload seal's aad starts `02`), P W K T A C as
   sent (P with S set), then every message as sent with the encrypted bodies left out, then, per
