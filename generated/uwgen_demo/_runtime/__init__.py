@@ -17,7 +17,7 @@ CARRIED = {
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
     'rosclasses': ('uwgen.runtime.rosclasses', '6bb8e6195c73dcad'),
-    'table': ('uwgen.runtime.table', 'c1ff6a279ab8cca6'),
+    'table': ('uwgen.runtime.table', '773da2762888a641'),
 }
 
 
