@@ -16,7 +16,7 @@ CARRIED = {
     'model': ('uwgen.manifest.model', '1929c598f4daa2fb'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
-    'rosclasses': ('uwgen.runtime.rosclasses', '6bb8e6195c73dcad'),
+    'rosclasses': ('uwgen.runtime.rosclasses', '3ea002c11a9b520d'),
     'table': ('uwgen.runtime.table', '773da2762888a641'),
 }
 
