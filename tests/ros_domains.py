@@ -12,8 +12,12 @@ from __future__ import annotations
 import itertools
 import os
 
-FIRST, LAST = 1, 231          # valid ids for Fast DDS on Linux: 0..232; 0 is everyone's default
-DEMO_LIMIT = 199              # `uwgen demo` takes ROS_DOMAIN_ID % 200 and the id after it
+# ROS 2 advises ids 0..101 on Linux: from 102 on, a domain's DDS ports (7400 + 250 * id + ...)
+# lie in the kernel's ephemeral range (32768..60999), where any TCP socket of the run (the
+# emulator's, a bridge's) may hold the port a participant needs, and discovery then fails now
+# and then (a walkthrough listener that heard nothing in 120 s). 0 is everyone's default.
+FIRST, LAST = 1, 101
+DEMO_LIMIT = 100              # `uwgen demo` takes ROS_DOMAIN_ID % 101 and the id after it
 SEED_ENV = "UWGEN_TEST_DOMAIN_SEED"
 
 

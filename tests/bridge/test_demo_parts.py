@@ -280,3 +280,12 @@ def test_the_plot_legend_does_not_cover_the_square(tmp_path):
     assert not [p for p in points if box.contains(*p)]
     import matplotlib.pyplot as plt
     plt.close(fig)
+
+
+@pytest.mark.parametrize("given", ["0", "1", "100", "101", "150", "231", "4000"])
+def test_demo_domains_are_two_different_ids_ros_advises_on_linux(monkeypatch, given):
+    from uwgen.demo.processes import domains
+    monkeypatch.setenv("ROS_DOMAIN_ID", given)
+    vehicle, surface = domains()
+    assert vehicle != surface
+    assert 0 <= vehicle <= 101 and 0 <= surface <= 101

@@ -85,3 +85,29 @@ def test_the_periodic_look_withdraws_and_restores_a_stand_in():
     guard.check_graph()
     assert changes == [False, True, False]
     assert [kind for kind, _ in log.lines] == ["error", "info"]
+
+
+def test_of_two_stand_ins_only_the_bridge_sorting_first_keeps_its_own():
+    first, second = ("uwgen_bridge_a_surface", "/"), ("uwgen_bridge_b_surface", "/")
+    guards = {}
+    for me, other in ((first, second), (second, first)):
+        graph = FakeGraph(me)
+        graph.services[me] = ["/echo"]
+        graph.services[other] = ["/echo"]
+        guards[me] = LoopGuard(graph, Log())
+        guards[me].watch_standin("/echo")
+    assert not guards[first].blocked("/echo")
+    assert guards[second].blocked("/echo")
+    assert guards[second].hazards == {"/echo": first[0]}
+
+
+def test_a_withdrawn_second_stand_in_returns_when_the_first_is_gone():
+    me, other = ("uwgen_bridge_b_surface", "/"), ("uwgen_bridge_a_surface", "/")
+    graph, log = FakeGraph(me), Log()
+    graph.services[other] = ["/fib/_action/send_goal"]
+    guard = LoopGuard(graph, log)
+    guard.watch_standin("/fib", action=True)
+    assert guard.blocked("/fib")
+    graph.services[other] = []
+    assert not guard.blocked("/fib")
+    assert [kind for kind, _ in log.lines] == ["error", "info"]

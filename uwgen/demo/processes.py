@@ -20,9 +20,11 @@ DEMO_MANIFEST = ROOT / "msg_samples" / "uwgen.yaml"
 
 
 def domains() -> tuple[int, int]:
-    """(vehicle, surface) ROS domain ids: two different ones, derived from ROS_DOMAIN_ID."""
+    """(vehicle, surface) ROS domain ids: two different ones, derived from ROS_DOMAIN_ID, both in
+    0..101 (ROS 2 advises no higher id on Linux: the DDS ports of higher ones lie in the kernel's
+    ephemeral port range, where another socket may hold them and discovery fails)."""
     base = int(os.environ.get("ROS_DOMAIN_ID") or (1 + os.getpid() % 100))
-    base = base % 200
+    base = base % 101
     return base, base + 1
 
 

@@ -14,6 +14,7 @@ from uwgen.idl import names as idl_names
 from uwgen.idl.model import ActionDef
 from uwgen.manifest.model import (ACTION_HANDLES, MAX_GOALS_LIMIT, NATIVE, PROFILES, Action,
                                   LinkPolicy, Side)
+from uwgen.manifest.typeref import did_you_mean
 
 ACTION_KEYS = ("name", "id", "type", "server", "accept_timeout", "result_timeout", "max_goals",
                "rate", "queue", "depth", "ttl", "priority", "feedback", "profile", "security")
@@ -76,7 +77,7 @@ def resolve_action(b: Any, type_node: yaml.Node, type_text: str, label: str) -> 
             if ns in (None, other) and f"{pkg}/{other}/{name}" in b.lib:
                 raise r.error(type_node, f"type '{type_text}' is {kind}, but {label} needs an action type (pkg/action/Name)")
         raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found"
-                                 f"{b.did_you_mean(full)} (looked in: {b.lib.looked_in()})")
+                                 f"{did_you_mean(b.lib, full)} (looked in: {b.lib.looked_in()})")
     definition = b.lib.get(full)
     if not isinstance(definition, ActionDef):  # an action's part, e.g. pkg/action/Name_Goal
         raise r.error(type_node, f"type '{type_text}' of {label} is not an action")

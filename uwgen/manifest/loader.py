@@ -8,33 +8,27 @@ the manifest names surfaces as the parser's own `DefinitionError` (located in th
 from __future__ import annotations
 
 import dataclasses
-import difflib
-import ipaddress
 import keyword
 import re
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
-from uwgen.idl import names as idl_names
-from uwgen.idl.loader import InterfaceLibrary
 from uwgen.errors import Collector, ErrorList
-from uwgen.idl.model import DefinitionError, MessageDef, ServiceDef, SourceRef
+from uwgen.idl.loader import InterfaceLibrary
+from uwgen.idl.model import DefinitionError, MessageDef, SourceRef
+from uwgen.manifest import checks
+from uwgen.manifest.actions import ACTION_KEYS, FEEDBACK_KEYS, read_action  # noqa: F401 (keys re-exported)
+from uwgen.manifest.checks import ID_RANGE, IdUse
+from uwgen.manifest.fields import FieldsReader
 from uwgen.manifest.model import (
-    DURABILITY,
-    FIFO_DEFAULT_DEPTH,
+    FIFO_DEFAULT_DEPTH,  # noqa: F401 (re-exported)
     NATIVE,
     PROFILES,
-    QUEUE_KINDS,
-    RELIABILITY,
     RMW_DESERT,
-    RMW_DISCOVERY_ID,
-    RMW_DISCOVERY_REQUEST_ID,
     SCHEMA_PERIOD_DEFAULT,
     Action,
-    LinkConfig,
     LinkPolicy,
     Manifest,
     Qos,
@@ -43,23 +37,18 @@ from uwgen.manifest.model import (
     Side,
     Topic,
 )
-from uwgen.manifest.actions import ACTION_KEYS, FEEDBACK_KEYS, read_action  # noqa: F401 (keys re-exported)
-from uwgen.manifest.fields import FieldsReader
 from uwgen.manifest.nodes import ManifestError, Reader, compose
-from uwgen.manifest.security import SecurityCheck, network_security, sender_id
+from uwgen.manifest.policy import POLICY_KEYS, QOS_KEYS, read_policy, read_qos  # noqa: F401 (QOS_KEYS re-exported)
+from uwgen.manifest.security import SecurityCheck, network_security
+from uwgen.manifest.sides import LINK_KEYS, SIDE_KEYS, SIDE_NAME, read_sides  # noqa: F401 (re-exported)
+from uwgen.manifest.typeref import resolve_type
 
 __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "FIFO_DEFAULT_DEPTH"]
 
 MANIFEST_NAME = "uwgen.yaml"
-ID_RANGE = (1, 255)
 
 TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id", "schema_period",
             "defaults", "topics", "services", "actions", "security")
-SIDE_KEYS = ("host", "port", "link", "sender_id")
-LINK_KEYS = ("max_read_length", "period")
-POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair", "strict")
-MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
-QOS_KEYS = ("reliability", "durability", "depth")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
 TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security",
               "reliability")
@@ -69,9 +58,7 @@ SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profil
 
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
-SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 PYTHON_PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-HOSTNAME_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
 ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
@@ -113,7 +100,7 @@ def load_sides(path: Path) -> tuple[str, dict[str, Side]]:
         raise ManifestError(SourceRef(r.path, 1, 1), "empty manifest: expected a mapping with at least 'network' and 'sides'")
     top = r.mapping(root, "the manifest", TOP_KEYS)
     network = r.string(r.require(top, "network", root, "the manifest"), "network")
-    sides = builder.sides(r.require(top, "sides", root, "the manifest"))
+    sides = read_sides(builder, r.require(top, "sides", root, "the manifest"))
     builder.errors.raise_if_any(ManifestErrors)   # every broken side, each located
     return network, sides
 
@@ -145,31 +132,11 @@ def validate_ros_name(name: str) -> str | None:
     return None
 
 
-def _valid_host(host: str) -> bool:
-    try:
-        ipaddress.ip_address(host)
-        return True
-    except ValueError:
-        pass
-    if len(host) > 253 or not host:
-        return False
-    labels = host.rstrip(".").split(".")
-    return all(HOSTNAME_LABEL.fullmatch(label) for label in labels) and not labels[-1].isdigit()
-
-
-@dataclass
-class _IdUse:
-    """Who holds an id, for duplicate and reservation messages."""
-
-    what: str
-    node: yaml.Node
-
-
 class _ManifestBuilder:
     def __init__(self, reader: Reader, lib: InterfaceLibrary):
         self.r = reader
         self.lib = lib
-        self.ids: dict[int, _IdUse] = {}
+        self.ids: dict[int, IdUse] = {}
         self.repair_nodes: dict[str, yaml.Node] = {}    # "topic /x" -> its repair: value node
         self.sec = SecurityCheck(reader)
         self.senders: dict[str, int] = {}
@@ -228,7 +195,7 @@ class _ManifestBuilder:
                 self.sec.mode_node = next((v for k, v in self.sec.block.value if k.value == "mode"),
                                           self.sec.block)
 
-        sides = self.checked({}, self.sides, r.require(top, "sides", root, "the manifest"))
+        sides = self.checked({}, read_sides, self, r.require(top, "sides", root, "the manifest"))
 
         # Policy keys from `defaults` stay nodes (merged per key into each topic, errors
         # located); validated here even if no topic uses them. Their qos is read once.
@@ -254,16 +221,16 @@ class _ManifestBuilder:
                         items.append(item)
         for entries, kind in ((topics, "topic"), (services, "service"), (actions, "action")):
             with errors.attempt(ManifestError):
-                self.unique_names(entries, kind)
+                checks.unique_names(entries, kind)
 
         fragment_id = None
         if "fragment_id" in top:
             with errors.attempt(ManifestError):
-                fragment_id = self.fragment_id(top["fragment_id"][1])
+                fragment_id = checks.reserved_id(r, self.ids, top["fragment_id"][1], "fragment_id")
         schema_id = None
         if "schema_id" in top:
             with errors.attempt(ManifestError):
-                schema_id = self.schema_id(top["schema_id"][1], fragment_id)
+                schema_id = checks.schema_id(r, self.ids, top["schema_id"][1], fragment_id)
         schema_period = SCHEMA_PERIOD_DEFAULT
         if "schema_period" in top:
             node = top["schema_period"][1]
@@ -288,8 +255,8 @@ class _ManifestBuilder:
         )
         manifest = self.sec.finish(manifest, root, self.senders)
         if manifest.uses_rmw_desert():
-            self.check_rmw_reserved(manifest, top)
-        self.check_repair(manifest)
+            checks.check_rmw_reserved(r, self.ids, manifest, top)
+        checks.check_repair(r, manifest, self.repair_nodes)
         return manifest
 
     def network(self, top: dict, root: yaml.Node) -> str:
@@ -305,61 +272,6 @@ class _ManifestBuilder:
         if not PYTHON_PACKAGE.fullmatch(package) or keyword.iskeyword(package):
             raise self.r.error(node, f"package '{package}' must be a valid Python package name")
         return package
-
-    # -- sides -----------------------------------------------------------------------
-
-    def sides(self, node: yaml.Node) -> dict[str, Side]:
-        r = self.r
-        entries = r.open_mapping(node, "sides")
-        if not entries:
-            raise r.error(node, "sides must name at least one side, e.g. surface: {port: 4000}")
-        self.declared = set(entries)
-        sides: dict[str, Side] = {}
-        endpoints: dict[tuple[str, int], str] = {}
-        for name, (key_node, value_node) in entries.items():
-            side = self.checked(None, self.side, name, key_node, value_node, endpoints)
-            if side is not None:
-                sides[name] = side
-        return sides
-
-    def side(self, name: str, key_node: yaml.Node, value_node: yaml.Node,
-             endpoints: dict[tuple[str, int], str]) -> Side:
-        r = self.r
-        if not SIDE_NAME.fullmatch(name):
-            raise r.error(key_node, f"side name '{name}' must be letters, digits and '_', starting with a letter")
-        what = f"side '{name}'"
-        fields = r.mapping(value_node, what, SIDE_KEYS)
-        host = "127.0.0.1"
-        if "host" in fields:
-            host_node = fields["host"][1]
-            host = r.string(host_node, f"host of {what}")
-            if not _valid_host(host):
-                raise r.error(host_node, f"host '{host}' of {what} is neither an IP address nor a host name")
-        port_node = r.require(fields, "port", value_node, what)
-        port = r.integer(port_node, f"port of {what}", 1, 65535)
-        if (host, port) in endpoints:
-            raise r.error(port_node, f"{what} uses {host}:{port}, already used by side '{endpoints[host, port]}' (DESERT serves one client per port)")
-        endpoints[host, port] = name
-        link = LinkConfig()
-        if "link" in fields:
-            link = self.link(fields["link"][1], what)
-        self.sec.side_nodes[name] = value_node
-        if "sender_id" in fields:
-            self.sec.sender_nodes[name] = fields["sender_id"][1]
-            self.senders[name] = sender_id(r, fields["sender_id"][1], name)
-        return Side(name, host, port, link, r.where(value_node))
-
-    def link(self, node: yaml.Node, what: str) -> LinkConfig:
-        r = self.r
-        fields = r.mapping(node, f"link of {what}", LINK_KEYS)
-        base = LinkConfig()
-        max_read_length = base.max_read_length
-        period = base.period
-        if "max_read_length" in fields:
-            max_read_length = r.integer(fields["max_read_length"][1], f"max_read_length of {what}", 1, 4096)
-        if "period" in fields:
-            period = r.number(fields["period"][1], f"period of {what}")
-        return LinkConfig(max_read_length, period)
 
     # -- topics and services ---------------------------------------------------------
 
@@ -383,46 +295,10 @@ class _ManifestBuilder:
         if ident in self.ids:
             first = self.ids[ident]
             raise r.error(id_node, f"id {ident} of {label} is already used by {first.what} (line {r.where(first.node).line}); ids are unique across topics, services and actions")
-        self.ids[ident] = _IdUse(label, id_node)
+        self.ids[ident] = IdUse(label, id_node)
         type_node = r.require(entries, "type", node, label)
         type_text = r.string(type_node, f"type of {label}")
         return entries, name, ident, type_text, label
-
-    def resolve(self, type_node: yaml.Node, type_text: str, want: str, label: str):
-        """The MessageDef (want='msg') or ServiceDef (want='srv') named by `type_text`."""
-        r = self.r
-        split = idl_names.split_type_name(type_text)
-        if split is None:
-            raise r.error(type_node, f"type '{type_text}' of {label} is not a type name: expected pkg/{want}/Name or pkg/Name")
-        pkg, ns, name = split
-        other = "srv" if want == "msg" else "msg"
-        full = f"{pkg}/{want}/{name}"
-        known = full in self.lib
-        if (ns == other or (ns is None and not known)) and f"{pkg}/{other}/{name}" in self.lib:
-            if want == "msg":
-                raise r.error(type_node, f"type '{type_text}' is a service, but {label} needs a message type (pkg/msg/Name); declare it under services:")
-            raise r.error(type_node, f"type '{type_text}' is a message, but {label} needs a service type (pkg/srv/Name); declare it under topics:")
-        if ns == other:
-            raise r.error(type_node, f"{label} needs a {'message' if want == 'msg' else 'service'} type pkg/{want}/Name, got '{type_text}'")
-        if not known:
-            raise r.error(type_node, f"unknown type '{type_text}' for {label}: {full} not found"
-                                     f"{self.did_you_mean(full)} (looked in: {self.lib.looked_in()})")
-        definition = self.lib.get(full)
-        expected = MessageDef if want == "msg" else ServiceDef
-        if not isinstance(definition, expected):  # a service's part, e.g. pkg/srv/Name_Request as a service
-            raise r.error(type_node, f"type '{type_text}' of {label} is not a {want}")
-        return full, definition
-
-    def did_you_mean(self, full: str) -> str:
-        """'; did you mean pkg/kind/Name?' for an unknown type: the same name in another
-        package, else the closest spelling of its kind; '' when nothing is close."""
-        pkg, kind, name = full.split("/")
-        names = [n for n in self.lib.all_names() if n.split("/")[1] == kind]
-        same = [n for n in names if n.split("/")[2].lower() == name.lower() and n != full]
-        close = same or difflib.get_close_matches(full, names, n=1, cutoff=0.8)
-        if not close:
-            return ""
-        return f"; did you mean {' or '.join(close[:2])}?"
 
     def side_ref(self, entries: dict, key: str, owner: yaml.Node, label: str, sides: dict[str, Side]) -> str:
         r = self.r
@@ -437,7 +313,7 @@ class _ManifestBuilder:
               security: str = "off") -> Topic:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "topic", TOPIC_KEYS)
-        type_name, definition = self.checked((None, None), self.resolve, entries["type"][1], type_text, "msg", label)
+        type_name, definition = self.checked((None, None), resolve_type, r, self.lib, entries["type"][1], type_text, "msg", label)
         publisher = self.checked(None, self.side_ref, entries, "publisher", node, label, sides)
         policy = self.checked(None, self.policy, entries, defaults, LinkPolicy(), label)
         qos = self.checked(None, self.qos, entries["qos"][1], default_qos) if "qos" in entries else default_qos
@@ -467,7 +343,7 @@ class _ManifestBuilder:
     def service(self, node: yaml.Node, sides: dict[str, Side], profile: str, security: str = "off") -> Service:
         r = self.r
         entries, name, ident, type_text, label = self.common(node, "service", SERVICE_KEYS)
-        type_name, definition = self.checked((None, None), self.resolve, entries["type"][1], type_text, "srv", label)
+        type_name, definition = self.checked((None, None), resolve_type, r, self.lib, entries["type"][1], type_text, "srv", label)
         server = self.checked(None, self.side_ref, entries, "server", node, label, sides)
         timeout = Service.__dataclass_fields__["timeout"].default
         if "timeout" in entries:
@@ -499,120 +375,9 @@ class _ManifestBuilder:
     def action(self, node: yaml.Node, sides: dict[str, Side], security: str = "off") -> Action:
         return read_action(self, node, sides, security)   # uwgen.manifest.actions: the `actions:` section
 
-    def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str, is_defaults: bool = False) -> LinkPolicy:
-        """Link policy from `entries`, falling back to `defaults`, then to `base`."""
-        r = self.r
-
-        def pick(key: str):
-            if key in entries:
-                return entries[key][1], True
-            if key in defaults:
-                return defaults[key][1], False
-            return None, False
-
-        rate, ttl, priority, queue = base.rate, base.ttl, base.priority, base.queue
-        repair, strict = base.repair, base.strict
-        node, _ = pick("strict")
-        if node is not None:
-            strict = r.boolean(node, f"strict of {label}")
-        node, _ = pick("repair")
-        if node is not None:
-            repair = r.integer(node, f"repair of {label}", 0, MAX_REPAIR)
-            if repair:
-                self.repair_nodes.setdefault(label, node)
-        node, _ = pick("rate")
-        if node is not None:
-            rate = r.optional_number(node, f"rate of {label}")
-        node, _ = pick("ttl")
-        if node is not None:
-            ttl = r.optional_number(node, f"ttl of {label}")
-        node, _ = pick("priority")
-        if node is not None:
-            priority = r.integer(node, f"priority of {label}")
-        queue_node, _ = pick("queue")
-        if queue_node is not None:
-            queue = r.choice(queue_node, f"queue of {label}", QUEUE_KINDS)
-        depth_node, own = pick("depth")
-        if queue == "latest":
-            # A depth written next to a latest queue is a mistake; a depth in `defaults`
-            # without a queue there is meant for the fifo topics and ignored by the others.
-            if depth_node is not None and own and not (is_defaults and queue_node is None):
-                raise r.error(depth_node, f"depth of {label} only applies to queue: fifo (queue latest keeps just the newest message)")
-            depth = 1
-        else:
-            depth = base.depth if base.queue == "fifo" else FIFO_DEFAULT_DEPTH
-            if depth_node is not None:
-                depth = r.integer(depth_node, f"depth of {label}", 1)
-        return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority, repair=repair,
-                          strict=strict)
+    def policy(self, entries: dict, defaults: dict, base: LinkPolicy, label: str,
+               is_defaults: bool = False) -> LinkPolicy:
+        return read_policy(self.r, entries, defaults, base, label, is_defaults, self.repair_nodes)
 
     def qos(self, node: yaml.Node, base: Qos) -> Qos:
-        r = self.r
-        fields = r.mapping(node, "qos", QOS_KEYS)
-        reliability, durability, depth = base.reliability, base.durability, base.depth
-        if "reliability" in fields:
-            reliability = r.choice(fields["reliability"][1], "qos reliability", RELIABILITY)
-        if "durability" in fields:
-            durability = r.choice(fields["durability"][1], "qos durability", DURABILITY)
-        if "depth" in fields:
-            depth = r.integer(fields["depth"][1], "qos depth", 1)
-        return Qos(reliability, durability, depth)
-
-    def unique_names(self, items: list, kind: str) -> None:
-        seen: dict[str, object] = {}
-        for item in items:
-            if item.name in seen:
-                first = seen[item.name]
-                raise ManifestError(item.where, f"{kind} {item.name} is declared twice (first at line {first.where.line})")
-            seen[item.name] = item
-
-    def fragment_id(self, node: yaml.Node) -> int | None:
-        r = self.r
-        if isinstance(node, yaml.ScalarNode) and r.value(node) is None:
-            return None
-        ident = r.integer(node, "fragment_id", *ID_RANGE)
-        if ident in self.ids:
-            user = self.ids[ident]
-            raise r.error(node, f"fragment_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
-        return ident
-
-    def check_repair(self, manifest: Manifest) -> None:
-        """`repair` needs fragments: a fragment_id, and the native profile."""
-        for entry in (*manifest.topics, *manifest.services):
-            if not entry.policy.repair:
-                continue
-            kind = "topic" if entry in manifest.topics else "service"
-            node = self.repair_nodes[f"{kind} {entry.name}"]
-            if manifest.fragment_id is None:
-                raise self.r.error(node, f"repair of {kind} {entry.name} needs fragments: set fragment_id "
-                                   f"(repair fragments travel on it)")
-            if entry.profile == RMW_DESERT:
-                raise self.r.error(node, f"repair of {kind} {entry.name}: profile rmw_desert messages are "
-                                   f"never fragmented (rmw_desert nodes cannot reassemble them); use "
-                                   f"profile native or remove repair")
-
-    def schema_id(self, node: yaml.Node, fragment_id: int | None) -> int | None:
-        r = self.r
-        if isinstance(node, yaml.ScalarNode) and r.value(node) is None:
-            return None
-        ident = r.integer(node, "schema_id", *ID_RANGE)
-        if ident in self.ids:
-            user = self.ids[ident]
-            raise r.error(node, f"schema_id {ident} collides with the id of {user.what} (line {r.where(user.node).line}); it must be an id no topic or service uses")
-        if ident == fragment_id:
-            raise r.error(node, f"schema_id {ident} is also the fragment_id; the two reserved ids must differ")
-        return ident
-
-    def check_rmw_reserved(self, manifest: Manifest, top: dict) -> None:
-        r = self.r
-        user = next(t for t in (*manifest.topics, *manifest.services) if t.profile == RMW_DESERT)
-        reason = f"while any topic or service uses profile rmw_desert ({user.name} at line {user.where.line} does)"
-        reserved = {RMW_DISCOVERY_ID: "/discovery", RMW_DISCOVERY_REQUEST_ID: "/discovery_request"}
-        for ident, topic in reserved.items():
-            if ident in self.ids:
-                use = self.ids[ident]
-                raise r.error(use.node, f"id {ident} of {use.what} is reserved for rmw_desert's {topic} {reason}")
-        if manifest.fragment_id in reserved:
-            raise r.error(top["fragment_id"][1], f"fragment_id {manifest.fragment_id} is reserved for rmw_desert's {reserved[manifest.fragment_id]} {reason}")
-        if manifest.schema_id in reserved:
-            raise r.error(top["schema_id"][1], f"schema_id {manifest.schema_id} is reserved for rmw_desert's {reserved[manifest.schema_id]} {reason}")
+        return read_qos(self.r, node, base)
