@@ -23,6 +23,7 @@ from uwgen.codegen.ir import (
 from uwgen.idl.model import ArrayKind
 from uwgen.manifest.model import NATIVE, PACKED, RMW_DESERT, Manifest
 from uwgen.runtime.bits import text_width
+from uwgen.analyze_control import SideControl, control_costs, format_control, whole_payload
 from uwgen.codegen.fingerprint import wire_format_of
 from uwgen.runtime.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
 from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
@@ -286,6 +287,7 @@ class Analysis:
     entries: list[EntryCost]
     budgets: list[SideBudget]
     wire_format: int = 2
+    control: list[SideControl] = field(default_factory=list)   # discovery, schema announcements
 
     def warnings(self) -> list[str]:
         out = []
@@ -364,7 +366,9 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
             typical += e.rate * frame.typical
             worst = None if worst is None or frame.max is None else worst + e.rate * frame.max
         budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema, limit))
-    return Analysis(manifest.network, bitrate, entries, budgets, wire)
+    sealed = (_SECURED.typical, _SECURED.max) if manifest.protected() else (0, 0)
+    control = control_costs(manifest, bitrate, wire, sealed)
+    return Analysis(manifest.network, bitrate, entries, budgets, wire, control)
 
 
 def _schema_rate(manifest: Manifest) -> float:
@@ -378,8 +382,11 @@ def _schema_rate(manifest: Manifest) -> float:
     from uwgen.codegen.fingerprint import FINGERPRINT_BYTES
     ids = sorted({e.id for e in (*manifest.topics, *manifest.services,
                                  *getattr(manifest, "actions", ()))})
-    payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids], request=False)
     signed = _SECURED.typical if manifest.protected() else 0   # signed with security on
+    mrl = min((side.link.max_read_length for side in manifest.sides.values()), default=64)
+    size = whole_payload(wire_format_of(manifest), mrl, _SECURED.max if signed else 0)
+    payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids],
+                                    request=False, max_payload=size)     # as the bridge splits them
     if wire_format_of(manifest) == 2:     # each in a packet of its own: H instead of kind and id
         return sum(v1_message_size(p, last=True) + PACKET_ALONE + signed for p in payloads) / period
     return sum(len(p) + FRAME_OVERHEAD + signed for p in payloads) / period
@@ -473,6 +480,7 @@ def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
             air = air_time(p.frame.typical, a.bitrate, mrl)
             lines.append(f"  {p.label + mark:<20}{f'{p.payload.typical}/{_b(p.payload.max)}':>20}"
                          f"{f'{p.frame.typical}/{_b(p.frame.max)}':>18}{air:>13.3f}s")
+    lines += format_control(a.control)
     lines += ["", "link budget (what each side sends, at the configured rates and sizes; * = configured profile)"]
     if a.budgets and a.budgets[0].schema:
         lines.append(f"  (includes {a.budgets[0].schema:.2f} B/s of periodic schema announcements per side)")

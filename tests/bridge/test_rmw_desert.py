@@ -65,7 +65,7 @@ def test_start_sends_one_request_then_a_beacon_per_rmw_desert_entry(surface_only
         (Entity.CLIENT, "/quick", "test_msgs__srv/BasicTypes_Request"),
     ]  # native entries (/native_log, /native_echo) are not announced
     assert link.offers[0][0] == 2  # the request goes first
-    assert {b.node_name for b in beacons_on(link)} == {"uwgen_surface"}
+    assert {b.node_name for b in beacons_on(link)} == {"surface"}
     assert link.channels[1] == discovery_policies(4)[1]
     assert link.channels[2] == discovery_policies(4)[2]
 
@@ -184,9 +184,9 @@ def test_two_bridges_in_the_profile_see_each_other():
         # The vehicle's start-up request reaches the surface, which answers it.
         wait_for(lambda: len(sb.status()["discovery"]["remote"]) == 3, what="vehicle entities")
         remote = {(e["node"], e["entity"], e["topic"]) for e in sb.status()["discovery"]["remote"]}
-        assert remote == {("/uwgen_vehicle", "subscriber", "/cmd"),
-                          ("/uwgen_vehicle", "publisher", "/log"),
-                          ("/uwgen_vehicle", "service", "/echo")}
+        assert remote == {("/vehicle", "subscriber", "/cmd"),
+                          ("/vehicle", "publisher", "/log"),
+                          ("/vehicle", "service", "/echo")}
         vehicle.executor.remove_node(vb)
         vb.close()
         wait_for(lambda: sb.status()["discovery"]["remote"] == [], what="vehicle withdrawn")

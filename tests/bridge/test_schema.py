@@ -349,3 +349,37 @@ def test_any_bytes_on_the_schema_id_are_taken_or_refused_never_crash(payload):
     assert h.guard.counters["announcements_heard"] + h.guard.counters["bad_announcements"] == 1
     for ident in range(1, 30):
         h.guard.accept(ident)
+
+
+# --- announcements fit one packet ---------------------------------------------------------
+
+@pytest.mark.parametrize("wire, signed", [(1, False), (2, False), (2, True)])
+def test_announcements_sized_by_the_link_each_leave_in_one_packet_unfragmented(wire, signed):
+    from uwgen.bridge.schema import whole_payload
+    from uwgen.emulator import NodeSpec, Scenario
+    from uwgen.emulator.linksim import LinkSim
+    from uwgen.manifest.model import LinkConfig, LinkPolicy
+    from uwgen.runtime.framing import FrameDecoder
+    from uwgen.security.guard import GuardConfig, LinkGuard
+
+    scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),
+                           NodeSpec("b", position=(300, 0, 0), dest="a")],
+                    period=0.2, max_read_length=64, seed=1, bitrate=4800.0)
+    kw = dict(wire_format=wire, sender_id=1) if wire == 2 else {}
+    if signed:
+        kw["guard"] = LinkGuard(bytes(32), GuardConfig("n", 1, {2: "b"}, {SID: "sign"}), name="a")
+    sim = LinkSim(scen, "a", "b", fragment_id=250, **kw)
+    link = sim.sender
+    link.add_channel(SID, LinkPolicy(queue="fifo", depth=20))
+    size = whole_payload(link, SID, LinkConfig(max_read_length=64, period=0.2))
+    pairs = [(i, bytes([i] * 4)) for i in range(3, 40)]
+    payloads = encode_announcements(SID, pairs, request=True, max_payload=size)
+    assert len(payloads) > 1
+    for p in payloads:
+        assert link.offer(SID, p)
+    sim.run(len(payloads) * 0.25 + 1.0)
+    assert link.scheduler.stats()[SID]["fragments_sent"] == 0
+    assert len(sim.packets) == len(payloads)          # one packet each, none cut or fragmented
+    assert all(len(d.data) <= 64 and FrameDecoder().feed(d.data) for d in sim.packets)
+    # as large as that allows: one more pair would not have fitted
+    assert max(len(p) for p in payloads) > size - 6

@@ -94,12 +94,14 @@ def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     surface = next(b for b in a.budgets if b.side == "surface")
     # 5 cmd_vel messages of 6 bytes per second, each alone in a packet (+ 4 frame, + 3 P and
     # W: 13), each 10 bytes more encrypted (security word and tag), plus the schema
-    # announcement of the 7 ids (a 47-byte payload: 00 18 F9 00, then id + 44 + 4 bytes each,
-    # id 30 taking 2 bytes; a 46-byte message behind H 00 F9, 53 alone, 63 signed) every 600 s.
+    # announcement of the 7 ids every 600 s. Its 47 bytes (00 18 F9 00, then id + 44 + 4 bytes
+    # each, id 30 taking 2 bytes) signed would not leave whole in one 64-byte packet (room 58,
+    # up to 14 of it the signature's), so it is split as the bridge splits it: payloads of 40
+    # and 11 bytes, messages of 39 and 10 behind H 00 F9, + 7 alone, + 10 signed: 56 and 27.
     # The action's goals have no rate: warned about below.
     assert a.wire_format == 2
-    assert surface.schema == pytest.approx((53 + 10) / 600)
-    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 10) + (53 + 10) / 600)
+    assert surface.schema == pytest.approx((56 + 27) / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 10) + (56 + 27) / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
     assert not any("cannot fit" in w for w in a.warnings())
 
@@ -195,3 +197,43 @@ def test_the_budget_says_what_limits_each_side(tmp_path):
     assert slow.capacity == pytest.approx(200 / 8 * 64 / 68) and slow.limited_by == "bit rate"
     fast = analyze(manifest, lib.get, 4800.0).budgets[0]
     assert fast.capacity == 320.0 and fast.limited_by == "period"
+
+
+# -- control traffic: discovery beacons and schema announcements ---------------------------
+
+def test_schema_announcements_each_fit_one_packet_and_their_air_time_is_listed(demo):
+    manifest, a = demo
+    for side in a.control:
+        items = [i for i in side.items if i.what.startswith("schema announcement")]
+        assert items and all(i.packets == 1 and i.written <= side.max_read_length for i in items)
+        assert side.air == pytest.approx(sum(air_time(i.written, 4800.0, 64) for i in side.items))
+    # every id of the manifest is announced once, over as few packets as the link allows
+    from uwgen.bridge.schema import decode_announcement, encode_announcements
+    from uwgen.analyze_control import whole_payload
+    ids = {e.id for e in (*manifest.topics, *manifest.services, *manifest.actions)}
+    payloads = encode_announcements(manifest.schema_id, [(i, bytes(4)) for i in ids], True,
+                                    whole_payload(2, 64, 14))
+    assert sorted(i for p in payloads for i, _ in decode_announcement(p, manifest.schema_id).pairs) == sorted(ids)
+    assert len(payloads) == len(a.control[0].items)
+
+
+def test_rmw_desert_beacons_are_listed_with_their_packets_echo_and_a_note():
+    from uwgen.interop.beacons import encode_beacon
+    from uwgen.interop.discovery import bridge_beacons
+    lib = InterfaceLibrary([SAMPLES], installed=True)
+    manifest = load_manifest(SAMPLES / "rmw_desert" / "uwgen.yaml", lib)
+    a = analyze(manifest, lib.get, 4800.0)
+    surface = next(s for s in a.control if s.side == "surface")
+    beacons = [i for i in surface.items if i.what.startswith("beacon")]
+    sent = [encode_beacon(b) for b in bridge_beacons(manifest, "surface")]
+    assert [i.payload for i in beacons] == [len(p) for p in sent]
+    for i, p in zip(beacons, sent):
+        frame = len(p) + 4
+        assert i.packets == -(-frame // 64) == 2
+        assert i.written == frame + (frame - 64)          # the tail goes twice (its echo)
+    assert surface.items[0].what == "discovery request" and surface.items[0].written == 6
+    assert any("/turtle1/cmd_vel" in n and "echo" in n for n in surface.notes())
+    res = run_cli("-m", SAMPLES / "rmw_desert" / "uwgen.yaml", SAMPLES)
+    assert "beacon publisher /turtle1/cmd_vel" in res.stdout and "note: side surface" in res.stdout
+    data = json.loads(run_cli("-m", SAMPLES / "rmw_desert" / "uwgen.yaml", SAMPLES, "--json").stdout)
+    assert data["control"][0]["items"][1]["packets"] == 2

@@ -35,7 +35,8 @@ def test_vehicle_bridge_announces_the_mirror_image(rmw_manifest):
 def test_beacons_are_stable_and_named_after_the_side(rmw_manifest):
     first = bridge_beacons(rmw_manifest, "surface")
     assert first == bridge_beacons(rmw_manifest, "surface")
-    assert {b.node_name for b in first} == {"uwgen_surface"} == {default_node_name("surface")}
+    assert {b.node_name for b in first} == {"surface"} == {default_node_name("surface")}
+    assert default_node_name("2nd-side") == "uw_2nd_side"      # always a valid ROS node name
     assert len({b.gid for b in first}) == 3
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from uwgen.runtime.envelope import (Envelope, EnvelopeError, Message, Sync, decode, from_v1,
+from uwgen.runtime.envelope import (FRAGMENT, Envelope, EnvelopeError, Message, Sync, decode, from_v1,
                                     to_v1)
 
 
@@ -75,7 +75,7 @@ def test_v1_payload_without_kind_and_id_is_refused(payload):
     ("40 00 00 00 04", "escaped although"),
     ("40 00 00 00", "ends before its id"),
     ("40 00 00 60 00 04", "kind 0 escaped"),
-    ("40 00 00 61 05 04", "id bits"),
+    ("40 00 00 62 05 04", "id bits"),
     ("40 00 00 60 05", "escaped header"),
     ("40 00 00 60 05 00", "id 0"),
     ("40 00 00 84", "before its length"),
@@ -108,7 +108,8 @@ def test_encoder_refuses_what_does_not_fit(env):
 
 
 messages = st.builds(Message, kind=st.sampled_from([0, 2, 3, 1, 7, 255]),
-                     id=st.integers(1, 255), body=st.binary(max_size=20))
+                     id=st.integers(1, 255), body=st.binary(max_size=20)) \
+    | st.builds(Message, kind=st.just(FRAGMENT), id=st.just(0), body=st.binary(max_size=20))
 envelopes = st.builds(
     Envelope, sender=st.integers(0, 15), number=st.integers(0, 4095),
     messages=st.lists(messages, max_size=6).map(tuple),
@@ -162,3 +163,11 @@ def test_a_packed_payload_without_its_byte_string_is_refused(v1):
     from uwgen.runtime.envelope import strip_packed_head
     with pytest.raises(EnvelopeError):
         strip_packed_head(bytes.fromhex(v1))
+
+
+def test_fragment_messages_are_recognised_in_both_forms():
+    from uwgen.runtime.envelope import is_fragment_message
+    assert is_fragment_message(Message(FRAGMENT, 0, b"\x01\x00\x02x"), None)
+    assert is_fragment_message(Message(0, 250, b"\x01"), 250)
+    assert not is_fragment_message(Message(0, 250, b"\x01"), None)
+    assert not is_fragment_message(Message(2, 250, b"\x01"), 250)

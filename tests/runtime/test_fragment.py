@@ -294,3 +294,60 @@ def test_a_message_lost_on_the_link_is_attributed_to_its_id_when_fragment_0_came
     clock.advance(5.0)
     assert reasm.expire() == 2
     assert reasm.lost_by_id == {7: 1} and reasm.lost_unattributed == 1
+
+
+# -- the compact fragment message of wire format 2 -------------------------------------------
+
+from uwgen.runtime.fragment import encode_compact, parse_any, parse_compact  # noqa: E402
+
+
+@pytest.mark.parametrize("payload, message", [
+    (b"\x61\x01\x00\x02", "at least"),
+    (b"\x60\x01\x00\x02\x05", "H is not 61"),
+    (b"\x61\x01\x00\x00\x05", "count 0"),
+    (b"\x61\x01\x03\x02\x00", "no size and chunk"),
+    (b"\x61\x01\x03\x02\x00\x09\xAA", "cannot be 2 chunks"),
+])
+def test_parse_compact_rejects_malformed_input_with_a_reason(payload, message):
+    with pytest.raises(FragmentError, match=message):
+        parse_compact(payload)
+
+
+@given(st.binary(max_size=40))
+def test_parse_compact_is_total(data):
+    try:
+        f = parse_compact(b"\x61" + data)
+    except FragmentError:
+        return
+    assert encode_compact(f) == b"\x61" + data          # one encoding for what it accepts
+
+
+@given(st.binary(max_size=40))
+def test_a_reassembler_fed_any_compact_bytes_counts_and_never_raises(data):
+    r = Reassembler(FID, ManualClock())
+    whole = r.feed(b"\x61" + data)
+    # refused and counted, or a fragment held, or a one-fragment message delivered
+    assert r.stats["malformed"] + r.pending + r.stats["completed"] == 1
+    assert (whole is not None) == (r.stats["completed"] == 1)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.binary(min_size=60, max_size=3000), st.integers(0, 3), st.randoms(use_true_random=False))
+def test_compact_fragments_round_trip_with_repair_and_any_loss_within_it(payload, repair, rnd):
+    fr = Fragmenter(FID, rng=rnd, max_payload=57, compact=True)
+    parts = fr.split(payload, repair) if repair else fr.split(payload)
+    assert all(p[:1] == b"\x61" and len(p) <= 57 for p in parts)
+    assert all(is_fragment(p, FID, compact=True) and not is_fragment(p, FID) for p in parts)
+    k = len(parts) - repair
+    for i in rnd.sample(range(len(parts)), repair):     # lose as many as there are repairs
+        parts[i] = None
+    r = Reassembler(FID, ManualClock())
+    out = [m for p in parts if p is not None and (m := r.feed(p)) is not None]
+    assert out == [payload] and r.stats["malformed"] == 0
+    assert all(parse_any(p, FID).count == k for p in parts if p is not None)
+
+
+def test_compact_chunks_are_larger_than_wire_format_1_ones_in_the_same_room():
+    compact = Fragmenter(FID, max_payload=57, compact=True)      # room 58, one length byte
+    cbor = Fragmenter(FID, max_payload=58)
+    assert compact.plan(2000) == (38, 53) and cbor.plan(2000)[1] == 47

@@ -69,6 +69,11 @@ def test_large_messages_go_as_fragments_inside_envelopes_that_fit_a_packet():
     assert sorted(p for _, p in sim.received) == sorted([big, bytes.fromhex("00 04 01 02")])
     assert all(len(d.data) <= 64 for d in sim.packets)
     assert sim.receiver.stats()["fragments"]["completed"] == 1
+    # the fragments are compact fragment messages (H 61), each filling its packet: 402 bytes in
+    # chunks of 53 (room 58: H, transfer, index, count, a length byte unless last), 8 of them
+    frags = [m for e in envelopes(sim) for m in e.messages if m.kind == envelope.FRAGMENT]
+    assert [m.body[1:3] for m in frags] == [bytes((i, 8)) for i in range(8)]
+    assert [len(m.body) - 3 for m in frags] == [53] * 7 + [402 - 7 * 53]
 
 
 def test_a_v1_peer_is_refused_counted_and_logged_once(caplog):
@@ -130,7 +135,8 @@ def test_with_loss_exactly_the_messages_of_arrived_packets_arrive_in_channel_ord
     sent = {bytes([0, k]) + n.to_bytes(2, "big") + bytes(s) for n, (k, s) in enumerate(offers)}
     assert set(payloads) <= sent and len(payloads) == len(set(payloads))
     # a message that fits one packet arrives exactly when its packet arrived
-    small_in_packets = {envelope.to_v1(m) for e in envelopes(sim) for m in e.messages if m.id != 250}
+    small_in_packets = {envelope.to_v1(m) for e in envelopes(sim) for m in e.messages
+                        if m.kind != envelope.FRAGMENT}
     assert small_in_packets <= set(payloads)
     for key in (1, 2, 3):
         serials = [int.from_bytes(p[2:4], "big") for p in payloads if p[1] == key]

@@ -73,8 +73,51 @@ def test_a_frame_longer_than_a_packet_is_cut_into_writes_of_its_own():
     pull, _ = frames_from(b"w" * 5, b"x" * 100, b"y" * 5)
     writes = [w for _, w in run_box(box, pull)]
     x = encode_frame(b"x" * 100)
-    assert writes == [encode_frame(b"w" * 5), x[:64], x[64:], encode_frame(b"y" * 5)]
+    # The cut frame's last piece is repeated at the start of the next write (its echo).
+    assert writes == [encode_frame(b"w" * 5), x[:64], x[64:], x[64:] + encode_frame(b"y" * 5)]
     assert box.stats.frames_sent == 3
+
+
+def strict_rmw_desert(stream: bytes) -> list[bytes]:
+    """rmw_desert's receiver as observed (benchmarks/rmw_peer_bench.py): after `99 99 LEN` it
+    takes LEN + 1 bytes whatever they hold; delivered when the last is 0x55."""
+    out, i = [], 0
+    while (i := stream.find(b"\x99\x99", i)) >= 0 and i + 3 <= len(stream):
+        n = stream[i + 2]
+        if i + 4 + n > len(stream):
+            break
+        if n and stream[i + 3 + n] == 0x55:
+            out.append(stream[i + 3:i + 3 + n])
+        i += 4 + n
+    return out
+
+
+@pytest.mark.parametrize("lost", [None, 1, 2, 3])
+def test_the_echoed_tail_repairs_a_lost_tail_and_is_skipped_otherwise(lost):
+    box = Outbox(Pacer(64, 0.2))
+    beacon = bytes(range(1, 24)) * 4                    # 92 bytes, no 99 99: two packets
+    pull, _ = frames_from(b"w" * 5, beacon, b"y" * 5, b"z" * 5)
+    writes = [w for _, w in run_box(box, pull)]
+    assert len(writes) == 4 and writes[3].startswith(writes[2])
+    stream = b"".join(w for k, w in enumerate(writes) if k != lost)
+    want = {None: [b"w" * 5, beacon, b"y" * 5, b"z" * 5],     # the echo is skipped
+            1: [b"w" * 5, b"y" * 5, b"z" * 5],                # head lost: tail and echo skipped
+            2: [b"w" * 5, beacon, b"y" * 5, b"z" * 5],        # tail lost: the echo completes it
+            3: [b"w" * 5, beacon]}[lost]                      # the echo's packet lost: as always
+    assert strict_rmw_desert(stream) == want
+    assert FrameDecoder().feed(stream) == want
+    # Without the echo a lost tail takes the next packet's frames with it.
+    plain = Outbox(Pacer(64, 0.2), echo=False)
+    pull, _ = frames_from(b"w" * 5, beacon, b"y" * 5, b"z" * 5)
+    writes = [w for _, w in run_box(plain, pull)]
+    assert strict_rmw_desert(writes[0] + writes[1] + writes[3]) == [b"w" * 5]
+
+
+def test_a_tail_holding_a_start_is_not_echoed():
+    box = Outbox(Pacer(64, 0.2))
+    pull, _ = frames_from(b"x" * 70 + b"\x99\x99" + b"x" * 10, b"y" * 5)
+    writes = [w for _, w in run_box(box, pull)]
+    assert writes[-1] == encode_frame(b"y" * 5)
 
 
 def test_cut_and_fill_mode_cuts_the_last_frame_and_fills_every_write():
@@ -295,6 +338,20 @@ def test_pacer_margin_stretches_the_interval():
     assert not p.may_write(1.2) and p.may_write(1.21)
     with pytest.raises(ValueError):
         Pacer(64, 0.2, margin=-0.1)
+
+
+def test_a_write_late_by_less_than_the_margin_keeps_the_grid():
+    # The connection's thread wakes a little after the write was due: the next write is due one
+    # interval after the due time, not after the late write (the margin is the only loss)...
+    p = Pacer(64, 0.2, margin=0.05)
+    p.wrote(1.0)
+    assert p.next_write_at == pytest.approx(1.21)
+    p.wrote(1.215)
+    assert p.next_write_at == pytest.approx(1.42)
+    assert p.next_write_at - 1.215 >= 0.2                   # never two writes within a period
+    # ... and a write long after it was due (an idle link) starts a new grid.
+    p.wrote(1.6)
+    assert p.next_write_at == pytest.approx(1.81)
 
 
 def test_bitrate_stretches_the_interval_to_the_packets_air_time():

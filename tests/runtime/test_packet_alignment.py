@@ -70,9 +70,16 @@ def test_every_frame_is_written_whole_or_in_writes_of_its_own(case, data):
     mrl, payloads = case
     frames = [encode_frame(p) for p in payloads]
     writes = writes_of(Outbox(Pacer(mrl, 1.0)), frames)
-    assert b"".join(w for w, _ in writes) == b"".join(frames)
-    assert sum(len(idx) for _, idx in writes) == len(frames)
+    # A cut frame's last piece is repeated at the start of the next write (its echo, written
+    # only when it holds no 99 99): without the echoes, the writes are the frames.
+    plain, last = [], b""
     for w, idx in writes:
+        echo = last if last and SYNC not in last and len(last) < mrl and w.startswith(last) else b""
+        plain.append((w[len(echo):], idx))
+        last = w if not w.startswith(SYNC) else b""
+    assert b"".join(w for w, _ in plain) == b"".join(frames)
+    assert sum(len(idx) for _, idx in writes) == len(frames)
+    for w, idx in plain:
         # A write holds whole frames, or one piece of a single frame longer than a packet.
         whole = b"".join(frames[i] for i in idx)
         assert len(w) <= mrl and (w == whole or len(idx) <= 1)

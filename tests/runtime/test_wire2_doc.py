@@ -6,15 +6,24 @@ from pathlib import Path
 
 import pytest
 
-from uwgen.runtime.envelope import Envelope, Message, Sync, decode
+from uwgen.runtime.envelope import FRAGMENT, Envelope, Message, Sync, decode, from_v1
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
 
 
+def table(marker: str) -> list[list[str]]:
+    """The rows of the table right after `<!-- marker -->` (header and rule skipped)."""
+    lines = DOC.read_text().split(f"<!-- {marker} -->", 1)[1].strip().splitlines()
+    block = []
+    for ln in lines:
+        if not ln.startswith("|"):
+            break
+        block.append(ln)
+    return [[c.strip() for c in ln.strip("|").split("|")] for ln in block[2:]]
+
+
 def rows() -> list[list[str]]:
-    text = DOC.read_text().split("<!-- envelope-examples -->", 1)[1]
-    table = [ln for ln in text.splitlines()[1:] if ln.startswith("|")]
-    return [[c.strip() for c in ln.strip("|").split("|")] for ln in table[2:]]
+    return table("envelope-examples")
 
 
 def hexes(s: str) -> bytes:
@@ -49,3 +58,31 @@ def test_worked_envelope_is_what_the_codec_writes_and_reads(row):
     env = Envelope(sender, number, messages, **parse_parts(parts))
     assert env.encode() == hexes(wire)
     assert decode(hexes(wire)) == env
+
+
+def fragment_rows() -> list[list[str]]:
+    return table("fragment-examples")
+
+
+def test_the_doc_has_the_fragment_examples():
+    assert [r[0] for r in fragment_rows()] == ["data", "repair"]
+
+
+@pytest.mark.parametrize("row", fragment_rows(), ids=lambda r: r[0])
+def test_worked_fragment_message_is_what_the_codec_writes_and_reads(row):
+    from uwgen.runtime.fragment import Fragment, encode_compact, parse_compact
+    _name, head, chunk, size, message = row
+    transfer, index, count = (int(x) for x in head.split(","))
+    f = Fragment(transfer, index, count, hexes(chunk), int(size) if size else None)
+    assert encode_compact(f) == hexes(message)
+    assert parse_compact(hexes(message)) == f
+    # as a message of an envelope: kind FRAGMENT, no id, the body after H
+    env = Envelope(1, 1, (Message(0, 4, b"\x01"), from_v1(hexes(message))))
+    assert decode(env.encode()).messages[1] == Message(FRAGMENT, 0, hexes(message)[1:])
+
+
+def test_the_repair_example_inside_an_envelope_reads_as_the_doc_says():
+    from uwgen.runtime.fragment import Fragment, encode_compact
+    frag = from_v1(encode_compact(Fragment(200, 3, 3, bytes.fromhex("AABB"), 5)))
+    env = Envelope(0, 0, (frag, Message(0, 4, b"\x01")))
+    assert env.encode()[3:12] == bytes.fromhex("E1 07 C8 03 03 00 05 AA BB")

@@ -335,6 +335,14 @@ def channel_policy(parts: int, priorities: list[int]) -> LinkPolicy:
                       strict=True)
 
 
+def whole_payload(link: Any, schema_id: int, link_config: LinkConfig) -> int:
+    """The longest announcement payload that leaves in one packet, unfragmented: the link
+    says (wire format 2's envelope and any protection take their share); a link that cannot
+    say gets a frame of max_read_length."""
+    ask = getattr(link, "whole_payload", None)
+    return ask(schema_id) if callable(ask) else max(1, link_config.max_read_length - OVERHEAD)
+
+
 def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
                   say: Callable[[str, str], None]) -> SchemaGuard | None:
     """A SchemaGuard for a bridge plan with a `schema_id`, its channel added to `link`;
@@ -365,7 +373,7 @@ def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
     guard = SchemaGuard(schema_id, ours, list(ours),
                         lambda payload: link.offer(schema_id, payload), clock=clock,
                         period=getattr(plan, "schema_period", None),
-                        max_payload=max(1, link_config.max_read_length - OVERHEAD),
+                        max_payload=whole_payload(link, schema_id, link_config),
                         connects=connects, queued=queued, say=say,
                         digest=getattr(plan, "schema_digest", b""))
     air = sum(len(p) + OVERHEAD for p in guard.payloads(False)) / link_config.bytes_per_second

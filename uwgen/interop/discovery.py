@@ -39,8 +39,10 @@ Send = Callable[[int, bytes], bool]
 
 
 def default_node_name(side: str) -> str:
-    """The node name a bridge announces: `uwgen_<side>`, made a valid ROS node name."""
-    return "uwgen_" + re.sub(r"[^A-Za-z0-9_]", "_", side)
+    """The node name a bridge announces: the side's name (every byte of it is in every beacon,
+    and a manifest's side names are valid ROS node names already), made one if it is not."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", side)
+    return name if name[:1].isalpha() else "uw_" + name
 
 
 def bridge_beacons(manifest: Manifest, side: str, node_name: str | None = None,

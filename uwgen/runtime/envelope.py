@@ -18,7 +18,9 @@ is one envelope:
       bits 4-0  id 1..31; 0: the id follows in one byte (32..255)
 
   With kind escape (`11`), bits 4-0 are 0 and two bytes follow: the kind (any but 0, 2, 3), then
-  the id (1..255). The last message has no length: its body is what remains before the tag.
+  the id (1..255); bits 4-0 of 1 (H = 0x61) make a fragment message, no id: its body is
+  uwgen.runtime.fragment's compact fragment. The last message has no length: its body is what
+  remains before the tag.
 
 This module is pure: bytes in, an `Envelope` out (or one `EnvelopeError`), and back. It interprets
 P, W and the messages; K, T, A, C and the tag are carried as values and bytes for their owners
@@ -54,6 +56,8 @@ KIND_CODES = {0: 0b00, 2: 0b01, 3: 0b10}
 CODE_KINDS = {v: k for k, v in KIND_CODES.items()}
 ESCAPE_CODE = 0b11
 SHORT_IDS = 31              # ids 1..31 fit in H
+FRAGMENT = 0x100            # Message.kind of a fragment message (never a wire kind; its id is 0)
+H_FRAGMENT = (ESCAPE_CODE << 5) | 1     # 0x61: H of a fragment message (fragment.py has its body)
 
 
 class EnvelopeError(ValueError):
@@ -79,6 +83,10 @@ class Message:
 
     def header(self) -> bytes:
         """H (and the escape bytes), without the length flag."""
+        if self.kind == FRAGMENT:
+            if self.id != 0:
+                raise EnvelopeError(f"a fragment message has no id, got {self.id}")
+            return bytes((H_FRAGMENT,))
         if not 1 <= self.id <= 255:
             raise EnvelopeError(f"message id must be 1..255, got {self.id}")
         code = KIND_CODES.get(self.kind)
@@ -93,6 +101,14 @@ class Message:
     def size(self, last: bool = True) -> int:
         """Bytes this message takes in an envelope (plus its length byte unless it is the last)."""
         return len(self.header()) + len(self.body) + (0 if last else 1)
+
+
+def is_fragment_message(m: Message, fragment_id: int | None) -> bool:
+    """Whether `m` carries a fragment: a fragment message (H 61), or a topic message on the
+    manifest's `fragment_id` (fragments in wire format 1's form, which a receiver still takes).
+    What a fragment carries is known only once reassembled: a seal that decides per id treats
+    it like the most protected id."""
+    return m.kind == FRAGMENT or (fragment_id is not None and m.kind == 0 and m.id == fragment_id)
 
 
 @dataclass(frozen=True)
@@ -251,9 +267,12 @@ def _message(b: bytes, pos: int, end: int, index: int) -> tuple[Message, int]:
     pos += 1
     code = (h >> 5) & 0b11
     low = h & 0x1F
-    if code == ESCAPE_CODE:
+    if code == ESCAPE_CODE and low == 1:
+        kind, ident = FRAGMENT, 0
+    elif code == ESCAPE_CODE:
         if low:
-            raise EnvelopeError(f"message {index}: escaped kind with id bits {low} (must be 0)")
+            raise EnvelopeError(f"message {index}: escape code with id bits {low} (0: an escaped "
+                                "kind, 1: a fragment; others reserved)")
         if pos + 2 > end:
             raise EnvelopeError(f"message {index}: envelope ends inside its escaped header")
         kind, ident = b[pos], b[pos + 1]
@@ -292,6 +311,8 @@ def from_v1(payload: bytes | bytearray | memoryview) -> Message:
     """The message of a wire format 1 payload: its CBOR kind and id items become H, the rest is
     the body. EnvelopeError when the payload does not start with a kind below 24 and an id."""
     b = bytes(payload)
+    if b[:1] == bytes((H_FRAGMENT,)):        # a fragment message (wire format 2's own form)
+        return Message(FRAGMENT, 0, b[1:])
     if len(b) < 2 or b[0] >= 24:
         raise EnvelopeError("payload does not start with a CBOR kind below 24")
     kind = b[0]
@@ -307,7 +328,10 @@ def from_v1(payload: bytes | bytearray | memoryview) -> Message:
 
 
 def to_v1(message: Message) -> bytes:
-    """The wire format 1 payload of a message: CBOR kind and id, then the body."""
+    """The wire format 1 payload of a message: CBOR kind and id, then the body. A fragment
+    message stays as it is in the envelope (H 0x61, then its body): only fragment.py reads it."""
+    if message.kind == FRAGMENT:
+        return bytes((H_FRAGMENT,)) + message.body
     k, i = message.kind, message.id
     head = bytes((k,)) if k < 24 else bytes((0x18, k))
     head += bytes((i,)) if i < 24 else bytes((0x18, i))

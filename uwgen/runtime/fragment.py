@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 from uwgen.runtime import fec
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.envelope import H_FRAGMENT
 from uwgen.runtime.framing import MAX_PAYLOAD, OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
@@ -95,9 +96,14 @@ class Fragment:
         return self.index >= self.count
 
 
-def is_fragment(payload: bytes, fragment_id: int | None) -> bool:
-    """Cheap test of the header: is this payload `0, fragment_id, ...`?"""
-    if fragment_id is None or len(payload) < 2 or payload[0] != FRAGMENT_KIND:
+def is_fragment(payload: bytes, fragment_id: int | None, compact: bool = False) -> bool:
+    """Cheap test of the header: is this payload `0, fragment_id, ...` (or, with `compact`, a
+    wire format 2 fragment message, H 0x61)?"""
+    if fragment_id is None:
+        return False
+    if compact and payload[:1] == COMPACT_H:
+        return True
+    if len(payload) < 2 or payload[0] != FRAGMENT_KIND:
         return False
     head = _uint(fragment_id)
     return payload[1:1 + len(head)] == head
@@ -140,6 +146,62 @@ def parse_fragment(payload: bytes, fragment_id: int) -> Fragment:
     return Fragment(transfer, index, count, chunk, total)
 
 
+# -- the compact fragment message of wire format 2 (docs/wire-format.md section 14) ------------
+#
+#     61 | transfer | index | count | [size: 2 bytes, big-endian; repair fragments only] | chunk
+#
+# H 0x61 (the envelope's escape code with id bits 1) says "fragment" without an id, and the
+# chunk needs no byte-string head: the message's length (or the envelope's end) says it.
+
+COMPACT_H = bytes((H_FRAGMENT,))
+COMPACT_HEAD = 4            # H, transfer, index, count
+COMPACT_SIZE = 2            # a repair fragment's size
+
+
+def encode_compact(f: Fragment) -> bytes:
+    """A fragment as a wire format 2 fragment message (H included); FragmentError when a field
+    does not fit its byte."""
+    if not (0 <= f.transfer <= MAX_TRANSFER and 0 <= f.index <= 255 and 1 <= f.count <= MAX_COUNT):
+        raise FragmentError(f"fragment: transfer {f.transfer}, index {f.index}, count {f.count} "
+                            "do not fit a byte each")
+    if not f.chunk:
+        raise FragmentError("fragment: empty chunk")
+    size = b""
+    if f.is_repair:
+        if f.size is None or not 0 < f.size < 1 << 16:
+            raise FragmentError(f"repair fragment: size {f.size} does not fit 2 bytes")
+        size = f.size.to_bytes(COMPACT_SIZE, "big")
+    return COMPACT_H + bytes((f.transfer, f.index, f.count)) + size + bytes(f.chunk)
+
+
+def parse_compact(payload: bytes) -> Fragment:
+    """The fragment in a wire format 2 fragment message; FragmentError saying what is wrong."""
+    b = bytes(payload)
+    if b[:1] != COMPACT_H:
+        raise FragmentError("fragment message: H is not 61")
+    if len(b) < COMPACT_HEAD + 1:
+        raise FragmentError(f"fragment message of {len(b)} bytes: at least {COMPACT_HEAD + 1}")
+    transfer, index, count = b[1], b[2], b[3]
+    if count == 0:
+        raise FragmentError("fragment: count 0")
+    if index < count:
+        return Fragment(transfer, index, count, b[COMPACT_HEAD:])
+    if index >= fec.MAX_BLOCKS:
+        raise FragmentError(f"fragment: repair index {index} out of range {count}..{fec.MAX_BLOCKS - 1}")
+    chunk = b[COMPACT_HEAD + COMPACT_SIZE:]
+    if not chunk:
+        raise FragmentError("repair fragment: no size and chunk after its head")
+    total = int.from_bytes(b[COMPACT_HEAD:COMPACT_HEAD + COMPACT_SIZE], "big")
+    if not (count - 1) * len(chunk) < total <= count * len(chunk):
+        raise FragmentError(f"fragment: size {total} cannot be {count} chunks of at most {len(chunk)} bytes")
+    return Fragment(transfer, index, count, chunk, total)
+
+
+def parse_any(payload: bytes, fragment_id: int) -> Fragment:
+    """A fragment in either form: compact (H 0x61) or wire format 1's CBOR items."""
+    return parse_compact(payload) if payload[:1] == COMPACT_H else parse_fragment(payload, fragment_id)
+
+
 def encode_fragment(fragment_id: int, f: Fragment) -> bytes:
     parts = [_uint(FRAGMENT_KIND), _uint(fragment_id), _uint(f.transfer), _uint(f.index),
              _uint(f.count), _uint(len(f.chunk), 2), f.chunk]
@@ -151,6 +213,7 @@ def encode_fragment(fragment_id: int, f: Fragment) -> bytes:
 # -- sender ------------------------------------------------------------------------------------
 
 MIN_FRAGMENT_PAYLOAD = 24     # below this a fragment would be mostly header: cut the frame instead
+MIN_COMPACT_PAYLOAD = 8       # compact fragments: 4 bytes of head, 2 of size, some chunk
 
 
 def fragment_payload_for(max_read_length: int) -> int:
@@ -162,13 +225,18 @@ class Fragmenter:
     """Splits payloads over 255 bytes into fragment payloads of at most `max_payload` bytes each."""
 
     def __init__(self, fragment_id: int, *, rng: random.Random | None = None,
-                 max_fragments: int = MAX_COUNT, max_payload: int = MAX_PAYLOAD):
+                 max_fragments: int = MAX_COUNT, max_payload: int = MAX_PAYLOAD,
+                 compact: bool = False):
+        """`compact`: fragments are wire format 2 fragment messages (`encode_compact`), each at
+        most `max_payload` bytes H included; else wire format 1 fragment payloads."""
         if not 1 <= fragment_id <= 255:
             raise ValueError(f"fragment_id must be 1..255, got {fragment_id}")
         if not 2 <= max_fragments <= MAX_COUNT:
             raise ValueError(f"max_fragments must be 2..{MAX_COUNT}, got {max_fragments}")
-        if not MIN_FRAGMENT_PAYLOAD <= max_payload <= MAX_PAYLOAD:
-            raise ValueError(f"max_payload must be {MIN_FRAGMENT_PAYLOAD}..{MAX_PAYLOAD}, got {max_payload}")
+        least = MIN_COMPACT_PAYLOAD if compact else MIN_FRAGMENT_PAYLOAD
+        if not least <= max_payload <= MAX_PAYLOAD:
+            raise ValueError(f"max_payload must be {least}..{MAX_PAYLOAD}, got {max_payload}")
+        self.compact = compact
         self.fragment_id = fragment_id
         self.max_fragments = max_fragments
         self.max_payload = max_payload
@@ -182,6 +250,8 @@ class Fragmenter:
 
     def _chunk_size(self, count: int, repair: int = 0) -> int:
         """Largest chunk such that the fragment with the widest header still fits max_payload."""
+        if self.compact:
+            return self.max_payload - COMPACT_HEAD - (COMPACT_SIZE if repair else 0)
         head = (1 + len(_uint(self.fragment_id)) + len(_uint(MAX_TRANSFER))
                 + len(_uint(count + repair - 1)) + len(_uint(count)))
         size = self.max_payload - head - 2       # byte string head: at most 2 bytes up to 255
@@ -216,12 +286,12 @@ class Fragmenter:
         transfer = self._next_transfer
         self._next_transfer = (transfer + 1) % (MAX_TRANSFER + 1)
         chunks = [payload[i * chunk:(i + 1) * chunk] for i in range(count)]
-        out = [encode_fragment(self.fragment_id, Fragment(transfer, i, count, c)) for i, c in enumerate(chunks)]
+        frags = [Fragment(transfer, i, count, c) for i, c in enumerate(chunks)]
         if repair:
             width = len(chunks[0])
             blocks = fec.repair_blocks([c.ljust(width, b"\0") for c in chunks], repair)
-            out += [encode_fragment(self.fragment_id, Fragment(transfer, count + j, count, b, len(payload)))
-                    for j, b in enumerate(blocks)]
+            frags += [Fragment(transfer, count + j, count, b, len(payload)) for j, b in enumerate(blocks)]
+        out = [encode_compact(f) if self.compact else encode_fragment(self.fragment_id, f) for f in frags]
         assert all(len(p) <= self.max_payload for p in out)
         return out
 
@@ -353,7 +423,7 @@ class Reassembler:
         self.expire(now)
         self.stats.inc("fragments")
         try:
-            f = parse_fragment(payload, self.fragment_id)
+            f = parse_any(payload, self.fragment_id)
         except FragmentError as e:
             log_count(log, logging.WARNING, self.stats.inc("malformed"), "[%s] dropped %s", self.name, e)
             return None

@@ -36,6 +36,7 @@ from uwgen.runtime.connection import Backoff, DesertConnection
 from uwgen.runtime.envelope import EnvelopeError, add_packed_head, from_v1, strip_packed_head
 from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
 from uwgen.runtime.framing import MAX_FRAME, MAX_PAYLOAD
+from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.runtime.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker, envelope_room,
                                    message_measure)
 from uwgen.runtime.pacing import DEFAULT_MARGIN
@@ -90,12 +91,12 @@ class Link:
         self.reassembler: Reassembler | None = None
         if fragment_id is not None:
             # A fragment frame fits one DESERT packet, so a lost packet costs whole fragments only.
-            # Wire format 2: a fragment message fits one envelope (its message cost is at most
-            # its wire format 1 length minus one, see packets.message_measure).
-            room = (envelope_room(self.config.max_read_length, self.hooks.overhead) if v2
+            # Wire format 2: fragments are compact fragment messages (H 0x61, fragment.py), each
+            # fitting an envelope's room with its length byte (packets.message_measure).
+            room = (envelope_room(self.config.max_read_length, self.hooks.overhead) - 1 if v2
                     else fragment_payload_for(self.config.max_read_length))
             self.fragmenter = Fragmenter(fragment_id, rng=rng, max_fragments=max_fragments,
-                                         max_payload=min(MAX_PAYLOAD, room))
+                                         max_payload=min(MAX_PAYLOAD, room), compact=v2)
             # Fragments of one message may be spread out by higher-priority traffic: be patient;
             # memory stays bounded by max_partial_* whatever the timeout.
             timeout = fragment_timeout if fragment_timeout is not None else max(30.0, 60 * self.config.period)
@@ -107,7 +108,8 @@ class Link:
             splitter=self.fragmenter.split if self.fragmenter else None,
             max_message=(self.fragmenter.max_message_size if self.fragmenter
                          else envelope_room(MAX_FRAME, self.hooks.overhead) - 1 if v2 else MAX_PAYLOAD),
-            fec_over=self.fragmenter.max_payload if self.fragmenter else MAX_PAYLOAD,
+            fec_over=(self.whole_payload() if v2 else self.fragmenter.max_payload)
+            if self.fragmenter else MAX_PAYLOAD,
             max_message_for=self.fragmenter.max_message_for if self.fragmenter else None,
             protect=guard.protect if guard is not None else None,
             overhead=guard.overhead if guard is not None else None,
@@ -156,6 +158,16 @@ class Link:
         if ok:
             self.connection.wake()
         return ok
+
+    def whole_payload(self, key: int | None = None) -> int:
+        """The longest payload of channel `key` that leaves whole in one packet, protection
+        included: what a sender that splits its own data (schema announcements) aims for.
+        Wire format 2: a message of that payload fills an envelope's room (its message cost is
+        at most its payload length, packets.message_measure); 1: a frame of max_read_length."""
+        room = (envelope_room(self.config.max_read_length, self.hooks.overhead)
+                if self.wire_format == 2 else self.config.max_read_length - FRAME_OVERHEAD)
+        guard = self.guard.overhead(key) if self.guard is not None and key is not None else 0
+        return max(1, min(MAX_PAYLOAD, room - guard))
 
     def queued(self, key: int) -> int:
         """Messages waiting on channel `key` (one being sent in fragments included)."""
@@ -213,11 +225,12 @@ class Link:
             self._on_frame(payload)
 
     def _on_frame(self, payload: bytes) -> None:
-        if self.reassembler is not None and is_fragment(payload, self.fragment_id):
+        if self.reassembler is not None and is_fragment(payload, self.fragment_id,
+                                                         compact=self.wire_format == 2):
             whole = self.reassembler.feed(payload)
             if whole is None:
                 return
-            if is_fragment(whole, self.fragment_id):
+            if is_fragment(whole, self.fragment_id, compact=self.wire_format == 2):
                 self.counters.inc("nested_fragments")    # never sent by uwgen: refuse to recurse
                 return
             payload = whole

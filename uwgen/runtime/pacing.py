@@ -23,6 +23,16 @@ fill the following writes alone. The old cut-and-fill mode (`aligned=False`: the
 write is cut and its rest starts the next write) is kept for benchmarks only: one lost packet then
 destroys up to two frames, and an rmw_desert receiver, which cannot resync inside a frame, loses more.
 
+The last piece of a cut frame is written twice: alone, then again at the start of the next
+write (`echo`), unless it holds `99 99`. A receiver that got it finds the repeat between two
+frames and skips it, as any bytes outside a frame (section 2); one that lost it is still inside
+the frame, LEN bytes counted, and the repeat completes the frame exactly. Without it an
+rmw_desert receiver, which takes LEN + 1 bytes after a start whatever they hold, swallows the
+next packet's frames with the lost tail (on real DESERT: the first 6-8 Twists after a
+beacon straddling two packets; an rmw_desert beacon is 70-110 bytes, and the names it must
+carry alone take more than a 64-byte packet: wire-format.md section 6). The cost is the tail's
+bytes once, on a link that cuts only rmw_desert payloads longer than a packet.
+
 A write opportunity that finds nothing to send costs nothing: the next frame goes out as soon as
 it is offered (low latency when the link is idle).
 
@@ -34,6 +44,9 @@ socket occasionally lets two writes share one tick interval, so a second packet 
 states do not last, and it also absorbs clock drift between us and DESERT. Measured against the
 emulator (64 B / 0.2 s, 300 m, a 10 Hz command stream plus a flood): command latency median
 0.60 s and p95 0.80 s without the margin, 0.50 s and 0.62-0.70 s with 5 %, for 5 % less throughput.
+The margin is all the pace loses: a write the thread makes a little late (less than the margin)
+does not push the following ones back (`Pacer.wrote`), and a saturated link fills its packets
+(uwgen.runtime.filling), so link use is about 0.99 x 1 / 1.05 (benchmarks/envelope_bench.py).
 """
 from __future__ import annotations
 
@@ -41,7 +54,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from uwgen.manifest.model import LinkConfig
-from uwgen.runtime.framing import OVERHEAD
+from uwgen.runtime.framing import OVERHEAD, SYNC
 
 
 DEFAULT_MARGIN = 0.05
@@ -50,7 +63,8 @@ PACKET_HEADER = 4        # bytes DESERT adds to each packet on the air (UDP and 
 
 
 class Pacer:
-    """At most one write, of at most `max_bytes`, per `period * (1 + margin)` seconds.
+    """At most one write, of at most `max_bytes`, per `period * (1 + margin)` seconds (writes due
+    on a grid of that interval while the link is busy; see `wrote`).
 
     With `bitrate` (bit/s) the interval after a write is also at least that packet's time on the
     air, for links whose modem cannot send a full packet within one period.
@@ -84,10 +98,17 @@ class Pacer:
         return now >= self._next
 
     def wrote(self, now: float, nbytes: int = 0) -> None:
+        """A write happened at `now`. A write late by less than the margin (the thread woke a
+        little after `next_write_at`) keeps the grid: the next interval counts from when this
+        write was due, so the margin is what the pace loses, not the margin plus every wake-up's
+        delay; two writes are still never less than one period apart. A later write (the link
+        was idle) starts a new grid."""
         interval = self.period
         if self.bitrate is not None:
             interval = max(interval, (nbytes + PACKET_HEADER) * 8 / self.bitrate)
-        self._next = now + interval * (1.0 + self.margin)
+        slack = interval * self.margin
+        base = self._next if 0.0 <= now - self._next <= slack else now
+        self._next = base + interval * (1.0 + self.margin)
 
 
 @dataclass
@@ -107,11 +128,14 @@ class Outbox:
     written (it did not fit) survives a disconnect and goes first on the next connection.
     """
 
-    def __init__(self, pacer: Pacer, aligned: bool = True, one_frame: bool = False):
+    def __init__(self, pacer: Pacer, aligned: bool = True, one_frame: bool = False,
+                 echo: bool = True):
         self.pacer = pacer
         self.aligned = aligned
         self.one_frame = one_frame   # wire format 2: one frame (one envelope) per write
+        self.echo = echo             # repeat a cut frame's last piece at the next write's start
         self.stats = OutboxStats()
+        self._echo = b""             # that piece, until the next write
         self._rest = b""             # unwritten pieces of the frame cut by the last write
         self._held = b""             # a whole frame pulled that did not fit the last write
         self._batch_frames = 0       # frames the pending batch completes
@@ -119,8 +143,9 @@ class Outbox:
 
     @property
     def pending(self) -> bool:
-        """A frame (a cut one's rest, or a whole one that did not fit) waits for the next write."""
-        return bool(self._rest or self._held)
+        """A frame (a cut one's rest, or a whole one that did not fit) or an echo waits for the
+        next write."""
+        return bool(self._rest or self._held or self._echo)
 
     def take(self, now: float, pull: Callable[[], bytes | None],
              fit: Callable[[int], bytes | None] | None = None) -> bytes:
@@ -149,9 +174,16 @@ class Outbox:
         room = self.pacer.max_bytes
         if self._rest:               # the next piece of a frame longer than a packet, alone
             piece, self._rest = self._rest[:room], self._rest[room:]
+            if not self._rest and self.echo and SYNC not in piece and len(piece) < room:
+                self._echo = piece   # repeated at the next write's start (module doc)
             return [piece], 0 if self._rest else 1
         parts: list[bytes] = []
-        while room >= MIN_FRAME or not parts:
+        if self._echo:
+            parts.append(self._echo)
+            room -= len(self._echo)
+            self._echo = b""
+        echoed = len(parts)
+        while room >= MIN_FRAME or len(parts) == echoed:
             frame, self._held = (self._held or pull()), b""
             if not frame:
                 break
@@ -160,21 +192,24 @@ class Outbox:
                 room -= len(frame)
                 if self.one_frame:
                     return parts, 1
-            elif parts:
+            elif len(parts) > echoed:
                 self._held = frame          # whole, at the start of the next write
+                break
+            elif echoed:                    # the echo and a frame longer than a packet: the
+                self._held = frame          # echo alone, the frame cut from the next write
                 break
             else:                           # longer than a packet: cut, in writes of its own
                 self._rest = frame[room:]
                 return [frame[:room]], 0
         # The next frame in priority order did not fit (it goes first next time, so nothing
         # starves): fill what is left with frames that fit, from the other channels.
-        while fit is not None and parts and room >= MIN_FRAME:
+        while fit is not None and len(parts) > echoed and room >= MIN_FRAME:
             frame = fit(room)
             if not frame:
                 break
             parts.append(frame)
             room -= len(frame)
-        return parts, len(parts)
+        return parts, len(parts) - echoed
 
     def _cut_and_fill(self, pull: Callable[[], bytes | None]) -> tuple[list[bytes], int]:
         room = self.pacer.max_bytes
@@ -214,7 +249,7 @@ class Outbox:
         """
         lost = self._batch_frames + (1 if self._rest else 0)
         self.stats.frames_abandoned += lost
-        self._rest = b""
+        self._rest = self._echo = b""
         self._clear_batch()
         return lost
 

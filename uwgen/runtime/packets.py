@@ -98,9 +98,12 @@ def envelope_room(max_read_length: int, overhead: int = 0) -> int:
 
 
 def message_measure(payload: bytes) -> int:
-    """What a wire format 1 payload costs in a packet, length byte included (see envelope_room)."""
+    """What a wire format 1 payload costs in a packet, length byte included (see envelope_room):
+    its header and body plus one length byte, as `Message.size(last=False)` counts it (the
+    packer charges exactly that; counting the length byte twice here left a byte of every
+    packet's tail unused)."""
     try:
-        return env.v1_message_size(payload) + 1
+        return env.v1_message_size(payload)
     except env.EnvelopeError:
         return len(payload) + 1
 
@@ -125,7 +128,7 @@ class Packer:
         messages: list[env.Message] = []
         budget = self.room
         while True:
-            got = self.scheduler.next_payload(now, budget if picked else None)
+            got = self.scheduler.next_payload(now, budget if picked else None, fill=True)
             if got is None:
                 break
             key, payload = got
@@ -189,7 +192,7 @@ class Unpacker:
             self.hooks.received(envelope, now)
         out = []
         for m in envelope.messages:
-            if m.kind not in env.KIND_CODES:
+            if m.kind not in env.KIND_CODES and m.kind != env.FRAGMENT:
                 log_count(log, logging.WARNING, c.inc("unknown_kind"),
                           "[%s] dropped a message of kind %d (id %d) from sender %d: this build "
                           "knows kinds 0, 2, 3 only", self.name, m.kind, m.id, envelope.sender)

@@ -1,0 +1,46 @@
+"""Filling the tail of a packet: which waiting message to take so the packet ends up fullest.
+
+The link scheduler serves channels in claim order (uwgen.runtime.scheduler). Taken greedily,
+claim order leaves a packet's last bytes empty whenever the next message in that order is a
+little too long for them: with the demo's 6-14-byte messages a 64-byte packet then carries
+59 bytes in two packets of three (measured, benchmarks/envelope_bench.py). Here the scheduler
+asks instead: of the messages that could go next (one per ready channel, in claim order),
+which is the first that still lets the room be filled as well as any choice could? Taking it
+never makes the packet emptier than the best choice, and claims still move only for what is
+served, so a channel passed over keeps its earlier claim and goes first in the next packet:
+shares stay in proportion to weights.
+
+Pure functions over sizes; a subset sum on a bit set (bit n set: n bytes reachable).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+
+def reachable(sizes: Sequence[int], budget: int) -> int:
+    """Bit set of the totals (at most `budget`) that some subset of `sizes` adds up to."""
+    mask = (1 << (budget + 1)) - 1
+    r = 1
+    for s in sizes:
+        if 0 < s <= budget:
+            r |= (r << s) & mask
+    return r
+
+
+def best_fill(sizes: Sequence[int], budget: int) -> int:
+    """The largest total of a subset of `sizes` that is at most `budget`."""
+    return reachable(sizes, budget).bit_length() - 1 if budget >= 0 else 0
+
+
+def first_keeping_best(sizes: Sequence[int], budget: int) -> int | None:
+    """Index of the first size (in the given order) that is part of some subset filling
+    `budget` best; None when no size fits."""
+    if sum(s for s in sizes if s <= budget) <= budget:        # everything fits: order decides
+        return next((i for i, s in enumerate(sizes) if s <= budget), None)
+    target = best_fill(sizes, budget)
+    for i, s in enumerate(sizes):
+        if s > budget:
+            continue
+        if reachable([*sizes[:i], *sizes[i + 1:]], budget - s) >> (target - s) & 1:
+            return i
+    return None
