@@ -13,8 +13,9 @@ the vehicle side. It prints the CPU time per message of the surface bridge and o
 nodes (from /proc, over the same seconds), the bridge's ratio to the bare
 SingleThreadedExecutor node, the rate one core would carry (messages per CPU second), the
 bridge's RSS and the high-priority topic's latency. The link is the demo's (64-byte packets
-every 0.2 s): cmd_vel is latest-only, so nearly every message is dropped by the queue, as
-in the field. (The bridge itself cannot run on Jazzy's EventsExecutor: it refuses guard
+every 0.2 s): cmd_vel is latest-only, so nearly every message is superseded, as in the
+field (the bridge polls its subscription every 20 ms and deserializes and encodes only the
+newest, uwgen.bridge.polling); /alert is fifo, taken on executor wake-ups. (The bridge itself cannot run on Jazzy's EventsExecutor: it refuses guard
 conditions, "Guard conditions not supported", and the bridge wakes its executor with one.)
 With --baseline PYTHON, the surface bridge of another uwgen checkout (that interpreter's,
 e.g. main's venv, with a package built by its own `uwgen build`) is measured too, in turns

@@ -13,9 +13,11 @@ Table 1, the demo's mix, secured as the demo is (docs/demo.md): cmd_vel publishe
 rate 0.2), 8 log lines every 20 s (not protected), an encrypted teleport request every 30 s, and
 each side's schema announcement (signed) at start; real messages through the demo package's
 codecs. Air bytes per delivered message, both directions; goal: wire format 2 <= half of 1.
-Then what those bytes carry, per delivered message: DESERT's 4 bytes per packet, frames,
-packet heads (P, W, parts), message heads (kind and id items; H, id and length bytes), what
-protection added (measured at the receiver's guard) and the rest of the bodies.
+Wire format 2 is sealed as a bridge seals it: one tag per packet (PacketSeal, issue 17) when
+that is on the branch, else per message. Then what those bytes carry, per delivered message:
+DESERT's 4 bytes per packet, frames, packet heads (P, W, parts but the tag), message heads (kind
+and id items; H, id and length bytes), security (per message: what the receiver's guard took
+off; per packet: the tag) and the rest of the bodies.
 
 Table 2, link use under saturation (bytes written per second / (max_read_length / period)):
 FIFO channels always full, latest-only channels with a fresh message before every write, and a
@@ -46,6 +48,11 @@ from uwgen.runtime.framing import FrameDecoder
 from uwgen.runtime.link import Link
 from uwgen.security.guard import GuardConfig, LinkGuard
 
+try:            # the per-packet seal (issue 17): what a bridge uses on wire format 2 links
+    from uwgen.security.packet_seal import PacketSeal
+except ImportError:     # not on this branch yet: wire format 2 is sealed per message
+    PacketSeal = None
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "generated"))
 import uwgen_demo as demo  # noqa: E402  (the demo's generated package)
@@ -75,19 +82,25 @@ class Pair:
         kw = dict(config=CONFIG, clock=self.clock, fragment_id=fragment_id, rng=random.Random(1))
         if wire == 2:
             kw.update(wire_format=2, packed_ids=packed)
-        guards = {}
+        guards, seals = {}, {}
         if secure_dir is not None:
             for side, other in ((src, dst), (dst, src)):
                 cfg = GuardConfig("demo", SENDERS[side], {SENDERS[other]: other}, MODES)
-                guards[side] = LinkGuard.for_key(MASTER, cfg, secure_dir / f"{wire}-{src}{dst}-{side}.lock",
-                                                 clock=self.clock, name=side)
+                lock = secure_dir / f"{wire}-{src}{dst}-{side}.lock"
+                if wire == 2 and PacketSeal is not None:    # as a bridge does: one tag a packet
+                    seals[side] = PacketSeal.for_key(MASTER, cfg, lock, clock=self.clock, name=side,
+                                                     fragment_id=fragment_id)
+                else:
+                    guards[side] = LinkGuard.for_key(MASTER, cfg, lock, clock=self.clock, name=side)
         if wire == 2:
             kw_src = dict(kw, sender_id=SENDERS.get(src, 0))
         else:
             kw_src = kw
-        self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}), **kw_src)
+        self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}),
+                           **({"hooks": seals[src].hooks()} if seals else {}), **kw_src)
         self.receiver = Link(name=dst, on_payload=self.delivered.append,
-                             **({"guard": guards[dst]} if guards else {}), **kw)
+                             **({"guard": guards[dst]} if guards else {}),
+                             **({"hooks": seals[dst].hooks()} if seals else {}), **kw)
         self.wire = wire
         self.batches: list[bytes] = []
         self.security = 0          # bytes protection added to the messages received
@@ -114,7 +127,9 @@ class Pair:
             for f in frames:
                 if self.wire == 2:
                     e = envelope.decode(f)
-                    out["packet head"] += e.head_size()
+                    tag = envelope.TAG_LEN if e.sealed else 0      # the per-packet seal's
+                    out["packet head"] += e.head_size() - tag
+                    out["security"] += tag
                     bodies = sum(len(m.body) for m in e.messages)
                     out["message head"] += len(f) - e.head_size() - bodies
                     out["body"] += bodies
@@ -295,7 +310,8 @@ def main() -> None:
     args = parser.parse_args()
     s = args.seconds
 
-    print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions)")
+    print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions); "
+          f"wire format 2 sealed {'per packet (PacketSeal)' if PacketSeal else 'per message (LinkGuard)'}")
     print(f"{'wire format':<14}{'air bytes':>10}{'messages':>10}{'bytes/msg':>11}")
     rows, split = {}, {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -52,40 +52,79 @@ class RawSubscription:
         return self.queued.pop(0) if self.queued else None
 
 
-def test_latest_only_subscriptions_are_never_waited_on_and_fifo_ones_are(surface):
-    _side, bridge, _link = surface
+def test_a_busy_latest_only_topic_is_polled_and_an_idle_one_waited_on(surface):
+    side, bridge, link = surface
     by_topic = {s.topic_name: s for s in bridge.topics.subscriptions}
     polled, fifo = by_topic["/cmd"], by_topic["/log"]
-    assert isinstance(polled.callback_group, PolledGroup)
-    assert not polled.callback_group.can_execute(polled)
-    assert not polled.callback_group.beginning_execution(polled)
-    assert fifo.callback_group.can_execute(fifo)
+    group, timer = polled.callback_group, bridge.topics.poller.timer
+    assert isinstance(group, PolledGroup) and fifo.callback_group is not group
     assert polled.qos_profile.depth >= POLL_HISTORY   # what arrives between polls is all taken
+    # Idle: the executor waits on it, and no poll timer wakes the bridge.
+    assert group.can_execute(polled) and timer.is_canceled()
+    # A message wakes the executor once; from then on the topic is polled...
+    pub = side.node("op").create_publisher(Twist, "/cmd", 10)
+    wait_for(pub.get_subscription_count, what="the bridge subscribed")
+    states = []
+    bridge.topics.poller.woken = record_state(bridge.topics.poller.woken, group, timer, states)
+    pub.publish(twist(1))
+    wait_for(lambda: states, what="the executor woken by the message")
+    assert states[0] == (True, False)          # polling, timer running, right after the take
+    assert not group.can_execute(polled) and not group.beginning_execution(polled)
+    # ... until a poll finds nothing: waiting again, the timer stopped.
+    wait_for(lambda: not group.polling and timer.is_canceled(), what="back to waiting")
+    assert link.offered(CMD.id) == [CMD.encode(twist(1))]
+    pub.publish(twist(2))
+    wait_for(lambda: len(link.offered(CMD.id)) == 2, what="the next message, after waiting again")
+    assert len(states) == 2
+
+
+def record_state(woken, group, timer, states):
+    def recorded(topic, raw, info):
+        woken(topic, raw, info)
+        states.append((group.polling, timer.is_canceled()))
+    return recorded
 
 
 def test_no_node_but_the_bridge_joins_the_graph(surface):
     side, bridge, _link = surface
     watcher = side.node("watcher")
-    wait_for(lambda: bridge.get_name() in watcher.get_node_names(), what="the bridge in the graph")
-    assert sorted(watcher.get_node_names()) == sorted([bridge.get_name(), "watcher"])
+    name = bridge.get_name()
+    wait_for(lambda: name in watcher.get_node_names(), what="the bridge in the graph")
+    # (The experiment before it took from a node of its own, `<bridge>_take`.)
+    assert [n for n in watcher.get_node_names() if n.startswith(name)] == [name]
     subs = watcher.get_subscriptions_info_by_topic("/cmd")
-    assert [s.node_name for s in subs] == [bridge.get_name()]
+    assert [s.node_name for s in subs if s.node_name.startswith(name)] == [name]
 
 
 def test_a_burst_between_two_polls_offers_only_the_newest_and_books_the_rest(surface):
     side, bridge, link = surface
-    side.executor.remove_node(bridge)              # no timer poll races the one below
+    side.executor.remove_node(bridge)              # no timer poll races the ones below
     poller = bridge.topics.poller
     burst = [twist(x) for x in (1, 2, 3, 4)]
-    poller.polled = [(CMD, RawSubscription(burst), Twist)]
+    topic = poller.polled[0]
+    topic.sub, topic.group.polling = RawSubscription(burst), True
     poller.poll()
     counters = bridge.topics.counters[CMD.id]
     assert (counters.taken, counters.superseded, counters.offered) == (4, 3, 1)
     assert link.offered(CMD.id) == [CMD.encode(burst[-1])]
-    poller.poll()                                  # nothing new: nothing offered again
+    poller.poll()                                  # nothing new: nothing offered, waiting again
     assert link.offered(CMD.id) == [CMD.encode(burst[-1])]
+    assert not topic.group.polling
     acc = bridge.status()["topics"]["/cmd"]["accounting"]
     assert (acc["taken"], acc["dropped_by_policy"]["superseded"]) == (4, 3)
+
+
+def test_a_take_on_wake_up_counts_the_message_the_executor_took(surface):
+    side, bridge, link = surface
+    side.executor.remove_node(bridge)
+    poller = bridge.topics.poller
+    first, *more = [twist(x) for x in (1, 2, 3)]
+    topic = poller.polled[0]
+    topic.sub = RawSubscription(more)
+    poller.woken(topic, serialize_message(first), {})
+    counters = bridge.topics.counters[CMD.id]
+    assert (counters.taken, counters.superseded, counters.offered) == (3, 2, 1)
+    assert link.offered(CMD.id) == [CMD.encode(more[-1])] and topic.group.polling
 
 
 def test_the_newest_published_message_is_the_last_one_offered(surface):
@@ -104,15 +143,23 @@ def test_the_newest_published_message_is_the_last_one_offered(surface):
 def test_qos_events_of_a_polled_subscription_are_taken_by_the_poller(surface):
     side, bridge, _link = surface
     # A best-effort publisher cannot serve the bridge's reliable subscription: an
-    # incompatible-QoS event, which no executor waits on; the poller takes it.
+    # incompatible-QoS event. While the topic polls, no executor waits on it: the poller
+    # takes it.
+    side.executor.remove_node(bridge)
+    poller = bridge.topics.poller
+    poller.polled[0].group.polling = True
     side.node("op").create_publisher(Twist, "/cmd", QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
-    wait_for(lambda: bridge.status()["topics"]["/cmd"]["qos_incompatible"] >= 1,
-             what="the incompatible-QoS event counted")
+
+    def counted():
+        poller.poll()
+        poller.polled[0].group.polling = True
+        return bridge.status()["topics"]["/cmd"]["qos_incompatible"] >= 1
+    wait_for(counted, what="the incompatible-QoS event counted")
     # Message-lost events are taken the same way, and booked as dropped by the subscription.
     polled = next(s for s in bridge.topics.subscriptions if s.topic_name == "/cmd")
     lost = next(h for h in polled.event_handlers
                 if h.event_type == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST)
-    assert not lost.callback_group.can_execute(lost)      # never in the executor's wait set
+    assert not lost.callback_group.can_execute(lost)      # not in the executor's wait set now
     lost.callback(SimpleNamespace(total_count=3, total_count_change=3))
     acc = bridge.status()["topics"]["/cmd"]["accounting"]
     assert acc["dropped_by_subscription"] == 3 and acc["published"] == acc["taken"] + 3

@@ -34,7 +34,7 @@ from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.reliability import link_ledger, reliability_for
-from uwgen.bridge.security import guard_for
+from uwgen.bridge.security import guard_for, link_security
 from uwgen.bridge.services import Servers, StandIns, service_status
 from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
 from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
@@ -98,15 +98,18 @@ class BridgeNode(Node):
         self.inbox = Inbox(self._wake.trigger)
         link_cfg = self.options.link
         self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
+        security_kw, seal_hooks = link_security(self.guard)
         # Acks, re-sends of reliable topics, delivery once, stale commands (wire format 2 only;
-        # docs/seams.md section 5: joined with the per-packet seal's hooks when there is one).
-        self.reliability = reliability_for(plan, link_cfg, w.wall)
-        hooks = join_hooks(self.reliability.hooks()) if self.reliability is not None else None
+        # docs/seams.md section 5), joined with the per-packet seal's hooks (one tag per packet)
+        # when the link is secured.
+        self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
+            seal_hooks.overhead if seal_hooks is not None else 0))
+        reliability_hooks = self.reliability.hooks() if self.reliability is not None else None
+        if reliability_hooks is not None or seal_hooks is not None:
+            security_kw["hooks"] = join_hooks(reliability_hooks, seal_hooks)
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
-                                 clock=clock, name=plan.side, **plan.link_options(),
-                                 **({"guard": self.guard} if self.guard is not None else {}),
-                                 **({"hooks": hooks} if hooks is not None else {}))
+                                 clock=clock, name=plan.side, **plan.link_options(), **security_kw)
         for key, policy, name, whole in plan.channels():
             self.link.add_channel(key, policy, name, whole=whole)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
@@ -238,7 +241,7 @@ class BridgeNode(Node):
             actions=action_status(self.action_standins, self.action_servers, channels,
                                   self.unavailable),
             bridge=asdict(self.counters), echo_hazards={**self.echo_hazards, **self.wiring.loops.hazards},
-            security=link_stats.get("security") if isinstance(link_stats, dict) else None)
+            security=self.guard.stats() if self.guard is not None else None)
 
     def discovery_status(self) -> dict | None:
         """What this bridge announces to rmw_desert nodes and the remote graph it heard

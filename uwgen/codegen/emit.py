@@ -78,14 +78,21 @@ def func_name(kind: str, ct_key_name: str, suffix: str) -> str:
     return f"{kind}{suffix}_{ct_key_name}"
 
 
-def field_access(root: Node, body: list[str]) -> Callable[[Node], str]:
+def slots_name(encoder: str) -> str:
+    """The name of the encoder that reads rclpy's slots, beside `encoder`."""
+    return f"{encoder}_slots"
+
+
+def field_access(root: Node, body: list[str], slots: bool = False) -> Callable[[Node], str]:
     """Name each nested message of `root` once (`m1 = m.linear`, appended to `body`) and
-    return how a leaf is read: `access(leaf) -> 'm1.x'`."""
+    return how a leaf is read: `access(leaf) -> 'm1.x'`; with `slots`, rclpy's slot behind
+    each field's property is read instead (`m1._x`)."""
     var_of = {"": "m"}
+    prefix = "_" if slots else ""
 
     def access(node: Node) -> str:
         parent = node.path.rsplit(".", 1)[0] if "." in node.path else ""
-        return f"{var_of[parent]}.{node.name}"
+        return f"{var_of[parent]}.{prefix}{node.name}"
 
     def declare(node: Node) -> None:
         for child in node.children or ():
@@ -114,9 +121,13 @@ class Lowering:
 
     # --- encoder ------------------------------------------------------------------
 
-    def encoder(self, ct: CodecType) -> Function:
+    def encoder(self, ct: CodecType, slots: bool = False) -> Function:
+        """The encoder of `ct`; with `slots`, the one for rclpy messages whose layout
+        RosClasses checked: it reads each field's slot, not its property (TypeCodec.encode
+        chooses; an AttributeError, a nested value that is no rclpy message, sends it back
+        to the encoder that reads fields by name)."""
         body: list[str] = []
-        access = field_access(ct.root, body)
+        access = field_access(ct.root, body, slots)
         for seg in segments(ct.root):
             if isinstance(seg, NumberRun):
                 st = self.consts.struct("<" + "".join(n.encoding.code for n in seg.leaves))
@@ -125,12 +136,17 @@ class Lowering:
                 body.append(f"out += _numbers({st}, ({values},), {names})")
             else:
                 expr = access(seg) if seg.name else ""
-                body.extend(self._encode_leaf(seg, seg.encoding, expr, ct.profile_suffix))
-        return Function(func_name("enc", ct.name, ct.suffix), "m, out",
+                body.extend(self._encode_leaf(seg, seg.encoding, expr, ct.profile_suffix, slots))
+        name = func_name("enc", ct.name, ct.suffix)
+        if slots:
+            return Function(slots_name(name), "m, out",
+                            f"enc_{ct.name}{ct.suffix} for rclpy's {ct.full_name}: fields read from their slots.",
+                            body or ["pass"])
+        return Function(name, "m, out",
                         f"Append the CBOR items of a {ct.full_name} ({ct.profile} profile) to `out`.",
                         body or ["pass"])
 
-    def _encode_leaf(self, leaf: Node, enc, expr: str, suffix: str) -> list[str]:
+    def _encode_leaf(self, leaf: Node, enc, expr: str, suffix: str, slots: bool = False) -> list[str]:
         p = repr(leaf.path)
         if isinstance(enc, Filler):
             return ["out.append(0)  # a message with no fields is one unsigned 0"]
@@ -193,11 +209,14 @@ class Lowering:
         if isinstance(enc, MessageArray):
             lines += self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED)
             fn = self.ref("enc", enc.type_key, suffix)
+            caught = "_CodecError, AttributeError, TypeError"
+            if slots:       # an element that is no rclpy message: encode it all by name
+                fn, caught = slots_name(fn), "_CodecError, TypeError"
             lines += ["k = 0",
                       "try:",
                       "    for k, e in enumerate(x):",
                       f"        {fn}(e, out)",
-                      "except (_CodecError, AttributeError, TypeError) as exc:",
+                      f"except ({caught}) as exc:",
                       f"    raise _under(exc, {p}, k) from None"]
             return lines
         raise AssertionError(enc)

@@ -93,6 +93,7 @@ class CodecEntry:
     enc: str
     dec: str
     variant: str = ""  # '' or the name of a manifest field-encoding variant ('t4', 'q21', 'r21')
+    enc_slots: str = ""  # the encoder that reads rclpy's slots (emit.slots_name), if any
 
 
 @dataclass
@@ -261,17 +262,19 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
     for key in sorted(codecs, key=lambda k: (k[1] != NATIVE, k[1], k[2], k[0])):
         ct = codecs[key]
         mod = module(ct.package, ct.namespace)
+        slots = None        # the encoder reading rclpy's slots (not in the packed profile)
         if ct.profile == PACKED:
             functions = PackedLowering(ct.module, consts[ct.module], module_of).packed_functions(ct)
         else:
             low = Lowering(ct.module, consts[ct.module], module_of)
-            functions = [low.encoder(ct), low.decoder(ct)]
+            slots = low.encoder(ct, slots=True)
+            functions = [low.encoder(ct), slots, low.decoder(ct)]
         mod.functions += functions
-        enc, dec = (f for f in functions if f.name.startswith(("enc", "dec")))
+        enc, dec = (f for f in functions if f is not slots and f.name.startswith(("enc", "dec")))
         for used in ct.uses:
             _need_import(mod, module_of[used])
         entries.append(CodecEntry(ct.full_name, ct.profile, ct.key, module_alias(ct.module), enc.name, dec.name,
-                                  ct.variant))
+                                  ct.variant, slots.name if slots is not None else ""))
     for name, mod in modules.items():
         mod.constants = consts[name].lines
         mod.imports.sort()

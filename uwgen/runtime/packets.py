@@ -11,6 +11,11 @@ The seams of issues 16 and 17 (docs/seams.md section 5) are the `PacketHooks`:
 
 - `parts(now)` -> dict of extra `Envelope` fields (`time`, `ack`, `control`, `sync`) for the
   packet being built; `overhead` is the most bytes they and the seal add to a packet;
+  `next_overhead(now)`, when given, the bytes they will add to the next packet (at most
+  `overhead`; asked before its messages are picked, so a packet without a sync part holds more);
+- `number()` -> the full number of the packet being built, asked once per packet after its
+  messages are picked (the seal numbers packets: its session's number, docs/seams.md section 2);
+  without it the packer counts from 0;
 - `seal(envelope)` -> the packet's bytes (tag included); without it the envelope is sent as is;
 - `open(bytes)` -> an `Envelope`, or None when the packet is dropped (counted by its owner);
   without it the bytes are decoded with `envelope.decode`;
@@ -61,6 +66,8 @@ class PacketHooks:
     sent: Callable[[int, list[tuple[int, bytes]], float], None] | None = None
     received: Callable[[env.Envelope, float], None] | None = None
     overhead: int = 0
+    next_overhead: Callable[[float], int] | None = None
+    number: Callable[[], int] | None = None
     carrying: Callable[[list[tuple[int, bytes]], float], None] | None = None
     resend: Callable[[float, int], tuple[int, bytes] | None] | None = None
     ack_only: Callable[[float], bool] | None = None
@@ -78,13 +85,15 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     as the packet is built, so they may differ by a tick): the first one given is kept. Any other
     part two hooks give must have the same value, otherwise building the packet fails with
     EnvelopeError.
-    At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise).
-    `sent`, `received` and `carrying` are called in order; `overhead` is the sum (an upper bound:
-    a part two hooks both give is counted twice). Likewise at most one hook may give the
-    message heads (`stamp`, `head_room`, `admit`) and at most one `resend`; `ack_only` is any
-    hook's, `next_time` the earliest, `stats` the union of the hooks' dicts."""
+    At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise); its
+    `number` numbers the packets. `sent`, `received` and `carrying` are called in order;
+    `overhead` is the sum (an upper bound: a part two hooks both give is counted twice),
+    `next_overhead` the sum of each hook's (its `overhead` when it gives none). Likewise at most
+    one hook may give the message heads (`stamp`, `head_room`, `admit`) and at most one
+    `resend`; `ack_only` is any hook's, `next_time` the earliest, `stats` the union of the
+    hooks' dicts."""
     given = [h for h in hooks if h is not None]
-    sealers = [h for h in given if h.seal is not None or h.open is not None]
+    sealers = [h for h in given if h.seal is not None or h.open is not None or h.number is not None]
     if len(sealers) > 1:
         raise ValueError("at most one of the joined hooks may seal and open packets")
     sealer = sealers[0] if sealers else PacketHooks()
@@ -111,6 +120,10 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     def received(envelope: env.Envelope, now: float) -> None:
         for tell in receivers:
             tell(envelope, now)
+
+    def next_overhead(now: float) -> int:
+        return sum(h.next_overhead(now) if h.next_overhead is not None else h.overhead
+                   for h in given)
 
     header = _one(given, ("stamp", "head_room", "admit"), "give message heads")
     resender = _one(given, ("resend",), "re-send messages")
@@ -139,6 +152,9 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     return PacketHooks(parts=parts if makers else None, seal=sealer.seal, open=sealer.open,
                        sent=sent if senders else None, received=received if receivers else None,
                        overhead=sum(h.overhead for h in given),
+                       next_overhead=(next_overhead if any(h.next_overhead is not None for h in given)
+                                      else None),
+                       number=sealer.number,
                        carrying=carrying if carriers else None, resend=resender.resend,
                        ack_only=ack_only if askers else None,
                        next_time=next_time if timers else None,
@@ -181,6 +197,7 @@ class Packer:
         self.scheduler = scheduler
         self.sender = sender
         self.hooks = hooks or PacketHooks()
+        self.max_read_length = max_read_length
         self.room = envelope_room(max_read_length, self.hooks.overhead)
         self.counters = counters
         self.name = name
@@ -189,8 +206,10 @@ class Packer:
     def next_packet(self, now: float) -> bytes | None:
         picked: list[tuple[int, bytes]] = []
         messages: list[env.Message] = []
-        budget = self.room
         h = self.hooks
+        budget = self.room
+        if h.next_overhead is not None:
+            budget = envelope_room(self.max_read_length, min(h.next_overhead(now), h.overhead))
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         sources = [] if h.resend is None else [lambda room: h.resend(now, room)]
         sources.append(lambda room: self.scheduler.next_payload(now, room if picked else None,
@@ -215,9 +234,10 @@ class Packer:
                 return None
         if h.carrying is not None:
             h.carrying(picked, now)
-        envelope = env.Envelope(self.sender, self.number % env.NUMBER_MOD, tuple(messages),
-                                **(h.parts(now) if h.parts is not None else {}))
+        number = h.number() if h.number is not None else self.number
         try:
+            envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, tuple(messages),
+                                    **(h.parts(now) if h.parts is not None else {}))
             data = h.seal(envelope) if h.seal is not None else envelope.encode()
         except env.EnvelopeError as e:
             log_count(log, logging.ERROR, self.counters.inc("refused_payloads", len(picked)),
@@ -225,8 +245,8 @@ class Packer:
                       self.name, len(picked), e)
             return None
         if h.sent is not None:
-            h.sent(self.number, picked, now)
-        self.number += 1
+            h.sent(number, picked, now)
+        self.number = number + 1
         self.counters.inc("packets_sent")
         self.counters.inc("messages_sent", len(messages))
         if not messages:

@@ -13,6 +13,10 @@ same field types, getters that read the slots, and a default instance holding in
 slot the container the fast path stores (numpy arrays for fixed numeric arrays,
 array.array for numeric sequences, lists, ...). Anything else, and the decoders of that
 type keep using the constructor, as they always may.
+
+Encoders use the same answer: for a message of a class with `C.fast_<key>`,
+uwgen.runtime.table.TypeCodec.encode calls the encoder that reads the slots (`m._x`)
+rather than the properties (a Python call each).
 """
 from __future__ import annotations
 

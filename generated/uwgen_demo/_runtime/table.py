@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import importlib
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from .model import ACTION_HANDLES, RMW_DESERT, LinkPolicy, Qos, Side
@@ -38,9 +38,21 @@ class TypeCodec:
     plain: PlainClasses
     ros: RosClasses
     class_key: str                     # attribute of the namespaces for this type
+    enc_slots: Callable[[Any, list], None] | None = None   # `enc` reading rclpy's slots
+    # [the rclpy class enc_slots may encode, or None], filled at the first encode
+    _slots_for: list = field(default_factory=list, compare=False, repr=False)
 
     def ros_class(self) -> type:
         return getattr(self.ros, self.class_key)
+
+    def slots_class(self) -> type | None:
+        """The class whose messages `encode` reads through `enc_slots`: the rclpy class,
+        when RosClasses checked its layout and its nested classes' (as for the fast
+        decoders), else None (every message is read field by field, by name)."""
+        if not self._slots_for:
+            ok = self.enc_slots is not None and getattr(self.ros, f"fast_{self.class_key}")
+            self._slots_for.append(self.ros_class() if ok else None)
+        return self._slots_for[0]
 
     def plain_class(self) -> type:
         return getattr(self.plain, self.class_key)
@@ -50,7 +62,15 @@ class TypeCodec:
         bytes of the bare message (its fields alone; `decode_message` reads them back)."""
         out = [] if header is None else header
         try:
-            self.enc(msg, out)
+            if type(msg) is (self._slots_for[0] if self._slots_for else self.slots_class()):
+                n = len(out)
+                try:
+                    self.enc_slots(msg, out)
+                except AttributeError:   # a nested value that is no rclpy message: by name
+                    del out[n:]
+                    self.enc(msg, out)
+            else:
+                self.enc(msg, out)
         except CodecError:
             raise
         except AttributeError as exc:

@@ -58,6 +58,11 @@ def enc_Time(m, out):
     out += _numbers(_S0, (m.sec, m.nanosec,), _N1)
 
 
+def enc_Time_slots(m, out):
+    """enc_Time for rclpy's builtin_interfaces/msg/Time: fields read from their slots."""
+    out += _numbers(_S0, (m._sec, m._nanosec,), _N1)
+
+
 def dec_Time(v, i, C):
     """Read a builtin_interfaces/msg/Time (native profile) from items `v` at `i`; return (message, next index)."""
     if len(v) - i < 2: raise _short('sec')

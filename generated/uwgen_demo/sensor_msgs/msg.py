@@ -122,6 +122,32 @@ def enc_t6_BatteryState(m, out):
     # serial_number: not sent (omitted by the manifest; the receiver keeps the default)
 
 
+def enc_t6_BatteryState_slots(m, out):
+    """enc_BatteryState_t6 for rclpy's sensor_msgs/msg/BatteryState: fields read from their slots."""
+    m1 = m._header
+    m2 = m1._stamp
+    out += _numbers(_S0, (m2._sec, m2._nanosec,), _N1)
+    x = m1._frame_id
+    if type(x) is not str: raise _EncodeError('header.frame_id', 'expected str, got ' + type(x).__name__)
+    out.append(x)
+    out += _numbers(_S2, (m._voltage,), _N3)
+    # temperature: not sent (omitted by the manifest; the receiver keeps the default)
+    out += _numbers(_S2, (m._current,), _N4)
+    # charge: not sent (omitted by the manifest; the receiver keeps the default)
+    # capacity: not sent (omitted by the manifest; the receiver keeps the default)
+    # design_capacity: not sent (omitted by the manifest; the receiver keeps the default)
+    out += _numbers(_S5, (m._percentage, m._power_supply_status,), _N6)
+    # power_supply_health: not sent (omitted by the manifest; the receiver keeps the default)
+    # power_supply_technology: not sent (omitted by the manifest; the receiver keeps the default)
+    x = m._present
+    if x is not True and x is not False: x = _as_bool(x, 'present')
+    out.append(1 if x else 0)
+    # cell_voltage: not sent (omitted by the manifest; the receiver keeps the default)
+    # cell_temperature: not sent (omitted by the manifest; the receiver keeps the default)
+    # location: not sent (omitted by the manifest; the receiver keeps the default)
+    # serial_number: not sent (omitted by the manifest; the receiver keeps the default)
+
+
 def dec_t6_BatteryState(v, i, C):
     """Read a sensor_msgs/msg/BatteryState (native profile) from items `v` at `i`; return (message, next index)."""
     if len(v) - i < 2: raise _short('header.stamp.sec')

@@ -78,6 +78,15 @@ def enc_Header(m, out):
     out.append(x)
 
 
+def enc_Header_slots(m, out):
+    """enc_Header for rclpy's std_msgs/msg/Header: fields read from their slots."""
+    m1 = m._stamp
+    out += _numbers(_S0, (m1._sec, m1._nanosec,), _N1)
+    x = m._frame_id
+    if type(x) is not str: raise _EncodeError('frame_id', 'expected str, got ' + type(x).__name__)
+    out.append(x)
+
+
 def dec_Header(v, i, C):
     """Read a std_msgs/msg/Header (native profile) from items `v` at `i`; return (message, next index)."""
     if len(v) - i < 2: raise _short('stamp.sec')
@@ -106,6 +115,13 @@ def dec_Header(v, i, C):
 def enc_String(m, out):
     """Append the CBOR items of a std_msgs/msg/String (native profile) to `out`."""
     x = m.data
+    if type(x) is not str: raise _EncodeError('data', 'expected str, got ' + type(x).__name__)
+    out.append(x)
+
+
+def enc_String_slots(m, out):
+    """enc_String for rclpy's std_msgs/msg/String: fields read from their slots."""
+    x = m._data
     if type(x) is not str: raise _EncodeError('data', 'expected str, got ' + type(x).__name__)
     out.append(x)
 

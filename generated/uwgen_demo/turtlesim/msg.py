@@ -87,6 +87,11 @@ def enc_Color(m, out):
     out += _numbers(_S0, (m.r, m.g, m.b,), _N1)
 
 
+def enc_Color_slots(m, out):
+    """enc_Color for rclpy's turtlesim/msg/Color: fields read from their slots."""
+    out += _numbers(_S0, (m._r, m._g, m._b,), _N1)
+
+
 def dec_Color(v, i, C):
     """Read a turtlesim/msg/Color (native profile) from items `v` at `i`; return (message, next index)."""
     if len(v) - i < 3: raise _short('r')
@@ -109,6 +114,11 @@ def dec_Color(v, i, C):
 def enc_Pose(m, out):
     """Append the CBOR items of a turtlesim/msg/Pose (native profile) to `out`."""
     out += _numbers(_S2, (m.x, m.y, m.theta, m.linear_velocity, m.angular_velocity,), _N3)
+
+
+def enc_Pose_slots(m, out):
+    """enc_Pose for rclpy's turtlesim/msg/Pose: fields read from their slots."""
+    out += _numbers(_S2, (m._x, m._y, m._theta, m._linear_velocity, m._angular_velocity,), _N3)
 
 
 def dec_Pose(v, i, C):

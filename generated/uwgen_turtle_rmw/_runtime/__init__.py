@@ -12,12 +12,12 @@ import sys as _sys
 
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
-    'codec': ('uwgen.runtime.codec', '49cc106b5dbfd3ac'),
+    'codec': ('uwgen.runtime.codec', '8f6e8ae0751113ad'),
     'model': ('uwgen.manifest.model', '1929c598f4daa2fb'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
-    'rosclasses': ('uwgen.runtime.rosclasses', '6bb8e6195c73dcad'),
-    'table': ('uwgen.runtime.table', 'c1ff6a279ab8cca6'),
+    'rosclasses': ('uwgen.runtime.rosclasses', '3ea002c11a9b520d'),
+    'table': ('uwgen.runtime.table', '773da2762888a641'),
 }
 
 

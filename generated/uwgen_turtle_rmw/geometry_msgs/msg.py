@@ -75,6 +75,13 @@ def enc_rmw_Twist(m, out):
     out += _numbers(_S0, (m1.x, m1.y, m1.z, m2.x, m2.y, m2.z,), _N1)
 
 
+def enc_rmw_Twist_slots(m, out):
+    """enc_Twist_rmw for rclpy's geometry_msgs/msg/Twist: fields read from their slots."""
+    m1 = m._linear
+    m2 = m._angular
+    out += _numbers(_S0, (m1._x, m1._y, m1._z, m2._x, m2._y, m2._z,), _N1)
+
+
 def dec_rmw_Twist(v, i, C):
     """Read a geometry_msgs/msg/Twist (rmw_desert profile) from items `v` at `i`; return (message, next index)."""
     if len(v) - i < 6: raise _short('linear.x')
@@ -109,6 +116,11 @@ def dec_rmw_Twist(v, i, C):
 def enc_rmw_Vector3(m, out):
     """Append the CBOR items of a geometry_msgs/msg/Vector3 (rmw_desert profile) to `out`."""
     out += _numbers(_S2, (m.x, m.y, m.z,), _N3)
+
+
+def enc_rmw_Vector3_slots(m, out):
+    """enc_Vector3_rmw for rclpy's geometry_msgs/msg/Vector3: fields read from their slots."""
+    out += _numbers(_S2, (m._x, m._y, m._z,), _N3)
 
 
 def dec_rmw_Vector3(v, i, C):

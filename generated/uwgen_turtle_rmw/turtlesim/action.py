@@ -93,6 +93,11 @@ def enc_RotateAbsolute_Feedback(m, out):
     out += _numbers(_S0, (m.remaining,), _N1)
 
 
+def enc_RotateAbsolute_Feedback_slots(m, out):
+    """enc_RotateAbsolute_Feedback for rclpy's turtlesim/action/RotateAbsolute_Feedback: fields read from their slots."""
+    out += _numbers(_S0, (m._remaining,), _N1)
+
+
 def dec_RotateAbsolute_Feedback(v, i, C):
     """Read a turtlesim/action/RotateAbsolute_Feedback (native profile) from items `v` at `i`; return (message, next index)."""
     if len(v) - i < 1: raise _short('remaining')
@@ -114,6 +119,11 @@ def enc_RotateAbsolute_Goal(m, out):
     out += _numbers(_S0, (m.theta,), _N2)
 
 
+def enc_RotateAbsolute_Goal_slots(m, out):
+    """enc_RotateAbsolute_Goal for rclpy's turtlesim/action/RotateAbsolute_Goal: fields read from their slots."""
+    out += _numbers(_S0, (m._theta,), _N2)
+
+
 def dec_RotateAbsolute_Goal(v, i, C):
     """Read a turtlesim/action/RotateAbsolute_Goal (native profile) from items `v` at `i`; return (message, next index)."""
     if len(v) - i < 1: raise _short('theta')
@@ -133,6 +143,11 @@ def dec_RotateAbsolute_Goal(v, i, C):
 def enc_RotateAbsolute_Result(m, out):
     """Append the CBOR items of a turtlesim/action/RotateAbsolute_Result (native profile) to `out`."""
     out += _numbers(_S0, (m.delta,), _N3)
+
+
+def enc_RotateAbsolute_Result_slots(m, out):
+    """enc_RotateAbsolute_Result for rclpy's turtlesim/action/RotateAbsolute_Result: fields read from their slots."""
+    out += _numbers(_S0, (m._delta,), _N3)
 
 
 def dec_RotateAbsolute_Result(v, i, C):

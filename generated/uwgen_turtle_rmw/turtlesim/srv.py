@@ -239,6 +239,13 @@ def enc_Kill_Request(m, out):
     out.append(x)
 
 
+def enc_Kill_Request_slots(m, out):
+    """enc_Kill_Request for rclpy's turtlesim/srv/Kill_Request: fields read from their slots."""
+    x = m._name
+    if type(x) is not str: raise _EncodeError('name', 'expected str, got ' + type(x).__name__)
+    out.append(x)
+
+
 def dec_Kill_Request(v, i, C):
     """Read a turtlesim/srv/Kill_Request (native profile) from items `v` at `i`; return (message, next index)."""
     if i >= len(v): raise _short('name')
@@ -259,6 +266,11 @@ def enc_Kill_Response(m, out):
     out.append(0)  # a message with no fields is one unsigned 0
 
 
+def enc_Kill_Response_slots(m, out):
+    """enc_Kill_Response for rclpy's turtlesim/srv/Kill_Response: fields read from their slots."""
+    out.append(0)  # a message with no fields is one unsigned 0
+
+
 def dec_Kill_Response(v, i, C):
     """Read a turtlesim/srv/Kill_Response (native profile) from items `v` at `i`; return (message, next index)."""
     if i >= len(v): raise _short('(empty)')
@@ -276,6 +288,11 @@ def dec_Kill_Response(v, i, C):
 def enc_SetPen_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/SetPen_Request (native profile) to `out`."""
     out += _numbers(_S0, (m.r, m.g, m.b, m.width, m.off,), _N1)
+
+
+def enc_SetPen_Request_slots(m, out):
+    """enc_SetPen_Request for rclpy's turtlesim/srv/SetPen_Request: fields read from their slots."""
+    out += _numbers(_S0, (m._r, m._g, m._b, m._width, m._off,), _N1)
 
 
 def dec_SetPen_Request(v, i, C):
@@ -306,6 +323,11 @@ def enc_SetPen_Response(m, out):
     out.append(0)  # a message with no fields is one unsigned 0
 
 
+def enc_SetPen_Response_slots(m, out):
+    """enc_SetPen_Response for rclpy's turtlesim/srv/SetPen_Response: fields read from their slots."""
+    out.append(0)  # a message with no fields is one unsigned 0
+
+
 def dec_SetPen_Response(v, i, C):
     """Read a turtlesim/srv/SetPen_Response (native profile) from items `v` at `i`; return (message, next index)."""
     if i >= len(v): raise _short('(empty)')
@@ -324,6 +346,14 @@ def enc_Spawn_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/Spawn_Request (native profile) to `out`."""
     out += _numbers(_S2, (m.x, m.y, m.theta,), _N3)
     x = m.name
+    if type(x) is not str: raise _EncodeError('name', 'expected str, got ' + type(x).__name__)
+    out.append(x)
+
+
+def enc_Spawn_Request_slots(m, out):
+    """enc_Spawn_Request for rclpy's turtlesim/srv/Spawn_Request: fields read from their slots."""
+    out += _numbers(_S2, (m._x, m._y, m._theta,), _N3)
+    x = m._name
     if type(x) is not str: raise _EncodeError('name', 'expected str, got ' + type(x).__name__)
     out.append(x)
 
@@ -362,6 +392,13 @@ def enc_Spawn_Response(m, out):
     out.append(x)
 
 
+def enc_Spawn_Response_slots(m, out):
+    """enc_Spawn_Response for rclpy's turtlesim/srv/Spawn_Response: fields read from their slots."""
+    x = m._name
+    if type(x) is not str: raise _EncodeError('name', 'expected str, got ' + type(x).__name__)
+    out.append(x)
+
+
 def dec_Spawn_Response(v, i, C):
     """Read a turtlesim/srv/Spawn_Response (native profile) from items `v` at `i`; return (message, next index)."""
     if i >= len(v): raise _short('name')
@@ -380,6 +417,11 @@ def dec_Spawn_Response(v, i, C):
 def enc_TeleportAbsolute_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/TeleportAbsolute_Request (native profile) to `out`."""
     out += _numbers(_S2, (m.x, m.y, m.theta,), _N3)
+
+
+def enc_TeleportAbsolute_Request_slots(m, out):
+    """enc_TeleportAbsolute_Request for rclpy's turtlesim/srv/TeleportAbsolute_Request: fields read from their slots."""
+    out += _numbers(_S2, (m._x, m._y, m._theta,), _N3)
 
 
 def dec_TeleportAbsolute_Request(v, i, C):
@@ -409,6 +451,11 @@ def enc_TeleportAbsolute_Response(m, out):
     out.append(0)  # a message with no fields is one unsigned 0
 
 
+def enc_TeleportAbsolute_Response_slots(m, out):
+    """enc_TeleportAbsolute_Response for rclpy's turtlesim/srv/TeleportAbsolute_Response: fields read from their slots."""
+    out.append(0)  # a message with no fields is one unsigned 0
+
+
 def dec_TeleportAbsolute_Response(v, i, C):
     """Read a turtlesim/srv/TeleportAbsolute_Response (native profile) from items `v` at `i`; return (message, next index)."""
     if i >= len(v): raise _short('(empty)')
@@ -426,6 +473,11 @@ def dec_TeleportAbsolute_Response(v, i, C):
 def enc_TeleportRelative_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/TeleportRelative_Request (native profile) to `out`."""
     out += _numbers(_S4, (m.linear, m.angular,), _N5)
+
+
+def enc_TeleportRelative_Request_slots(m, out):
+    """enc_TeleportRelative_Request for rclpy's turtlesim/srv/TeleportRelative_Request: fields read from their slots."""
+    out += _numbers(_S4, (m._linear, m._angular,), _N5)
 
 
 def dec_TeleportRelative_Request(v, i, C):
@@ -452,6 +504,11 @@ def enc_TeleportRelative_Response(m, out):
     out.append(0)  # a message with no fields is one unsigned 0
 
 
+def enc_TeleportRelative_Response_slots(m, out):
+    """enc_TeleportRelative_Response for rclpy's turtlesim/srv/TeleportRelative_Response: fields read from their slots."""
+    out.append(0)  # a message with no fields is one unsigned 0
+
+
 def dec_TeleportRelative_Response(v, i, C):
     """Read a turtlesim/srv/TeleportRelative_Response (native profile) from items `v` at `i`; return (message, next index)."""
     if i >= len(v): raise _short('(empty)')
@@ -469,6 +526,11 @@ def dec_TeleportRelative_Response(v, i, C):
 def enc_rmw_TeleportAbsolute_Request(m, out):
     """Append the CBOR items of a turtlesim/srv/TeleportAbsolute_Request (rmw_desert profile) to `out`."""
     out += _numbers(_S2, (m.x, m.y, m.theta,), _N3)
+
+
+def enc_rmw_TeleportAbsolute_Request_slots(m, out):
+    """enc_TeleportAbsolute_Request_rmw for rclpy's turtlesim/srv/TeleportAbsolute_Request: fields read from their slots."""
+    out += _numbers(_S2, (m._x, m._y, m._theta,), _N3)
 
 
 def dec_rmw_TeleportAbsolute_Request(v, i, C):
@@ -495,6 +557,11 @@ def dec_rmw_TeleportAbsolute_Request(v, i, C):
 
 def enc_rmw_TeleportAbsolute_Response(m, out):
     """Append the CBOR items of a turtlesim/srv/TeleportAbsolute_Response (rmw_desert profile) to `out`."""
+    out.append(0)  # a message with no fields is one unsigned 0
+
+
+def enc_rmw_TeleportAbsolute_Response_slots(m, out):
+    """enc_TeleportAbsolute_Response_rmw for rclpy's turtlesim/srv/TeleportAbsolute_Response: fields read from their slots."""
     out.append(0)  # a message with no fields is one unsigned 0
 
 
