@@ -28,12 +28,12 @@ share of all bytes the two sides wrote.
 from __future__ import annotations
 
 import argparse
-from collections import Counter
 import random
 import sys
 import tempfile
 import threading
 import time
+from collections import Counter
 from pathlib import Path
 
 import rclpy
