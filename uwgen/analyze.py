@@ -382,19 +382,28 @@ def _schema_rate(manifest: Manifest) -> float:
     from uwgen.codegen.fingerprint import FINGERPRINT_BYTES
     ids = sorted({e.id for e in (*manifest.topics, *manifest.services,
                                  *getattr(manifest, "actions", ()))})
-    signed = _SECURED.typical if manifest.protected() else 0   # signed with security on
+    wire = wire_format_of(manifest)
+    sealed = _secured(wire)
+    signed = sealed.typical if manifest.protected() else 0   # signed with security on
     mrl = min((side.link.max_read_length for side in manifest.sides.values()), default=64)
-    size = whole_payload(wire_format_of(manifest), mrl, _SECURED.max if signed else 0)
+    size = whole_payload(wire, mrl, sealed.max if signed else 0)
     payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids],
                                     request=False, max_payload=size)     # as the bridge splits them
-    if wire_format_of(manifest) == 2:     # each in a packet of its own: H instead of kind and id
+    if wire == 2:     # each in a packet of its own: H instead of kind and id
         return sum(v1_message_size(p, last=True) + PACKET_ALONE + signed for p in payloads) / period
     return sum(len(p) + FRAME_OVERHEAD + signed for p in payloads) / period
 
 
-# What the secure link adds to a frame (wire format section 12): 10 bytes, 14 on sync frames.
-_SECURED = Size(10, 10, 14)
+# What the secure link adds to a frame (wire format section 12): wire format 1, each payload
+# 10 bytes, 23 on sync frames; wire format 2 (section 12.2), each packet 8 bytes, 21 on sync
+# packets, 23 on one that also asks for a sync. A frame here is one message alone.
+_SECURED = Size(10, 10, 23)
+_SECURED_PACKET = Size(8, 8, 23)
 _UNSECURED = Size(0, 0, 0)
+
+
+def _secured(wire: int) -> Size:
+    return _SECURED_PACKET if wire == 2 else _SECURED
 
 
 def _security(entry) -> Size:
@@ -433,7 +442,8 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
             body = Size(*(None if b is None else _packed_bytes(b, wire) for b in (body.min, body.typical, body.max)))
         payload = head + body
         alone = PACKET_ALONE if wire == 2 else FRAME_OVERHEAD
-        frame = payload + security + Size(alone, alone, alone)
+        sealed = security if security == _UNSECURED else _secured(wire)
+        frame = payload + sealed + Size(alone, alone, alone)
         costs.append(ProfileCost(label, ct is configured, payload, frame))
     leaves = []
     for leaf in configured.root.leaves():

@@ -199,16 +199,16 @@ def test_demo_report_shows_encoded_frame_sizes_next_to_native(tmp_path):
     for z in sizes.values():
         assert z.sent < z.native and z.how == "packed + field encodings"
     cmd, pose = sizes["/turtle1/cmd_vel"], sizes["/turtle1/pose"]
-    # frame, header, string head, 9 + 16 + 9 bits of x, z (command number), yaw; then the
-    # secure link's word (2) and tag (8), measured on a really sealed payload
-    assert (cmd.security, cmd.security_bytes) == ("encrypt", 2 + 8)
-    assert cmd.sent == 4 + 2 + 1 + 5 + 10
-    assert (pose.security, pose.security_bytes) == ("sign", 10)
+    # wire format 2: frame, P and W, H, 9 + 16 + 9 bits of x, z (command number), yaw; then
+    # the packet's tag (8), measured on a really sealed packet holding the message alone
+    assert (cmd.security, cmd.security_bytes) == ("encrypt", 8)
+    assert cmd.sent == 4 + 3 + 1 + 5 + 8
+    assert (pose.security, pose.security_bytes) == ("sign", 8)
     write(tmp_path / "operator.jsonl", [])
     write(tmp_path / "vehicle.jsonl", [])
     report = build_report(tmp_path)
     report.sizes = list(sizes.values())
-    assert (f"/turtle1/cmd_vel 22 B = 12 B with packed + field encodings + 10 B encrypt "
+    assert (f"/turtle1/cmd_vel 21 B = 13 B with packed + field encodings + 8 B encrypt "
             f"(native, unprotected: {cmd.native} B)") in format_report(report)
 
 

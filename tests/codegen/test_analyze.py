@@ -93,15 +93,15 @@ def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     _manifest, a = demo
     surface = next(b for b in a.budgets if b.side == "surface")
     # 5 cmd_vel messages of 6 bytes per second, each alone in a packet (+ 4 frame, + 3 P and
-    # W: 13), each 10 bytes more encrypted (security word and tag), plus the schema
-    # announcement of the 7 ids every 600 s. Its 47 bytes (00 18 F9 00, then id + 44 + 4 bytes
-    # each, id 30 taking 2 bytes) signed would not leave whole in one 64-byte packet (room 58,
-    # up to 14 of it the signature's), so it is split as the bridge splits it: payloads of 40
-    # and 11 bytes, messages of 39 and 10 behind H 00 F9, + 7 alone, + 10 signed: 56 and 27.
-    # The action's goals have no rate: warned about below.
+    # W: 13), each packet 8 bytes more sealed (the tag, wire format section 12.2), plus the
+    # schema announcement of the 7 ids every 600 s. Its 47 bytes (00 18 F9 00, then id + 44 +
+    # 4 bytes each, id 30 taking 2 bytes) would not leave whole in one sealed 64-byte packet
+    # (room 58, up to 23 of it the seal's: 35), so it is split as the bridge splits it:
+    # payloads of 34 and 17 bytes, messages of 33 and 16 behind H 00 F9, + 7 alone, + 8
+    # sealed: 48 and 31. The action's goals have no rate: warned about below.
     assert a.wire_format == 2
-    assert surface.schema == pytest.approx((56 + 27) / 600)
-    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 10) + (56 + 27) / 600)
+    assert surface.schema == pytest.approx((48 + 31) / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 8) + (48 + 31) / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
     assert not any("cannot fit" in w for w in a.warnings())
 

@@ -79,7 +79,7 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
         assert status["dropped"] == dropped == status["before_start"], status
     vehicle = json.loads((tmp_path / "bridge_vehicle.json").read_text())["security"]
     assert vehicle["verified"] == v_ver and vehicle["unprotected"] == 0
-    assert "/turtle1/cmd_vel 22 B = 12 B with packed + field encodings + 10 B encrypt" in res.stdout
+    assert "/turtle1/cmd_vel 21 B = 13 B with packed + field encodings + 8 B encrypt" in res.stdout
     # Quiet: the report and nothing else; no INFO line from any part, and no ERROR line for
     # what a lossy link does in normal operation.
     assert "INFO" not in res.stdout + res.stderr

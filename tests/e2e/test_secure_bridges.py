@@ -2,9 +2,10 @@
 
 The emulator serves one client per port, so the forger gets in as a third acoustic node
 (`forger`, sending to the vehicle): what it writes reaches the vehicle's DESERT node
-over the (emulated) water, exactly as a stranger's modem would. It writes the frame of
-issue 9 in the clear ([0, 4, Twist] with x = 1007), frames protected under another key
-while claiming the surface's sender id, frames with random tags, and replays of frames
+over the (emulated) water, exactly as a stranger's modem would. The links speak wire format
+2, one tag per packet (docs/wire-format.md section 12.2). The forger writes the frame of
+issue 9 in the clear (an envelope with [0, 4, Twist], x = 1007), packets sealed under another
+key while claiming the surface's sender id, packets with random tags, and replays of packets
 the surface really sent. None reaches ROS; the real commands do, each once.
 """
 from __future__ import annotations
@@ -20,10 +21,12 @@ from std_srvs.srv import SetBool
 
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 from uwgen.runtime.codec import load_items, pack_items
+from uwgen.runtime import envelope as env
 from uwgen.runtime.envelope import Envelope, from_v1
 from uwgen.runtime.framing import encode_frame
-from uwgen.security import wire
-from uwgen.security.guard import GuardConfig, LinkGuard
+from uwgen.security import packetwire, wire
+from uwgen.security.guard import GuardConfig
+from uwgen.security.packet_seal import PacketSeal
 
 from bridge.fakes import wait_for
 from bridge.harness import ros_sides
@@ -80,23 +83,56 @@ def secured_network(package):
 
 
 def tap(link, prefix: bytes) -> list[bytes]:
-    """Record the payloads the link writes that start with `prefix` (kind and id): what an
-    eavesdropper on the water would hear of them."""
+    """Record the packets (sealed envelopes) the link writes that carry a message of `prefix`
+    (kind and id; the ids of a sealed packet stay readable): what an eavesdropper on the water
+    hears of them."""
     heard: list[bytes] = []
+    original = link.connection._source                 # the packer's next_packet
+    kind, ident = prefix
+
+    def next_packet(*args, **kwargs):
+        data = original(*args, **kwargs)
+        if data is not None and any((m.kind, m.id) == (kind, ident)
+                                    for m in env.decode(data).messages):
+            heard.append(data)
+        return data
+    link.connection._source = next_packet
+    return heard
+
+
+def tap_payloads(link, prefix: bytes) -> list[bytes]:
+    """Record the payloads starting with `prefix` that the link's scheduler hands to its packer,
+    before they are sealed (what only the sender knows: a service seq, an action handle)."""
+    taken: list[bytes] = []
     original = link.scheduler.next_payload
 
     def next_payload(*args, **kwargs):
         picked = original(*args, **kwargs)
         if picked is not None and picked[1].startswith(prefix):
-            heard.append(picked[1])
+            taken.append(picked[1])
         return picked
     link.scheduler.next_payload = next_payload
-    return heard
+    return taken
 
 
 def on_air(payload: bytes) -> bytes:
-    """The frame a forger writes: one envelope (wire format 2) holding the payload's message."""
+    """The frame a forger writes: one unsealed envelope holding the payload's message."""
     return encode_frame(Envelope(sender=1, number=0, messages=(from_v1(payload),)).encode())
+
+
+def stranger(sender: int, peer: int, ident: int, payload: bytes, count: int) -> list[bytes]:
+    """`count` packets carrying `payload`, sealed under a key that is not the network's, in
+    the name of `sender`."""
+    seal = PacketSeal(bytes(range(32)), GuardConfig("e2esec", sender, {peer: "x"}, {ident: "encrypt"}),
+                      name="stranger")
+    hooks = seal.hooks()
+    out = []
+    for _ in range(count):
+        hooks.next_overhead(0.0)
+        number = hooks.number()
+        e = Envelope(sender, number % env.NUMBER_MOD, (from_v1(payload),), **hooks.parts(0.0))
+        out.append(hooks.seal(e))
+    return out
 
 
 CMD_VEL = bytes([0, 4])         # kind 0, id 4
@@ -127,28 +163,26 @@ def test_forged_cmd_vel_never_reaches_ros(secure_package, tmp_path):
             pub.publish(Twist(linear=Twist().linear.__class__(x=0.1 * (k + 1))))
             time.sleep(0.1)
         wait_for(lambda: len(got) == 5, timeout=10, what="the real commands")
-        assert len(heard) == 5
+        assert heard
 
         rng = random.Random(5)
-        stranger = LinkGuard.for_key(bytes(range(32)), GuardConfig("e2esec", 1, {2: "vehicle"},
-                                                                   {4: "encrypt"}),
-                                     tmp_path / "stranger.state")
         plain = pack_items([0, 4, 1007.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-        forged = ([plain] * 5
-                  + [stranger.protect(4, plain) for _ in range(5)]      # another key, surface's id
-                  + [h[:-8] + rng.randbytes(8) for h in heard]         # random tags
-                  + list(heard))                                       # replays of real frames
+        before = security(net, "vehicle")
+        forged = ([on_air(plain)] * 5
+                  + [encode_frame(p) for p in stranger(1, 2, 4, plain, 5)]   # another key, surface's id
+                  + [encode_frame(h[:-8] + rng.randbytes(8)) for h in heard]  # random tags
+                  + [encode_frame(h) for h in heard])                       # replays of real packets
         with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
             for frame in forged:
-                forger.sendall(on_air(frame))
+                forger.sendall(frame)
                 time.sleep(0.06)                             # about one packet per period
-            wait_for(lambda: security(net, "vehicle")["dropped"] >= len(forged), timeout=15,
-                     what="every forged frame counted")
+            wait_for(lambda: security(net, "vehicle")["dropped"] - before["dropped"] >= len(forged),
+                     timeout=15, what="every forged frame counted")
         time.sleep(0.3)                                      # anything published would be here by now
-        sec = security(net, "vehicle")
-        assert sec["dropped"] == len(forged) == 20
-        assert (sec["unprotected"], sec["replay"]) == (5, 5)
-        assert sec["bad_tag"] + sec["unsynced"] == 10
+        sec = {k: v - before[k] for k, v in security(net, "vehicle").items() if isinstance(v, int)}
+        assert sec["dropped"] == len(forged) == 10 + 2 * len(heard)
+        assert (sec["unprotected"], sec["replay"]) == (5, len(heard))
+        assert sec["bad_tag"] + sec["unsynced"] == 5 + len(heard)
         assert len(got) == 5 and all(m.linear.x < 1 for m in got)
         assert net.bridges["vehicle"].status()["topics"]["/cmd_vel"]["published"] == 5
 
@@ -171,7 +205,7 @@ def test_secured_service_is_answered_once_and_only_when_authentic(secure_package
         wait_for(future.done, what="the secured response")
         assert future.result().success and calls == [True]
         with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
-            forger.sendall(on_air(heard[0]))             # the request, replayed
+            forger.sendall(encode_frame(heard[0]))       # the request's packet, replayed
             forger.sendall(on_air(pack_items([2, 20, 99, True])))   # a request in the clear
             wait_for(lambda: security(net, "vehicle")["dropped"] >= 2, what="forgeries counted")
         time.sleep(0.3)
@@ -196,13 +230,13 @@ def test_frames_replayed_after_a_bridge_restart_are_rejected(secure_package):
         wait_for(lambda: new.link.stats()["connected"], what="restarted vehicle bridge up")
         with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
             for frame in heard:
-                forger.sendall(on_air(frame))
+                forger.sendall(encode_frame(frame))
                 time.sleep(0.06)
-            wait_for(lambda: new.status()["security"]["dropped"] >= 3, what="replays counted")
+            wait_for(lambda: new.status()["security"]["dropped"] >= len(heard), what="replays counted")
         sec = new.status()["security"]
-        # the restarted bridge kept nothing, yet takes no frame sealed before it started: the
-        # three (sync) frames of the surface's epoch are refused
-        assert sec["before_start"] == 3 and sec["dropped"] == 3
+        # the restarted bridge kept nothing, yet takes no packet sealed before it started: the
+        # sync packets of the surface's epoch are before_start, the others unsynced
+        assert sec["before_start"] + sec["unsynced"] == sec["dropped"] == len(heard)
         assert new.status()["topics"]["/cmd_vel"]["published"] == 0 and len(got) == 3
         # the operator goes on: heard from the surface's next sync frame (1 in 64, or after
         # 30 s), so it repeats the command until it is obeyed, as a joystick does
@@ -243,20 +277,17 @@ def test_a_forged_response_never_completes_a_call(secure_package, tmp_path):
     with secured_network(secure_package) as net:
         client = net.surface.node("caller").create_client(SetBool, "/enable")
         assert client.wait_for_service(timeout_sec=5.0)          # the surface's stand-in
-        requests = tap(net.bridges["surface"].link, REQUEST)
+        requests = tap_payloads(net.bridges["surface"].link, REQUEST)
         wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle")),
                  what="secured bridges up")
         future = client.call_async(SetBool.Request(data=True))  # no server on the vehicle: no answer
         wait_for(lambda: requests, what="the request on the water")
-        _, _, n = wire.header_length(requests[0])
-        seq = load_items(requests[0][:n])[2]                    # the header stays readable
-        stranger = LinkGuard.for_key(bytes(range(32)), GuardConfig("e2esec", 2, {1: "surface"},
-                                                                   {20: "encrypt"}),
-                                     tmp_path / "stranger.state")
+        # the seq is encrypted on the water; the forger is given it anyway
+        seq = load_items(requests[0])[2]
         plain = pack_items([3, 20, seq, True, "forged"])
         with socket.create_connection(("127.0.0.1", net.emu.port("forger_s"))) as forger:
-            for frame in (plain, stranger.protect(20, plain)):
-                forger.sendall(on_air(frame))
+            for frame in (on_air(plain), encode_frame(stranger(2, 1, 20, plain, 1)[0])):
+                forger.sendall(frame)
                 time.sleep(0.1)
             wait_for(lambda: security(net, "surface")["dropped"] >= 2, what="forged responses counted")
         surface = net.bridges["surface"]
@@ -286,6 +317,7 @@ def test_a_secured_action_runs_and_forged_goals_and_cancels_never_reach_the_serv
     with secured_network(action_package) as net:
         real = FibonacciServer(net.vehicle.node("fibonacci_server"), step=0.2)
         heard = tap(net.bridges["surface"].link, GOAL)
+        goals = tap_payloads(net.bridges["surface"].link, GOAL)
         client = ready_client(net)
         feedback: list = []
         goal_handle = send(client, 5, feedback)
@@ -296,24 +328,28 @@ def test_a_secured_action_runs_and_forged_goals_and_cancels_never_reach_the_serv
         assert real.goals == [5] and heard
         wait_for(lambda: net.bridges["vehicle"].status()["actions"]["/fibonacci"]["results_acked"] == 1,
                  what="the result's acknowledgement, protected too")
-        _, _, n = wire.header_length(heard[0])
-        handle = load_items(heard[0][:n])[2]                  # the header stays readable
-        # the goal's order does not: the frame opens only as ciphertext under the surface's key
-        # (the mode is in the authenticated data), which no byte search could prove
-        parsed = wire.parse(heard[0])
-        guard = net.bridges["surface"].link.guard
-        seq = parsed.full_seq() if parsed.high is not None else parsed.partial
-        opened = wire.open_parsed(guard.session.aead, wire.ENCRYPT, parsed, seq,
-                                  guard.config.fingerprints.get(9, b""))
-        assert opened == heard[0][:n] + pack_items([5])
+        handle = load_items(goals[0])[2]                      # known to the sender only
+        # the goal (handle and order) is encrypted: its packet opens only as ciphertext under
+        # the surface's key (the modes are in the authenticated data), which no byte search
+        # could prove
+        packet = env.decode(heard[0])
+        seal = net.bridges["surface"].guard
+        seq = packet.number if packet.sync is None else (packet.sync.high << 12) | packet.number
+        opened = packetwire.open_envelope(
+            seal.session.aead, packet, seq, lambda m: seal.config.modes.get(m.id) == wire.ENCRYPT,
+            lambda i: seal.config.fingerprints.get(i, b""))
+        assert opened is not None
+        goal = next(m for m in opened.messages if (m.kind, m.id) == (2, 9))
+        assert goal.body == pack_items([handle, 5])
+        assert goal.body not in heard[0]
         verified = security(net, "vehicle")["verified"]
         assert verified >= 1
 
         forged = [pack_items([2, 9, (handle + 1) % 12, 20]),  # a new goal in the clear
                   pack_items([2, 9, handle])]                  # a cancel in the clear
         with socket.create_connection(("127.0.0.1", net.emu.port("forger"))) as forger:
-            for frame in forged + heard:                       # and the real goal, replayed
-                forger.sendall(on_air(frame))
+            for frame in [on_air(f) for f in forged] + [encode_frame(h) for h in heard]:
+                forger.sendall(frame)                          # and the real goal, replayed
                 time.sleep(0.06)
             wait_for(lambda: security(net, "vehicle")["dropped"] >= len(forged) + len(heard),
                      timeout=15, what="every forged goal and cancel counted")

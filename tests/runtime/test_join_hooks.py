@@ -51,3 +51,31 @@ def test_the_one_sealing_hook_seals_and_opens_the_joined_packets():
 def test_two_sealing_hooks_are_refused():
     with pytest.raises(ValueError, match="at most one"):
         join_hooks(PacketHooks(seal=lambda e: b""), PacketHooks(open=lambda d: None))
+
+
+def test_the_sealer_numbers_packets_and_next_overheads_add_up():
+    numbers = iter([7, 8])
+    sealer = PacketHooks(seal=lambda e: e.encode(), number=lambda: next(numbers), overhead=23,
+                         next_overhead=lambda now: 8)
+    joined = join_hooks(PacketHooks(overhead=4), sealer)
+    assert joined.number() == 7 and joined.next_overhead(0.0) == 4 + 8 and joined.overhead == 27
+    assert join_hooks(PacketHooks(overhead=4)).next_overhead is None
+
+
+def test_the_packer_uses_the_sealers_number_and_leaves_the_room_it_asks_for():
+    from uwgen.runtime.packets import PACKET_COUNTERS, Packer
+    from uwgen.runtime.stats import Counters
+
+    class Queue:
+        items = [(4, bytes((0, 4)) + bytes(20)) for _ in range(5)]
+
+        def next_payload(self, now, budget=None, exclude=None, *, fill=False):
+            if not self.items or (budget is not None and 23 > budget):
+                return None
+            return self.items.pop(0)
+    sent = []
+    hooks = PacketHooks(number=lambda: 4096 + 3, overhead=30, next_overhead=lambda now: 0,
+                        sent=lambda n, picked, now: sent.append((n, len(picked))))
+    packer = Packer(Queue(), sender=1, max_read_length=64, hooks=hooks, counters=Counters(PACKET_COUNTERS))
+    data = packer.next_packet(0.0)
+    assert envelope.decode(data).number == 3 and sent == [(4099, 2)]   # 2 of 22 B fit 58 B, not 28

@@ -32,6 +32,8 @@ def test_the_key_is_found_next_to_the_manifest_and_the_state_next_to_the_key(tmp
     assert key_id(read_key_file(tmp_path / "net.key"), "demo") in start[0]
     assert guard.config.sender == 2 and guard.config.peers == {1: "surface"}
     assert guard.lock_path == tmp_path / "net.key.demo.vehicle.lock"
+    from uwgen.security.packet_seal import PacketSeal
+    assert isinstance(guard, PacketSeal) and "one tag per packet" in start[0]   # wire format 2
 
 
 def test_key_file_and_state_options_override_the_manifest(tmp_path):

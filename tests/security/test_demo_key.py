@@ -108,37 +108,45 @@ def cmd_vel(pkg, x: float) -> bytes:
 
 
 def test_demo_vehicle_drops_a_strangers_cmd_vel_and_takes_the_surfaces(demo_guards, tmp_path):
-    from uwgen.security.guard import GuardConfig, LinkGuard
+    # The demo's links speak wire format 2: one tag per packet (PacketSeal).
+    from uwgen.runtime import envelope as env
+    from uwgen.security.guard import GuardConfig
+    from uwgen.security.packet_seal import PacketSeal
+
+    from .packets import Side
     pkg, guards = demo_guards
-    vehicle, surface = guards["vehicle"], guards["surface"]
-    # Issue 9's forgery: a plain cmd_vel frame, as anyone reaching the vehicle's port could write.
-    assert vehicle.unprotect(cmd_vel(pkg, 1.5)) is None
-    # One protected under another key, claiming the surface's sender id.
-    stranger = LinkGuard.for_key(bytes(32), GuardConfig("demo", 1, {2: "vehicle"}, {4: "encrypt"}, {}),
-                                 tmp_path / "stranger.state", name="stranger")
-    assert vehicle.unprotect(stranger.protect(4, cmd_vel(pkg, 1.5))) is None
+    vehicle, surface = Side(guards["vehicle"], 2), Side(guards["surface"], 1)
+    # Issue 9's forgery: a plain packet with a cmd_vel, as anyone reaching the vehicle's port could write.
+    plain = env.Envelope(1, 0, (env.from_v1(cmd_vel(pkg, 1.5)),)).encode()
+    assert vehicle.receive(plain) == []
+    # One sealed under another key, claiming the surface's sender id.
+    stranger = Side(PacketSeal(bytes(32), GuardConfig("demo", 1, {2: "vehicle"}, {4: "encrypt"}, {}),
+                               name="stranger"), 1)
+    assert vehicle.receive(stranger.send(cmd_vel(pkg, 1.5))) == []
     stats = vehicle.stats()
-    assert stats["unprotected"] == 1 and stats["dropped"] == 2 and stats["verified"] == 0
+    assert stats["unprotected"] == 1 and stats["bad_tag"] == 1 and stats["verified"] == 0
     # The surface's own command: encrypted (its x is not readable on the wire), delivered.
     genuine = cmd_vel(pkg, 1.5)
-    sealed = surface.protect(4, genuine)
-    assert len(sealed) >= len(genuine) + 10 and genuine[3:] not in sealed
-    assert vehicle.unprotect(sealed) == genuine and vehicle.stats()["verified"] == 1
+    sealed = surface.send(genuine)
+    assert len(sealed) >= len(genuine) + 8 and genuine[3:] not in sealed
+    assert vehicle.receive(sealed) == [genuine] and vehicle.stats()["verified"] == 1
 
 
 def test_demo_battery_signed_still_fits_one_packet(demo_guards):
     # The manifest omits what the simulated vehicle does not measure so that signing the
-    # battery does not split it into two fragments (64-byte packets, 4-byte frame overhead).
+    # battery does not split it into two fragments (64-byte packets, 4-byte frame overhead),
+    # even in a sync packet that asks for a sync (the most the seal adds: 23 bytes).
     from sensor_msgs.msg import BatteryState
+    from uwgen.runtime.envelope import HEAD, v1_message_size
     from uwgen.runtime.framing import OVERHEAD
+    from uwgen.security.packet_seal import MAX_OVERHEAD
     pkg, guards = demo_guards
     b = BatteryState()
     b.header.stamp.sec, b.header.stamp.nanosec, b.header.frame_id = 1795433581, 999999999, "vehicle"
     b.voltage, b.current, b.percentage, b.present, b.power_supply_status = 16.8, -5.5, 1.0, True, 2
     payload = pkg.TOPICS[6].encode(b)
-    sealed = guards["vehicle"].protect(6, payload)            # the first frame: a sync frame (+23)
-    assert len(sealed) == len(payload) + 23
-    assert len(sealed) + OVERHEAD <= pkg.MANIFEST.sides["vehicle"].link.max_read_length
+    worst = OVERHEAD + HEAD + MAX_OVERHEAD + v1_message_size(payload, last=True)
+    assert worst <= pkg.MANIFEST.sides["vehicle"].link.max_read_length
 
 
 def test_a_given_key_file_is_used_instead_of_the_manifests(tmp_path):

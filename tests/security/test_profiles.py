@@ -79,10 +79,11 @@ def test_analyze_counts_the_security_overhead_in_every_protected_frame(tmp_path)
                                                  .replace("security: sign", "security: off"))
     on = analyze(load_manifest(tmp_path / "on" / "uwgen.yaml", lib), lib.get)
     off = analyze(load_manifest(tmp_path / "off" / "uwgen.yaml", lib), lib.get)
+    # wire format 2: one tag per packet (8 bytes; 21 on a sync packet, 23 when it also asks)
     for a, b in zip(on.entries, off.entries):
         fa, fb = a.configured.frame, b.configured.frame
-        assert fa.typical - fb.typical == 10
-        assert fa.max is fb.max is None or fa.max - fb.max == 14      # None: unbounded (a string)
+        assert fa.typical - fb.typical == 8
+        assert fa.max is fb.max is None or fa.max - fb.max == 23      # None: unbounded (a string)
         assert a.configured.payload == b.configured.payload       # the codec's bytes are the same
     surface_on, surface_off = (next(x for x in r.budgets if x.side == "surface") for r in (on, off))
-    assert surface_on.typical - surface_off.typical == 2 * 10       # 2 frames a second
+    assert surface_on.typical - surface_off.typical == 2 * 8        # 2 frames a second

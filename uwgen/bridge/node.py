@@ -33,12 +33,13 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
-from uwgen.bridge.security import guard_for
+from uwgen.bridge.security import guard_for, link_security
 from uwgen.bridge.services import Servers, StandIns, service_status
 from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
 from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.packets import join_hooks
 
 __all__ = ["BridgeNode", "BRIDGE_NODE_PREFIX", "default_link_factory", "node_name_for",
            "qos_profile"]
@@ -96,10 +97,12 @@ class BridgeNode(Node):
         self.inbox = Inbox(self._wake.trigger)
         link_cfg = self.options.link
         self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
+        security_kw, seal_hooks = link_security(self.guard)
+        if seal_hooks is not None:                # wire format 2: one tag per packet
+            security_kw["hooks"] = join_hooks(seal_hooks)
         self.link = link_factory(host=self.options.host, port=self.options.port, config=link_cfg,
                                  on_payload=self._on_link_payload, fragment_id=plan.fragment_id,
-                                 clock=clock, name=plan.side, **plan.link_options(),
-                                 **({"guard": self.guard} if self.guard is not None else {}))
+                                 clock=clock, name=plan.side, **plan.link_options(), **security_kw)
         for key, policy, name, whole in plan.channels():
             self.link.add_channel(key, policy, name, whole=whole)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
@@ -229,7 +232,7 @@ class BridgeNode(Node):
             actions=action_status(self.action_standins, self.action_servers, channels,
                                   self.unavailable),
             bridge=asdict(self.counters), echo_hazards={**self.echo_hazards, **self.wiring.loops.hazards},
-            security=link_stats.get("security") if isinstance(link_stats, dict) else None)
+            security=self.guard.stats() if self.guard is not None else None)
 
     def discovery_status(self) -> dict | None:
         """What this bridge announces to rmw_desert nodes and the remote graph it heard

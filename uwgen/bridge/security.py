@@ -1,4 +1,8 @@
-"""The bridge's side of the secure link: the LinkGuard of one side, from its plan and options.
+"""The bridge's side of the secure link: one side's seal, from its plan and options.
+
+On a wire format 2 link (profiles native and packed) it is a `PacketSeal`, whose packet hooks
+seal each packet with one tag (docs/wire-format.md section 12.2); on a wire format 1 link a
+`LinkGuard`, which seals each payload (section 12). Both have `stats()` and `close()`.
 
 The generated package's `MANIFEST.security` (a SecurityPlan, None when nothing is
 protected) names the key file, every side's sender id and the protected ids. The key
@@ -68,11 +72,13 @@ def check_security(plan: BridgePlan, options: BridgeOptions) -> None:
 
 
 def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CLOCK) -> Any:
-    """This side's LinkGuard, or None when the manifest protects nothing."""
+    """This side's PacketSeal (wire format 2) or LinkGuard (wire format 1), or None when the
+    manifest protects nothing."""
     sec = plan.security
     if sec is None:
         return None
     from uwgen.security.guard import GuardConfig, LinkGuard
+    from uwgen.security.packet_seal import PacketSeal
     from uwgen.security.keys import SecurityError, key_id, read_key_file
     check_security(plan, options)
     path = key_path(plan, options)
@@ -89,11 +95,27 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
             max_ages={i: float(t) for i, t in ttls.items() if i in sec.modes})
         lock = (Path(options.security_state) if options.security_state is not None
                 else lock_path(path, plan.network, plan.side))
-        guard = LinkGuard.for_key(master, config, lock, clock=clock, name=plan.side)
+        if plan.wire_format == 2:
+            guard = PacketSeal.for_key(master, config, lock, clock=clock, name=plan.side,
+                                       fragment_id=plan.fragment_id)
+        else:
+            guard = LinkGuard.for_key(master, config, lock, clock=clock, name=plan.side)
     except SecurityError as exc:
         raise PlanError(str(exc)) from None
     protected = ", ".join(f"{i} ({m})" for i, m in sorted(sec.modes.items()))
-    log.info("[%s] secure link: sender %d, epoch %s; protects ids %s; key %s (key id %s, the same "
-             "on every side); lock %s", plan.side, config.sender, guard.stats()["epoch"], protected,
-             path, key_id(master, plan.network), lock)
+    log.info("[%s] secure link (%s): sender %d, epoch %s; protects ids %s; key %s (key id %s, the "
+             "same on every side); lock %s", plan.side,
+             "one tag per packet" if plan.wire_format == 2 else "one tag per payload", config.sender,
+             guard.stats()["epoch"], protected, path, key_id(master, plan.network), lock)
     return guard
+
+
+def link_security(guard: Any) -> tuple[dict[str, Any], Any]:
+    """(Link keyword arguments, packet hooks) for `guard_for`'s result: a LinkGuard goes to the
+    link as `guard`; a PacketSeal gives its hooks (the bridge joins them with reliability's)."""
+    if guard is None:
+        return {}, None
+    hooks = getattr(guard, "hooks", None)
+    if hooks is not None:
+        return {}, hooks()
+    return {"guard": guard}, None

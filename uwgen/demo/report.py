@@ -370,14 +370,18 @@ def _security(side: str, c: dict) -> str:
 def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
     """Frame bytes of a representative /turtle1/cmd_vel and /turtle1/pose as `manifest`
     sends them, next to the same messages in profile native without field encodings
-    (codecs built for the occasion, so the numbers follow the manifest). A protected topic's
-    payload is sealed as its bridge seals it (an ordinary frame, under a throwaway key; a sync
-    frame has 13 bytes more) and measured."""
+    (codecs built for the occasion, so the numbers follow the manifest). On wire format 2 (no
+    rmw_desert entry) a frame is the message alone in a packet's envelope, sealed as the
+    bridge seals packets when the topic is protected (one tag; a sync packet has 13 bytes
+    more); on wire format 1 the payload sealed as its bridge seals it. Measured, under a
+    throwaway key."""
     import tempfile
 
+    from uwgen.bridge.plan import is_rmw_desert
     from uwgen.codegen import generate
+    from uwgen.runtime import envelope as env
     from uwgen.runtime.framing import OVERHEAD
-    from uwgen.security import wire
+    from uwgen.security import packetwire, wire
     from uwgen.security.keys import new_epoch, new_master_key, working_key
 
     samples = {
@@ -390,6 +394,8 @@ def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
                        names=["geometry_msgs/msg/Twist", "turtlesim/msg/Pose"])
         plan = getattr(pkg.MANIFEST, "security", None)
         modes = dict(plan.modes) if plan is not None else {}
+        v2 = not any(is_rmw_desert(e) for e in (*pkg.TOPICS.values(), *pkg.SERVICES.values()))
+        aead = wire.new_aead(working_key(new_master_key(), "sizes", 1, new_epoch()))
         for topic in pkg.TOPICS.values():
             if topic.name not in samples:
                 continue
@@ -399,10 +405,19 @@ def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
             how = topic.profile + (" + field encodings" if encoded else "")
             payload = topic.encode(msg)
             mode = modes.get(topic.id, "off")
+            fingerprint = bytes(getattr(topic, "fingerprint", b"") or b"")
+            if v2:
+                body = env.strip_packed_head(payload) if topic.profile == "packed" else payload
+                alone = env.Envelope(1, 1, (env.from_v1(body),))
+                plain = alone.encode()
+                sent = plain if not modes else packetwire.seal(     # a secured link seals every packet
+                    aead, alone, 1, lambda m: modes.get(m.id) == wire.ENCRYPT, lambda i: fingerprint)
+                out.append(FrameSize(topic.name, OVERHEAD + env.HEAD + env.v1_message_size(native, True),
+                                     len(sent) + OVERHEAD, how, mode, len(sent) - len(plain)))
+                continue
             sent = payload
             if mode != "off":
-                aead = wire.new_aead(working_key(new_master_key(), "sizes", 1, new_epoch()))
-                sent = wire.seal(aead, mode, 1, 1, payload, bytes(getattr(topic, "fingerprint", b"") or b""))
+                sent = wire.seal(aead, mode, 1, 1, payload, fingerprint)
             out.append(FrameSize(topic.name, len(native) + OVERHEAD, len(sent) + OVERHEAD, how, mode,
                                  len(sent) - len(payload)))
     return out

@@ -11,6 +11,11 @@ The seams of issues 16 and 17 (docs/seams.md section 5) are the `PacketHooks`:
 
 - `parts(now)` -> dict of extra `Envelope` fields (`time`, `ack`, `control`, `sync`) for the
   packet being built; `overhead` is the most bytes they and the seal add to a packet;
+  `next_overhead(now)`, when given, the bytes they will add to the next packet (at most
+  `overhead`; asked before its messages are picked, so a packet without a sync part holds more);
+- `number()` -> the full number of the packet being built, asked once per packet after its
+  messages are picked (the seal numbers packets: its session's number, docs/seams.md section 2);
+  without it the packer counts from 0;
 - `seal(envelope)` -> the packet's bytes (tag included); without it the envelope is sent as is;
 - `open(bytes)` -> an `Envelope`, or None when the packet is dropped (counted by its owner);
   without it the bytes are decoded with `envelope.decode`;
@@ -45,6 +50,8 @@ class PacketHooks:
     sent: Callable[[int, list[tuple[int, bytes]], float], None] | None = None
     received: Callable[[env.Envelope, float], None] | None = None
     overhead: int = 0
+    next_overhead: Callable[[float], int] | None = None
+    number: Callable[[], int] | None = None
 
 
 def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
@@ -54,11 +61,12 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     as the packet is built, so they may differ by a tick): the first one given is kept. Any other
     part two hooks give must have the same value, otherwise building the packet fails with
     EnvelopeError.
-    At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise).
-    `sent` and `received` are called in order; `overhead` is the sum (an upper bound: a part two
-    hooks both give is counted twice)."""
+    At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise); its
+    `number` numbers the packets. `sent` and `received` are called in order; `overhead` is the
+    sum (an upper bound: a part two hooks both give is counted twice), `next_overhead` the sum of
+    each hook's (its `overhead` when it gives none)."""
     given = [h for h in hooks if h is not None]
-    sealers = [h for h in given if h.seal is not None or h.open is not None]
+    sealers = [h for h in given if h.seal is not None or h.open is not None or h.number is not None]
     if len(sealers) > 1:
         raise ValueError("at most one of the joined hooks may seal and open packets")
     sealer = sealers[0] if sealers else PacketHooks()
@@ -86,9 +94,16 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
         for tell in receivers:
             tell(envelope, now)
 
+    def next_overhead(now: float) -> int:
+        return sum(h.next_overhead(now) if h.next_overhead is not None else h.overhead
+                   for h in given)
+
     return PacketHooks(parts=parts if makers else None, seal=sealer.seal, open=sealer.open,
                        sent=sent if senders else None, received=received if receivers else None,
-                       overhead=sum(h.overhead for h in given))
+                       overhead=sum(h.overhead for h in given),
+                       next_overhead=(next_overhead if any(h.next_overhead is not None for h in given)
+                                      else None),
+                       number=sealer.number)
 
 
 def envelope_room(max_read_length: int, overhead: int = 0) -> int:
@@ -118,6 +133,7 @@ class Packer:
         self.scheduler = scheduler
         self.sender = sender
         self.hooks = hooks or PacketHooks()
+        self.max_read_length = max_read_length
         self.room = envelope_room(max_read_length, self.hooks.overhead)
         self.counters = counters
         self.name = name
@@ -126,7 +142,10 @@ class Packer:
     def next_packet(self, now: float) -> bytes | None:
         picked: list[tuple[int, bytes]] = []
         messages: list[env.Message] = []
+        h = self.hooks
         budget = self.room
+        if h.next_overhead is not None:
+            budget = envelope_room(self.max_read_length, min(h.next_overhead(now), h.overhead))
         while True:
             got = self.scheduler.next_payload(now, budget if picked else None, fill=True)
             if got is None:
@@ -145,10 +164,10 @@ class Packer:
                 break
         if not messages:
             return None
-        h = self.hooks
-        envelope = env.Envelope(self.sender, self.number % env.NUMBER_MOD, tuple(messages),
-                                **(h.parts(now) if h.parts is not None else {}))
+        number = h.number() if h.number is not None else self.number
         try:
+            envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, tuple(messages),
+                                    **(h.parts(now) if h.parts is not None else {}))
             data = h.seal(envelope) if h.seal is not None else envelope.encode()
         except env.EnvelopeError as e:
             log_count(log, logging.ERROR, self.counters.inc("refused_payloads", len(picked)),
@@ -156,8 +175,8 @@ class Packer:
                       self.name, len(picked), e)
             return None
         if h.sent is not None:
-            h.sent(self.number, picked, now)
-        self.number += 1
+            h.sent(number, picked, now)
+        self.number = number + 1
         self.counters.inc("packets_sent")
         self.counters.inc("messages_sent", len(messages))
         return data

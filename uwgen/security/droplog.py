@@ -27,9 +27,10 @@ WHY = {
     "unknown_sender": "a sender id no side of the manifest has",
     "reflected": "this side's own sender id (a frame sent back to us)",
     "unsynced": "no epoch of this sender yet; waiting for one of its sync frames",
-    "unprotected": "not protected, but the manifest protects this id",
+    "unprotected": "not protected, but the manifest protects this id (wire format 2: a packet "
+                   "without a tag on a secured link)",
     "truncated": "too short to be a protected payload",
-    "malformed": "no readable header (kind, id, seq)",
+    "malformed": "no readable header (kind, id, seq), or a sync part (K) without its time (T)",
 }
 
 
@@ -42,16 +43,18 @@ class DropLog:
         self._at = clock.now() + summary_period
         self._since: dict[str, int] = {}
 
-    def drop(self, reason: str, ident: int, sender: int | None = None) -> None:
-        """Count (and maybe log) one dropped payload; returns None for `return drop(...)`."""
+    def drop(self, reason: str, ident: int | None, sender: int | None = None) -> None:
+        """Count (and maybe log) one dropped payload (a packet when `ident` is None); returns
+        None for `return drop(...)`."""
         self.counters.inc(reason)
         self._since[reason] = self._since.get(reason, 0) + 1
         if reason not in self._logged:
             self._logged.add(reason)
             who = "" if sender is None else f" from sender {sender}"
-            log.warning("[%s] dropped a payload for id %d%s: %s (first of its kind; further ones "
+            what = "a packet" if ident is None else f"a payload for id {ident}"
+            log.warning("[%s] dropped %s%s: %s (first of its kind; further ones "
                         "are counted in the status and summed up every %g s)",
-                        self.name, ident, who, WHY[reason], self._period)
+                        self.name, what, who, WHY[reason], self._period)
         now = self.clock.now()
         if now >= self._at:
             self.summary()

@@ -70,6 +70,8 @@ class ReplayWindow:
     def overtaken_for(self, seq: int, now: float) -> float | None:
         """Seconds since a number above `seq` first arrived (a lower bound of the age of the
         frame numbered `seq`), or None when none has."""
+        if self.high is None or seq >= self.high:
+            return None                        # nothing above it arrived yet
         for high, when in self._moves:
             if high > seq:
                 return now - when

@@ -1,0 +1,260 @@
+"""PacketSeal: the per-packet seal of wire format 2 links (docs/wire-format.md section 12.2,
+docs/seams.md sections 2 and 5).
+
+`hooks()` gives the `PacketHooks` a Link takes (joined with reliability's by the bridge):
+
+- sending, at the moment the packer builds a packet: `next_overhead(now)` plans it (a sync
+  packet or not, a sync request or not), `number()` takes its number from this side's epoch
+  (`epochs.SendSession`: random epoch per start, numbers counted in memory), `parts(now)` gives
+  K (epoch, number bits 12-43) and T (this side's wall clock) on sync packets and C (a sync
+  request) when one is due, `seal(envelope)` computes the one tag (`packetwire.seal`).
+  Sync packets: the first `SYNC_FIRST` of an epoch, every `SYNC_EVERY`-th, the first after
+  `SYNC_PERIOD` s without one, the next `SYNC_FIRST` after a peer's new epoch, the next
+  `SYNC_ANSWER` after a peer asked for one, and every packet that asks one;
+- receiving: `open(bytes)` decodes the envelope, refuses what is not sealed by a peer, checks a
+  T it carries against the max age of its messages, and hands the rest to
+  `receiver.Receiver.admit` (epoch, freshness, tag, replay window), so only admitted envelopes
+  reach the link (and reliability's `received`). Every drop is counted by reason and logged
+  throttled (`droplog.DropLog`); a packet dropped `unsynced` makes this side ask its sender for
+  a sync in its next packet (C part, `control.py`), at most once per `ASK_GAP` s per peer, and
+  a peer's request is answered at most once per `ASK_GAP` s: a request never makes a packet of
+  its own, it only adds K and T (13 bytes) to the next `SYNC_ANSWER` packets.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+from uwgen.runtime import envelope as env
+from uwgen.runtime.clock import SYSTEM_CLOCK, WALL_CLOCK, Clock
+from uwgen.runtime.freshness import Freshness, stamp
+from uwgen.runtime.packets import PacketHooks
+from uwgen.runtime.stats import Counters, log_count
+from uwgen.security import control, packetwire, wire
+from uwgen.security.droplog import SUMMARY_PERIOD, DropLog, log
+from uwgen.security.epochs import EPOCH_NUMBERS, SendSession
+from uwgen.security.errors import SecurityError
+from uwgen.security.files import SideLock
+from uwgen.security.guard import DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD, GuardConfig
+from uwgen.security.keys import new_epoch, working_key
+from uwgen.security.receiver import Numbering, Receiver
+from uwgen.security.window import WINDOW
+
+COUNTERS = ("protected", "sync_sent", "verified", "epochs_seen", "asks_sent", "asks_answered",
+            "asks_ignored", "unknown_control", *DROP_REASONS)
+SYNC_ANSWER = 2            # sync packets sent to answer a peer's request
+ASK_GAP = 5.0              # seconds between two requests to (or answers for) one peer
+NUMBER_BITS = 12           # W carries the packet number's low 12 bits
+ASK_BYTES = 2              # a C part of one item: its length byte and the item
+SYNC_BYTES = env.SYNC_LEN + env.TIME_LEN                       # K and T: 13
+MAX_OVERHEAD = env.TAG_LEN + SYNC_BYTES + ASK_BYTES            # 23
+
+
+@dataclass(frozen=True)
+class _Plan:
+    seq: int                 # the number the plan is for
+    sync: bool
+    ask: int | None          # the peer asked for a sync in this packet
+
+
+class PacketSeal:
+    def __init__(self, master: bytes, config: GuardConfig, *, fragment_id: int | None = None,
+                 clock: Clock = SYSTEM_CLOCK, wall: Clock = WALL_CLOCK, name: str = "link",
+                 window: int = WINDOW, lock: SideLock | None = None, epoch_source=new_epoch,
+                 epoch_numbers: int = EPOCH_NUMBERS, summary_period: float = SUMMARY_PERIOD):
+        if config.sender in config.peers:
+            raise SecurityError(f"sender id {config.sender} is given to two sides")
+        if epoch_numbers <= 0 or epoch_numbers % env.NUMBER_MOD:
+            raise SecurityError(f"an epoch of {epoch_numbers} packets: a multiple of "
+                                f"{env.NUMBER_MOD} (W's numbers) is needed")
+        for ident, mode in config.modes.items():
+            if mode not in (wire.SIGN, wire.ENCRYPT):
+                raise SecurityError(f"id {ident}: mode {mode!r} is not sign or encrypt")
+        self.config, self.clock, self.wall, self.name = config, clock, wall, name
+        self._master, self.fragment_id = master, fragment_id
+        self._encrypt_any = wire.ENCRYPT in config.modes.values()
+        self.counters = Counters(COUNTERS)
+        self.drops = DropLog(self.counters, clock, name, summary_period)
+        self.freshness = Freshness(config.clock_tolerance)
+        self._lock_file = lock.acquire() if lock is not None else None   # one copy per side
+        self._lock = threading.RLock()
+        self.session = SendSession(lambda e: self._aead(config.sender, e), epoch_source,
+                                   epoch_numbers)
+        self._last_sync = float("-inf")
+        self._sync_due = 0                     # sync packets owed to peers
+        self._plan: _Plan | None = None
+        self._current: tuple[int, bytes, object] | None = None    # (seq, epoch, aead) being built
+        self.requests = control.SyncRequests(ASK_GAP)
+        self.receiver = Receiver(config.peers, self._aead, self.freshness, clock, wall, window,
+                                 on_new_epoch=self._peer_restarted)
+
+    @classmethod
+    def for_key(cls, master: bytes, config: GuardConfig, lock_path: Path | None = None,
+                **kw) -> "PacketSeal":
+        """A seal holding `lock_path` (if given) while it runs: a second copy is refused."""
+        lock = (SideLock(lock_path, f"side {config.sender} of network {config.network!r}")
+                if lock_path is not None else None)
+        return cls(master, config, lock=lock, **kw)
+
+    @property
+    def lock_path(self) -> Path | None:
+        return self._lock_file.path if self._lock_file is not None else None
+
+    def hooks(self) -> PacketHooks:
+        return PacketHooks(parts=self.parts, seal=self.seal, open=self.open,
+                           overhead=MAX_OVERHEAD, next_overhead=self.next_overhead,
+                           number=self.number)
+
+    def _aead(self, sender: int, epoch: bytes):
+        return wire.new_aead(working_key(self._master, self.config.network, sender, epoch))
+
+    def _peer_restarted(self, sender: int) -> None:
+        self.counters.inc("epochs_seen")
+        self._sync_due = max(self._sync_due, SYNC_FIRST)
+
+    def _encrypts(self, m: env.Message) -> bool:
+        """Whether message `m`'s body is encrypted: its id is `encrypt`, or it is a fragment and
+        the network encrypts any id (what a fragment carries is known only once reassembled)."""
+        if env.is_fragment_message(m, self.fragment_id):
+            return self._encrypt_any
+        return self.config.modes.get(m.id) == wire.ENCRYPT
+
+    def _fingerprint(self, ident: int) -> bytes:
+        return self.config.fingerprints.get(ident, b"")
+
+    def _max_age(self, messages) -> float:
+        ages = self.config.max_ages
+        return min((ages.get(m.id, self.config.max_age) for m in messages),
+                   default=self.config.max_age)
+
+    # -- sending -----------------------------------------------------------------------
+
+    def _decide(self, now: float, seq: int) -> _Plan:
+        ask = self.requests.next()
+        sync = (seq < SYNC_FIRST or seq % SYNC_EVERY == 0 or now - self._last_sync >= SYNC_PERIOD
+                or self._sync_due > 0 or ask is not None)
+        return _Plan(seq, sync, ask)
+
+    def next_overhead(self, now: float) -> int:
+        """Bytes the seal adds to the next packet (planned now, kept for it)."""
+        with self._lock:
+            s = self.session
+            seq = 0 if s.next >= s.limit else s.next
+            self._plan = plan = self._decide(now, seq)
+            return env.TAG_LEN + (SYNC_BYTES if plan.sync else 0) + (ASK_BYTES if plan.ask is not None else 0)
+
+    def number(self) -> int:
+        """The packet's number: its number in this side's epoch, plus the numbers of the epochs
+        before (monotonic for reliability; the low 12 bits are the same, epochs being a
+        multiple of 4096 numbers long)."""
+        with self._lock:
+            s = self.session
+            seq = s.take()
+            self._current = (seq, s.epoch, s.aead)
+            return (s.epochs_started - 1) * s.limit + seq
+
+    def parts(self, now: float) -> dict:
+        with self._lock:
+            if self._current is None:
+                raise env.EnvelopeError("the seal gives parts only to a packet it numbered")
+            seq, epoch, _ = self._current
+            plan = self._plan if self._plan is not None and self._plan.seq == seq else self._decide(now, seq)
+            self._plan = None
+            out: dict = {}
+            if plan.sync:
+                self._last_sync = now
+                self._sync_due = max(0, self._sync_due - 1)
+                out["sync"] = env.Sync(epoch, seq >> NUMBER_BITS)
+                out["time"] = stamp(self.wall.now())
+            if plan.ask is not None:
+                self.requests.asked(plan.ask, now)
+                self.counters.inc("asks_sent")
+                out["control"] = control.sync_request(plan.ask)
+            return out
+
+    def seal(self, envelope: env.Envelope) -> bytes:
+        with self._lock:
+            if self._current is None:
+                raise env.EnvelopeError("the seal seals only a packet it numbered")
+            seq, _, aead = self._current
+            self._current = None
+            data = packetwire.seal(aead, envelope, seq, self._encrypts, self._fingerprint)
+            self.counters.inc("protected")
+            if envelope.sync is not None:
+                self.counters.inc("sync_sent")
+            return data
+
+    # -- receiving ---------------------------------------------------------------------
+
+    def open(self, data: bytes) -> env.Envelope | None:
+        """The envelope (encrypted bodies in the clear), or None when dropped (counted).
+        EnvelopeError for bytes that are no envelope (counted by the link's unpacker)."""
+        e = env.decode(data)
+        with self._lock:
+            return self._open(e)
+
+    def _open(self, e: env.Envelope) -> env.Envelope | None:
+        drop = self.drops.drop
+        if not e.sealed:
+            return drop("unprotected", None, e.sender)
+        if e.sender == self.config.sender:
+            return drop("reflected", None, e.sender)
+        if e.sender not in self.config.peers:
+            return drop("unknown_sender", None, e.sender)
+        if e.sync is not None and e.time is None:
+            return drop("malformed", None, e.sender)
+        max_age = self._max_age(e.messages)
+        if e.sync is None and e.time is not None and not self.freshness.fresh(e.time, self.wall.now(), max_age):
+            return drop("stale", None, e.sender)
+        numbering = Numbering(e.sender, e.number, NUMBER_BITS,
+                              None if e.sync is None else (e.sync.high << NUMBER_BITS) | e.number,
+                              None if e.sync is None else wire.Sync(e.sync.epoch, e.time))
+        got = self.receiver.admit(numbering, max_age, lambda aead, seq: packetwire.open_envelope(
+            aead, e, seq, self._encrypts, self._fingerprint))
+        if isinstance(got, str):
+            if got == "unsynced":
+                self.requests.want(e.sender, self.clock.now())
+            return drop(got, None, e.sender)
+        self.counters.inc("verified")
+        self.requests.heard(e.sender)
+        if got.control:
+            self._control(got)
+        return got
+
+    def _control(self, e: env.Envelope) -> None:
+        now = self.clock.now()
+        for item in control.items(e.control):
+            if item.code != control.SYNC_REQUEST:
+                log_count(log, logging.WARNING, self.counters.inc("unknown_control"),
+                          "[%s] sender %d's packet has a control item of code %d this build does "
+                          "not know: ignored", self.name, e.sender, item.code)
+            elif item.sender == self.config.sender:
+                if self.requests.answer(e.sender, now):
+                    self._sync_due = max(self._sync_due, SYNC_ANSWER)
+                    self.counters.inc("asks_answered")
+                else:
+                    self.counters.inc("asks_ignored")
+
+    # -- accounting and shutdown -------------------------------------------------------
+
+    def stats(self) -> dict:
+        with self._lock:
+            c = self.counters.as_dict()
+            peers = {}
+            for s in sorted(self.config.peers):
+                pe = self.receiver.peer(s)
+                if pe.current is not None:
+                    peers[str(s)] = {"side": self.config.peers[s], "epoch": pe.current.epoch.hex(),
+                                     "high": pe.current.window.high}
+            return {**c, "dropped": sum(c[r] for r in DROP_REASONS), "sender": self.config.sender,
+                    "epoch": self.session.epoch.hex(), "next_seq": self.session.next,
+                    "peers": peers, "per_packet": True}
+
+    def close(self) -> None:
+        """The last summary line; lets another copy of this side start."""
+        with self._lock:
+            self.drops.summary()
+            if self._lock_file is not None:
+                self._lock_file.release()
