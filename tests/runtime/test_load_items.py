@@ -1,5 +1,5 @@
 """load_items reads a CBOR sequence whole, or refuses it: a break code (0xFF) outside an item
-never makes it stop early and drop the rest, whichever way it decodes the payload."""
+never makes it stop early and drop the rest (cbor2.loads would)."""
 from __future__ import annotations
 
 import io
@@ -14,7 +14,7 @@ from uwgen.runtime.codec import DecodeError, load_items, pack_items
 
 
 def reference(payload: bytes):
-    """The one-way-only decoding: a CBORDecoder that says where it stopped."""
+    """A CBORDecoder that says where it stopped, for every payload."""
     try:
         fp = io.BytesIO(b"\x9f" + payload + b"\xff")
         items = cbor2.CBORDecoder(fp).decode()
@@ -34,9 +34,9 @@ F = struct.pack(">f", struct.unpack(">f", b"\x3f\x7f\xff\x00")[0])   # a float32
 
 
 @pytest.mark.parametrize("payload", [
-    b"\x00\x04" + b"\xfa" + F,                        # FF inside a float: the two-array way
+    b"\x00\x04" + b"\xfa" + F,                        # FF inside a float
     b"\x00\x04\x43\x01\xff\x02",                      # FF inside a byte string
-    b"\x00\x04\x42\xff\xff",                          # FF FF inside one, at the end: the slow way
+    b"\x00\x04\x42\xff\xff",                          # FF FF inside one, at the end
 ])
 def test_items_holding_ff_bytes_decode_whole(payload):
     assert outcome(payload) == reference(payload) != "refused"

@@ -52,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--key-file", type=Path, default=None, metavar="PATH",
                         help="the network key both bridges use (created when missing; default: "
                              "the manifest's msg_samples/keys/demo.key, or in uwgen's cache if "
-                             "the checkout is read-only); its sequence state files stay next to it")
+                             "the checkout is read-only); nothing else is kept beside it (no "
+                             "state file: every start picks a new random epoch)")
     parser.add_argument("--docs", action="store_true",
                         help="also write the plot to docs/demo-path.png")
     parser.add_argument("--distance", type=number(1, 1e5), default=300.0, help="metres between the nodes")

@@ -108,7 +108,7 @@ def _run_only_key(out: Path, busy: Path) -> DemoKey:
     folder = Path(out) / "keys"
     folder.mkdir(parents=True, exist_ok=True)
     for old in folder.glob("*.state"):
-        old.unlink()             # they belong to the previous run's key, replaced below
+        old.unlink()             # left by builds that kept state files (none is read now)
     path = folder / busy.name
     write_key_file(path, force=True)
     return DemoKey(path, True, f"for this run only: another demo is using {busy}")

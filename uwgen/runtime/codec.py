@@ -427,30 +427,17 @@ def typed_array(item: Tag, code: str, path: str, size: int | None, fixed: bool) 
 def load_items(payload: bytes) -> list:
     """Decode a CBOR sequence into a list of items, or raise DecodeError.
 
-    The sequence is decoded as the items of an indefinite-length array (9F ... FF), by
-    cbor2.loads. loads stops at the first break code outside an item and ignores what
-    follows, so a payload holding a 0xFF byte, which may be such a stray break, needs a
-    check:
-
-    - it is decoded inside a second array, 9F 9F payload FF FF, which must come back
-      holding exactly one element. A stray break in the payload would close the inner
-      array early, and the outer one would then hold only that one element just when the
-      next byte is a break as well: FF FF in the payload, or a payload ending in FF. Where
-      neither occurs (nearly always, even in float data), one element means the payload
-      was all items, nothing left out;
-    - else it is decoded by a CBORDecoder that says where it stopped (slower: it reads
-      through a file object).
+    cbor2.loads stops at the first top-level break and ignores what follows, so a
+    payload holding a 0xFF byte is decoded with a position check instead. (Decoding it
+    inside two arrays, 9F 9F payload FF FF, and refusing any result but one element, is
+    sound where the payload holds no FF FF and does not end in FF; but looking for those
+    costs more than the position check saves: 3.3 against 2.4 us on a LaserScan.)
     """
     if not payload:
         raise DecodeError("", "empty payload")
     try:
         if b"\xff" not in payload:
             return _loads(b"\x9f" + payload + b"\xff")
-        if _no_double_break(payload):
-            outer = _loads(b"\x9f\x9f" + payload + b"\xff\xff")
-            if len(outer) != 1:
-                raise DecodeError("", "a CBOR break code where an item was expected")
-            return outer[0]
         fp = io.BytesIO(b"\x9f" + payload + b"\xff")
         items = _CBORDecoder(fp).decode()
         if fp.tell() != len(payload) + 2:
@@ -462,20 +449,6 @@ def load_items(payload: bytes) -> list:
         raise DecodeError("", "CBOR nested too deeply") from None
     except (_CBORError, ValueError, TypeError, OverflowError, MemoryError, LookupError) as exc:
         raise DecodeError("", f"not a valid CBOR sequence: {exc}") from None
-
-
-def _no_double_break(payload: bytes, most: int = 16) -> bool:
-    """True when no 0xFF byte of `payload` is followed by another or ends it (looked for
-    among its first `most` 0xFF bytes with find, which is memchr-fast, then with a
-    two-byte search, which is not)."""
-    k = payload.find(0xFF)
-    for _ in range(most):
-        if k < 0:
-            return True
-        if k + 1 == len(payload) or payload[k + 1] == 0xFF:
-            return False
-        k = payload.find(0xFF, k + 2)
-    return k < 0 or (payload[-1] != 0xFF and b"\xff\xff" not in payload)
 
 
 def peek_header(payload: bytes) -> tuple[int, int]:

@@ -3,4 +3,4 @@ from __future__ import annotations
 
 
 class SecurityError(Exception):
-    """Security cannot be set up as asked (key file, state file, sender id): a clear message."""
+    """Security cannot be set up as asked (key file, side lock, sender id): a clear message."""

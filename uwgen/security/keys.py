@@ -57,7 +57,7 @@ def new_epoch(nbytes: int = 6) -> bytes:
 
 
 def key_id(master: bytes, network: str) -> str:
-    """A public name of the key (hex): the state file remembers which key its numbers are for."""
+    """A public name of the key (hex), safe to log: tells which key a side runs with, never the key."""
     return _hkdf(master, b"key id\x00" + network.encode(), KEY_ID_BYTES).hex()
 
 
