@@ -19,29 +19,21 @@ restarted peer that sends anything hears this side again at once.
 """
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock, WALL_CLOCK
 from uwgen.runtime.codec import DecodeError, load_items
-from uwgen.runtime.stats import Counters
 from uwgen.security import wire
-from uwgen.security.droplog import SUMMARY_PERIOD, DropLog
-from uwgen.security.epochs import EPOCH_NUMBERS, SendSession
-from uwgen.security.errors import SecurityError
+from uwgen.security.droplog import SUMMARY_PERIOD
+from uwgen.security.epochs import EPOCH_NUMBERS
 from uwgen.security.files import SideLock
-from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, stamp
-from uwgen.security.keys import new_epoch, working_key
-from uwgen.security.receiver import Numbering, Receiver
+from uwgen.security.side import DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD, SideSeal  # noqa: F401 (re-exported)
+from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, stamp
+from uwgen.security.keys import new_epoch
+from uwgen.security.receiver import Numbering
 from uwgen.security.window import WINDOW
 
-DROP_REASONS = ("bad_tag", "replay", "too_old", "too_far", "stale", "before_start", "unknown_sender",
-                "reflected", "unsynced", "unprotected", "truncated", "malformed")
 COUNTERS = ("protected", "sync_sent", "verified", "epochs_seen", "protect_failed", *DROP_REASONS)
-SYNC_FIRST = 3          # the first frames of an epoch carry the sync word
-SYNC_EVERY = 64         # then every frame whose number is a multiple of this,
-SYNC_PERIOD = 30.0      # and the first frame after this many seconds without one
 
 
 @dataclass(frozen=True)
@@ -56,49 +48,16 @@ class GuardConfig:
     clock_tolerance: float = CLOCK_TOLERANCE
 
 
-class LinkGuard:
+class LinkGuard(SideSeal):
+    COUNTERS = COUNTERS
+
     def __init__(self, master: bytes, config: GuardConfig, *, clock: Clock = SYSTEM_CLOCK,
                  wall: Clock = WALL_CLOCK, name: str = "link", window: int = WINDOW,
                  lock: SideLock | None = None, epoch_source=new_epoch,
                  epoch_numbers: int = EPOCH_NUMBERS, summary_period: float = SUMMARY_PERIOD):
-        if config.sender in config.peers:
-            raise SecurityError(f"sender id {config.sender} is given to two sides")
-        for ident, mode in config.modes.items():
-            if mode not in (wire.SIGN, wire.ENCRYPT):
-                raise SecurityError(f"id {ident}: mode {mode!r} is not sign or encrypt")
-        self.config, self.clock, self.wall, self.name = config, clock, wall, name
-        self._master = master
-        self.counters = Counters(COUNTERS)
-        self.drops = DropLog(self.counters, clock, name, summary_period)
-        self.freshness = Freshness(config.clock_tolerance)
-        self._lock_file = lock.acquire() if lock is not None else None   # one copy per side
-        self._lock = threading.Lock()
-        self.session = SendSession(lambda e: self._aead(config.sender, e), epoch_source,
-                                   epoch_numbers)
-        self._last_sync = float("-inf")
-        self._sync_due = 0                      # sync frames owed to a peer that (re)started
-        self.receiver = Receiver(config.peers, self._aead, self.freshness, clock, wall, window,
-                                 on_new_epoch=self._peer_restarted)
-
-    @classmethod
-    def for_key(cls, master: bytes, config: GuardConfig, lock_path: Path | None = None,
-                **kw) -> "LinkGuard":
-        """A guard holding `lock_path` (if given) while it runs: a second copy is refused."""
-        lock = (SideLock(lock_path, f"side {config.sender} of network {config.network!r}")
-                if lock_path is not None else None)
-        return cls(master, config, lock=lock, **kw)
-
-    @property
-    def lock_path(self) -> Path | None:
-        return self._lock_file.path if self._lock_file is not None else None
-
-    def _peer_restarted(self, sender: int) -> None:
-        """A peer's new epoch: it may not know ours either, so the next frames carry it."""
-        self.counters.inc("epochs_seen")
-        self._sync_due = SYNC_FIRST
-
-    def _aead(self, sender: int, epoch: bytes):
-        return wire.new_aead(working_key(self._master, self.config.network, sender, epoch))
+        super().__init__(master, config, clock=clock, wall=wall, name=name, window=window,
+                         lock=lock, epoch_source=epoch_source, epoch_numbers=epoch_numbers,
+                         summary_period=summary_period)
 
     def _max_age(self, ident: int) -> float:
         return self.config.max_ages.get(ident, self.config.max_age)
@@ -177,22 +136,7 @@ class LinkGuard:
     # -- accounting and shutdown -------------------------------------------------------
 
     def stats(self) -> dict:
-        c = self.counters.as_dict()
-        peers = {}
-        for s in sorted(self.config.peers):
-            pe = self.receiver.peer(s)
-            if pe.current is not None:
-                peers[str(s)] = {"side": self.config.peers[s], "epoch": pe.current.epoch.hex(),
-                                 "high": pe.current.window.high}
-        return {**c, "dropped": sum(c[r] for r in DROP_REASONS), "sender": self.config.sender,
-                "epoch": self.session.epoch.hex(), "next_seq": self.session.next, "peers": peers}
-
-    def close(self) -> None:
-        """The last summary line; lets another copy of this side start."""
-        with self._lock:
-            self.drops.summary()
-            if self._lock_file is not None:
-                self._lock_file.release()
+        return self._side_stats()
 
 
 def _open(aead, mode: str, p: wire.Parsed, seq: int, fingerprint: bytes) -> bytes | None:

@@ -23,23 +23,22 @@ docs/seams.md sections 2 and 5).
 from __future__ import annotations
 
 import logging
-import threading
 from dataclasses import dataclass
-from pathlib import Path
 
 from uwgen.runtime import envelope as env
 from uwgen.runtime.clock import SYSTEM_CLOCK, WALL_CLOCK, Clock
-from uwgen.runtime.freshness import Freshness, stamp
+from uwgen.runtime.freshness import stamp
 from uwgen.runtime.packets import PacketHooks
-from uwgen.runtime.stats import Counters, log_count
+from uwgen.runtime.stats import log_count
 from uwgen.security import control, packetwire, wire
-from uwgen.security.droplog import SUMMARY_PERIOD, DropLog, log
-from uwgen.security.epochs import EPOCH_NUMBERS, SendSession
+from uwgen.security.droplog import SUMMARY_PERIOD, log
+from uwgen.security.epochs import EPOCH_NUMBERS
 from uwgen.security.errors import SecurityError
 from uwgen.security.files import SideLock
+from uwgen.security.side import SideSeal
 from uwgen.security.guard import DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD, GuardConfig
-from uwgen.security.keys import new_epoch, working_key
-from uwgen.security.receiver import Numbering, Receiver
+from uwgen.security.keys import new_epoch
+from uwgen.security.receiver import Numbering
 from uwgen.security.window import WINDOW
 
 COUNTERS = ("protected", "sync_sent", "verified", "epochs_seen", "asks_sent", "asks_answered",
@@ -59,60 +58,29 @@ class _Plan:
     ask: int | None          # the peer asked for a sync in this packet
 
 
-class PacketSeal:
+class PacketSeal(SideSeal):
+    COUNTERS = COUNTERS
+
     def __init__(self, master: bytes, config: GuardConfig, *, fragment_id: int | None = None,
                  clock: Clock = SYSTEM_CLOCK, wall: Clock = WALL_CLOCK, name: str = "link",
                  window: int = WINDOW, lock: SideLock | None = None, epoch_source=new_epoch,
                  epoch_numbers: int = EPOCH_NUMBERS, summary_period: float = SUMMARY_PERIOD):
-        if config.sender in config.peers:
-            raise SecurityError(f"sender id {config.sender} is given to two sides")
         if epoch_numbers <= 0 or epoch_numbers % env.NUMBER_MOD:
             raise SecurityError(f"an epoch of {epoch_numbers} packets: a multiple of "
                                 f"{env.NUMBER_MOD} (W's numbers) is needed")
-        for ident, mode in config.modes.items():
-            if mode not in (wire.SIGN, wire.ENCRYPT):
-                raise SecurityError(f"id {ident}: mode {mode!r} is not sign or encrypt")
-        self.config, self.clock, self.wall, self.name = config, clock, wall, name
-        self._master, self.fragment_id = master, fragment_id
+        super().__init__(master, config, clock=clock, wall=wall, name=name, window=window,
+                         lock=lock, epoch_source=epoch_source, epoch_numbers=epoch_numbers,
+                         summary_period=summary_period, reentrant=True)
+        self.fragment_id = fragment_id
         self._encrypt_any = wire.ENCRYPT in config.modes.values()
-        self.counters = Counters(COUNTERS)
-        self.drops = DropLog(self.counters, clock, name, summary_period)
-        self.freshness = Freshness(config.clock_tolerance)
-        self._lock_file = lock.acquire() if lock is not None else None   # one copy per side
-        self._lock = threading.RLock()
-        self.session = SendSession(lambda e: self._aead(config.sender, e), epoch_source,
-                                   epoch_numbers)
-        self._last_sync = float("-inf")
-        self._sync_due = 0                     # sync packets owed to peers
         self._plan: _Plan | None = None
         self._current: tuple[int, bytes, object] | None = None    # (seq, epoch, aead) being built
         self.requests = control.SyncRequests(ASK_GAP)
-        self.receiver = Receiver(config.peers, self._aead, self.freshness, clock, wall, window,
-                                 on_new_epoch=self._peer_restarted)
-
-    @classmethod
-    def for_key(cls, master: bytes, config: GuardConfig, lock_path: Path | None = None,
-                **kw) -> "PacketSeal":
-        """A seal holding `lock_path` (if given) while it runs: a second copy is refused."""
-        lock = (SideLock(lock_path, f"side {config.sender} of network {config.network!r}")
-                if lock_path is not None else None)
-        return cls(master, config, lock=lock, **kw)
-
-    @property
-    def lock_path(self) -> Path | None:
-        return self._lock_file.path if self._lock_file is not None else None
 
     def hooks(self) -> PacketHooks:
         return PacketHooks(parts=self.parts, seal=self.seal, open=self.open,
                            overhead=MAX_OVERHEAD, next_overhead=self.next_overhead,
                            number=self.number)
-
-    def _aead(self, sender: int, epoch: bytes):
-        return wire.new_aead(working_key(self._master, self.config.network, sender, epoch))
-
-    def _peer_restarted(self, sender: int) -> None:
-        self.counters.inc("epochs_seen")
-        self._sync_due = max(self._sync_due, SYNC_FIRST)
 
     def _encrypts(self, m: env.Message) -> bool:
         """Whether message `m`'s body is encrypted: its id is `encrypt`, or it is a fragment and
@@ -241,20 +209,4 @@ class PacketSeal:
 
     def stats(self) -> dict:
         with self._lock:
-            c = self.counters.as_dict()
-            peers = {}
-            for s in sorted(self.config.peers):
-                pe = self.receiver.peer(s)
-                if pe.current is not None:
-                    peers[str(s)] = {"side": self.config.peers[s], "epoch": pe.current.epoch.hex(),
-                                     "high": pe.current.window.high}
-            return {**c, "dropped": sum(c[r] for r in DROP_REASONS), "sender": self.config.sender,
-                    "epoch": self.session.epoch.hex(), "next_seq": self.session.next,
-                    "peers": peers, "per_packet": True}
-
-    def close(self) -> None:
-        """The last summary line; lets another copy of this side start."""
-        with self._lock:
-            self.drops.summary()
-            if self._lock_file is not None:
-                self._lock_file.release()
+            return {**self._side_stats(), "per_packet": True}
