@@ -2,9 +2,6 @@
 format 2 and its sync request), recomputed byte for byte, and read back."""
 from __future__ import annotations
 
-import re
-from pathlib import Path
-
 import pytest
 
 from uwgen.runtime import envelope as env
@@ -12,7 +9,8 @@ from uwgen.runtime.codec import pack_items
 from uwgen.security import control, packetwire, wire
 from uwgen.security.keys import working_key
 
-DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
+from .docvectors import DOC, vectors
+
 MASTER = bytes(range(32))
 EPOCH = bytes.fromhex("A0A1A2A3A4A5")
 VEHICLE_EPOCH = bytes.fromhex("B0B1B2B3B4B5")
@@ -36,12 +34,7 @@ def fingerprint(ident: int) -> bytes:
 def documented() -> dict[str, bytes]:
     text = DOC.read_text(encoding="utf-8")
     section = text[text.index("### 12.2"):text.index("## 13.")]
-    vectors = {}
-    for block in re.findall(r"```\n(.*?)```", section, re.S):
-        for line in block.strip().splitlines():
-            name, hexes = line.split(None, 1)
-            vectors[name] = bytes.fromhex(hexes.replace(" ", ""))
-    return vectors
+    return vectors(section)
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,6 @@
 """The worked bytes of docs/wire-format.md section 12, recomputed byte for byte, and read back."""
 from __future__ import annotations
 
-import re
-from pathlib import Path
-
 import pytest
 
 from uwgen.runtime.codec import pack_items
@@ -11,7 +8,8 @@ from uwgen.security import wire
 from uwgen.security.keys import working_key
 from uwgen.security.window import ReplayWindow
 
-DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
+from .docvectors import DOC, vectors
+
 MASTER = bytes(range(32))
 SEQ = 0x12345
 EPOCH = bytes.fromhex("A0A1A2A3A4A5")
@@ -25,12 +23,7 @@ def documented() -> dict[str, bytes]:
     section = text[text.index("## 12. Security"):]
     section = section[:section.index("\n## ", 10)] if "\n## " in section[10:] else section
     section = section[:section.index("### 12.2")]      # the per-packet seal: test_packet_vectors.py
-    vectors = {}
-    for block in re.findall(r"```\n(.*?)```", section, re.S):
-        for line in block.strip().splitlines():
-            name, hexes = line.split(None, 1)
-            vectors[name] = bytes.fromhex(hexes.replace(" ", ""))
-    return vectors
+    return vectors(section)
 
 
 @pytest.fixture(scope="module")
