@@ -19,7 +19,6 @@ restarted peer that sends anything hears this side again at once.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock, WALL_CLOCK
 from uwgen.runtime.codec import DecodeError, load_items
@@ -27,25 +26,14 @@ from uwgen.security import wire
 from uwgen.security.droplog import SUMMARY_PERIOD
 from uwgen.security.epochs import EPOCH_NUMBERS
 from uwgen.security.files import SideLock
-from uwgen.security.side import DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD, SideSeal  # noqa: F401 (re-exported)
-from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, stamp
+from uwgen.security.side import (DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD,  # noqa: F401 (re-exported)
+                                 GuardConfig, SideSeal)
+from uwgen.runtime.freshness import stamp
 from uwgen.security.keys import new_epoch
 from uwgen.security.receiver import Numbering
 from uwgen.security.window import WINDOW
 
 COUNTERS = ("protected", "sync_sent", "verified", "epochs_seen", "protect_failed", *DROP_REASONS)
-
-
-@dataclass(frozen=True)
-class GuardConfig:
-    network: str
-    sender: int                                    # this side's sender id
-    peers: dict[int, str]                          # other sides: sender id -> side name
-    modes: dict[int, str]                          # protected ids -> sign | encrypt
-    fingerprints: dict[int, bytes] = field(default_factory=dict)
-    max_ages: dict[int, float] = field(default_factory=dict)   # id -> seconds (its ttl)
-    max_age: float = MAX_AGE                       # ids without one
-    clock_tolerance: float = CLOCK_TOLERANCE
 
 
 class LinkGuard(SideSeal):

@@ -6,11 +6,11 @@ report and close alike. Each subclass adds how it seals and opens."""
 from __future__ import annotations
 
 import threading
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from uwgen.runtime.clock import Clock
-from uwgen.runtime.freshness import Freshness
+from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness
 from uwgen.runtime.stats import Counters
 from uwgen.security import wire
 from uwgen.security.droplog import DropLog
@@ -20,9 +20,6 @@ from uwgen.security.files import SideLock
 from uwgen.security.keys import working_key
 from uwgen.security.receiver import Receiver
 
-if TYPE_CHECKING:
-    from uwgen.security.guard import GuardConfig
-
 DROP_REASONS = ("bad_tag", "replay", "too_old", "too_far", "stale", "before_start", "unknown_sender",
                 "reflected", "unsynced", "unprotected", "truncated", "malformed")
 SYNC_FIRST = 3          # the first frames (packets) of an epoch carry the sync word
@@ -30,10 +27,22 @@ SYNC_EVERY = 64         # then every one whose number is a multiple of this,
 SYNC_PERIOD = 30.0      # and the first one after this many seconds without one
 
 
+@dataclass(frozen=True)
+class GuardConfig:
+    network: str
+    sender: int                                    # this side's sender id
+    peers: dict[int, str]                          # other sides: sender id -> side name
+    modes: dict[int, str]                          # protected ids -> sign | encrypt
+    fingerprints: dict[int, bytes] = field(default_factory=dict)
+    max_ages: dict[int, float] = field(default_factory=dict)   # id -> seconds (its ttl)
+    max_age: float = MAX_AGE                       # ids without one
+    clock_tolerance: float = CLOCK_TOLERANCE
+
+
 class SideSeal:
     COUNTERS: tuple[str, ...] = ()
 
-    def __init__(self, master: bytes, config: "GuardConfig", *, clock: Clock, wall: Clock,
+    def __init__(self, master: bytes, config: GuardConfig, *, clock: Clock, wall: Clock,
                  name: str, window: int, lock: SideLock | None, epoch_source, epoch_numbers: int,
                  summary_period: float, reentrant: bool = False):
         if config.sender in config.peers:
@@ -56,7 +65,7 @@ class SideSeal:
                                  on_new_epoch=self._peer_restarted)
 
     @classmethod
-    def for_key(cls, master: bytes, config: "GuardConfig", lock_path: Path | None = None, **kw):
+    def for_key(cls, master: bytes, config: GuardConfig, lock_path: Path | None = None, **kw):
         """A seal holding `lock_path` (if given) while it runs: a second copy is refused."""
         lock = (SideLock(lock_path, f"side {config.sender} of network {config.network!r}")
                 if lock_path is not None else None)
