@@ -68,9 +68,9 @@ def test_sides_with_different_lengths_refuse_each_other_clearly(sent, kept, capl
     assert stats["tag_length"] == SYNC_FIRST         # each sync packet, named for what it is
     assert stats["bad_tag"] == 0 and stats["verified"] == 0
     assert stats["unsynced"] == 3                    # the others: no epoch of that sender taken
-    said = [r.getMessage() for r in caplog.records if "-byte tag" in r.getMessage()]
+    said = [r.getMessage() for r in caplog.records if "-byte tags" in r.getMessage()]
     assert len(said) == 1                            # once per peer
-    assert f"with a {sent}-byte tag, this side with a {kept}-byte one" in said[0]
+    assert f"with {sent}-byte tags, this side expects {kept} bytes" in said[0]
     assert "sender 1 (surface)" in said[0] and "security: tag_bytes" in said[0]
 
 

@@ -212,8 +212,8 @@ class PacketSeal(SideSeal):
                                         self._fingerprint)
         if length is not None and sender not in self._told_length:
             self._told_length.add(sender)
-            log.error("[%s] sender %d (%s) seals its packets with a %d-byte tag, this side with a "
-                      "%d-byte one (manifest security: tag_bytes): the two sides were built from "
+            log.error("[%s] sender %d (%s) seals its packets with %d-byte tags, this side expects "
+                      "%d bytes (manifest security: tag_bytes): the two sides were built from "
                       "different manifests, and nothing of that sender is taken. Build both from "
                       "one manifest", self.name, sender, self.config.peers.get(sender, "?"),
                       length, self.config.tag_bytes)
