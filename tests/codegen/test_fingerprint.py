@@ -253,3 +253,15 @@ def test_the_default_tag_keeps_the_fingerprints_of_earlier_builds(tmp_path):
     base = fingerprints(tmp_path, manifest=SECURED, name="default")
     eight = fingerprints(tmp_path, manifest=written, name="eight")
     assert base.fingerprints == eight.fingerprints and base.schema_digest == eight.schema_digest
+
+
+def test_the_seal_authenticates_the_fingerprints_without_the_tag_item(tmp_path):
+    # CCM binds the tag length into the tag; the seal's authenticated data takes each protected
+    # id's fingerprint without it, so a side built with another length can recognise a genuine
+    # packet (security/taglength.py), while the announced fingerprints differ.
+    base = fingerprints(tmp_path, manifest=SECURED, name="default")
+    short = fingerprints(tmp_path, manifest=SECURED.replace("{key_file: k.key}",
+                                                            "{key_file: k.key, tag_bytes: 4}"), name="short")
+    assert base.seal_fingerprints == {}
+    assert short.seal_fingerprints == {4: base.fingerprints[("topic", 4)]}
+    assert short.fingerprints[("topic", 4)] != base.fingerprints[("topic", 4)]

@@ -91,7 +91,9 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
             network=plan.network, sender=sec.senders[plan.side],
             peers={sid: side for side, sid in sec.senders.items() if side != plan.side},
             modes=dict(sec.modes),
-            fingerprints={i: bytes(getattr(entries.get(i), "fingerprint", b"") or b"") for i in sec.modes},
+            fingerprints={i: bytes(getattr(sec, "seal_fingerprints", {}).get(i)
+                                   or getattr(entries.get(i), "fingerprint", b"") or b"")
+                          for i in sec.modes},
             max_ages={i: float(t) for i, t in ttls.items() if i in sec.modes},
             tag_bytes=getattr(sec, "tag_bytes", 8))
         lock = (Path(options.security_state) if options.security_state is not None

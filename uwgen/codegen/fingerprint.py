@@ -176,14 +176,17 @@ def wire_format_of(manifest: Any) -> int:
     return 1 if any(getattr(e, "profile", "native") == "rmw_desert" for e in entries) else 2
 
 
-def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], bytes]:
-    """('topic' | 'service' | 'action', id) -> fingerprint for every entry of `manifest`."""
+def manifest_fingerprints(manifest: Any, builder: Any,
+                          tag_bytes: int | None = None) -> dict[tuple[str, int], bytes]:
+    """('topic' | 'service' | 'action', id) -> fingerprint for every entry of `manifest` (with
+    the manifest's tag length, or `tag_bytes`)."""
     entries = {**{("topic", t.id): t for t in manifest.topics},
                **{("service", s.id): s for s in manifest.services},
                **{("action", a.id): a for a in getattr(manifest, "actions", ())}}
     out: dict[tuple[str, int], bytes] = {}
     wire = wire_format_of(manifest)
-    tag = getattr(getattr(manifest, "security", None), "tag_bytes", DEFAULT_TAG_BYTES)
+    tag = (tag_bytes if tag_bytes is not None else
+           getattr(getattr(manifest, "security", None), "tag_bytes", DEFAULT_TAG_BYTES))
     for key, (roots, codecs) in entry_codecs(manifest, builder).items():
         entry = entries[key]
         mode = getattr(entry, "security", "off")
@@ -197,3 +200,18 @@ def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], 
             out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs,
                                            wire, mode, tag)
     return out
+
+
+def seal_fingerprints(manifest: Any, builder: Any) -> dict[int, bytes]:
+    """Protected id -> the fingerprint the per-packet seal authenticates (wire-format.md 12.2),
+    only when the manifest's tag is not the default: the description without its tag item.
+    CCM binds the tag length into the tag itself, so a side built with another length can
+    still tell a genuine packet of another length apart (security/taglength.py). Empty with
+    the default tag: the seal then authenticates the announced fingerprints, as before."""
+    security = getattr(manifest, "security", None)
+    if getattr(security, "tag_bytes", DEFAULT_TAG_BYTES) == DEFAULT_TAG_BYTES:
+        return {}
+    protected = {e.id for e in (*manifest.topics, *manifest.services, *getattr(manifest, "actions", ()))
+                 if getattr(e, "security", "off") != "off"}
+    base = manifest_fingerprints(manifest, builder, DEFAULT_TAG_BYTES)
+    return {ident: fp for (_, ident), fp in sorted(base.items()) if ident in protected}

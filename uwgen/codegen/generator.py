@@ -24,7 +24,7 @@ import jinja2
 from uwgen.errors import Collector
 from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
 from uwgen.codegen.emit_packed import PackedLowering
-from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest
+from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest, seal_fingerprints
 from uwgen.codegen.vendor import runtime_files
 from uwgen.codegen.ir import (CodecType, IRBuilder, ProfileError, check_profile_limits, ros_layout, type_key,
                               variant_name)
@@ -110,6 +110,7 @@ class PackagePlan:
     skipped: list[str] = field(default_factory=list)   # types a profile can never carry (bulk builds)
     fingerprints: dict[tuple[str, int], bytes] = field(default_factory=dict)  # ('topic'|'service', id) -> fp
     schema_digest: bytes | None = None                # of every fingerprint (None without a manifest)
+    seal_fingerprints: dict[int, bytes] = field(default_factory=dict)   # fingerprint.seal_fingerprints
     # Local interface packages used: (package, folder label, digest of its .msg/.srv files);
     # bridges activate the rclpy type support built from exactly these (uwgen.typesupport).
     ros_interfaces: list[tuple[str, str, str]] = field(default_factory=list)
@@ -295,7 +296,9 @@ def plan_package(lib: InterfaceLibrary, names: list[str], manifest: Manifest | N
                        package_digest(fingerprints) if manifest is not None else None,
                        ros_interfaces=_local_packages(lib, [*definitions, *services]),
                        source_paths=sorted((Path(f), Path(f).resolve() in local_files)
-                                           for f in files if f is not None))
+                                           for f in files if f is not None),
+                       seal_fingerprints=(seal_fingerprints(manifest, builder)
+                                          if manifest is not None else {}))
 
 
 def _local_packages(lib: InterfaceLibrary, used: list[str]) -> list[tuple[str, str, str]]:
@@ -483,7 +486,8 @@ def _manifest_view(plan: PackagePlan):
         "fragment_id": manifest.fragment_id,
         "schema_id": manifest.schema_id, "schema_period": manifest.schema_period,
         "schema_digest": plan.schema_digest.hex(),
-        "security": repr(manifest.security_plan()) if manifest.protected() else None,
+        "security": (repr(replace(manifest.security_plan(), seal_fingerprints=plan.seal_fingerprints))
+                     if manifest.protected() else None),
         "sides": [(name, repr(side_without_where(side))) for name, side in sorted(manifest.sides.items())],
         "topics": [dict(id=t.id, name=t.name, type_name=t.type_name, publisher=t.publisher,
                         policy=repr(t.policy), qos=repr(t.qos), profile=t.profile,

@@ -180,6 +180,9 @@ class SecurityPlan:
     senders: dict[str, int]                # side -> sender id
     modes: dict[int, str]                  # protected id -> sign | encrypt
     tag_bytes: int = DEFAULT_TAG_BYTES     # the per-packet tag's length (wire format 2)
+    # protected id -> the schema fingerprint the per-packet seal authenticates, when tag_bytes
+    # is not 8 (the fingerprint without its tag item; codegen.fingerprint.seal_fingerprints)
+    seal_fingerprints: dict[int, bytes] = field(default_factory=dict)
 
 
 MAX_GOALS_LIMIT = ACTION_HANDLES // 2   # goals in flight per action, at most
