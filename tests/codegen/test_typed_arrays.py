@@ -215,3 +215,25 @@ def test_the_quick_half_test_takes_only_normal_halves():
     assert rt._normal_halves(normal)
     for other in (0.0, -0.0, 2.0 ** -14, 2.0 ** -24, 32768.0, 65504.0, math.inf, math.nan, 1.0 + 2.0 ** -11):
         assert not rt._normal_halves(array.array("f", [1.5, other]).tobytes()), other
+
+
+F32 = st.one_of(st.sampled_from(EDGES), st.floats(width=16, allow_nan=False), st.floats(width=32))
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.one_of(st.lists(F32, max_size=40), st.lists(F32, min_size=129, max_size=300),
+                        st.lists(st.floats(width=16, allow_nan=False), min_size=129, max_size=300)),
+       counted=st.booleans(), holder=st.sampled_from(["array", "list"]))
+def test_float32_array_chooses_as_number_array_does(values, counted, holder):
+    value = array.array("f", values) if holder == "array" else values
+    assert pack_items(rt.float32_array(value, counted, "x")) == pack_items(rt.number_array(value, "f", counted, "x"))
+
+
+@pytest.mark.parametrize("fill", [0.0, 1.0 + 2.0 ** -11, math.nan, 1e30, 2.0 ** -24])
+def test_float32_array_of_a_long_sequence_matches_number_array_past_its_quick_tests(fill):
+    """Arrays the quick tests do not decide (zeros, NaN, values needing single or double
+    items, subnormal halves) take number_array's own steps: the same bytes."""
+    for k in (rt.CHOICE_CACHE_BYTES // 4 + 1, 300):
+        value = array.array("f", [fill] * k)
+        value[5] = 3.0
+        assert pack_items(rt.float32_array(value, True, "x")) == pack_items(rt.number_array(value, "f", True, "x"))

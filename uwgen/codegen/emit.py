@@ -186,7 +186,9 @@ class Lowering:
             counted = enc.array is not ArrayKind.FIXED
 
             def choice(value: str) -> str:
-                return f"out += _number_array({value}, {enc.code!r}, {counted}, {p})  # items, or a typed array (tag {enc.tag})"
+                call = (f"_float32_array({value}, {counted}, {p})" if enc.code == "f"   # rclpy's long float32[]: quicker
+                        else f"_number_array({value}, {enc.code!r}, {counted}, {p})")
+                return f"out += {call}  # items, or a typed array (tag {enc.tag})"
             checks = self._length_check(enc.array, enc.size, p, count=False)
             if not checks:      # an unbounded sequence: _number_array takes the field's value as it is
                 return [choice(expr)]

@@ -256,7 +256,10 @@ def number_array(value, code: str, counted: bool, path: str) -> list:
     The items' size is bounded first at memory speed (floats: at least the long form for
     every value that cannot be short, at most the long form for every value but zeros) and
     measured only when the bounds do not decide."""
-    raw = _little_endian(value, code, path)
+    if type(value) is array.array and value.typecode == code and _LITTLE and code in _ARRAY_OK:
+        raw = value.tobytes()            # rclpy's numeric sequences: the elements as they are
+    else:
+        raw = _little_endian(value, code, path)
     size = len(raw)
     if size <= CHOICE_CACHE_BYTES:       # small arrays repeat (covariances): decide once each
         key = (code, counted, raw)
@@ -269,6 +272,27 @@ def number_array(value, code: str, counted: bool, path: str) -> list:
     return _choose(raw, code, counted)
 
 
+def float32_array(value, counted: bool, path: str) -> list:
+    """number_array(value, "f", counted, path), reached with less work for the long
+    float32 sequences rclpy holds as array.array('f') (a LaserScan's ranges): the same
+    choice, and where these quick tests do not decide, number_array's own steps."""
+    n = len(value) if type(value) is array.array and value.typecode == "f" else 0
+    if n * 4 <= CHOICE_CACHE_BYTES or not _LITTLE:
+        return number_array(value, "f", counted, path)
+    raw = value.tobytes()
+    low_zeros = raw[0::4].count(0)
+    if low_zeros == n:                       # maybe all halves (then H < I: n > 128)
+        np = _numpy()
+        if np is not None and _normal_halves(raw):
+            return [Tag(HALF_TAG, np.frombuffer(raw, "<f4").astype("<f2").tobytes())]
+        return _choose(raw, "f", counted)
+    top = raw[3::4]
+    short = low_zeros + top.count(0x7F) + top.count(0xFF)    # as in _choose
+    if 2 + head_size(4 * n) + 4 * n <= (head_size(n) if counted else 0) + 5 * n - 2 * short:
+        return [Tag(TYPED_TAGS["f"], raw)]
+    return _choose(raw, "f", counted)
+
+
 CHOICE_CACHE_BYTES = 512       # arrays up to this many bytes have their choice remembered,
 CHOICE_CACHE_SIZE = 1024       # this many of them (a few MiB at most), then forgotten
 _CHOICES: dict[tuple[str, bool, bytes], list] = {}
@@ -277,7 +301,8 @@ _CHOICES: dict[tuple[str, bool, bytes], list] = {}
 def _choose(raw: bytes, code: str, counted: bool) -> list:
     """number_array's choice for the little-endian elements `raw` (a new list; callers copy it)."""
     size = len(raw)
-    n = size // _WIDTHS[code]
+    w = _WIDTHS[code]
+    n = size // w
     typed = 2 + head_size(size) + size
     count = head_size(n) if counted else 0
     if code in _LONG_ITEM:
@@ -285,10 +310,9 @@ def _choose(raw: bytes, code: str, counted: bool) -> list:
         # or single for float64 ones), counted at memory speed: such a value has its
         # lowest byte 0, or it is an infinity or a NaN (top byte 0x7F or 0xFF). Every
         # half has its lowest byte 0: only when all do can the array be all halves.
-        w = _WIDTHS[code]
         short = low_zeros = raw[0::w].count(0)
         if low_zeros == n and n:           # maybe all halves: 2 bytes each, items take 3
-            half = _halves(raw, code)
+            half = _halves(raw, code, n)
             if half is not None:
                 if 2 + head_size(2 * n) + 2 * n <= count + 3 * n:
                     return [Tag(HALF_TAG, half)]
@@ -372,11 +396,10 @@ def _normal_halves(raw: bytes) -> bool:
     return not raw[1::4].translate(None, _HALF_MANTISSA_BYTES) and not raw[3::4].translate(None, _HALF_NORMAL_TOPS)
 
 
-def _halves(raw: bytes, code: str) -> bytes | None:
-    """`raw` (float elements, little-endian, whose lowest bytes are all 0, as every half's
-    is) as half-precision floats, when every element converts to half and back bit for
-    bit; else None."""
-    n = len(raw) // _WIDTHS[code]
+def _halves(raw: bytes, code: str, n: int) -> bytes | None:
+    """`raw` (`n` float elements, little-endian, whose lowest bytes are all 0, as every
+    half's is) as half-precision floats, when every element converts to half and back
+    bit for bit; else None."""
     np = _numpy() if n > NUMPY_FROM else None
     if np is not None and code == "f" and _normal_halves(raw):
         return np.frombuffer(raw, "<f4").astype("<f2").tobytes()
