@@ -12,7 +12,7 @@ import sys as _sys
 
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
-    'codec': ('uwgen.runtime.codec', '082ff99ccd8c100a'),
+    'codec': ('uwgen.runtime.codec', '26f32f49db840f8d'),
     'model': ('uwgen.manifest.model', '1929c598f4daa2fb'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),

@@ -419,9 +419,8 @@ def _halves(raw: bytes, code: str, n: int) -> bytes | None:
     return half if struct_for(code, n).pack(*halves.unpack(half)) == raw else None
 
 
-def _from_halves(raw: bytes, code: str) -> bytes:
-    """Half-precision elements (little-endian) widened to `code` floats, little-endian."""
-    n = len(raw) // 2
+def _from_halves(raw: bytes, code: str, n: int) -> bytes:
+    """`n` half-precision elements (little-endian) widened to `code` floats, little-endian."""
     np = _numpy() if n > NUMPY_FROM else None
     if np is not None:
         return np.frombuffer(raw, "<f2").astype(_HALF_OF[code]).tobytes()
@@ -451,11 +450,10 @@ def typed_array(item: Tag, code: str, path: str, size: int | None, fixed: bool) 
     if size is not None and n > size:
         raise DecodeError(path, f"{n} elements, over the bound of {size}")
     if half:
-        raw = _from_halves(raw, code)
+        raw = _from_halves(raw, code, n)
     if code not in _ARRAY_OK:
         return list(struct.unpack(f"<{n}{code}", raw))
-    out = array.array(code)
-    out.frombytes(raw)
+    out = array.array(code, raw)
     if not _LITTLE:
         out.byteswap()
     return out
@@ -474,10 +472,13 @@ def load_items(payload: bytes) -> list:
     """
     if not payload:
         raise DecodeError("", "empty payload")
+    if type(payload) is not bytes:      # (`b"\xff" in` a memoryview compares its ints: never true)
+        payload = bytes(payload)
     try:
+        wrapped = b"".join((b"\x9f", payload, b"\xff"))      # an indefinite array around the items
         if b"\xff" not in payload:
-            return _loads(b"\x9f" + payload + b"\xff")
-        fp = io.BytesIO(b"\x9f" + payload + b"\xff")
+            return _loads(wrapped)
+        fp = io.BytesIO(wrapped)
         items = _load(fp)               # (cbor2.load: a CBORDecoder's decode, called from C)
         if fp.tell() != len(payload) + 2:
             raise DecodeError("", "a CBOR break code where an item was expected")
