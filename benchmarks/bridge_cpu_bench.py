@@ -42,6 +42,8 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import Header
 
+from uwgen import tether
+
 ROOT = Path(__file__).resolve().parents[1]
 UWGEN = [sys.executable, "-m", "uwgen.cli"]
 TICK = os.sysconf("SC_CLK_TCK")
@@ -137,9 +139,9 @@ def publish_at(pub, rate: float, seconds: float) -> int:
 
 def measure(python, package_dir, rate, seconds, bares, twist_pub, alert_pub, latencies, domain, manifest):
     """Start the surface bridge of `python`'s uwgen, publish at `rate`, and return its row."""
-    bridge = subprocess.Popen([python, "-m", "uwgen.cli", "--quiet", "bridge", "-m", str(manifest),
-                               "--side", "surface", "--status-period", "0", "--package-dir", str(package_dir)],
-                              env=ros_env(domain), cwd=manifest.parent)
+    bridge = tether.popen([python, "-m", "uwgen.cli", "--quiet", "bridge", "-m", str(manifest),
+                           "--side", "surface", "--status-period", "0", "--package-dir", str(package_dir)],
+                          env=ros_env(domain), cwd=manifest.parent)
     try:
         time.sleep(4.0)                                  # discovery, link up
         watched = {"bridge": bridge, **bares}
@@ -186,17 +188,17 @@ def main() -> int:
         for label, python in pythons.items():
             subprocess.run([python, "-m", "uwgen.cli", "--quiet", "build", "-m", str(manifest), "-o",
                             str(root / label / "uwgen_cpubench")], check=True, cwd=root)
-        procs.append(subprocess.Popen([*UWGEN, "--quiet", "emulate", "-m", str(manifest), "--distance", "300"],
-                                      cwd=root, stdout=subprocess.DEVNULL))
+        procs.append(tether.popen([*UWGEN, "--quiet", "emulate", "-m", str(manifest), "--distance", "300"],
+                                  cwd=root, stdout=subprocess.DEVNULL))
         time.sleep(1.5)
         bares = {}
         for kind in ("single", "events"):
-            bares[kind] = subprocess.Popen([sys.executable, "-c", BARE, kind], env=ros_env(d_surface),
-                                           stdout=subprocess.PIPE, text=True)
+            bares[kind] = tether.popen([sys.executable, "-c", BARE, kind], env=ros_env(d_surface),
+                                       stdout=subprocess.PIPE, text=True)
             procs.append(bares[kind])
             bares[kind].stdout.readline()
-        vehicle = subprocess.Popen([*UWGEN, "--quiet", "bridge", "-m", str(manifest), "--side", "vehicle",
-                                    "--package-dir", str(root / "this")], env=ros_env(d_vehicle), cwd=root)
+        vehicle = tether.popen([*UWGEN, "--quiet", "bridge", "-m", str(manifest), "--side", "vehicle",
+                                "--package-dir", str(root / "this")], env=ros_env(d_vehicle), cwd=root)
         procs.append(vehicle)
         surface_side, vehicle_side = Side(d_surface), Side(d_vehicle)
         twist_pub = surface_side.node.create_publisher(Twist, "/cmd_vel", 10)

@@ -14,7 +14,8 @@ rate 0.2), 8 log lines every 20 s (not protected), an encrypted teleport request
 each side's schema announcement (signed) at start; real messages through the demo package's
 codecs. Air bytes per delivered message, both directions; goal: wire format 2 <= half of 1.
 Wire format 2 is sealed as a bridge seals it: one tag per packet (PacketSeal, issue 17) when
-that is on the branch, else per message. Then what those bytes carry, per delivered message:
+that is on the branch, else per message; with the default 8-byte tag, and again with the
+6- and 4-byte tags the manifest's `security: {tag_bytes}` offers (docs/security.md weighs them). Then what those bytes carry, per delivered message:
 DESERT's 4 bytes per packet, frames, packet heads (P, W, parts but the tag), message heads (kind
 and id items; H, id and length bytes), security (per message: what the receiver's guard took
 off; per packet: the tag) and the rest of the bodies.
@@ -73,7 +74,8 @@ class Pair:
     """A sending Link and a receiving Link on one ManualClock; `run` plays the writes."""
 
     def __init__(self, wire: int, src: str = "a", dst: str = "b", *, secure_dir: Path | None = None,
-                 packed: frozenset[int] = frozenset(), fragment_id: int | None = 250):
+                 packed: frozenset[int] = frozenset(), fragment_id: int | None = 250,
+                 tag_bytes: int = envelope.TAG_LEN):
         self.clock = ManualClock()
         self.delivered: list[bytes] = []
         self.air = 0
@@ -85,8 +87,9 @@ class Pair:
         guards, seals = {}, {}
         if secure_dir is not None:
             for side, other in ((src, dst), (dst, src)):
-                cfg = GuardConfig("demo", SENDERS[side], {SENDERS[other]: other}, MODES)
-                lock = secure_dir / f"{wire}-{src}{dst}-{side}.lock"
+                cfg = GuardConfig("demo", SENDERS[side], {SENDERS[other]: other}, MODES,
+                                  **({"tag_bytes": tag_bytes} if wire == 2 else {}))
+                lock = secure_dir / f"{wire}-{tag_bytes}-{src}{dst}-{side}.lock"
                 if wire == 2 and PacketSeal is not None:    # as a bridge does: one tag a packet
                     seals[side] = PacketSeal.for_key(MASTER, cfg, lock, clock=self.clock, name=side,
                                                      fragment_id=fragment_id)
@@ -101,7 +104,7 @@ class Pair:
         self.receiver = Link(name=dst, on_payload=self.delivered.append,
                              **({"guard": guards[dst]} if guards else {}),
                              **({"hooks": seals[dst].hooks()} if seals else {}), **kw)
-        self.wire = wire
+        self.wire, self.tag_bytes = wire, tag_bytes
         self.batches: list[bytes] = []
         self.security = 0          # bytes protection added to the messages received
         if guards:
@@ -126,8 +129,8 @@ class Pair:
             out["frame"] += 4 * len(frames)
             for f in frames:
                 if self.wire == 2:
-                    e = envelope.decode(f)
-                    tag = envelope.TAG_LEN if e.sealed else 0      # the per-packet seal's
+                    e = envelope.decode(f, self.tag_bytes)
+                    tag = len(e.tag) if e.sealed else 0            # the per-packet seal's
                     out["packet head"] += e.head_size() - tag
                     out["security"] += tag
                     bodies = sum(len(m.body) for m in e.messages)
@@ -180,7 +183,8 @@ def battery(k: int) -> BatteryState:
     return b
 
 
-def demo_mix(wire: int, seconds: float, tmp: Path) -> tuple[int, int, dict[str, int]]:
+def demo_mix(wire: int, seconds: float, tmp: Path,
+             tag_bytes: int = envelope.TAG_LEN) -> tuple[int, int, dict[str, int]]:
     """Air bytes, delivered messages and the air bytes' breakdown of both directions of the
     demo's traffic."""
     t = demo.TOPICS
@@ -189,7 +193,7 @@ def demo_mix(wire: int, seconds: float, tmp: Path) -> tuple[int, int, dict[str, 
     fingerprints = [(i, c.fingerprint) for i, c in sorted({**t, **demo.SERVICES}.items())]
     packed = frozenset(i for i, c in {**t, **demo.SERVICES}.items() if c.profile == "packed")
     for src, dst in (("surface", "vehicle"), ("vehicle", "surface")):
-        pair = Pair(wire, src, dst, secure_dir=tmp, packed=packed)
+        pair = Pair(wire, src, dst, secure_dir=tmp, packed=packed, tag_bytes=tag_bytes)
         link = pair.sender
         link.add_channel(249, LinkPolicy(queue="fifo", depth=4, priority=11, strict=True))
         # split as the bridge splits them: each leaves whole in one packet
@@ -312,20 +316,23 @@ def main() -> None:
 
     print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions); "
           f"wire format 2 sealed {'per packet (PacketSeal)' if PacketSeal else 'per message (LinkGuard)'}")
-    print(f"{'wire format':<14}{'air bytes':>10}{'messages':>10}{'bytes/msg':>11}")
+    print(f"{'wire format':<18}{'air bytes':>10}{'messages':>10}{'bytes/msg':>11}{'/ wf 1':>8}")
     rows, split = {}, {}
+    runs = {"1": (1, 8), "2": (2, 8)}
+    if PacketSeal is not None:      # the manifest's shorter tags (security: {tag_bytes})
+        runs.update({"2, 6-byte tag": (2, 6), "2, 4-byte tag": (2, 4)})
     with tempfile.TemporaryDirectory() as tmp:
-        for wire in (1, 2):
-            air, n, split[wire] = demo_mix(wire, s, Path(tmp))
-            rows[wire] = air / n
-            print(f"{wire:<14}{air:>10}{n:>10}{air / n:>11.1f}")
-    ratio = rows[2] / rows[1]
+        for label, (wire, tag) in runs.items():
+            air, n, split[label] = demo_mix(wire, s, Path(tmp), tag)
+            rows[label] = air / n
+            print(f"{label:<18}{air:>10}{n:>10}{air / n:>11.1f}{rows[label] / rows['1']:>8.2f}")
+    ratio = rows["2"] / rows["1"]
     print(f"wire format 2 / 1: {ratio:.2f}  (goal <= 0.5: {'ok' if ratio <= 0.5 else 'MISS'})")
     print("what the air bytes per delivered message carry:")
-    print(f"{'wire format':<14}" + "".join(f"{k:>14}" for k in split[1]))
-    for wire in (1, 2):
-        n = sum(split[wire].values()) / rows[wire]
-        print(f"{wire:<14}" + "".join(f"{v / n:>14.1f}" for v in split[wire].values()))
+    print(f"{'wire format':<18}" + "".join(f"{k:>14}" for k in split["1"]))
+    for label in runs:
+        n = sum(split[label].values()) / rows[label]
+        print(f"{label:<18}" + "".join(f"{v / n:>14.1f}" for v in split[label].values()))
     print()
     print("Table 2: link use under saturation (bytes written / (max_read_length / period))")
     print(f"{'load':<10}{'wf 1':>8}{'fill':>7}{'pace':>7}{'wf 2':>8}{'fill':>7}{'pace':>7}")

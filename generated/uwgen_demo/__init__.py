@@ -121,7 +121,7 @@ MANIFEST = ManifestInfo(
     schema_id=249,
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
-    security=SecurityPlan(key_file='keys/demo.key', senders={'surface': 1, 'vehicle': 2}, modes={4: 'encrypt', 5: 'sign', 6: 'sign', 20: 'encrypt', 21: 'encrypt', 30: 'encrypt', 249: 'sign'}),
+    security=SecurityPlan(key_file='keys/demo.key', senders={'surface': 1, 'vehicle': 2}, modes={4: 'encrypt', 5: 'sign', 6: 'sign', 20: 'encrypt', 21: 'encrypt', 30: 'encrypt', 249: 'sign'}, tag_bytes=8),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.

@@ -157,7 +157,7 @@ def test_a_result_lost_once_is_sent_again_and_acknowledged(pair):
     vb = counted(bridges["vehicle"])
     assert vb["results_resent"] >= 1
     wait_for(lambda: counted(bridges["vehicle"])["results_acked"] == 1, what="the ack")
-    assert bridges["vehicle"].action_servers.unacked[9] == {}
+    assert bridges["vehicle"].action_servers.results[9].unacked == {}
 
 
 def test_a_client_side_asks_for_a_result_the_server_side_does_not_know(pair):

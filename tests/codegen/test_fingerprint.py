@@ -224,3 +224,32 @@ def test_fingerprints_cover_the_codecs_the_entries_are_generated_from(tmp_path):
         sys.path.remove(str(out.parent))
         for name in [m for m in sys.modules if m == "uwgen_fp" or m.startswith("uwgen_fp.")]:
             del sys.modules[name]
+
+
+SECURED = (BASE_MANIFEST.replace("schema_id: 240\n", "schema_id: 240\nsecurity: {key_file: k.key}\n")
+           .replace("a: {port: 4000}", "a: {port: 4000, sender_id: 1}")
+           .replace("b: {port: 4001}", "b: {port: 4001, sender_id: 2}")
+           .replace("publisher: b}", "publisher: b, security: encrypt}"))
+
+
+@pytest.mark.parametrize("tag", [4, 6])
+def test_a_short_tag_changes_the_protected_ids_only(tmp_path, tag):
+    secured = SECURED.replace("{key_file: k.key}", f"{{key_file: k.key, tag_bytes: {tag}}}")
+    base = fingerprints(tmp_path, manifest=SECURED, name="default")
+    short = fingerprints(tmp_path, manifest=secured, name=f"tag{tag}")
+    differ = {k for k in base.fingerprints if base.fingerprints[k] != short.fingerprints[k]}
+    assert differ == {("topic", 4)}                 # /other is the protected one
+    assert base.schema_digest != short.schema_digest
+
+
+def test_the_default_tag_keeps_the_fingerprints_of_earlier_builds(tmp_path):
+    from uwgen.codegen.fingerprint import description
+    args = ("topic", [0], 4, "native", "fp_msgs/msg/Other", [], {})
+    earlier = description(*args, security="encrypt")            # no tag item: 11 items
+    assert description(*args, security="encrypt", tag_bytes=8) == earlier and len(earlier) == 11
+    assert description(*args, security="encrypt", tag_bytes=4) == [*earlier, 4]
+    assert description(*args, security="off", tag_bytes=4) == earlier[:10]   # unprotected: as ever
+    written = SECURED.replace("{key_file: k.key}", "{key_file: k.key, tag_bytes: 8}")
+    base = fingerprints(tmp_path, manifest=SECURED, name="default")
+    eight = fingerprints(tmp_path, manifest=written, name="eight")
+    assert base.fingerprints == eight.fingerprints and base.schema_digest == eight.schema_digest

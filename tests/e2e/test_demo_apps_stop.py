@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from uwgen import tether
 from uwgen.demo.records import read_records
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -28,8 +29,8 @@ def vehicle_env():
 @pytest.mark.parametrize("delay", [0.0, 0.05, 0.5])
 def test_the_vehicle_simulator_exits_0_on_sigint(vehicle_env, tmp_path, delay):
     record = tmp_path / "vehicle.jsonl"
-    proc = subprocess.Popen([sys.executable, "-m", "uwgen.demo.vehicle", "--record", str(record)],
-                            env=vehicle_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = tether.popen([sys.executable, "-m", "uwgen.demo.vehicle", "--record", str(record)],
+                        env=vehicle_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = []
     try:
         for line in proc.stdout:

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 from pathlib import Path
 
 import argparse
 import pytest
 
+from uwgen import tether
 from uwgen.commands import demo
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 
@@ -18,8 +18,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def uwgen(*args, timeout=60):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "uwgen.cli", *args], capture_output=True,
-                          text=True, timeout=timeout, env=env, cwd=ROOT)
+    return tether.run([sys.executable, "-m", "uwgen.cli", *args], capture_output=True,
+                      text=True, timeout=timeout, env=env, cwd=ROOT)
 
 
 def test_version_is_printed():

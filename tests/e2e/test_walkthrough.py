@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 from ros_domains import next_domain
+from uwgen import tether
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGE = ROOT / "docs" / "walkthrough.md"
@@ -83,9 +84,10 @@ def test_walkthrough_own_message_crosses_the_emulated_link(tmp_path):
                 cwd = Path(res.stdout.strip().splitlines()[-1])
             elif kind == "background":
                 log = tmp_path / f"{arg}.log"
-                proc = subprocess.Popen(["bash", "-c", script], cwd=cwd, env=env,
-                                        stdout=log.open("w"), stderr=subprocess.STDOUT,
-                                        start_new_session=True)
+                # One simple command: bash execs it, so the tether holds for it.
+                proc = tether.popen(["bash", "-c", script], cwd=cwd, env=env,
+                                    stdout=log.open("w"), stderr=subprocess.STDOUT,
+                                    start_new_session=True)
                 background[arg] = (proc, log)
             elif kind == "expect":
                 res = subprocess.run(["bash", "-e", "-c", script], cwd=cwd, env=env,

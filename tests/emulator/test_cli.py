@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from uwgen import tether
 from uwgen.cli import main
 from uwgen.commands import emulate
 
@@ -78,7 +79,7 @@ def test_runs_for_a_duration_and_prints_counters(capsys):
 
 
 def test_sigterm_stops_the_emulator_and_prints_counters(tmp_path):
-    proc = subprocess.Popen(
+    proc = tether.popen(
         [sys.executable, "-m", "uwgen.cli", "emulate", "--ports", "0", "0", "--period", "0.05"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from uwgen import tether
+
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLES = ROOT / "msg_samples"
 RMW_SAMPLE = SAMPLES / "rmw_desert"
@@ -31,8 +33,8 @@ def load_peer():
 def start_peer(port: int, conf: Path, *args: str) -> subprocess.Popen:
     """The peer as a process on DESERT port `port` with id table `conf` (JSON lines out)."""
     env = dict(os.environ, DESERT_PORT=str(port), ROS_ALLOWED_TOPICS_CONFIG=str(conf))
-    return subprocess.Popen([sys.executable, str(PEER_PATH), *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env)
+    return tether.popen([sys.executable, str(PEER_PATH), *args], stdout=subprocess.PIPE,
+                        stderr=subprocess.PIPE, text=True, env=env)
 
 
 def peer_events(proc: subprocess.Popen, timeout: float = 30) -> list[dict]:

@@ -10,17 +10,13 @@ link reconnects.
 """
 from __future__ import annotations
 
-import json
 import os
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import pytest
-
-PEER = Path(__file__).resolve().parents[1] / "peers" / "rmw_desert_peer.py"
+from conftest import peer_events, start_peer
 
 MANIFEST = """\
 network: interop
@@ -96,17 +92,9 @@ class Surface:
         self.thread.join(timeout=2.0)
 
 
-def start_peer(port: int, conf: Path, *args: str) -> subprocess.Popen:
-    env = dict(os.environ, DESERT_PORT=str(port), ROS_ALLOWED_TOPICS_CONFIG=str(conf))
-    return subprocess.Popen([sys.executable, str(PEER), "--node", "vehicle_app", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-
-
-def peer_events(proc: subprocess.Popen, timeout: float = 30) -> list[dict]:
-    out, err = proc.communicate(timeout=timeout)
-    lines = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
-    assert lines and lines[-1]["event"] == "summary", err[-2000:]
-    return lines
+def start_app_peer(port: int, conf: Path, *args: str):
+    """The peer as the vehicle's application node."""
+    return start_peer(port, conf, "--node", "vehicle_app", *args)
 
 
 def scenario():
@@ -143,7 +131,7 @@ def test_messages_and_calls_cross_between_bridge_and_rmw_desert_peer(package):
                                                       setattr(resp, "message", "reset done"),
                                                       resp)[-1])
             wait_for(lambda: surface.bridge.link.stats().get("connected"), what="bridge link")
-            peer = start_peer(
+            peer = start_app_peer(
                 emu.port("vehicle"), conf,
                 "--sub", "/cmd=geometry_msgs/msg/Twist", "--expect", "/cmd=2",
                 "--pub", "/state=std_msgs/msg/String", "--data", '/state={"data": "docked"}',
@@ -200,7 +188,7 @@ def test_rmw_desert_wait_for_service_finds_the_bridge(package):
                 Trigger, "/reset", lambda req, resp: (setattr(resp, "success", True), resp)[-1])
             wait_for(lambda: surface.bridge.link.stats().get("connected"), what="bridge link")
             # seq 0: rmw_desert clients pick 0..999, and the bridge must echo even 0.
-            peer = start_peer(emu.port("vehicle"), conf, "--call", "/reset=std_srvs/srv/Trigger",
+            peer = start_app_peer(emu.port("vehicle"), conf, "--call", "/reset=std_srvs/srv/Trigger",
                               "--wait-for-service", "--sub", "/cmd=geometry_msgs/msg/Twist",
                               "--seq", "0", "--until-done", "--duration", "5")
             events = peer_events(peer)
@@ -233,7 +221,7 @@ def test_bridge_status_lists_the_peer_and_its_close_withdraws_the_bridge(package
         closed = False
         try:
             wait_for(lambda: surface.bridge.link.stats().get("connected"), what="bridge link")
-            peer = start_peer(emu.port("vehicle"), conf, "--sub", "/cmd=geometry_msgs/msg/Twist",
+            peer = start_app_peer(emu.port("vehicle"), conf, "--sub", "/cmd=geometry_msgs/msg/Twist",
                               "--serve", "/arm=std_srvs/srv/SetBool", "--duration", "2")
             remote = lambda: {(e["node"], e["entity"], e["topic"])  # noqa: E731
                               for e in surface.bridge.status()["discovery"]["remote"]}

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 import rmw_desert_peer as peer
+from uwgen import tether
 from uwgen.interop.beacons import Beacon, Entity, decode_beacon, encode_beacon
 
 PEER = Path(__file__).with_name("rmw_desert_peer.py")
@@ -35,9 +36,9 @@ class FakeDesert:
         self.server.settimeout(DEADLINE)
         env = dict(os.environ, DESERT_PORT=str(self.server.getsockname()[1]),
                    ROS_ALLOWED_TOPICS_CONFIG=str(conf))
-        self.proc = subprocess.Popen([sys.executable, str(PEER), "--linger", "0", *args],
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                     env=env)
+        self.proc = tether.popen([sys.executable, str(PEER), "--linger", "0", *args],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=env)
         self.lines: queue.Queue = queue.Queue()
         threading.Thread(target=self._pump, daemon=True).start()
         self.conn, _ = self.server.accept()

@@ -16,9 +16,9 @@ MANIFEST_IDS = set(MODES)
 FINGERPRINTS = {4: bytes.fromhex("a1b2c3d4e5f60718")}
 
 
-def config(sender: int, peer: int, peer_name: str, modes=None) -> GuardConfig:
+def config(sender: int, peer: int, peer_name: str, modes=None, tag_bytes: int = 8) -> GuardConfig:
     return GuardConfig("demo", sender, {peer: peer_name}, dict(MODES if modes is None else modes),
-                       dict(FINGERPRINTS))
+                       dict(FINGERPRINTS), tag_bytes=tag_bytes)
 
 
 def surface(folder, key=KEY, clock=None, wall=None, **kw) -> LinkGuard:

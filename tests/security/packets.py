@@ -51,16 +51,16 @@ class Side:
         return self.seal.stats()
 
 
-def surface(folder=None, key=KEY, clock=None, wall=None, **kw) -> Side:
-    seal = PacketSeal.for_key(key, config(SURFACE, VEHICLE, "vehicle"),
+def surface(folder=None, key=KEY, clock=None, wall=None, tag_bytes=8, **kw) -> Side:
+    seal = PacketSeal.for_key(key, config(SURFACE, VEHICLE, "vehicle", tag_bytes=tag_bytes),
                               folder / "surface.lock" if folder is not None else None,
                               clock=clock or ManualClock(), wall=wall or ManualClock(WALL0),
                               name="surface", fragment_id=FRAGMENT_ID, **kw)
     return Side(seal, SURFACE)
 
 
-def vehicle(folder=None, key=KEY, clock=None, wall=None, **kw) -> Side:
-    seal = PacketSeal.for_key(key, config(VEHICLE, SURFACE, "surface"),
+def vehicle(folder=None, key=KEY, clock=None, wall=None, tag_bytes=8, **kw) -> Side:
+    seal = PacketSeal.for_key(key, config(VEHICLE, SURFACE, "surface", tag_bytes=tag_bytes),
                               folder / "vehicle.lock" if folder is not None else None,
                               clock=clock or ManualClock(), wall=wall or ManualClock(WALL0),
                               name="vehicle", fragment_id=FRAGMENT_ID, **kw)

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from uwgen import tether
+
 UWGEN = Path(sys.executable).parent / "uwgen"
 MANIFEST = """\
 network: keyed
@@ -43,9 +45,9 @@ def project(tmp_path):
 def start_bridge(manifest: Path, cwd: Path) -> tuple[int, str]:
     """Run the vehicle's bridge until it says how its link is secured (or exits); its exit
     status (SIGINT after the secure-link line) and what it logged."""
-    proc = subprocess.Popen([str(UWGEN), "bridge", "-m", str(manifest), "--side", "vehicle",
-                             "--port", "9", "--status-period", "0"], cwd=cwd,
-                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    proc = tether.popen([str(UWGEN), "bridge", "-m", str(manifest), "--side", "vehicle",
+                         "--port", "9", "--status-period", "0"], cwd=cwd,
+                        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
     lines = []
     deadline = time.monotonic() + 60
     try:

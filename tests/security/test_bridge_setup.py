@@ -12,11 +12,12 @@ from uwgen.manifest.model import SecurityPlan, Side
 from uwgen.runtime.table import ManifestInfo
 
 
-def package(tmp_path, key_file="net.key"):
+def package(tmp_path, key_file="net.key", tag_bytes=8):
     manifest = ManifestInfo(network="demo", profile="native",
                             sides={"surface": Side("surface", port=4000), "vehicle": Side("vehicle", port=4001)},
                             fragment_id=None, source=str(tmp_path / "uwgen.yaml"),
-                            security=SecurityPlan(key_file, {"surface": 1, "vehicle": 2}, {4: "encrypt"}))
+                            security=SecurityPlan(key_file, {"surface": 1, "vehicle": 2}, {4: "encrypt"},
+                                                  tag_bytes))
     return SimpleNamespace(MANIFEST=manifest, TOPICS={}, SERVICES={})
 
 
@@ -33,7 +34,19 @@ def test_the_key_is_found_next_to_the_manifest_and_the_state_next_to_the_key(tmp
     assert guard.config.sender == 2 and guard.config.peers == {1: "surface"}
     assert guard.lock_path == tmp_path / "net.key.demo.vehicle.lock"
     from uwgen.security.packet_seal import PacketSeal
-    assert isinstance(guard, PacketSeal) and "one tag per packet" in start[0]   # wire format 2
+    assert isinstance(guard, PacketSeal) and "one 8-byte tag per packet" in start[0]   # wire format 2, default tag
+
+
+def test_the_manifests_tag_length_reaches_the_seal(tmp_path, caplog):
+    import logging
+    assert main(["keygen", str(tmp_path / "net.key")]) == 0
+    plan = BridgePlan.from_package(package(tmp_path, tag_bytes=4), "vehicle")
+    with caplog.at_level(logging.INFO, logger="uwgen.security"):
+        guard = guard_for(plan, plan.options())
+    from uwgen.security.packet_seal import PacketSeal
+    assert isinstance(guard, PacketSeal) and guard.config.tag_bytes == 4
+    assert guard.hooks().overhead == 4 + 13 + 2
+    assert any("one 4-byte tag per packet" in r.getMessage() for r in caplog.records)
 
 
 def test_key_file_and_state_options_override_the_manifest(tmp_path):

@@ -28,8 +28,8 @@ def nonces(monkeypatch):
     aead_keys: dict[int, bytes] = {}
     real_new = wire.new_aead
 
-    def recording_new(key):
-        aead = real_new(key)
+    def recording_new(key, *tag):
+        aead = real_new(key, *tag)
         aead_keys[id(aead)] = key
         keep.append(aead)                           # ids stay unique while recorded
         return aead

@@ -10,8 +10,8 @@ on the action's latest-only feedback channel. `[2, id, handle]` cancels the goal
 answered 3 (canceling) or 2 (refused).
 
 Losses: a goal that comes again (the client side sends it again while unanswered) is
-answered again if it was accepted, and a goal that finished less than two accept_timeouts
-ago gets its result again (RECENT_RESULTS per action, matched by handle and bytes), so a
+answered again if it was accepted, and a goal that finished lately gets its result again
+(`uwgen.bridge.action_results`, which also sends results again until acknowledged), so a
 lost answer or result costs a repeat, not a second run. A local server that does not
 answer within `accept_timeout` is answered 0; a goal that does not finish within
 `result_timeout` is cancelled and reported aborted; a local server that disappears during
@@ -19,37 +19,22 @@ goals gets them reported aborted after SERVER_GONE_GRACE.
 """
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
 from rclpy.action import ActionClient
 from rclpy.task import Future
 
+from uwgen.bridge.action_results import ResultBook
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.plan import FEEDBACK_KEY_BASE
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
-from uwgen.runtime.reliable import RttEstimator, command_rtt
+from uwgen.runtime.reliable import command_rtt
 from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, RESULTS)
 
 SERVER_GONE_GRACE = 1.0   # seconds the local server may be missing before its goals abort
-RECENT_RESULTS = 8        # finished goals per action whose result is kept for a repeated goal
-REPEAT_WINDOW = 1.5       # accept_timeouts after a goal first came in which a copy is a repeat
-                          # (the client side sends copies within one accept_timeout, and
-                          # reuses a handle only 2 accept_timeouts after its goal ended)
-
-
-@dataclass
-class Unacked:
-    """A result sent and not yet acknowledged by the client side (server side)."""
-
-    payload: bytes
-    first_sent: float
-    next_send: float
-    until: float                  # no copy after this: the client side may reuse the handle
-    sends: int = 1
 
 
 @dataclass
@@ -73,10 +58,7 @@ class ActionServers:
         self.served: dict[int, tuple[Any, Any]] = {}       # id -> (codec, ActionClient)
         self.goals: dict[int, dict[int, Served]] = {}      # id -> handle -> goal
         self._gone_since: dict[int, float] = {}
-        # id -> handle -> (goal payload, result payload, when the goal first came)
-        self.finished: dict[int, OrderedDict[int, tuple[bytes, bytes, float]]] = {}
-        self.unacked: dict[int, dict[int, Unacked]] = {}   # id -> handle -> result to re-send
-        self.rtt: dict[int, RttEstimator] = {}             # id -> result round trip
+        self.results: dict[int, ResultBook] = {}           # id -> results kept and re-sent
         for codec in codecs:
             counters[codec.id] = ActionCounters()
             cls = wiring.ros_class(codec, "action")
@@ -86,9 +68,8 @@ class ActionServers:
             self.served[codec.id] = (codec, client)
             wiring.loops.watch_server(codec.name, action=True)
             self.goals[codec.id] = {}
-            self.finished[codec.id] = OrderedDict()
-            self.unacked[codec.id] = {}
-            self.rtt[codec.id] = command_rtt(codec.accept_timeout, wiring.options.link.period)
+            self.results[codec.id] = ResultBook(
+                codec.accept_timeout, command_rtt(codec.accept_timeout, wiring.options.link.period))
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.served:
@@ -117,19 +98,9 @@ class ActionServers:
             self.w.throttle.report(f"aenc{ident}", f"{codec.name}: result of goal {handle} cannot "
                                                    f"be encoded ({exc}); reported aborted")
             payload = codec.encode_result(handle, ABORTED, codec.ros_class().Result())
-        finished = self.finished[ident]
-        finished[handle] = (entry.payload, payload, entry.arrived)
-        finished.move_to_end(handle)
-        while len(finished) > RECENT_RESULTS:
-            finished.popitem(last=False)
         if self._offer(ident, payload, "result"):
             self.counters[ident].results_sent += 1
-        now = self.w.clock.now()
-        codec = self.served[ident][0]
-        # Sent again until acknowledged, for at most 2 accept_timeouts: the client side gives
-        # the handle to a new goal only 2 accept_timeouts after this goal ended there.
-        self.unacked[ident][handle] = Unacked(payload, now, now + self.rtt[ident].rto,
-                                              now + 2 * codec.accept_timeout)
+        self.results[ident].sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now())
 
     # -- the link (executor thread) --------------------------------------------------------
 
@@ -156,8 +127,7 @@ class ActionServers:
         if self._repeat(ident, handle, payload):     # in flight, or finished just now
             counters.duplicate_goals += 1
             return
-        self.finished[ident].pop(handle, None)     # a new goal on a handle used before
-        self.unacked[ident].pop(handle, None)
+        self.results[ident].forget(handle)        # a new goal on a handle used before
         now = self.w.clock.now()
         # A goal waits for the local server at most half its accept_timeout: the client
         # side's clock started before the goal's trip, and the answer needs one too.
@@ -186,13 +156,10 @@ class ActionServers:
 
     def _result_status(self, ident: int, handle: int, received: bool) -> None:
         """The client side has the result of goal `handle` (stop sending it), or wants it."""
-        counters, now = self.counters[ident], self.w.clock.now()
+        counters = self.counters[ident]
         if received:
-            unacked = self.unacked[ident].pop(handle, None)
-            if unacked is not None:
+            if self.results[ident].acknowledged(handle, self.w.clock.now()):
                 counters.results_acked += 1
-                if unacked.sends == 1:     # Karn: only an unambiguous round trip is a sample
-                    self.rtt[ident].sample(now - unacked.first_sent)
             return
         counters.result_queries += 1
         entry = self.goals[ident].get(handle)
@@ -200,10 +167,10 @@ class ActionServers:
             if entry.goal_handle is not None:
                 self._answer(ident, handle, ACCEPTED)     # still running
             return
-        recent = self.finished[ident].get(handle)
+        recent = self.results[ident].result_of(handle)
         if recent is not None:
             counters.results_resent += 1
-            self._offer(ident, recent[1], "result")
+            self._offer(ident, recent, "result")
             return
         # Neither running nor finished here (e.g. this bridge restarted): the goal is lost.
         codec = self.served[ident][0]
@@ -213,20 +180,14 @@ class ActionServers:
         counters.lost_goals += 1                          # counted once the aborted result is queued
 
     def _resend_results(self, ident: int, now: float) -> None:
-        """Results not acknowledged within the RTO go again, until their `until`."""
-        rtt = self.rtt[ident]
-        for handle, unacked in list(self.unacked[ident].items()):
-            if unacked.next_send > now:
+        """Results not acknowledged within the RTO go again, until the book gives them up."""
+        counters = self.counters[ident]
+        for payload in self.results[ident].due(now):
+            if payload is None:
+                counters.results_unacked += 1
                 continue
-            if now >= unacked.until:
-                del self.unacked[ident][handle]
-                self.counters[ident].results_unacked += 1
-                continue
-            rtt.backoff()
-            unacked.sends += 1
-            unacked.next_send = now + rtt.rto
-            self.counters[ident].results_resent += 1
-            self._offer(ident, unacked.payload, "result")
+            counters.results_resent += 1
+            self._offer(ident, payload, "result")
 
     def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
         """Answer a goal that came again; True when it was one (then it is not run)."""
@@ -236,13 +197,11 @@ class ActionServers:
                 self.counters[ident].repeated_replies += 1
                 self._answer(ident, handle, ACCEPTED)      # the first answer was lost
             return True                                    # else: the answer is still to come
-        recent = self.finished[ident].get(handle)
-        codec = self.served[ident][0]
-        if recent is None or recent[0] != payload or \
-                self.w.clock.now() - recent[2] > REPEAT_WINDOW * codec.accept_timeout:
+        result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
+        if result is None:
             return False
         self.counters[ident].repeated_replies += 1
-        self._offer(ident, recent[1], "result")            # the answer and result were lost
+        self._offer(ident, result, "result")               # the answer and result were lost
         return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:
@@ -300,7 +259,7 @@ class ActionServers:
         entry = self.goals[ident].get(handle)
         if entry is None:
             # Finished: its result is on its way, or the client side has given up on it.
-            self.unacked[ident].pop(handle, None)
+            self.results[ident].stop_sending(handle)
             self._answer(ident, handle, CANCEL_REFUSED)
             return
         if entry.sent is None:                             # still waiting for the local server

@@ -92,7 +92,8 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
             peers={sid: side for side, sid in sec.senders.items() if side != plan.side},
             modes=dict(sec.modes),
             fingerprints={i: bytes(getattr(entries.get(i), "fingerprint", b"") or b"") for i in sec.modes},
-            max_ages={i: float(t) for i, t in ttls.items() if i in sec.modes})
+            max_ages={i: float(t) for i, t in ttls.items() if i in sec.modes},
+            tag_bytes=getattr(sec, "tag_bytes", 8))
         lock = (Path(options.security_state) if options.security_state is not None
                 else lock_path(path, plan.network, plan.side))
         if plan.wire_format == 2:
@@ -105,7 +106,8 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
     protected = ", ".join(f"{i} ({m})" for i, m in sorted(sec.modes.items()))
     log.info("[%s] secure link (%s): sender %d, epoch %s; protects ids %s; key %s (key id %s, the "
              "same on every side); lock %s", plan.side,
-             "one tag per packet" if plan.wire_format == 2 else "one tag per payload", config.sender,
+             f"one {config.tag_bytes}-byte tag per packet" if plan.wire_format == 2
+             else "one tag per payload", config.sender,
              guard.stats()["epoch"], protected, path, key_id(master, plan.network), lock)
     return guard
 

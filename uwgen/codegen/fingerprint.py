@@ -12,7 +12,10 @@ The description (wire-format.md section 10) is the CBOR array
 
 plus, only for an id the secure link protects, an eleventh item: its security mode ("sign" or
 "encrypt"), so two builds that protect an id differently refuse each other (the description,
-and so the fingerprint, of an unprotected id is what it always was).
+and so the fingerprint, of an unprotected id is what it always was); and after it, only when
+the manifest's `security: {tag_bytes}` is not the default 8, a twelfth: the tag length, so two
+builds whose packets carry tags of different lengths disagree too (with the default, the
+fingerprints are those of earlier builds).
 
 where `entry` is "topic", "service" or "action", `kinds` the header kinds the id travels
 with ([0], [2, 3] for a service, [0, 2, 3] for an action), `roots` the codec keys of the
@@ -39,6 +42,7 @@ from typing import Any, Iterable
 import cbor2
 
 from uwgen.codegen.ir import CodecType, variant_name
+from uwgen.manifest.model import DEFAULT_TAG_BYTES
 from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 
 FINGERPRINT_BYTES = 4      # 2**-32 chance that two different schemas look alike (docs section 10)
@@ -79,7 +83,7 @@ def canonical(value: Any, where: str = "") -> Any:
 
 def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type_name: str,
                 roots: list[CodecType], codecs: dict[str, CodecType], *, wire: int = 2,
-                security: str = "off") -> list:
+                security: str = "off", tag_bytes: int = DEFAULT_TAG_BYTES) -> list:
     """The CBOR-able description of one manifest id (see the module docstring).
 
     `codecs` maps codec key -> CodecType for this profile; every type the roots reach
@@ -95,7 +99,9 @@ def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type
     types = [canonical(reached[key], key) for key in sorted(reached)]
     out = [SCHEMA_MAGIC, SCHEMA_VERSION, entry, list(kinds), ident, profile, type_name,
            [ct.key for ct in roots], types, wire]
-    return out if security == "off" else [*out, security]
+    if security == "off":
+        return out
+    return [*out, security] if tag_bytes == DEFAULT_TAG_BYTES else [*out, security, tag_bytes]
 
 
 def digest(data: Any) -> bytes:
@@ -104,23 +110,27 @@ def digest(data: Any) -> bytes:
 
 
 def topic_fingerprint(ident: int, profile: str, type_name: str, root: CodecType,
-                      codecs: dict[str, CodecType], wire: int = 2, security: str = "off") -> bytes:
+                      codecs: dict[str, CodecType], wire: int = 2, security: str = "off",
+                      tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
     return digest(description("topic", [KIND_TOPIC], ident, profile, type_name, [root], codecs,
-                              wire=wire, security=security))
+                              wire=wire, security=security, tag_bytes=tag_bytes))
 
 
 def service_fingerprint(ident: int, profile: str, type_name: str, request: CodecType,
                         response: CodecType, codecs: dict[str, CodecType], wire: int = 2,
-                        security: str = "off") -> bytes:
+                        security: str = "off", tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
     return digest(description("service", [KIND_REQUEST, KIND_RESPONSE], ident, profile, type_name,
-                              [request, response], codecs, wire=wire, security=security))
+                              [request, response], codecs, wire=wire, security=security,
+                              tag_bytes=tag_bytes))
 
 
 def action_fingerprint(ident: int, profile: str, type_name: str, goal: CodecType,
                        result: CodecType, feedback: CodecType,
-                       codecs: dict[str, CodecType], wire: int = 2, security: str = "off") -> bytes:
+                       codecs: dict[str, CodecType], wire: int = 2, security: str = "off",
+                       tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
     return digest(description("action", [KIND_TOPIC, KIND_REQUEST, KIND_RESPONSE], ident, profile,
-                              type_name, [goal, result, feedback], codecs, wire=wire, security=security))
+                              type_name, [goal, result, feedback], codecs, wire=wire,
+                              security=security, tag_bytes=tag_bytes))
 
 
 def package_digest(fingerprints: dict[tuple[str, int], bytes]) -> bytes:
@@ -173,16 +183,17 @@ def manifest_fingerprints(manifest: Any, builder: Any) -> dict[tuple[str, int], 
                **{("action", a.id): a for a in getattr(manifest, "actions", ())}}
     out: dict[tuple[str, int], bytes] = {}
     wire = wire_format_of(manifest)
+    tag = getattr(getattr(manifest, "security", None), "tag_bytes", DEFAULT_TAG_BYTES)
     for key, (roots, codecs) in entry_codecs(manifest, builder).items():
         entry = entries[key]
         mode = getattr(entry, "security", "off")
         if key[0] == "topic":
             out[key] = topic_fingerprint(entry.id, entry.profile, entry.type_name, roots[0], codecs,
-                                         wire, mode)
+                                         wire, mode, tag)
         elif key[0] == "action":
             out[key] = action_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs,
-                                          wire, mode)
+                                          wire, mode, tag)
         else:
             out[key] = service_fingerprint(entry.id, entry.profile, entry.type_name, *roots, codecs,
-                                           wire, mode)
+                                           wire, mode, tag)
     return out

@@ -13,6 +13,8 @@ import sys
 import threading
 from pathlib import Path
 
+from uwgen import tether
+
 ROOT = Path(__file__).resolve().parents[2]
 GENERATED = ROOT / "generated"
 PACKAGE = "uwgen_demo"
@@ -29,14 +31,16 @@ def domains() -> tuple[int, int]:
 
 
 class Proc:
-    """A child process whose merged output goes to a log file and (filtered) to the console."""
+    """A child process whose merged output goes to a log file and (filtered) to the console,
+    and which stops when the demo does (uwgen.tether), even if the demo is killed."""
 
     def __init__(self, name: str, cmd: list[str], env: dict, out_dir: Path, relay: bool):
         self.name = name
         self.logfile = out_dir / f"{name}.log"
         self._fh = self.logfile.open("w", encoding="utf-8")
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True, bufsize=1)
+        # Tethered: it stops (SIGTERM) if the demo dies without stopping it.
+        self.proc = tether.popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                 stderr=subprocess.STDOUT, text=True, bufsize=1)
         self._relay = relay
         self._thread = threading.Thread(target=self._pump, name=f"log-{name}", daemon=True)
         self._thread.start()

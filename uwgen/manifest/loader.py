@@ -194,6 +194,8 @@ class _ManifestBuilder:
             if isinstance(self.sec.block, yaml.MappingNode):
                 self.sec.mode_node = next((v for k, v in self.sec.block.value if k.value == "mode"),
                                           self.sec.block)
+                self.sec.tag_node = next((v for k, v in self.sec.block.value
+                                          if k.value == "tag_bytes"), self.sec.block)
 
         sides = self.checked({}, read_sides, self, r.require(top, "sides", root, "the manifest"))
 

@@ -23,6 +23,8 @@ FIFO_DEFAULT_DEPTH = 4   # queue depth of a fifo queue whose depth is not given
 SCHEMA_PERIOD_DEFAULT = 600.0   # seconds between schema announcements (besides connect and request)
 SECURITY_MODES = ("off", "sign", "encrypt")   # docs/wire-format.md section 12
 MAX_SENDER_ID = 15       # sender ids of the secure link are 4 bits
+TAG_BYTES = (4, 6, 8)    # AES-CCM tag lengths a wire format 2 link may use (wire-format.md 12.2)
+DEFAULT_TAG_BYTES = 8
 # Action goal handles on the wire are 0..ACTION_HANDLES-1: one CBOR byte each (wire format
 # section 13). Defined here, where the manifest shares them among clients; the codecs import it.
 ACTION_HANDLES = 24
@@ -160,6 +162,7 @@ class Security:
     mode: str = "off"                      # default mode of topics and services
     key_file: str | None = None            # as written in the manifest (relative: to its folder)
     senders: dict[str, int] = field(default_factory=dict)   # side -> sender id (0..15)
+    tag_bytes: int = DEFAULT_TAG_BYTES     # AES-CCM tag per packet (wire format 2; 4, 6 or 8)
 
     def modes(self, entries) -> dict[int, str]:
         """id -> mode of the protected entries among `entries`."""
@@ -173,6 +176,7 @@ class SecurityPlan:
     key_file: str                          # as in the manifest (relative: to its folder)
     senders: dict[str, int]                # side -> sender id
     modes: dict[int, str]                  # protected id -> sign | encrypt
+    tag_bytes: int = DEFAULT_TAG_BYTES     # the per-packet tag's length (wire format 2)
 
 
 MAX_GOALS_LIMIT = ACTION_HANDLES // 2   # goals in flight per action, at most
@@ -238,7 +242,7 @@ class Manifest:
             # Signed too: a forged announcement would make the far side refuse an id.
             modes[self.schema_id] = "sign"
         return SecurityPlan(self.security.key_file or "", dict(sorted(self.security.senders.items())),
-                            dict(sorted(modes.items())))
+                            dict(sorted(modes.items())), self.security.tag_bytes)
 
     def protected(self) -> bool:
         """Whether any topic, service or action is signed or encrypted."""

@@ -1,12 +1,18 @@
 """The manifest's security keys (wire-format.md section 12), read with file:line:column errors.
 
-    security: {mode: off | sign | encrypt, key_file: PATH}    # network default
+    security: {mode: off | sign | encrypt, key_file: PATH,    # network default
+               tag_bytes: 4 | 6 | 8}                       # per-packet tag (default 8)
     sides: {vehicle: {port: 4001, sender_id: 2}, ...}        # one sender id per side
     topics: [{..., security: off | sign | encrypt}]          # per-entry override
 
 Keys are never in the manifest: `key_file` names the file `uwgen keygen` wrote (relative
 to the manifest's folder). The rmw_desert profile cannot be protected (an rmw_desert node
 could not read the payload), so an rmw_desert entry whose mode is not off is refused.
+
+`tag_bytes` is the length of the one AES-CCM tag each packet of a wire format 2 link carries
+(wire-format.md section 12.2 states the forgery odds of each). A manifest with an rmw_desert
+entry speaks wire format 1, whose per-payload seal keeps its 8-byte tag byte for byte: a
+`tag_bytes` other than 8 there is refused rather than silently ignored.
 """
 from __future__ import annotations
 
@@ -14,10 +20,11 @@ from dataclasses import replace
 
 import yaml
 
-from uwgen.manifest.model import MAX_SENDER_ID, RMW_DESERT, SECURITY_MODES, Manifest, Security
+from uwgen.manifest.model import (DEFAULT_TAG_BYTES, MAX_SENDER_ID, RMW_DESERT, SECURITY_MODES,
+                                  TAG_BYTES, Manifest, Security)
 from uwgen.manifest.nodes import Reader
 
-SECURITY_KEYS = ("mode", "key_file")
+SECURITY_KEYS = ("mode", "key_file", "tag_bytes")
 
 
 def mode(r: Reader, node: yaml.Node, what: str) -> str:
@@ -37,7 +44,19 @@ def network_security(r: Reader, node: yaml.Node) -> Security:
         if not path.strip():
             raise r.error(fields["key_file"][1], "security key_file must name a file")
         sec = replace(sec, key_file=path)
+    if "tag_bytes" in fields:
+        sec = replace(sec, tag_bytes=tag_bytes(r, fields["tag_bytes"][1]))
     return sec
+
+
+def tag_bytes(r: Reader, node: yaml.Node) -> int:
+    allowed = ", ".join(map(str, TAG_BYTES))
+    value = r.value(node)
+    if isinstance(value, bool) or not isinstance(value, int) or value not in TAG_BYTES:
+        shown = node.value if isinstance(node, yaml.ScalarNode) else r.describe(node)
+        raise r.error(node, f"security tag_bytes must be one of {allowed} (bytes of AES-CCM tag "
+                      f"per packet; 8 unless the link is too slow for it); got {shown!r}")
+    return value
 
 
 def sender_id(r: Reader, node: yaml.Node, side: str) -> int:
@@ -54,6 +73,7 @@ class SecurityCheck:
         self.sender_nodes: dict[str, yaml.Node] = {}
         self.side_nodes: dict[str, yaml.Node] = {}
         self.entry_nodes: dict[str, yaml.Node] = {}  # entry name -> its own security: node
+        self.tag_node: yaml.Node | None = None        # the network's tag_bytes: value
 
     def entry_mode(self, entries: dict, label: str, name: str, default: str) -> str:
         if "security" not in entries:
@@ -71,6 +91,7 @@ class SecurityCheck:
                               f"already the sender_id of side '{seen[ident]}'; each side needs its own")
             seen[ident] = side
         manifest.security = replace(manifest.security, senders=dict(senders))
+        self._tag_bytes(manifest)
         if not manifest.protected():
             return manifest
         for entry in (*manifest.topics, *manifest.services):
@@ -89,3 +110,14 @@ class SecurityCheck:
                 raise r.error(node, f"side '{side}' needs a sender_id (0..{MAX_SENDER_ID}, one per "
                               "side) because security is on")
         return manifest
+
+    def _tag_bytes(self, manifest: Manifest) -> None:
+        """A tag length other than 8 only where it applies: wire format 1 links (any
+        rmw_desert entry) seal each payload with section 12's 8-byte tag, unchanged."""
+        if manifest.security.tag_bytes == DEFAULT_TAG_BYTES or not manifest.uses_rmw_desert():
+            return
+        first = next(e for e in (*manifest.topics, *manifest.services) if e.profile == RMW_DESERT)
+        raise self.r.error(self.tag_node, f"security tag_bytes {manifest.security.tag_bytes} applies "
+                           f"to wire format 2 links only, and {first.name} (line {first.where.line}) "
+                           f"is in profile rmw_desert, so this link speaks wire format 1, whose "
+                           f"per-payload seal has an 8-byte tag: remove tag_bytes (or give 8)")

@@ -5,8 +5,9 @@ is one envelope:
 
     P | W | [K] | [T] | [A] | [C] | M1 M2 ... Mn | [tag]
 
-- P (1 byte): bits 7-5 the version (`010` = 2), then flags S (sealed: an 8-byte tag ends the
-  envelope), K, T, A, C (which optional parts follow);
+- P (1 byte): bits 7-5 the version (`010` = 2), then flags S (sealed: a tag ends the
+  envelope; 8 bytes, or the link's `security: {tag_bytes}`), K, T, A, C (which optional parts
+  follow);
 - W (2 bytes, big-endian): sender id (bits 15-12), packet number mod 4096 (bits 11-0);
 - K (10 bytes): the sender's epoch (6 bytes) and packet number bits 12-43 (4 bytes, big-endian);
 - T (3 bytes): the sender's clock at sealing, 24-bit count of 1/32 s, big-endian;
@@ -24,7 +25,8 @@ is one envelope:
 
 This module is pure: bytes in, an `Envelope` out (or one `EnvelopeError`), and back. It interprets
 P, W and the messages; K, T, A, C and the tag are carried as values and bytes for their owners
-(security, commands). Every envelope has exactly one encoding: `decode` refuses what `encode`
+(security, commands). How long a tag is, is not in the bytes: `decode` is told it (`tag_len`,
+the link's setting, default 8). Every envelope has exactly one encoding: `decode` refuses what `encode`
 would never write (a length on the last message, an id escape for an id that fits H, ...), so
 `encode(decode(b)) == b` for every accepted `b`.
 
@@ -35,6 +37,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from uwgen.manifest.model import DEFAULT_TAG_BYTES, TAG_BYTES
+
 VERSION = 2
 VERSION_MASK = 0xE0
 VERSION_BITS = VERSION << 5          # 0x40
@@ -44,7 +48,8 @@ HEAD = 3                    # P and W
 EPOCH_LEN = 6
 SYNC_LEN = EPOCH_LEN + 4    # K
 TIME_LEN = 3                # T
-TAG_LEN = 8
+TAG_LEN = DEFAULT_TAG_BYTES            # the tag of a sealed envelope unless the link says otherwise
+TAG_LENGTHS = TAG_BYTES                # what a link may say (manifest `security: {tag_bytes}`)
 MAX_SENDER = 15
 NUMBER_MOD = 4096           # W carries the packet number's low 12 bits
 MAX_PAYLOAD = 255           # an envelope is one frame's payload (wire format section 2)
@@ -148,8 +153,8 @@ class Envelope:
         out = bytearray(self.encode_head())
         out += encode_messages(self.messages)
         if self.tag is not None:
-            if len(self.tag) != TAG_LEN:
-                raise EnvelopeError(f"tag must be {TAG_LEN} bytes, got {len(self.tag)}")
+            if len(self.tag) not in TAG_LENGTHS:
+                raise EnvelopeError(f"tag must be {_lengths()} bytes, got {len(self.tag)}")
             out += self.tag
         if len(out) > MAX_PAYLOAD:
             raise EnvelopeError(f"envelope of {len(out)} bytes: a frame holds at most {MAX_PAYLOAD}")
@@ -186,7 +191,7 @@ class Envelope:
     def head_size(self) -> int:
         """Bytes of P, W and the optional parts, plus the tag when sealed: what a packet pays
         besides its messages."""
-        return len(self.encode_head()) + (TAG_LEN if self.tag is not None else 0)
+        return len(self.encode_head()) + (len(self.tag) if self.tag is not None else 0)
 
 
 def encode_messages(messages: tuple[Message, ...] | list[Message]) -> bytes:
@@ -210,8 +215,15 @@ def messages_size(sizes: list[int]) -> int:
     return sum(sizes) + max(0, len(sizes) - 1)
 
 
-def decode(data: bytes | bytearray | memoryview) -> Envelope:
-    """The envelope in `data`; EnvelopeError (and nothing else) for any bytes that are not one."""
+def _lengths() -> str:
+    return ", ".join(map(str, TAG_LENGTHS[:-1])) + f" or {TAG_LENGTHS[-1]}"
+
+
+def decode(data: bytes | bytearray | memoryview, tag_len: int = TAG_LEN) -> Envelope:
+    """The envelope in `data`, whose tag (when S is set) is `tag_len` bytes (its link's
+    setting); EnvelopeError (and nothing else) for any bytes that are not one."""
+    if tag_len not in TAG_LENGTHS:
+        raise ValueError(f"a link's tag is {_lengths()} bytes, not {tag_len}")
     b = bytes(data)
     n = len(b)
     if n < HEAD:
@@ -226,9 +238,9 @@ def decode(data: bytes | bytearray | memoryview) -> Envelope:
         raise EnvelopeError(f"not a wire format 2 envelope (version bits {p >> 5})", version=p >> 5)
     w = int.from_bytes(b[1:3], "big")
     pos = HEAD
-    end = n - TAG_LEN if p & FLAG_S else n
+    end = n - tag_len if p & FLAG_S else n
     if end < pos:
-        raise EnvelopeError(f"sealed envelope of {n} bytes: too short for its {TAG_LEN}-byte tag")
+        raise EnvelopeError(f"sealed envelope of {n} bytes: too short for its {tag_len}-byte tag")
     sync = time = ack = control = None
     if p & FLAG_K:
         if pos + SYNC_LEN > end:

@@ -31,6 +31,9 @@ WHY = {
                    "without a tag on a secured link)",
     "truncated": "too short to be a protected payload",
     "malformed": "no readable header (kind, id, seq), or a sync part (K) without its time (T)",
+    "tag_length": "a sync packet whose tag verifies only at another length than this side's "
+                  "(security tag_bytes): the sender was built from a manifest with another "
+                  "tag_bytes; rebuild both sides from one manifest",
 }
 
 

@@ -25,6 +25,7 @@ from uwgen.runtime.codec import DecodeError, load_items
 from uwgen.security import wire
 from uwgen.security.droplog import SUMMARY_PERIOD
 from uwgen.security.epochs import EPOCH_NUMBERS
+from uwgen.security.errors import SecurityError
 from uwgen.security.files import SideLock
 from uwgen.security.side import (DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD,  # noqa: F401 (re-exported)
                                  GuardConfig, SideSeal)
@@ -43,6 +44,9 @@ class LinkGuard(SideSeal):
                  wall: Clock = WALL_CLOCK, name: str = "link", window: int = WINDOW,
                  lock: SideLock | None = None, epoch_source=new_epoch,
                  epoch_numbers: int = EPOCH_NUMBERS, summary_period: float = SUMMARY_PERIOD):
+        if config.tag_bytes != wire.TAG_BYTES:
+            raise SecurityError(f"the per-payload seal of wire format 1 has an {wire.TAG_BYTES}-byte "
+                                f"tag, not {config.tag_bytes} (tag_bytes is for wire format 2 links)")
         super().__init__(master, config, clock=clock, wall=wall, name=name, window=window,
                          lock=lock, epoch_source=epoch_source, epoch_numbers=epoch_numbers,
                          summary_period=summary_period)

@@ -7,7 +7,8 @@ docs/seams.md sections 2 and 5).
   packet or not, a sync request or not), `number()` takes its number from this side's epoch
   (`epochs.SendSession`: random epoch per start, numbers counted in memory), `parts(now)` gives
   K (epoch, number bits 12-43) and T (this side's wall clock) on sync packets and C (a sync
-  request) when one is due, `seal(envelope)` computes the one tag (`packetwire.seal`).
+  request) when one is due, `seal(envelope)` computes the one tag (`packetwire.seal`), of the
+  link's `config.tag_bytes` (4, 6 or 8; the manifest's `security: {tag_bytes}`).
   Sync packets: the first `SYNC_FIRST` of an epoch, every `SYNC_EVERY`-th, the first after
   `SYNC_PERIOD` s without one, the next `SYNC_FIRST` after a peer's new epoch, the next
   `SYNC_ANSWER` after a peer asked for one, and every packet that asks one;
@@ -18,7 +19,9 @@ docs/seams.md sections 2 and 5).
   throttled (`droplog.DropLog`); a packet dropped `unsynced` makes this side ask its sender for
   a sync in its next packet (C part, `control.py`), at most once per `ASK_GAP` s per peer, and
   a peer's request is answered at most once per `ASK_GAP` s: a request never makes a packet of
-  its own, it only adds K and T (13 bytes) to the next `SYNC_ANSWER` packets.
+  its own, it only adds K and T (13 bytes) to the next `SYNC_ANSWER` packets. A sync packet
+  that fails its tag but verifies at another tag length comes from a peer built with another
+  `tag_bytes`: dropped as `tag_length`, and an error says so once per peer (`taglength.py`).
 """
 from __future__ import annotations
 
@@ -30,14 +33,14 @@ from uwgen.runtime.clock import SYSTEM_CLOCK, WALL_CLOCK, Clock
 from uwgen.runtime.freshness import stamp
 from uwgen.runtime.packets import PacketHooks
 from uwgen.runtime.stats import log_count
-from uwgen.security import control, packetwire, wire
+from uwgen.security import control, packetwire, taglength, wire
 from uwgen.security.droplog import SUMMARY_PERIOD, log
 from uwgen.security.epochs import EPOCH_NUMBERS
 from uwgen.security.errors import SecurityError
 from uwgen.security.files import SideLock
 from uwgen.security.side import SideSeal
 from uwgen.security.guard import DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD, GuardConfig
-from uwgen.security.keys import new_epoch
+from uwgen.security.keys import new_epoch, working_key
 from uwgen.security.receiver import Numbering
 from uwgen.security.window import WINDOW
 
@@ -48,7 +51,12 @@ ASK_GAP = 5.0              # seconds between two requests to (or answers for) on
 NUMBER_BITS = 12           # W carries the packet number's low 12 bits
 ASK_BYTES = 2              # a C part of one item: its length byte and the item
 SYNC_BYTES = env.SYNC_LEN + env.TIME_LEN                       # K and T: 13
-MAX_OVERHEAD = env.TAG_LEN + SYNC_BYTES + ASK_BYTES            # 23
+MAX_OVERHEAD = env.TAG_LEN + SYNC_BYTES + ASK_BYTES            # 23 with the default 8-byte tag
+
+
+def max_overhead(tag_bytes: int = env.TAG_LEN) -> int:
+    """The most bytes the seal adds to a packet: the tag, K and T, and a C of one request."""
+    return tag_bytes + SYNC_BYTES + ASK_BYTES
 
 
 @dataclass(frozen=True)
@@ -76,10 +84,12 @@ class PacketSeal(SideSeal):
         self._plan: _Plan | None = None
         self._current: tuple[int, bytes, object] | None = None    # (seq, epoch, aead) being built
         self.requests = control.SyncRequests(ASK_GAP)
+        self._told_length: set[int] = set()     # peers whose other tag length was logged
 
     def hooks(self) -> PacketHooks:
         return PacketHooks(parts=self.parts, seal=self.seal, open=self.open,
-                           overhead=MAX_OVERHEAD, next_overhead=self.next_overhead,
+                           overhead=max_overhead(self.config.tag_bytes),
+                           next_overhead=self.next_overhead,
                            number=self.number)
 
     def _encrypts(self, m: env.Message) -> bool:
@@ -111,7 +121,8 @@ class PacketSeal(SideSeal):
             s = self.session
             seq = 0 if s.next >= s.limit else s.next
             self._plan = plan = self._decide(now, seq)
-            return env.TAG_LEN + (SYNC_BYTES if plan.sync else 0) + (ASK_BYTES if plan.ask is not None else 0)
+            return (self.config.tag_bytes + (SYNC_BYTES if plan.sync else 0)
+                    + (ASK_BYTES if plan.ask is not None else 0))
 
     def number(self) -> int:
         """The packet's number: its number in this side's epoch, plus the numbers of the epochs
@@ -159,11 +170,11 @@ class PacketSeal(SideSeal):
     def open(self, data: bytes) -> env.Envelope | None:
         """The envelope (encrypted bodies in the clear), or None when dropped (counted).
         EnvelopeError for bytes that are no envelope (counted by the link's unpacker)."""
-        e = env.decode(data)
+        e = env.decode(data, self.config.tag_bytes)
         with self._lock:
-            return self._open(e)
+            return self._open(e, bytes(data))
 
-    def _open(self, e: env.Envelope) -> env.Envelope | None:
+    def _open(self, e: env.Envelope, data: bytes) -> env.Envelope | None:
         drop = self.drops.drop
         if not e.sealed:
             return drop("unprotected", None, e.sender)
@@ -184,12 +195,29 @@ class PacketSeal(SideSeal):
         if isinstance(got, str):
             if got == "unsynced":
                 self.requests.want(e.sender, self.clock.now())
+            if got == "bad_tag" and e.sync is not None and self._other_length(data, e.sender):
+                got = "tag_length"
             return drop(got, None, e.sender)
         self.counters.inc("verified")
         self.requests.heard(e.sender)
         if got.control:
             self._control(got)
         return got
+
+    def _other_length(self, data: bytes, sender: int) -> bool:
+        """Whether sync packet `data` verifies at another tag length (logged once per peer)."""
+        def aead_for(s: int, epoch: bytes, length: int):
+            return wire.new_aead(working_key(self._master, self.config.network, s, epoch), length)
+        length = taglength.other_length(data, self.config.tag_bytes, aead_for, self._encrypts,
+                                        self._fingerprint)
+        if length is not None and sender not in self._told_length:
+            self._told_length.add(sender)
+            log.error("[%s] sender %d (%s) seals its packets with %d-byte tags, this side expects "
+                      "%d bytes (manifest security: tag_bytes): the two sides were built from "
+                      "different manifests, and nothing of that sender is taken. Build both from "
+                      "one manifest", self.name, sender, self.config.peers.get(sender, "?"),
+                      length, self.config.tag_bytes)
+        return length is not None
 
     def _control(self, e: env.Envelope) -> None:
         now = self.clock.now()

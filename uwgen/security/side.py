@@ -9,6 +9,7 @@ import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from uwgen.manifest.model import DEFAULT_TAG_BYTES, TAG_BYTES
 from uwgen.runtime.clock import Clock
 from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness
 from uwgen.runtime.stats import Counters
@@ -21,7 +22,7 @@ from uwgen.security.keys import working_key
 from uwgen.security.receiver import Receiver
 
 DROP_REASONS = ("bad_tag", "replay", "too_old", "too_far", "stale", "before_start", "unknown_sender",
-                "reflected", "unsynced", "unprotected", "truncated", "malformed")
+                "reflected", "unsynced", "unprotected", "truncated", "malformed", "tag_length")
 SYNC_FIRST = 3          # the first frames (packets) of an epoch carry the sync word
 SYNC_EVERY = 64         # then every one whose number is a multiple of this,
 SYNC_PERIOD = 30.0      # and the first one after this many seconds without one
@@ -37,6 +38,7 @@ class GuardConfig:
     max_ages: dict[int, float] = field(default_factory=dict)   # id -> seconds (its ttl)
     max_age: float = MAX_AGE                       # ids without one
     clock_tolerance: float = CLOCK_TOLERANCE
+    tag_bytes: int = DEFAULT_TAG_BYTES             # AES-CCM tag length (4, 6, 8; per packet on wire format 2)
 
 
 class SideSeal:
@@ -47,6 +49,8 @@ class SideSeal:
                  summary_period: float, reentrant: bool = False):
         if config.sender in config.peers:
             raise SecurityError(f"sender id {config.sender} is given to two sides")
+        if config.tag_bytes not in TAG_BYTES:
+            raise SecurityError(f"a tag of {config.tag_bytes} bytes: 4, 6 or 8 are allowed")
         for ident, mode in config.modes.items():
             if mode not in (wire.SIGN, wire.ENCRYPT):
                 raise SecurityError(f"id {ident}: mode {mode!r} is not sign or encrypt")
@@ -76,7 +80,8 @@ class SideSeal:
         return self._lock_file.path if self._lock_file is not None else None
 
     def _aead(self, sender: int, epoch: bytes):
-        return wire.new_aead(working_key(self._master, self.config.network, sender, epoch))
+        return wire.new_aead(working_key(self._master, self.config.network, sender, epoch),
+                             self.config.tag_bytes)
 
     def _peer_restarted(self, sender: int) -> None:
         """A peer's new epoch: it may not know ours either, so the next frames carry it."""

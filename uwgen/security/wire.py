@@ -65,8 +65,10 @@ class Sync:
     time: int              # freshness.stamp() of the sender's clock, 24 bits
 
 
-def new_aead(key: bytes) -> AESCCM:
-    return AESCCM(key, tag_length=TAG_BYTES)
+def new_aead(key: bytes, tag_bytes: int = TAG_BYTES) -> AESCCM:
+    """AES-CCM under `key` with tags of `tag_bytes` (8 per payload; a wire format 2 link's
+    `security: {tag_bytes}` per packet)."""
+    return AESCCM(key, tag_length=tag_bytes)
 
 
 def header_length(payload: bytes) -> tuple[int, int, int]:

@@ -1,0 +1,108 @@
+"""The results of one served action, kept for the client side until it has them (server side).
+
+A result is pushed once when its goal finishes, then sent again every RTO until the client
+side acknowledges it (wire format 13, *result status*) or for at most 2 accept_timeouts:
+the client side gives the handle to a new goal only 2 accept_timeouts after this goal ended
+there. The RECENT_RESULTS last results are also kept, with the goal's bytes, so that a goal
+that comes again after its answer and result were lost gets its result again instead of a
+second run, and a client side that asks for a result it missed gets it.
+
+No rclpy here: `ActionServers` decides what to send and when a goal ends; this book only
+remembers, times (an injectable clock's `now` is passed in) and counts round trips.
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+from uwgen.runtime.reliable import RttEstimator
+
+RECENT_RESULTS = 8        # finished goals per action whose result is kept for a repeated goal
+REPEAT_WINDOW = 1.5       # accept_timeouts after a goal first came in which a copy is a repeat
+                          # (the client side sends copies within one accept_timeout, and
+                          # reuses a handle only 2 accept_timeouts after its goal ended)
+
+
+@dataclass
+class Unacked:
+    """A result sent and not yet acknowledged by the client side."""
+
+    payload: bytes
+    first_sent: float
+    next_send: float
+    until: float                  # no copy after this: the client side may reuse the handle
+    sends: int = 1
+
+
+@dataclass(frozen=True)
+class Finished:
+    """A goal that ended here: its bytes as they came, its result payload, when it came."""
+
+    goal: bytes
+    result: bytes
+    arrived: float
+
+
+class ResultBook:
+    """The results of one action: recent ones by handle, unacknowledged ones to send again."""
+
+    def __init__(self, accept_timeout: float, rtt: RttEstimator):
+        self.accept_timeout = accept_timeout
+        self.rtt = rtt
+        self.recent: OrderedDict[int, Finished] = OrderedDict()
+        self.unacked: dict[int, Unacked] = {}
+
+    def sent(self, handle: int, goal: bytes, result: bytes, arrived: float, now: float) -> None:
+        """The result of goal `handle` (which came as `goal` at `arrived`) went out at `now`."""
+        self.recent[handle] = Finished(goal, result, arrived)
+        self.recent.move_to_end(handle)
+        while len(self.recent) > RECENT_RESULTS:
+            self.recent.popitem(last=False)
+        self.unacked[handle] = Unacked(result, now, now + self.rtt.rto, now + 2 * self.accept_timeout)
+
+    def acknowledged(self, handle: int, now: float) -> bool:
+        """The client side has the result: stop sending it. False if nothing waited for it."""
+        unacked = self.unacked.pop(handle, None)
+        if unacked is None:
+            return False
+        if unacked.sends == 1:        # Karn: only an unambiguous round trip is a sample
+            self.rtt.sample(now - unacked.first_sent)
+        return True
+
+    def forget(self, handle: int) -> None:
+        """A new goal on `handle`: what the old one left is no longer asked for."""
+        self.recent.pop(handle, None)
+        self.unacked.pop(handle, None)
+
+    def stop_sending(self, handle: int) -> None:
+        """The client side gave the goal up (it cancelled a goal that had finished here)."""
+        self.unacked.pop(handle, None)
+
+    def result_of(self, handle: int) -> bytes | None:
+        """The result payload of a recent goal, else None."""
+        recent = self.recent.get(handle)
+        return None if recent is None else recent.result
+
+    def repeat_of(self, handle: int, goal: bytes, now: float) -> bytes | None:
+        """The result to send again when `goal` is a copy of a goal that finished here lately
+        (same handle, same bytes, within REPEAT_WINDOW accept_timeouts of its arrival)."""
+        recent = self.recent.get(handle)
+        if recent is None or recent.goal != goal or now - recent.arrived > REPEAT_WINDOW * self.accept_timeout:
+            return None
+        return recent.result
+
+    def due(self, now: float) -> Iterator[bytes | None]:
+        """The results to send again now, each once more; None for each one given up (2
+        accept_timeouts passed without an acknowledgement: counted `results_unacked`)."""
+        for handle, unacked in list(self.unacked.items()):
+            if unacked.next_send > now:
+                continue
+            if now >= unacked.until:
+                del self.unacked[handle]
+                yield None
+                continue
+            self.rtt.backoff()
+            unacked.sends += 1
+            unacked.next_send = now + self.rtt.rto
+            yield unacked.payload
