@@ -287,7 +287,7 @@ def float32_array(value, counted: bool, path: str) -> list:
     if low_zeros == n:                       # maybe all halves (then H < I: n > 128)
         np = _numpy()
         if np is not None and _normal_halves(raw):
-            return [Tag(HALF_TAG, np.frombuffer(raw, "<f4").astype("<f2").tobytes())]
+            return [Tag(HALF_TAG, np.frombuffer(raw, _DTYPES["f"]).astype(_DTYPES["e"]).tobytes())]
         return _choose(raw, "f", counted)
     top = raw[3::4]
     short = low_zeros + top.count(0x7F) + top.count(0xFF)    # as in _choose
@@ -375,12 +375,15 @@ def _numpy():
             import numpy as _np
         except ImportError:
             _np = None
+        else:       # dtype objects, not strings: numpy parses a string at every call
+            _DTYPES.update((code, _np.dtype(name)) for code, name in (("e", "<f2"), *_HALF_OF.items()))
     return _np
 
 
 _np = False
 NUMPY_FROM = 48    # elements: below, struct converts faster than numpy's call overhead
 _HALF_OF = {"f": "<f4", "d": "<f8"}
+_DTYPES: dict = {}  # struct code -> numpy dtype, little-endian ("e": half), once numpy is imported
 
 
 # Bytes that may be, in every element of a float32 array, the second byte (mantissa bits
@@ -405,12 +408,12 @@ def _halves(raw: bytes, code: str, n: int) -> bytes | None:
     bit for bit; else None."""
     np = _numpy() if n > NUMPY_FROM else None
     if np is not None and code == "f" and _normal_halves(raw):
-        return np.frombuffer(raw, "<f4").astype("<f2").tobytes()
+        return np.frombuffer(raw, _DTYPES["f"]).astype(_DTYPES["e"]).tobytes()
     if np is not None:
-        wide = np.frombuffer(raw, _HALF_OF[code])
+        wide = np.frombuffer(raw, _DTYPES[code])
         with np.errstate(all="ignore"):
-            half = wide.astype("<f2")
-        return half.tobytes() if half.astype(_HALF_OF[code]).tobytes() == raw else None
+            half = wide.astype(_DTYPES["e"])
+        return half.tobytes() if half.astype(_DTYPES[code]).tobytes() == raw else None
     halves = struct_for("e", n)
     try:
         half = halves.pack(*_values(raw, code))
@@ -423,7 +426,7 @@ def _from_halves(raw: bytes, code: str, n: int) -> bytes:
     """`n` half-precision elements (little-endian) widened to `code` floats, little-endian."""
     np = _numpy() if n > NUMPY_FROM else None
     if np is not None:
-        return np.frombuffer(raw, "<f2").astype(_HALF_OF[code]).tobytes()
+        return np.frombuffer(raw, _DTYPES["e"]).astype(_DTYPES[code]).tobytes()
     return struct_for(code, n).pack(*struct_for("e", n).unpack(raw))
 
 
