@@ -180,7 +180,7 @@ def test_a_remembered_choice_is_the_same_as_a_fresh_one_and_is_not_shared(monkey
 # and subnormals, its largest values, float32's subnormals, zeros, infinities, NaNs.
 EDGES = [2.0 ** -13, -2.0 ** -13, 2.0 ** -14, 2.0 ** -24, 2.0 ** -20, 3 * 2.0 ** -24, 2.0 ** -25,
          32752.0, -32752.0, 32768.0, 65504.0, 65520.0, 32767.0, 1.0 + 2.0 ** -10, 1.0 + 2.0 ** -11,
-         1e-45, 0.0, -0.0, math.inf, -math.inf, math.nan, 100.0, -0.5]
+         1e-45, 0.0, -0.0, math.inf, -math.inf, math.nan, 100.0, -0.5, 3.0e38, -3.0e38]
 
 
 def halves_checked_only(values) -> list:
@@ -237,3 +237,19 @@ def test_float32_array_of_a_long_sequence_matches_number_array_past_its_quick_te
         value = array.array("f", [fill] * k)
         value[5] = 3.0
         assert pack_items(rt.float32_array(value, True, "x")) == pack_items(rt.number_array(value, "f", True, "x"))
+
+
+@pytest.mark.parametrize("count", [1, 5, 200])
+def test_nans_with_payload_bits_in_the_lowest_byte_are_counted_as_short_items(count):
+    """A NaN whose lowest byte is not 0 (a payload) is still a short item (F9 7E 00): the
+    quick look at the top bytes must find it. Many of them make the items the smaller."""
+    for fill in (0.1, 100.0):
+        value = array.array("f", [fill] * 300)
+        raw = bytearray(value.tobytes())
+        for k in range(count):
+            raw[4 * k:4 * k + 4] = bytes((0x5A, 0x00, 0xC0, 0xFF if k % 2 else 0x7F))
+        value = array.array("f", bytes(raw))
+        assert math.isnan(value[0]) and value.tobytes()[0] == 0x5A
+        quick = rt.float32_array(value, True, "x")
+        assert pack_items(quick) == pack_items(rt.number_array(value, "f", True, "x"))
+        assert len(pack_items(quick)) <= len(pack_items([300, *value.tolist()]))

@@ -290,7 +290,7 @@ def float32_array(value, counted: bool, path: str) -> list:
             return [Tag(HALF_TAG, np.frombuffer(raw, _DTYPES["f"]).astype(_DTYPES["e"]).tobytes())]
         return _choose(raw, "f", counted)
     top = raw[3::4]
-    short = low_zeros + top.count(0x7F) + top.count(0xFF)    # as in _choose
+    short = low_zeros + (top.count(0x7F) + top.count(0xFF) if 0x7F in top or 0xFF in top else 0)  # as in _choose
     if 2 + head_size(4 * n) + 4 * n <= (head_size(n) if counted else 0) + 5 * n - 2 * short:
         return [Tag(TYPED_TAGS["f"], raw)]
     return _choose(raw, "f", counted)
@@ -323,7 +323,8 @@ def _choose(raw: bytes, code: str, counted: bool) -> list:
                 return [n, *values] if counted else values
         else:
             top = raw[w - 1::w]
-            short = min(n, low_zeros + top.count(0x7F) + top.count(0xFF))
+            if 0x7F in top or 0xFF in top:     # (a quick look first: rare in sensor data)
+                short = min(n, low_zeros + top.count(0x7F) + top.count(0xFF))
         if typed <= count + _LONG_ITEM[code] * (n - short) + 3 * short:
             return [Tag(TYPED_TAGS[code], raw)]
         zeros = _zeros(raw, code)
