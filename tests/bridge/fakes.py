@@ -204,6 +204,30 @@ class LinkPair:
         return link
 
 
+class FakeSubscription:
+    """rclpy's subscription handle as the bridge takes from it, holding `queued` messages:
+    TopicBridge takes a burst as the subscription was made (`raw` False), the poller takes
+    serialized messages (`raw` True: only the newest is deserialized). A message info
+    without a publication time comes with each."""
+
+    def __init__(self, queued, msg_type, topic_name: str, raw: bool):
+        self.queued, self.msg_type, self.topic_name, self.raw = list(queued), msg_type, topic_name, raw
+        self.handle = self
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def take_message(self, msg_type, raw):
+        assert raw == self.raw, f"taken with raw={raw}, as the subscription was not made"
+        if not self.queued:
+            return None
+        msg = self.queued.pop(0)
+        return (serialize_message(msg) if raw else msg), {}
+
+
 def next_domain() -> int:
     """A ROS domain id of its own for every context a test creates (tests/ros_domains.py)."""
     return ros_domains.next_domain()

@@ -12,7 +12,8 @@ from test_msgs.srv import BasicTypes
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.codec import load_items, pack_items
 
-from .fakes import FakeServiceCodec, FakeTopicCodec, LinkPair, fake_package, wait_for
+from .fakes import (FakeServiceCodec, FakeSubscription, FakeTopicCodec, LinkPair, fake_package,
+                    wait_for)
 from .harness import ros_sides, start_bridge
 
 CMD = FakeTopicCodec(4, "/cmd", Twist, "surface")
@@ -31,12 +32,30 @@ def collect(node, cls, topic):
     return got
 
 
-def echo_server(node, name="/echo"):
+def echo_server(node, name="/echo") -> list[int]:
+    """The real server of `name` on `node`: it answers twice the number and "re:" the text.
+    Returns the numbers it is called with, call by call."""
+    served: list[int] = []
+
     def serve(req, resp):
+        served.append(req.int32_value)
         resp.int32_value = req.int32_value * 2
         resp.string_value = f"re:{req.string_value}"
         return resp
-    return node.create_service(BasicTypes, name, serve)
+    node.create_service(BasicTypes, name, serve)
+    return served
+
+
+def served_client(pair, codec=ECHO):
+    """A caller of `codec`'s service on the surface, once the vehicle's bridge sees the real
+    (echo) server behind it."""
+    surface, vehicle, bridges, _ = pair
+    echo_server(vehicle.node("server"), codec.name)
+    client = surface.node("caller").create_client(BasicTypes, codec.name)
+    assert client.wait_for_service(timeout_sec=5.0)
+    wait_for(lambda: bridges["vehicle"]._served[codec.id][1].service_is_ready(),
+             what="vehicle bridge sees the real server")
+    return client
 
 
 @pytest.fixture
@@ -118,12 +137,8 @@ def test_bad_payloads_are_counted_by_reason(pair):
 
 
 def test_service_round_trip(pair):
-    surface, vehicle, bridges, links = pair
-    echo_server(vehicle.node("server"))
-    client = surface.node("caller").create_client(BasicTypes, "/echo")
-    assert client.wait_for_service(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"]._served[ECHO.id][1].service_is_ready(),
-             what="vehicle bridge sees the real server")
+    _, _, bridges, _ = pair
+    client = served_client(pair)
     req = BasicTypes.Request(int32_value=21, string_value="hi")
     future = client.call_async(req)
     wait_for(future.done, what="the response")
@@ -134,12 +149,8 @@ def test_service_round_trip(pair):
 
 
 def test_several_outstanding_calls_get_their_own_responses(pair):
-    surface, vehicle, bridges, links = pair
-    echo_server(vehicle.node("server"))
-    client = surface.node("caller").create_client(BasicTypes, "/echo")
-    assert client.wait_for_service(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"]._served[ECHO.id][1].service_is_ready(),
-             what="vehicle bridge sees the real server")
+    *_, links = pair
+    client = served_client(pair)
     links.links["vehicle"].delay = 0.2   # responses wait, so the calls overlap
     futures = [client.call_async(BasicTypes.Request(int32_value=i, string_value=str(i)))
                for i in range(4)]
@@ -167,12 +178,8 @@ def test_call_without_response_fails_by_sending_no_response(pair):
 
 
 def test_late_response_is_dropped_and_counted(pair):
-    surface, vehicle, bridges, links = pair
-    echo_server(vehicle.node("server"), "/slow")
-    client = surface.node("caller").create_client(BasicTypes, "/slow")
-    assert client.wait_for_service(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"]._served[SLOW.id][1].service_is_ready(),
-             what="vehicle bridge sees the real server")
+    _, _, bridges, links = pair
+    client = served_client(pair, SLOW)
     links.links["vehicle"].delay = 0.8  # response arrives after the 0.4 s timeout
     future = client.call_async(BasicTypes.Request(int32_value=1))
     sb = bridges["surface"]
@@ -184,12 +191,8 @@ def test_late_response_is_dropped_and_counted(pair):
 
 
 def test_duplicate_response_is_dropped_and_counted(pair):
-    surface, vehicle, bridges, links = pair
-    echo_server(vehicle.node("server"))
-    client = surface.node("caller").create_client(BasicTypes, "/echo")
-    assert client.wait_for_service(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"]._served[ECHO.id][1].service_is_ready(),
-             what="vehicle bridge sees the real server")
+    _, _, bridges, links = pair
+    client = served_client(pair)
     links.links["vehicle"].duplicate = True
     future = client.call_async(BasicTypes.Request(int32_value=5))
     sb = bridges["surface"]
@@ -255,13 +258,7 @@ def lose_next(link, kind: int, count: int = 1) -> list:
                          ids=["request lost", "response lost"])
 def test_a_call_whose_request_or_response_is_lost_is_served_once(pair, side, kind):
     surface, vehicle, bridges, links = pair
-    served = []
-
-    def serve(req, resp):
-        served.append(req.int32_value)
-        resp.int32_value = req.int32_value * 2
-        return resp
-    vehicle.node("server").create_service(BasicTypes, "/echo", serve)
+    served = echo_server(vehicle.node("server"))
     vb = bridges["vehicle"]
     wait_for(lambda: vb._served[ECHO.id][1].service_is_ready(), what="server visible")
     lost = lose_next(links.links[side], kind)
@@ -345,13 +342,7 @@ def test_bridges_sharing_one_graph_run_a_call_once():
     links = LinkPair()
     with ros_sides("surface", "vehicle", same_domain=True) as (surface, vehicle):
         bridges = start_bridges((surface, vehicle), package, links)
-        served = []
-
-        def serve(req, resp):
-            served.append(req.int32_value)
-            resp.int32_value = req.int32_value * 2
-            return resp
-        vehicle.node("real").create_service(BasicTypes, "/echo", serve)
+        served = echo_server(vehicle.node("real"))
         sb, vb = bridges["surface"], bridges["vehicle"]
         wait_for(lambda: "/echo" in sb.status()["echo_hazards"] and ECHO.id not in sb.standins.services,
                  what="the stand-in withdrawn")
@@ -376,23 +367,6 @@ def test_status_is_published_as_json(pair):
     assert status["services"]["/echo"]["role"] == "client"
 
 
-class FakeSubscription:
-    """What TopicBridge takes a burst from: rclpy's subscription handle, holding `queued`."""
-
-    def __init__(self, queued):
-        self.queued, self.msg_type, self.raw, self.topic_name = list(queued), Twist, False, "/fake"
-        self.handle = self
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def take_message(self, msg_type, raw):
-        return (self.queued.pop(0), None) if self.queued else None
-
-
 def twists(*xs):
     return [Twist(linear=Vector3(x=float(x))) for x in xs]
 
@@ -404,7 +378,7 @@ def test_a_burst_on_a_fifo_topic_offers_every_message_in_order():
         bridges = start_bridges((surface, vehicle), fake_package([fifo]), links)
         topics = bridges["surface"].topics
         first, *more = twists(1, 2, 3)
-        topics._subscription_of[fifo.id] = FakeSubscription(more)
+        topics._subscription_of[fifo.id] = FakeSubscription(more, Twist, fifo.name, raw=False)
         topics._taker(fifo)(first, {})
         assert [p for k, p in links.links["surface"].offers if k == fifo.id] == \
             [fifo.encode(m) for m in (first, *more)]

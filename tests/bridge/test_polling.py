@@ -14,7 +14,7 @@ from std_msgs.msg import String
 from uwgen.bridge.polling import POLL_HISTORY, PolledGroup, take_events
 from uwgen.manifest.model import LinkPolicy
 
-from .fakes import FakeTopicCodec, LinkPair, fake_package, wait_for
+from .fakes import FakeSubscription, FakeTopicCodec, LinkPair, fake_package, wait_for
 from .harness import ros_sides, start_bridge
 
 CMD = FakeTopicCodec(4, "/cmd", Twist, "surface")                       # latest-only
@@ -31,25 +31,6 @@ def surface():
 
 def twist(x: float) -> Twist:
     return Twist(linear=Vector3(x=float(x)))
-
-
-class RawSubscription:
-    """rclpy's subscription handle as the poller takes from it: raw messages and their info."""
-
-    def __init__(self, msgs):
-        self.queued = [(serialize_message(m), {"source_timestamp": 0}) for m in msgs]
-        self.msg_type, self.topic_name = Twist, "/cmd"
-        self.handle = self
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def take_message(self, msg_type, raw):
-        assert raw, "the poller takes serialized messages: only the newest is deserialized"
-        return self.queued.pop(0) if self.queued else None
 
 
 def test_a_busy_latest_only_topic_is_polled_and_an_idle_one_waited_on(surface):
@@ -102,7 +83,7 @@ def test_a_burst_between_two_polls_offers_only_the_newest_and_books_the_rest(sur
     poller = bridge.topics.poller
     burst = [twist(x) for x in (1, 2, 3, 4)]
     topic = poller.polled[0]
-    topic.sub, topic.group.polling = RawSubscription(burst), True
+    topic.sub, topic.group.polling = FakeSubscription(burst, Twist, CMD.name, raw=True), True
     poller.poll()
     counters = bridge.topics.counters[CMD.id]
     assert (counters.taken, counters.superseded, counters.offered) == (4, 3, 1)
@@ -120,7 +101,7 @@ def test_a_take_on_wake_up_counts_the_message_the_executor_took(surface):
     poller = bridge.topics.poller
     first, *more = [twist(x) for x in (1, 2, 3)]
     topic = poller.polled[0]
-    topic.sub = RawSubscription(more)
+    topic.sub = FakeSubscription(more, Twist, CMD.name, raw=True)
     poller.woken(topic, serialize_message(first), {})
     counters = bridge.topics.counters[CMD.id]
     assert (counters.taken, counters.superseded, counters.offered) == (3, 2, 1)

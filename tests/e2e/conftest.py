@@ -10,6 +10,7 @@ import random
 from contextlib import contextmanager
 
 import pytest
+from std_srvs.srv import SetBool
 
 from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan, import_package
@@ -91,6 +92,22 @@ class Net:
         node = BridgeNode(plan, options, context=ros.context, rng=random.Random(7))
         self.bridges[side] = ros.add(node)
         return node
+
+    def connected(self, *sides: str) -> bool:
+        """Whether the links of the bridges of `sides` (of every bridge, none named) are up."""
+        return all(self.bridges[s].link.stats()["connected"] for s in sides or self.bridges)
+
+    def serve_enable(self) -> list[bool]:
+        """The real /enable server (SetBool) in the vehicle's graph: it succeeds and answers
+        `enabled=<data>`. Returns the data it is called with, call by call."""
+        calls: list[bool] = []
+
+        def serve(req, resp):
+            calls.append(req.data)
+            resp.success, resp.message = True, f"enabled={req.data}"
+            return resp
+        self.vehicle.node("server").create_service(SetBool, "/enable", serve)
+        return calls
 
 
 @contextmanager

@@ -98,8 +98,7 @@ class FibonacciServer:
 def ready_client(net, server_expected: bool = True):
     client = ActionClient(net.surface.node("operator"), Fibonacci, "/fibonacci")
     assert client.wait_for_server(timeout_sec=5.0)     # the surface bridge's stand-in
-    wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle")),
-             what="both links up")
+    wait_for(net.connected, what="both links up")
     if server_expected:
         wait_for(lambda: net.bridges["vehicle"].action_servers.served[ACTION_ID][1].server_is_ready(),
                  what="the vehicle bridge sees the real server")

@@ -22,8 +22,13 @@ def subscribe(node, cls, topic, stamp=False):
     return got
 
 
-def connected(net, *sides):
-    return all(net.bridges[s].link.stats()["connected"] for s in sides)
+def log_ends(net):
+    """The vehicle's /log publisher and what the surface hears of it, once the bridges are up:
+    (heard, publisher)."""
+    logs = subscribe(net.surface.node("op"), String, "/log")
+    pub = net.vehicle.node("sim").create_publisher(String, "/log", 10)
+    wait_for(lambda: net.connected() and pub.get_subscription_count(), what="bridges up")
+    return logs, pub
 
 
 def test_topics_cross_in_both_directions(net):
@@ -31,7 +36,7 @@ def test_topics_cross_in_both_directions(net):
     logs = subscribe(net.surface.node("op"), String, "/log")
     cmd_pub = net.surface.node("op_pub").create_publisher(Twist, "/cmd_vel", 10)
     log_pub = net.vehicle.node("sim_pub").create_publisher(String, "/log", 10)
-    wait_for(lambda: connected(net, "surface", "vehicle") and cmd_pub.get_subscription_count()
+    wait_for(lambda: net.connected() and cmd_pub.get_subscription_count()
              and log_pub.get_subscription_count(), what="bridges up")
     twist = Twist()
     twist.linear.x, twist.angular.z = 0.5, -0.25
@@ -47,16 +52,10 @@ def test_topics_cross_in_both_directions(net):
 
 
 def test_service_round_trip(net):
-    calls = []
-
-    def serve(req, resp):
-        calls.append(req.data)
-        resp.success, resp.message = True, f"enabled={req.data}"
-        return resp
-    net.vehicle.node("server").create_service(SetBool, "/enable", serve)
+    calls = net.serve_enable()
     client = net.surface.node("caller").create_client(SetBool, "/enable")
     assert client.wait_for_service(timeout_sec=5.0)
-    wait_for(lambda: connected(net, "surface", "vehicle")
+    wait_for(lambda: net.connected()
              and net.bridges["vehicle"]._served[20][1].service_is_ready(), what="server visible")
     future = client.call_async(SetBool.Request(data=True))
     wait_for(future.done, what="the response over the link")
@@ -69,15 +68,9 @@ def test_bridges_sharing_one_graph_do_not_loop_a_call(e2e_package):
     """Both bridges and the real server in one ROS domain (a forgotten ROS_DOMAIN_ID): one
     call runs the real server once, nothing goes round over the link."""
     with network(e2e_package, same_domain=True) as net:
-        calls = []
-
-        def serve(req, resp):
-            calls.append(req.data)
-            resp.success = True
-            return resp
-        net.vehicle.node("server").create_service(SetBool, "/enable", serve)
+        calls = net.serve_enable()
         sb, vb = net.bridges["surface"], net.bridges["vehicle"]
-        wait_for(lambda: connected(net, "surface", "vehicle")
+        wait_for(lambda: net.connected()
                  and "/enable" in sb.status()["echo_hazards"] and 20 not in sb.standins.services,
                  what="the stand-in withdrawn")
         client = net.surface.node("caller").create_client(SetBool, "/enable")
@@ -95,7 +88,7 @@ def test_service_timeout_when_nobody_answers(e2e_package):
     with network(e2e_package, bridges=("surface",)) as net:
         client = net.surface.node("caller").create_client(SetBool, "/enable")
         assert client.wait_for_service(timeout_sec=5.0)
-        wait_for(lambda: connected(net, "surface"), what="surface link up")
+        wait_for(lambda: net.connected("surface"), what="surface link up")
         sent_at = time.monotonic()
         future = client.call_async(SetBool.Request(data=True))
         bridge = net.bridges["surface"]
@@ -107,10 +100,7 @@ def test_service_timeout_when_nobody_answers(e2e_package):
 
 
 def test_long_message_is_fragmented_and_reassembled(net):
-    logs = subscribe(net.surface.node("op"), String, "/log")
-    pub = net.vehicle.node("sim").create_publisher(String, "/log", 10)
-    wait_for(lambda: connected(net, "surface", "vehicle") and pub.get_subscription_count(),
-             what="bridges up")
+    logs, pub = log_ends(net)
     text = "".join(f"line {i:03d}: all systems nominal; " for i in range(20))  # ~640 bytes
     assert len(text.encode()) > 255
     pub.publish(String(data=text))
@@ -121,15 +111,12 @@ def test_long_message_is_fragmented_and_reassembled(net):
 
 
 def test_link_outage_and_recovery(net):
-    logs = subscribe(net.surface.node("op"), String, "/log")
-    pub = net.vehicle.node("sim").create_publisher(String, "/log", 10)
-    wait_for(lambda: connected(net, "surface", "vehicle") and pub.get_subscription_count(),
-             what="bridges up")
+    logs, pub = log_ends(net)
     pub.publish(String(data="before"))
     wait_for(lambda: len(logs) == 1, what="first message")
     net.emu.restart()           # DESERT dies and comes back: clients are disconnected
     wait_for(lambda: all(net.bridges[s].link.stats()["connection"]["reconnects"] >= 1
-                         for s in ("surface", "vehicle")) and connected(net, "surface", "vehicle"),
+                         for s in ("surface", "vehicle")) and net.connected(),
              timeout=15.0, what="both links reconnected")
     pub.publish(String(data="after"))
     wait_for(lambda: len(logs) == 2, timeout=10.0, what="message after the outage")
@@ -143,7 +130,7 @@ def test_latency_stays_bounded_under_overload(e2e_package):
     with network(e2e_package, period=period, distance=distance, bitrate=4800.0) as net:
         got = subscribe(net.vehicle.node("sim"), Twist, "/cmd_vel", stamp=True)
         pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
-        wait_for(lambda: connected(net, "surface", "vehicle") and pub.get_subscription_count(),
+        wait_for(lambda: net.connected() and pub.get_subscription_count(),
                  what="bridges up")
         sent_at = {}
         n = 60                                        # 6 s at 10 Hz

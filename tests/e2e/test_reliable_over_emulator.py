@@ -7,7 +7,6 @@ from __future__ import annotations
 import time
 
 from std_msgs.msg import String
-from std_srvs.srv import SetBool
 
 from bridge.fakes import wait_for
 
@@ -34,10 +33,6 @@ def package(tmp_path_factory):
     return build_package(tmp_path_factory.mktemp("e2erel"), MANIFEST, "uwgen_e2erel")
 
 
-def connected(net) -> bool:
-    return all(b.link.stats()["connected"] for b in net.bridges.values())
-
-
 def on_link(bridge, entry: str, section: str = "topics") -> dict:
     return bridge.status()[section][entry]["link"].get("on_link", {})
 
@@ -50,7 +45,7 @@ def test_a_reliable_topic_arrives_once_and_each_ledger_names_what_never_arrived(
         net.surface.node("op").create_subscription(String, "/chatter", chatter.append, 50)
         mission_pub = net.surface.node("op_pub").create_publisher(String, "/mission", 50)
         chatter_pub = net.vehicle.node("sim_pub").create_publisher(String, "/chatter", 50)
-        wait_for(lambda: connected(net) and mission_pub.get_subscription_count()
+        wait_for(lambda: net.connected() and mission_pub.get_subscription_count()
                  and chatter_pub.get_subscription_count(), what="bridges up")
         for i in range(N):
             mission_pub.publish(String(data=f"waypoint {i}"))
@@ -73,15 +68,9 @@ def test_a_reliable_topic_arrives_once_and_each_ledger_names_what_never_arrived(
 def test_a_command_older_than_its_max_age_is_refused_and_a_copy_runs_once(tmp_path_factory):
     pkg = package(tmp_path_factory)
     with network(pkg) as net:
-        calls = []
-
-        def serve(req, resp):
-            calls.append(req.data)
-            resp.success = True
-            return resp
-        net.vehicle.node("server").create_service(SetBool, "/enable", serve)
+        calls = net.serve_enable()
         sb, vb = net.bridges["surface"], net.bridges["vehicle"]
-        wait_for(lambda: connected(net) and vb._served[20][1].service_is_ready(),
+        wait_for(lambda: net.connected() and vb._served[20][1].service_is_ready(),
                  what="server visible")
         link = sb.link
         # A request held back 30 s (max age: the 1.5 s timeout, plus the 5 s clock tolerance)

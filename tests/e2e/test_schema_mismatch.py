@@ -52,10 +52,6 @@ def packages(tmp_path_factory):
     return surface, vehicles
 
 
-def connected(net, *sides):
-    return all(net.bridges[s].link.stats()["connected"] for s in sides)
-
-
 def heard(bridge, ident: int) -> bool:
     return str(ident) in bridge.status()["schema"]["heard"]
 
@@ -86,7 +82,7 @@ def test_mismatching_id_is_refused_and_matching_ids_flow(packages, difference):
         client = net.surface.node("caller").create_client(SetBool, "/enable")
 
         # Each side hears the other's announcement (sent at connect, ahead of data).
-        wait_for(lambda: connected(net, "surface", "vehicle") and heard(vehicle, 4)
+        wait_for(lambda: net.connected() and heard(vehicle, 4)
                  and heard(surface, 7), what="schema announcements")
         wait_for(lambda: cmd_pub.get_subscription_count() and log_pub.get_subscription_count(),
                  what="bridges subscribed")

@@ -151,7 +151,7 @@ def cmd_vel_ends(net):
     net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
     pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
     heard = tap(net.bridges["surface"].link, CMD_VEL)
-    wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+    wait_for(lambda: net.connected()
              and pub.get_subscription_count(), what="secured bridges up")
     return got, pub, heard
 
@@ -190,17 +190,11 @@ def test_forged_cmd_vel_never_reaches_ros(secure_package, tmp_path):
 
 def test_secured_service_is_answered_once_and_only_when_authentic(secure_package):
     with secured_network(secure_package) as net:
-        calls = []
-
-        def serve(req, resp):
-            calls.append(req.data)
-            resp.success, resp.message = True, "ok"
-            return resp
-        net.vehicle.node("server").create_service(SetBool, "/enable", serve)
+        calls = net.serve_enable()
         client = net.surface.node("caller").create_client(SetBool, "/enable")
         assert client.wait_for_service(timeout_sec=5.0)
         heard = tap(net.bridges["surface"].link, REQUEST)
-        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle"))
+        wait_for(lambda: net.connected()
                  and net.bridges["vehicle"]._served[20][1].service_is_ready(), what="server visible")
         future = client.call_async(SetBool.Request(data=True))
         wait_for(future.done, what="the secured response")
@@ -279,8 +273,7 @@ def test_a_forged_response_never_completes_a_call(secure_package, tmp_path):
         client = net.surface.node("caller").create_client(SetBool, "/enable")
         assert client.wait_for_service(timeout_sec=5.0)          # the surface's stand-in
         requests = tap_payloads(net.bridges["surface"].link, REQUEST)
-        wait_for(lambda: all(net.bridges[s].link.stats()["connected"] for s in ("surface", "vehicle")),
-                 what="secured bridges up")
+        wait_for(net.connected, what="secured bridges up")
         future = client.call_async(SetBool.Request(data=True))  # no server on the vehicle: no answer
         wait_for(lambda: requests, what="the request on the water")
         # the seq is encrypted on the water; the forger is given it anyway

@@ -52,18 +52,26 @@ def numbers(sim: DuplexSim, side: str, ident: int) -> list[int]:
     return [p[2] for _, p in sim.received[side] if p[1] == ident]
 
 
+def two_way(sim: DuplexSim, a_sends: int, b_sends: int, b_after: float = 0.3):
+    """Traffic both ways, one message a second each: a offers reliable topic 7, b best-effort
+    topic 4 (`b_after` s after a); message i carries i. Returns the links (a, b)."""
+    a, b = sim.links["a"], sim.links["b"]
+    a.add_channel(7, RELIABLE)
+    b.add_channel(4, BEST_EFFORT)
+    for i in range(a_sends):
+        sim.at(i * 1.0, lambda i=i: a.offer(7, bytes((0, 7, i)) + bytes(10)))
+    for i in range(b_sends):
+        sim.at(i * 1.0 + b_after, lambda i=i: b.offer(4, bytes((0, 4, i)) + bytes(5)))
+    return a, b
+
+
 def closes(row: dict) -> bool:
     return row["sent"] == row["delivered"] + row["lost_on_link"] + row["in_flight"] + row["unacknowledged"]
 
 
 def test_a_reliable_topic_arrives_complete_and_once_at_30_percent_loss():
     sim, rel = duplex(per=0.3)
-    a, b = sim.links["a"], sim.links["b"]
-    a.add_channel(7, RELIABLE)
-    b.add_channel(4, BEST_EFFORT)
-    for i in range(40):
-        sim.at(i * 1.0, lambda i=i: a.offer(7, bytes((0, 7, i)) + bytes(10)))
-        sim.at(i * 1.0 + 0.3, lambda i=i: b.offer(4, bytes((0, 4, i)) + bytes(5)))
+    a, b = two_way(sim, 40, 40)
     sim.run(120.0)
     assert sorted(numbers(sim, "b", 7)) == list(range(40))          # all, each once
     row = a.stats()["ledger"][7]
@@ -74,13 +82,7 @@ def test_a_reliable_topic_arrives_complete_and_once_at_30_percent_loss():
 
 def test_lost_on_link_is_exactly_what_the_peer_sent_and_never_arrived():
     sim, _ = duplex(per=0.25, seed=3)
-    a, b = sim.links["a"], sim.links["b"]
-    a.add_channel(7, RELIABLE)
-    b.add_channel(4, BEST_EFFORT)
-    for i in range(80):                  # a goes on sending after b stopped: its acks ride
-        sim.at(i * 1.0, lambda i=i: a.offer(7, bytes((0, 7, i)) + bytes(10)))
-    for i in range(40):
-        sim.at(i * 1.0 + 0.3, lambda i=i: b.offer(4, bytes((0, 4, i)) + bytes(5)))
+    a, b = two_way(sim, 80, 40)          # a goes on sending after b stopped: its acks ride
     sim.run(90.0)
     row = b.stats()["ledger"][4]
     arrived = len(numbers(sim, "a", 4))
@@ -118,12 +120,7 @@ def test_a_copy_sent_because_the_ack_was_lost_is_delivered_once_and_counted():
 
 def test_acks_ride_on_packets_going_the_other_way_and_go_alone_only_when_due():
     sim, _ = duplex()
-    a, b = sim.links["a"], sim.links["b"]
-    a.add_channel(7, RELIABLE)
-    b.add_channel(4, BEST_EFFORT)
-    for i in range(20):
-        sim.at(i * 1.0, lambda i=i: a.offer(7, bytes((0, 7, i)) + bytes(10)))
-        sim.at(i * 1.0 + 0.2, lambda i=i: b.offer(4, bytes((0, 4, i)) + bytes(5)))
+    a, b = two_way(sim, 20, 20, b_after=0.2)
     sim.run(25.0)
     assert a.stats()["ledger"][7]["delivered"] == 20
     # b answers with its own traffic: acks ride on it, at most one goes alone at the end
