@@ -21,7 +21,7 @@ from uwgen.codegen.ir import (
     NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch, variant_name,
 )
 from uwgen.idl.model import ArrayKind
-from uwgen.manifest.model import NATIVE, PACKED, RMW_DESERT, Manifest
+from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest
 from uwgen.runtime.bits import text_width
 from uwgen.analyze_control import SideControl, control_costs, format_control, whole_payload
 from uwgen.codegen.fingerprint import wire_format_of
@@ -288,6 +288,7 @@ class Analysis:
     budgets: list[SideBudget]
     wire_format: int = 2
     control: list[SideControl] = field(default_factory=list)   # discovery, schema announcements
+    tag_bytes: int | None = None     # the per-packet tag of a secured wire format 2 link
 
     def warnings(self) -> list[str]:
         out = []
@@ -329,28 +330,34 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     sizer = Sizer(builder)
     wire = wire_format_of(manifest)
     sizer.wire = wire
+    tag = manifest.security.tag_bytes
     entries: list[EntryCost] = []
     for t in manifest.topics:
         entries.append(_entry(builder, sizer, "topic", t.name, t.id, t.type_name, t.publisher, t.policy.rate,
                               t.type, t.profile, t.fields, variant_name("t", t.id, t.fields), 2,
-                              _security(t)))
+                              _entry_security(t, wire, tag)))
     for s in manifest.services:
         entries.append(_entry(builder, sizer, "request", s.name, s.id, s.type_name, "*", s.policy.rate,
                               s.type.request, s.profile, s.request_fields,
-                              variant_name("q", s.id, s.request_fields), 3, _security(s)))
+                              variant_name("q", s.id, s.request_fields), 3,
+                              _entry_security(s, wire, tag)))
         entries.append(_entry(builder, sizer, "response", s.name, s.id, s.type_name, s.server, s.policy.rate,
                               s.type.response, s.profile, s.response_fields,
-                              variant_name("r", s.id, s.response_fields), 3, _security(s)))
+                              variant_name("r", s.id, s.response_fields), 3,
+                              _entry_security(s, wire, tag)))
     for a in getattr(manifest, "actions", ()):
         # Goals (and the 3-byte cancels) from every client side; answers (4 bytes), results
         # and latest-only feedback from the server side.
         entries.append(_entry(builder, sizer, "goal", a.name, a.id, a.type_name, "*", a.policy.rate,
-                              a.type.goal, a.profile, (), "", 3, _security(a)))
+                              a.type.goal, a.profile, (), "", 3,
+                              _entry_security(a, wire, tag)))
         entries.append(_entry(builder, sizer, "result", a.name, a.id, a.type_name, a.server,
-                              a.policy.rate, a.type.result, a.profile, (), "", 4, _security(a)))
+                              a.policy.rate, a.type.result, a.profile, (), "", 4,
+                              _entry_security(a, wire, tag)))
         if a.feedback is not None:
             entries.append(_entry(builder, sizer, "feedback", a.name, a.id, a.type_name, a.server,
-                                  a.feedback.rate, a.type.feedback, a.profile, (), "", 3, _security(a)))
+                                  a.feedback.rate, a.type.feedback, a.profile, (), "", 3,
+                                  _entry_security(a, wire, tag)))
     budgets = []
     schema = _schema_rate(manifest)
     for side in manifest.sides.values():
@@ -366,9 +373,11 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
             typical += e.rate * frame.typical
             worst = None if worst is None or frame.max is None else worst + e.rate * frame.max
         budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema, limit))
-    sealed = (_SECURED.typical, _SECURED.max) if manifest.protected() else (0, 0)
+    seal = _secured(wire, tag)
+    sealed = (seal.typical, seal.max) if manifest.protected() else (0, 0)
     control = control_costs(manifest, bitrate, wire, sealed)
-    return Analysis(manifest.network, bitrate, entries, budgets, wire, control)
+    return Analysis(manifest.network, bitrate, entries, budgets, wire, control,
+                    tag if manifest.protected() and wire == 2 else None)
 
 
 def _schema_rate(manifest: Manifest) -> float:
@@ -383,7 +392,7 @@ def _schema_rate(manifest: Manifest) -> float:
     ids = sorted({e.id for e in (*manifest.topics, *manifest.services,
                                  *getattr(manifest, "actions", ()))})
     wire = wire_format_of(manifest)
-    sealed = _secured(wire)
+    sealed = _secured(wire, manifest.security.tag_bytes)
     signed = sealed.typical if manifest.protected() else 0   # signed with security on
     mrl = min((side.link.max_read_length for side in manifest.sides.values()), default=64)
     size = whole_payload(wire, mrl, sealed.max if signed else 0)
@@ -398,16 +407,21 @@ def _schema_rate(manifest: Manifest) -> float:
 # 10 bytes, 23 on sync frames; wire format 2 (section 12.2), each packet 8 bytes, 21 on sync
 # packets, 23 on one that also asks for a sync. A frame here is one message alone.
 _SECURED = Size(10, 10, 23)
-_SECURED_PACKET = Size(8, 8, 23)
 _UNSECURED = Size(0, 0, 0)
+SYNC_PART = 13             # K and T on a sync packet (wire format 2)
+ASK_PART = 2               # and C when it asks for a sync
 
 
-def _secured(wire: int) -> Size:
-    return _SECURED_PACKET if wire == 2 else _SECURED
+def _secured(wire: int, tag_bytes: int = DEFAULT_TAG_BYTES) -> Size:
+    """What the seal adds: per payload (wire format 1), or per packet with the manifest's
+    `security: {tag_bytes}` (wire format 2: the tag, K and T on sync packets, C when asking)."""
+    if wire != 2:
+        return _SECURED
+    return Size(tag_bytes, tag_bytes, tag_bytes + SYNC_PART + ASK_PART)
 
 
-def _security(entry) -> Size:
-    return _UNSECURED if getattr(entry, "security", "off") == "off" else _SECURED
+def _entry_security(entry, wire: int = 1, tag_bytes: int = DEFAULT_TAG_BYTES) -> Size:
+    return _UNSECURED if getattr(entry, "security", "off") == "off" else _secured(wire, tag_bytes)
 
 
 def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
@@ -442,8 +456,7 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
             body = Size(*(None if b is None else _packed_bytes(b, wire) for b in (body.min, body.typical, body.max)))
         payload = head + body
         alone = PACKET_ALONE if wire == 2 else FRAME_OVERHEAD
-        sealed = security if security == _UNSECURED else _secured(wire)
-        frame = payload + sealed + Size(alone, alone, alone)
+        frame = payload + security + Size(alone, alone, alone)
         costs.append(ProfileCost(label, ct is configured, payload, frame))
     leaves = []
     for leaf in configured.root.leaves():
@@ -474,6 +487,11 @@ def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
         lines.append("wire format 2: payload = the message in its packet's envelope (header H, no kind "
                      "and id items); frame = that message alone in a packet (+ 4 frame, + 3 P and W); "
                      "messages sharing a packet pay 1 length byte each instead")
+    if a.tag_bytes is not None:
+        lines.append(f"secure link: one {a.tag_bytes}-byte tag per packet (security tag_bytes; "
+                     f"{a.tag_bytes + SYNC_PART} on sync packets), counted in frames and budgets of "
+                     f"protected entries; forgery odds 2^-{8 * a.tag_bytes} per packet "
+                     "(docs/wire-format.md 12.2)")
     for e in a.entries:
         rate = "no rate limit" if e.rate is None else f"{e.rate:g}/s"
         sender = "each client side" if e.sender == "*" else e.sender

@@ -107,6 +107,8 @@ def test_reference_manifest_documents_every_key():
     assert used["action"] == set(ACTION_KEYS)
     assert used["feedback"] == set(FEEDBACK_KEYS)
     assert used["defaults"] <= set(DEFAULTS_KEYS)
+    from uwgen.manifest.security import SECURITY_KEYS
+    assert set(root["security"]) == set(SECURITY_KEYS)
     text = (SAMPLES / "manifest-reference.yaml").read_text()
     for key in DEFAULTS_KEYS:   # documented (in comments) even where not all are set
         assert f"{key}:" in text or f"{key}," in text

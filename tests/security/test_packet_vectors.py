@@ -60,6 +60,8 @@ def computed() -> dict[str, bytes]:
         "packet_aad": packetwire.aad(head, e.messages, [True, False], fingerprint),
         "packet_sync": packetwire.seal(aead, e, NUMBER, encrypts, fingerprint),
         "packet": packetwire.seal(aead, ordinary, NUMBER + 1, encrypts, fingerprint),
+        "packet_tag4": packetwire.seal(wire.new_aead(working_key(MASTER, "demo", 1, EPOCH), 4),
+                                       ordinary, NUMBER + 1, encrypts, fingerprint),
         "ask": packetwire.seal(wire.new_aead(working_key(MASTER, "demo", 2, VEHICLE_EPOCH)), ask, 0,
                                encrypts, fingerprint),
     }
@@ -92,3 +94,15 @@ def test_another_fingerprint_mode_or_number_fails_the_tag(doc):
     assert packetwire.open_envelope(aead, sealed, NUMBER, encrypts, lambda i: b"") is None
     assert packetwire.open_envelope(aead, sealed, NUMBER, lambda m: False, fingerprint) is None
     assert packetwire.open_envelope(aead, sealed, NUMBER + 4096, encrypts, fingerprint) is None
+
+
+def test_the_documented_4_byte_tag_opens_only_at_its_length(doc):
+    key = working_key(MASTER, "demo", 1, EPOCH)
+    short, full = doc["packet_tag4"], doc["packet"]
+    assert len(short) == len(full) - 4 and short[:-4] == full[:-8]   # same ciphertext, another tag
+    e = env.decode(short, 4)
+    opened = packetwire.open_envelope(wire.new_aead(key, 4), e, NUMBER + 1, encrypts, fingerprint)
+    assert [env.to_v1(m) for m in opened.messages] == [TWIST]
+    assert packetwire.open_envelope(wire.new_aead(key, 8), env.decode(short, 8), NUMBER + 1,
+                                    encrypts, fingerprint) is None
+    assert packetwire.open_envelope(wire.new_aead(key, 8), e, NUMBER + 1, encrypts, fingerprint) is None

@@ -87,3 +87,26 @@ def test_analyze_counts_the_security_overhead_in_every_protected_frame(tmp_path)
         assert a.configured.payload == b.configured.payload       # the codec's bytes are the same
     surface_on, surface_off = (next(x for x in r.budgets if x.side == "surface") for r in (on, off))
     assert surface_on.typical - surface_off.typical == 2 * 8        # 2 frames a second
+
+
+@pytest.mark.parametrize("tag", [4, 6])
+def test_analyze_counts_the_manifests_tag_length(tmp_path, tag):
+    from uwgen.analyze import analyze, format_analysis
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.manifest.loader import load_manifest
+    lib = InterfaceLibrary([], installed=True)
+    results = {}
+    for n in (8, tag):
+        (tmp_path / str(n)).mkdir()
+        (tmp_path / str(n) / "uwgen.yaml").write_text(MANIFEST.replace(
+            "key_file: net.key}", f"key_file: net.key, tag_bytes: {n}}}"))
+        results[n] = analyze(load_manifest(tmp_path / str(n) / "uwgen.yaml", lib), lib.get)
+    for a, b in zip(results[8].entries, results[tag].entries):
+        fa, fb = a.configured.frame, b.configured.frame
+        assert fa.typical - fb.typical == 8 - tag                  # the tag, every packet
+        assert fa.max is fb.max is None or fb.max - (tag + 15) == fa.max - 23
+    budgets = [next(x for x in r.budgets if x.side == "surface") for r in (results[8], results[tag])]
+    assert budgets[0].typical - budgets[1].typical == pytest.approx(2 * (8 - tag))   # 2 frames/s
+    assert results[tag].tag_bytes == tag
+    text = format_analysis(results[tag], {"surface": 64, "vehicle": 64})
+    assert f"one {tag}-byte tag per packet" in text and f"2^-{8 * tag} per packet" in text
