@@ -182,7 +182,13 @@ def test_an_accepted_goal_without_result_asks_for_it(pair):
     wait_for(future.done, what="the result")
     assert counted(bridges["surface"])["result_queries"] >= 1
     assert counted(bridges["vehicle"])["result_queries"] >= 1
-    assert results == [5] and counted(bridges["surface"])["unknown"] == 0
+    assert results == [5]
+    # Nothing unknown arrives but late copies: an answer to a query, or a result sent again,
+    # that comes after the surface has the result (under load the result's acknowledgement
+    # can be slower than the vehicle's RTO). Each is one reply more than the one needed.
+    vehicle_sent = counted(bridges["vehicle"])
+    assert counted(bridges["surface"])["unknown"] <= \
+        vehicle_sent["answers"] - 1 + vehicle_sent["results_resent"]
 
 
 @pytest.mark.parametrize("lost, delay", [(1, 0.6), (2, 0.0)],

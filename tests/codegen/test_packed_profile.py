@@ -11,7 +11,7 @@ from uwgen.codegen import generate
 from uwgen.runtime.codec import DecodeError
 
 from .rosvalues import fill, normalize
-from .test_properties import SETTINGS, TRICKY, message_strategy, rclpy_class
+from .test_properties import SETTINGS, TRICKY, message_strategy, rclpy_class, settings_for
 
 TYPES = TRICKY + ["geometry_msgs/msg/Twist", "std_msgs/msg/Empty", "sensor_msgs/msg/NavSatFix",
                   "sensor_msgs/msg/BatteryState"]
@@ -28,7 +28,7 @@ def test_random_values_round_trip_in_packed(packed, type_name):
     cls = rclpy_class(type_name)
     codec = packed.codec(type_name, "packed")
 
-    @SETTINGS
+    @settings_for(type_name)
     @given(message_strategy(cls))
     def check(msg):
         payload = codec.encode(msg, [0, 7])

@@ -7,6 +7,7 @@ import array
 import math
 import re
 from pathlib import Path
+from unittest import mock
 
 import cbor2
 import pytest
@@ -172,3 +173,83 @@ def test_a_remembered_choice_is_the_same_as_a_fresh_one_and_is_not_shared(monkey
     out = [0, 4]
     out += first                       # how generated encoders use it: copied, never mutated
     assert rt.number_array(values, "d", False, "x") == values
+
+
+# Values at the edges of the quick test for normal halves (rt._normal_halves: |x| in
+# [2**-13, 2**15), no mantissa bit below half's 10) and beyond them: half's smallest normal
+# and subnormals, its largest values, float32's subnormals, zeros, infinities, NaNs.
+EDGES = [2.0 ** -13, -2.0 ** -13, 2.0 ** -14, 2.0 ** -24, 2.0 ** -20, 3 * 2.0 ** -24, 2.0 ** -25,
+         32752.0, -32752.0, 32768.0, 65504.0, 65520.0, 32767.0, 1.0 + 2.0 ** -10, 1.0 + 2.0 ** -11,
+         1e-45, 0.0, -0.0, math.inf, -math.inf, math.nan, 100.0, -0.5, 3.0e38, -3.0e38]
+
+
+def halves_checked_only(values) -> list:
+    """number_array's choice when every float32 array goes through the checked conversion."""
+    with mock.patch.object(rt, "_normal_halves", lambda raw: False):
+        return rt.number_array(values, "f", True, "x")
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.lists(st.one_of(st.sampled_from(EDGES), st.floats(width=16, allow_nan=False),
+                                 st.floats(width=32)), min_size=rt.NUMPY_FROM + 1, max_size=200))
+def test_the_quick_half_test_gives_the_bytes_of_the_checked_conversion(values):
+    quick = rt.number_array(values, "f", True, "x")
+    assert pack_items(quick) == pack_items(halves_checked_only(values))
+
+
+@pytest.mark.parametrize("edge", EDGES, ids=repr)
+def test_an_edge_value_among_halves_gives_the_checked_bytes_and_comes_back(pkg, edge):
+    values = [float(100 + k % 50) for k in range(rt.NUMPY_FROM + 11)]
+    values[7] = edge
+    quick = rt.number_array(values, "f", True, "x")
+    assert pack_items(quick) == pack_items(halves_checked_only(values))
+    with mock.patch.object(rt, "_np", None):              # and the struct conversion agrees
+        assert pack_items(rt.number_array(values, "f", True, "x")) == pack_items(quick)
+    msg = scan([1.0] * 3, values)
+    back, _ = pkg.codec("sensor_msgs/msg/LaserScan").decode(pkg.codec("sensor_msgs/msg/LaserScan").encode(msg, [0, 4]), (0, 4))
+    assert back.intensities.tobytes() == array.array("f", values).tobytes()
+
+
+def test_the_quick_half_test_takes_only_normal_halves():
+    normal = array.array("f", [2.0 ** -13, 1.5, -100.0, 32752.0, 1.0 + 2.0 ** -10]).tobytes()
+    assert rt._normal_halves(normal)
+    for other in (0.0, -0.0, 2.0 ** -14, 2.0 ** -24, 32768.0, 65504.0, math.inf, math.nan, 1.0 + 2.0 ** -11):
+        assert not rt._normal_halves(array.array("f", [1.5, other]).tobytes()), other
+
+
+F32 = st.one_of(st.sampled_from(EDGES), st.floats(width=16, allow_nan=False), st.floats(width=32))
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.one_of(st.lists(F32, max_size=40), st.lists(F32, min_size=129, max_size=300),
+                        st.lists(st.floats(width=16, allow_nan=False), min_size=129, max_size=300)),
+       counted=st.booleans(), holder=st.sampled_from(["array", "list"]))
+def test_float32_array_chooses_as_number_array_does(values, counted, holder):
+    value = array.array("f", values) if holder == "array" else values
+    assert pack_items(rt.float32_array(value, counted, "x")) == pack_items(rt.number_array(value, "f", counted, "x"))
+
+
+@pytest.mark.parametrize("fill", [0.0, 1.0 + 2.0 ** -11, math.nan, 1e30, 2.0 ** -24])
+def test_float32_array_of_a_long_sequence_matches_number_array_past_its_quick_tests(fill):
+    """Arrays the quick tests do not decide (zeros, NaN, values needing single or double
+    items, subnormal halves) take number_array's own steps: the same bytes."""
+    for k in (rt.CHOICE_CACHE_BYTES // 4 + 1, 300):
+        value = array.array("f", [fill] * k)
+        value[5] = 3.0
+        assert pack_items(rt.float32_array(value, True, "x")) == pack_items(rt.number_array(value, "f", True, "x"))
+
+
+@pytest.mark.parametrize("count", [1, 5, 200])
+def test_nans_with_payload_bits_in_the_lowest_byte_are_counted_as_short_items(count):
+    """A NaN whose lowest byte is not 0 (a payload) is still a short item (F9 7E 00): the
+    quick look at the top bytes must find it. Many of them make the items the smaller."""
+    for fill in (0.1, 100.0):
+        value = array.array("f", [fill] * 300)
+        raw = bytearray(value.tobytes())
+        for k in range(count):
+            raw[4 * k:4 * k + 4] = bytes((0x5A, 0x00, 0xC0, 0xFF if k % 2 else 0x7F))
+        value = array.array("f", bytes(raw))
+        assert math.isnan(value[0]) and value.tobytes()[0] == 0x5A
+        quick = rt.float32_array(value, True, "x")
+        assert pack_items(quick) == pack_items(rt.number_array(value, "f", True, "x"))
+        assert len(pack_items(quick)) <= len(pack_items([300, *value.tolist()]))

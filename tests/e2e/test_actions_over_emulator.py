@@ -109,7 +109,7 @@ def send(client, order: int, feedback: list | None = None):
     future = client.send_goal_async(Fibonacci.Goal(order=order),
                                     feedback_callback=(lambda m: feedback.append(list(m.feedback.sequence)))
                                     if feedback is not None else None)
-    wait_for(future.done, timeout=10.0, what="the answer to the goal")
+    wait_for(future.done, timeout=20.0, what="the answer to the goal")
     return future.result()
 
 

@@ -157,10 +157,13 @@ def test_latency_stays_bounded_under_overload(e2e_package):
         # No growth: the last messages wait no longer than the first ones.
         third = max(1, len(latencies) // 3)
         assert statistics.mean(latencies[-third:]) < statistics.mean(latencies[:third]) + 0.1
-        # Every message not sent is accounted for by a policy counter.
+        # Every message not sent is accounted for by a policy counter: a message the poller
+        # took together with a newer one (uwgen/bridge/polling.py) is superseded before the
+        # link sees it, the link's latest queue supersedes the rest.
         chan = bridge.link.stats()["channels"][4]
-        assert chan["offered"] == n
-        assert chan["sent"] + sum(chan[r] for r in DROP_REASONS) + chan["queued"] == n
-        assert chan["superseded"] > 0
+        polled_over = bridge.topic_counters[4].superseded
+        assert chan["offered"] + polled_over == n
+        assert chan["sent"] + sum(chan[r] for r in DROP_REASONS) + chan["queued"] + polled_over == n
+        assert chan["superseded"] + polled_over > 0
         # The rate policy (5/s) bounds what went on the link.
         assert chan["sent"] <= 5 * (time.monotonic() - start) + 1

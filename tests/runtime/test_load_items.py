@@ -76,3 +76,9 @@ def test_any_payload_is_read_as_the_reference_reads_it(items, cuts, tail):
         payload.insert(cut % (len(payload) + 1), 0xFF)
     payload = bytes(payload) + tail
     assert outcome(payload) == reference(payload)
+
+
+@pytest.mark.parametrize("holder", [bytearray, memoryview])
+def test_a_stray_break_code_is_refused_in_any_bytes_like_payload(holder):
+    assert outcome(holder(b"\x00\x04\x05\xff\x06")) == "refused"
+    assert outcome(holder(b"\x00\x04\x43\x01\xff\x02")) == repr([0, 4, b"\x01\xff\x02"])

@@ -184,9 +184,15 @@ class Lowering:
                     "out.append(x)"]
         if isinstance(enc, NumberArray) and enc.tag is not None:
             counted = enc.array is not ArrayKind.FIXED
-            return [f"x = _numeric_sequence({expr}, {p})",
-                    *self._length_check(enc.array, enc.size, p, count=False),
-                    f"out += _number_array(x, {enc.code!r}, {counted}, {p})  # items, or a typed array (tag {enc.tag})"]
+
+            def choice(value: str) -> str:
+                call = (f"_float32_array({value}, {counted}, {p})" if enc.code == "f"   # rclpy's long float32[]: quicker
+                        else f"_number_array({value}, {enc.code!r}, {counted}, {p})")
+                return f"out += {call}  # items, or a typed array (tag {enc.tag})"
+            checks = self._length_check(enc.array, enc.size, p, count=False)
+            if not checks:      # an unbounded sequence: _number_array takes the field's value as it is
+                return [choice(expr)]
+            return [f"x = _numeric_sequence({expr}, {p})", *checks, choice("x")]
         lines = [f"x = _as_list({expr}, {p})"]
         if isinstance(enc, NumberArray):
             lines += self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED)

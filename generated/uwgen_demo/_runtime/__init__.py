@@ -12,7 +12,7 @@ import sys as _sys
 
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
-    'codec': ('uwgen.runtime.codec', '2945bd1116aea6be'),
+    'codec': ('uwgen.runtime.codec', '2b379ef85d3cfa87'),
     'model': ('uwgen.manifest.model', '0aad324aba99e273'),
     'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
     'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
