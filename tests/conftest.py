@@ -68,9 +68,24 @@ def _is_worker(config) -> bool:
     return hasattr(config, "workerinput")
 
 
+# The demo's turtlesim type support is a C build (25-45 s) that several tests on either
+# worker need; each waits for it under uwgen.typesupport's file lock. Started in the
+# background as the run begins, it is built while the workers run other tests, instead of
+# keeping one worker idle behind the lock when the first such test comes.
+PREBUILD = "from pathlib import Path; from uwgen.typesupport import ensure_interfaces; ensure_interfaces(Path({!r}))"
+
+
+def _prebuild():
+    from uwgen import tether
+    return tether.popen([sys.executable, "-c", PREBUILD.format(str(ROOT / "msg_samples" / "turtlesim"))],
+                        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
 def pytest_configure(config):
     if not _is_worker(config):
         config._uwgen_checkout_before = _checkout_files()
+        if getattr(config.option, "numprocesses", None):      # only worth it with workers
+            config._uwgen_prebuild = _prebuild()
 
 
 def pytest_sessionfinish(session, exitstatus):
@@ -93,5 +108,9 @@ def pytest_sessionfinish(session, exitstatus):
 
 
 def pytest_unconfigure(config):
+    build = getattr(config, "_uwgen_prebuild", None)
+    if build is not None and build.poll() is None:            # a run shorter than the build
+        build.terminate()
+        build.wait(timeout=30)
     if _OWN_RUN_DIR and not _is_worker(config):
         shutil.rmtree(RUN_DIR, ignore_errors=True)
