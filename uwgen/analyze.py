@@ -27,6 +27,7 @@ from uwgen.analyze_control import SideControl, control_costs, format_control, wh
 from uwgen.codegen.fingerprint import wire_format_of
 from uwgen.runtime.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
 from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.security.packet_seal import SYNC_BYTES, max_overhead
 
 TYPICAL_TEXT = 8            # bytes of a typical string
 TYPICAL_COUNT = 4           # elements of a typical sequence
@@ -408,8 +409,6 @@ def _schema_rate(manifest: Manifest) -> float:
 # packets, 23 on one that also asks for a sync. A frame here is one message alone.
 _SECURED = Size(10, 10, 23)
 _UNSECURED = Size(0, 0, 0)
-SYNC_PART = 13             # K and T on a sync packet (wire format 2)
-ASK_PART = 2               # and C when it asks for a sync
 
 
 def _secured(wire: int, tag_bytes: int = DEFAULT_TAG_BYTES) -> Size:
@@ -417,7 +416,7 @@ def _secured(wire: int, tag_bytes: int = DEFAULT_TAG_BYTES) -> Size:
     `security: {tag_bytes}` (wire format 2: the tag, K and T on sync packets, C when asking)."""
     if wire != 2:
         return _SECURED
-    return Size(tag_bytes, tag_bytes, tag_bytes + SYNC_PART + ASK_PART)
+    return Size(tag_bytes, tag_bytes, max_overhead(tag_bytes))
 
 
 def _entry_security(entry, wire: int = 1, tag_bytes: int = DEFAULT_TAG_BYTES) -> Size:
@@ -489,7 +488,7 @@ def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
                      "messages sharing a packet pay 1 length byte each instead")
     if a.tag_bytes is not None:
         lines.append(f"secure link: one {a.tag_bytes}-byte tag per packet (security tag_bytes; "
-                     f"{a.tag_bytes + SYNC_PART} on sync packets), counted in frames and budgets of "
+                     f"{a.tag_bytes + SYNC_BYTES} on sync packets), counted in frames and budgets of "
                      f"protected entries; forgery odds 2^-{8 * a.tag_bytes} per packet "
                      "(docs/wire-format.md 12.2)")
     for e in a.entries:

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
+from uwgen.manifest.model import DEFAULT_TAG_BYTES
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 
 log = logging.getLogger("uwgen.security")
@@ -95,7 +96,7 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
                                    or getattr(entries.get(i), "fingerprint", b"") or b"")
                           for i in sec.modes},
             max_ages={i: float(t) for i, t in ttls.items() if i in sec.modes},
-            tag_bytes=getattr(sec, "tag_bytes", 8))
+            tag_bytes=getattr(sec, "tag_bytes", DEFAULT_TAG_BYTES))
         lock = (Path(options.security_state) if options.security_state is not None
                 else lock_path(path, plan.network, plan.side))
         if plan.wire_format == 2:

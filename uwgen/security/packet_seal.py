@@ -51,12 +51,14 @@ ASK_GAP = 5.0              # seconds between two requests to (or answers for) on
 NUMBER_BITS = 12           # W carries the packet number's low 12 bits
 ASK_BYTES = 2              # a C part of one item: its length byte and the item
 SYNC_BYTES = env.SYNC_LEN + env.TIME_LEN                       # K and T: 13
-MAX_OVERHEAD = env.TAG_LEN + SYNC_BYTES + ASK_BYTES            # 23 with the default 8-byte tag
 
 
 def max_overhead(tag_bytes: int = env.TAG_LEN) -> int:
     """The most bytes the seal adds to a packet: the tag, K and T, and a C of one request."""
     return tag_bytes + SYNC_BYTES + ASK_BYTES
+
+
+MAX_OVERHEAD = max_overhead()      # 23, with the default 8-byte tag
 
 
 @dataclass(frozen=True)
