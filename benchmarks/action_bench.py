@@ -24,8 +24,8 @@ from test_msgs.action import Fibonacci
 from unique_identifier_msgs.msg import UUID
 
 from uwgen.codegen import generate
-from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
-from uwgen.runtime.table import ACCEPTED, CANCELED, CANCELING, SUCCEEDED
+from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.wire.table import ACCEPTED, CANCELED, CANCELING, SUCCEEDED
 
 MANIFEST = """\
 network: bench

@@ -28,9 +28,9 @@ import random
 
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.framing import FrameDecoder, encode_frame
-from uwgen.runtime.pacing import Outbox, Pacer
-from uwgen.runtime.scheduler import LinkScheduler
+from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
+from uwgen.runtime.link.pacing import Outbox, Pacer
+from uwgen.runtime.link.scheduler import LinkScheduler
 
 MIXED = {  # channel: (payload bytes, priority, messages per period at most)
     "cmd 22 B prio 10 1/2": (22, 10, 0.5),

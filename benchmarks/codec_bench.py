@@ -30,7 +30,7 @@ from sensor_msgs.msg import BatteryState, Imu, LaserScan, NavSatFix, NavSatStatu
 from std_msgs.msg import Header, String
 
 from uwgen.codegen import generate
-from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD  # 0x99 0x99 LEN ... 0x55
+from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD  # 0x99 0x99 LEN ... 0x55
 
 
 def header(frame: str) -> Header:

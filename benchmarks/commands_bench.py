@@ -49,11 +49,11 @@ from uwgen.bridge.plan import BridgePlan, import_package
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime import envelope
+from uwgen.runtime.wire import envelope
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.framing import OVERHEAD, FrameDecoder
-from uwgen.runtime.packets import message_measure
-from uwgen.runtime.reliability import Reliability
+from uwgen.runtime.wire.framing import OVERHEAD, FrameDecoder
+from uwgen.runtime.link.packets import message_measure
+from uwgen.runtime.delivery.reliability import Reliability
 
 MANIFEST = """\
 network: cmdbench

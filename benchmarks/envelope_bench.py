@@ -44,9 +44,9 @@ from pathlib import Path
 from uwgen.bridge.schema import encode_announcements
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime import envelope
-from uwgen.runtime.framing import FrameDecoder
-from uwgen.runtime.link import Link
+from uwgen.runtime.wire import envelope
+from uwgen.runtime.wire.framing import FrameDecoder
+from uwgen.runtime.link.link import Link
 from uwgen.security.guard import GuardConfig, LinkGuard
 
 try:            # the per-packet seal (issue 17): what a bridge uses on wire format 2 links

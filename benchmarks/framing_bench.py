@@ -12,7 +12,7 @@ import argparse
 import random
 import time
 
-from uwgen.runtime.framing import FrameDecoder, encode_frame
+from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
 
 
 def clean_stream(rng: random.Random, size: int) -> bytes:

@@ -17,7 +17,7 @@ loses packets at the given PER; the peer's parsers read what arrives:
 "before": cut-and-fill writes and the old gids (hash bytes, up to 2 CBOR bytes each); "after":
 packet-aligned writes and base-24 gids (beacons 14 bytes shorter); "echo": "after", and the last
 piece of a beacon cut over two packets repeated at the start of the next write
-(uwgen.runtime.pacing), so a lost tail no longer takes the next packet's frames with it.
+(uwgen.runtime.link.pacing), so a lost tail no longer takes the next packet's frames with it.
 Figures: delivered / sent, per kind, summed over the seeds.
 """
 from __future__ import annotations

@@ -34,10 +34,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from codec_bench import interleaved_us, per_call_us, samples  # noqa: E402  (the codec benchmark's messages and timer)
 
 from uwgen.codegen import generate  # noqa: E402
-from uwgen.runtime import envelope as env  # noqa: E402
-from uwgen.runtime.packets import PACKET_COUNTERS, Packer, Unpacker  # noqa: E402
+from uwgen.runtime.wire import envelope as env  # noqa: E402
+from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer, Unpacker  # noqa: E402
 from uwgen.runtime.stats import Counters  # noqa: E402
-from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD  # noqa: E402
+from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD  # noqa: E402
 from uwgen.security import wire  # noqa: E402
 from uwgen.security.files import write_private  # noqa: E402
 from uwgen.security.guard import SYNC_EVERY, GuardConfig, LinkGuard  # noqa: E402

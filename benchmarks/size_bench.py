@@ -41,7 +41,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import BatteryState, NavSatFix, NavSatStatus
 
 from uwgen.codegen import generate
-from uwgen.runtime.envelope import from_v1, strip_packed_head
+from uwgen.runtime.wire.envelope import from_v1, strip_packed_head
 
 from codec_bench import per_call_us   # the same timing rule as the codec table
 
@@ -206,7 +206,7 @@ def main() -> None:
         manifest = Path(tmp) / "uwgen.yaml"
         manifest.write_text(manifest_text())
         pkg = generate(Path(tmp), "uwgen_size_bench", folders=[HERE / "interfaces"], manifest=manifest)
-        from uwgen.runtime import bits as _bits
+        from uwgen.runtime.wire import bits as _bits
         _bits.WALL.now_ns = lambda: (STAMP.sec + 60) * 10 ** 9   # a receiver clock near the stamp
 
         size_rows, time_rows, ratios = [], [], []

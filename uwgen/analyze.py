@@ -22,11 +22,11 @@ from uwgen.codegen.ir import (
 )
 from uwgen.idl.model import ArrayKind
 from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest
-from uwgen.runtime.bits import text_width
+from uwgen.runtime.wire.bits import text_width
 from uwgen.analyze_control import SideControl, control_costs, format_control, whole_payload
 from uwgen.codegen.fingerprint import wire_format_of
-from uwgen.runtime.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
-from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
+from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.security.packet_seal import SYNC_BYTES, max_overhead
 
 TYPICAL_TEXT = 8            # bytes of a typical string

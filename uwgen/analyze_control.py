@@ -7,7 +7,7 @@ reconnect of its link and when the far side asks:
   announces (wire-format.md section 6.1). Beacons carry rmw_desert's layout byte for byte, so
   uwgen only chooses the node name (the side's) and gid bytes below 24; a beacon longer than
   a packet goes in writes of its own and its last piece is repeated at the start of the next
-  write (the echo, uwgen.runtime.pacing), which costs its bytes once more;
+  write (the echo, uwgen.runtime.link.pacing), which costs its bytes once more;
 - with a `schema_id`, its schema announcements (section 10), each sized by the link to leave
   whole in one packet (`uwgen.bridge.schema.whole_payload`): in wire format 2 an envelope of
   its own, in 1 a frame.
@@ -21,9 +21,9 @@ import math
 from dataclasses import dataclass, field
 
 from uwgen.manifest.model import RMW_DESERT, Manifest
-from uwgen.runtime.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
-from uwgen.runtime.framing import MAX_PAYLOAD, OVERHEAD as FRAME_OVERHEAD
-from uwgen.runtime.packets import envelope_room
+from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
+from uwgen.runtime.wire.framing import MAX_PAYLOAD, OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.link.packets import envelope_room
 
 DESERT_PACKET_OVERHEAD = 4   # bytes DESERT adds per packet (wire format section 1)
 FINGERPRINT_BYTES = 4        # what uwgen announces per id (uwgen.codegen.fingerprint)

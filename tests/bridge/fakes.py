@@ -20,7 +20,7 @@ import ros_domains  # tests/ros_domains.py
 from rclpy.serialization import deserialize_message, serialize_message
 
 from uwgen.manifest.model import LinkConfig, LinkPolicy, Qos, Side
-from uwgen.runtime.codec import DecodeError, EncodeError, load_items, pack_items
+from uwgen.runtime.wire.codec import DecodeError, EncodeError, load_items, pack_items
 
 
 def _load(payload: bytes, kind: int, ident: int, with_seq: bool) -> list:

@@ -3,7 +3,7 @@ accept_timeouts, kept for a repeated goal (no rclpy: times are passed in)."""
 from __future__ import annotations
 
 from uwgen.bridge.action_results import RECENT_RESULTS, ResultBook
-from uwgen.runtime.reliable import command_rtt
+from uwgen.runtime.delivery.reliable import command_rtt
 
 ACCEPT = 12.0          # accept_timeout: first RTO 3 s (a quarter), given up after 24 s
 

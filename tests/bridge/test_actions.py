@@ -11,7 +11,7 @@ from rclpy.task import Future
 from test_msgs.action import Fibonacci
 
 from uwgen.codegen import generate
-from uwgen.runtime.codec import pack_items
+from uwgen.runtime.wire.codec import pack_items
 
 from .fakes import LinkPair, fake_package, wait_for
 from .harness import ros_sides, start_bridge

@@ -6,7 +6,7 @@ import pytest
 
 from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.dispatch import Dispatcher
-from uwgen.runtime.codec import pack_items
+from uwgen.runtime.wire.codec import pack_items
 
 
 @pytest.fixture

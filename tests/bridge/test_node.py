@@ -10,7 +10,7 @@ from std_msgs.msg import String
 from test_msgs.srv import BasicTypes
 
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime.codec import load_items, pack_items
+from uwgen.runtime.wire.codec import load_items, pack_items
 
 from .fakes import (FakeServiceCodec, FakeSubscription, FakeTopicCodec, LinkPair, fake_package,
                     wait_for)

@@ -18,7 +18,7 @@ from uwgen.interop.beacons import (
     Beacon, Entity, decode_beacon, derive_gid, encode_beacon, encode_discovery_request,
     is_discovery_request)
 from uwgen.interop.discovery import DiscoveryAgent, beacons_for, discovery_policies
-from uwgen.runtime.codec import load_items
+from uwgen.runtime.wire.codec import load_items
 
 from .fakes import FakeServiceCodec, FakeTopicCodec, LinkPair, fake_package, wait_for
 from .harness import ros_sides, start_bridge

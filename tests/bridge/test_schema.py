@@ -7,7 +7,7 @@ from uwgen.bridge.schema import (
     FLAG_REQUEST, AnnouncementError, SchemaGuard, decode_announcement, encode_announcements,
 )
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.codec import load_items, pack_items
+from uwgen.runtime.wire.codec import load_items, pack_items
 
 SID = 249
 FP_CMD, FP_POSE, FP_SRV = bytes.fromhex("11223344"), bytes.fromhex("55667788"), bytes.fromhex("99aabbcc")
@@ -359,7 +359,7 @@ def test_announcements_sized_by_the_link_each_leave_in_one_packet_unfragmented(w
     from uwgen.emulator import NodeSpec, Scenario
     from uwgen.emulator.linksim import LinkSim
     from uwgen.manifest.model import LinkConfig, LinkPolicy
-    from uwgen.runtime.framing import FrameDecoder
+    from uwgen.runtime.wire.framing import FrameDecoder
     from uwgen.security.guard import GuardConfig, LinkGuard
 
     scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),

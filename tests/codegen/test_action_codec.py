@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 from test_msgs.action import Fibonacci
 
 from uwgen.codegen import generate
-from uwgen.runtime.codec import DecodeError, EncodeError
-from uwgen.runtime.table import ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, SUCCEEDED
+from uwgen.runtime.wire.codec import DecodeError, EncodeError
+from uwgen.runtime.wire.table import ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, SUCCEEDED
 
 SPEC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
 MANIFEST = """\
@@ -136,7 +136,7 @@ def test_action_decoders_are_total(action, payload):
 
 
 def _pack(items) -> bytes:
-    from uwgen.runtime.codec import pack_items
+    from uwgen.runtime.wire.codec import pack_items
     return pack_items(list(items)) if items else b""
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import Twist
 
-from uwgen.runtime.envelope import from_v1, strip_packed_head
+from uwgen.runtime.wire.envelope import from_v1, strip_packed_head
 from uwgen.analyze import air_time, analyze
 from uwgen.codegen import generate
 from uwgen.idl.loader import InterfaceLibrary

@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 from sensor_msgs.msg import BatteryState, NavSatFix
 
 from uwgen.codegen import generate
-from uwgen.runtime import bits
-from uwgen.runtime.codec import DecodeError, EncodeError
+from uwgen.runtime.wire import bits
+from uwgen.runtime.wire.codec import DecodeError, EncodeError
 
 from .test_properties import SETTINGS
 
@@ -380,7 +380,7 @@ def test_the_first_clamp_of_a_field_is_logged_once(caplog):
     assert bits.CLAMPED["probe.x"] == 3
     assert [r.getMessage() for r in caplog.records].count(
         "probe.x: 7.0 is outside -3.2..3.2 and was clamped (out_of_range: clamp); later ones are only counted "
-        "(uwgen.runtime.bits.CLAMPED)") == 1 and len(caplog.records) == 1
+        "(uwgen.runtime.wire.bits.CLAMPED)") == 1 and len(caplog.records) == 1
 
 
 def test_the_reference_manifest_builds_and_its_encodings_work(tmp_path):

@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from uwgen.codegen import generate
-from uwgen.runtime.codec import DecodeError
+from uwgen.runtime.wire.codec import DecodeError
 
 from .rosvalues import fill, normalize
 from .test_properties import SETTINGS, TRICKY, message_strategy, rclpy_class, settings_for

@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rosidl_parser import definition as d
 
-from uwgen.runtime.codec import DecodeError
+from uwgen.runtime.wire.codec import DecodeError
 
 from .rosvalues import INT_RANGES, normalize
 

@@ -1,7 +1,7 @@
 """Decoders build rclpy messages two ways, and both give exactly rclpy's messages.
 
 The fast way fills the slots of a bare instance; it is taken only for classes whose layout
-uwgen.runtime.rosclasses checked. The constructor way is the fallback. Every installed
+uwgen.runtime.wire.rosclasses checked. The constructor way is the fallback. Every installed
 type is decoded both ways and checked against rclpy's own serializer: the decoded message
 serializes to CDR that rclpy reads back as the original, and it holds in every slot what
 rclpy's own deserializer puts there (container types, dtypes, typecodes). CDR bytes are not
@@ -16,8 +16,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from uwgen.codegen.ir import ros_layout
 from uwgen.idl.loader import InterfaceLibrary
-from uwgen.runtime.codec import load_items
-from uwgen.runtime.rosclasses import RosClasses, layout_problem
+from uwgen.runtime.wire.codec import load_items
+from uwgen.runtime.wire.rosclasses import RosClasses, layout_problem
 
 from .rosvalues import VARIANTS, fill, normalize
 from .test_roundtrip_installed import MESSAGES, SERVICES, rclpy_class

@@ -2,7 +2,7 @@
 
 The fast way (`enc_*_slots`) reads each field's slot (`m._x`) instead of its property;
 TypeCodec.encode takes it only for messages of an rclpy class whose layout (and its
-nested classes') uwgen.runtime.rosclasses checked, and goes back to the encoder that reads
+nested classes') uwgen.runtime.wire.rosclasses checked, and goes back to the encoder that reads
 fields by name when a nested value is no rclpy message. Every installed type is encoded
 both ways: the payloads are identical, and what they decode to serializes like the
 original under rclpy's own serializer.
@@ -14,7 +14,7 @@ import dataclasses
 import pytest
 from geometry_msgs.msg import Point, Pose, PoseArray, Twist, Vector3
 
-from uwgen.runtime.codec import EncodeError
+from uwgen.runtime.wire.codec import EncodeError
 
 from .rosvalues import VARIANTS, fill
 from .test_rclpy_construction import assert_like_rclpy, decode_with

@@ -17,8 +17,8 @@ from sensor_msgs.msg import BatteryState, ChannelFloat32, LaserScan
 from std_msgs.msg import Int16MultiArray
 
 from uwgen.codegen import generate
-from uwgen.runtime import codec as rt
-from uwgen.runtime.codec import DecodeError, pack_items
+from uwgen.runtime.wire import codec as rt
+from uwgen.runtime.wire.codec import DecodeError, pack_items
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
 TYPES = ["sensor_msgs/msg/ChannelFloat32", "std_msgs/msg/Int16MultiArray", "sensor_msgs/msg/LaserScan",

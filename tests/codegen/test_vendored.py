@@ -143,12 +143,12 @@ def test_copy_decodes_into_rclpy_classes_where_rclpy_is_present(vendored):
 
 def test_generated_package_uses_uwgens_runtime_when_it_is_the_same():
     from uwgen.bridge.plan import import_package
-    import uwgen.runtime.codec
-    import uwgen.runtime.table
+    import uwgen.runtime.wire.codec
+    import uwgen.runtime.wire.table
     demo = import_package("uwgen_demo", ROOT / "generated")
     # One set of classes per process: a bridge catches what the generated codecs raise.
-    assert demo._runtime.codec is uwgen.runtime.codec
-    assert type(demo.TOPICS[4]) is uwgen.runtime.table.TopicCodec
+    assert demo._runtime.codec is uwgen.runtime.wire.codec
+    assert type(demo.TOPICS[4]) is uwgen.runtime.wire.table.TopicCodec
 
 
 def test_every_carried_module_is_copied_and_imports_only_carried_ones(tmp_path):
@@ -167,7 +167,7 @@ def test_bridge_refuses_a_package_generated_by_another_uwgen(tmp_path):
     shutil.copytree(ROOT / "generated" / "uwgen_demo", tmp_path / "uwgen_demo",
                     ignore=shutil.ignore_patterns("__pycache__"))
     init = tmp_path / "uwgen_demo" / "_runtime" / "__init__.py"
-    init.write_text(init.read_text().replace("'uwgen.runtime.codec', '", "'uwgen.runtime.codec', 'x"))
+    init.write_text(init.read_text().replace("'uwgen.runtime.wire.codec', '", "'uwgen.runtime.wire.codec', 'x"))
     res = subprocess.run([sys.executable, "-m", "uwgen_demo.bridge_vehicle"], cwd=tmp_path,
                          capture_output=True, text=True, timeout=60,
                          env={**__import__("os").environ, "PYTHONPATH": f"{tmp_path}:{ROOT}"})

@@ -12,7 +12,7 @@ from sensor_msgs.msg import NavSatStatus
 from std_msgs.msg import Header, String
 
 from uwgen.codegen import generate
-from uwgen.runtime import bits
+from uwgen.runtime.wire import bits
 
 ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / "docs" / "wire-format.md"

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from uwgen.codegen import generate
-from uwgen.runtime.codec import DecodeError, EncodeError
+from uwgen.runtime.wire.codec import DecodeError, EncodeError
 
 DEFINITIONS = {
     "vec/msg/B.msg": "bool v",

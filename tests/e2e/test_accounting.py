@@ -20,9 +20,9 @@ from uwgen.bridge import ledger
 from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
-from uwgen.runtime import envelope
-from uwgen.runtime.framing import FrameDecoder
-from uwgen.runtime.link import Link
+from uwgen.runtime.wire import envelope
+from uwgen.runtime.wire.framing import FrameDecoder
+from uwgen.runtime.link.link import Link
 
 from bridge.fakes import wait_for
 from bridge.harness import ros_sides

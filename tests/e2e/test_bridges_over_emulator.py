@@ -8,7 +8,7 @@ from geometry_msgs.msg import Twist
 from std_msgs.msg import String
 from std_srvs.srv import SetBool
 
-from uwgen.runtime.scheduler import DROP_REASONS
+from uwgen.runtime.link.scheduler import DROP_REASONS
 
 from bridge.fakes import wait_for
 

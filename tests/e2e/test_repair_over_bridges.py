@@ -10,7 +10,7 @@ from std_msgs.msg import String
 from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
-from uwgen.runtime.link import Link
+from uwgen.runtime.link.link import Link
 
 from bridge.fakes import wait_for
 from bridge.harness import ros_sides

@@ -20,11 +20,11 @@ from geometry_msgs.msg import Twist
 from std_srvs.srv import SetBool
 
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
-from uwgen.runtime.codec import load_items, pack_items
-from uwgen.runtime import envelope as env
-from uwgen.runtime.envelope import Envelope, from_v1
-from uwgen.runtime.framing import encode_frame
-from uwgen.runtime.heads import Heads
+from uwgen.runtime.wire.codec import load_items, pack_items
+from uwgen.runtime.wire import envelope as env
+from uwgen.runtime.wire.envelope import Envelope, from_v1
+from uwgen.runtime.wire.framing import encode_frame
+from uwgen.runtime.wire.heads import Heads
 from uwgen.security import packetwire, wire
 from uwgen.security.guard import GuardConfig
 from uwgen.security.packet_seal import PacketSeal

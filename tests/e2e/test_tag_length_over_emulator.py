@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import Twist, Vector3
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 
 from bridge.fakes import wait_for
 

@@ -71,8 +71,8 @@ def test_two_links_survive_repeated_crashes_with_nothing_delivered_twice():
     # Real sockets and the links' own connection threads, DESERT crashing every ~1.2 s.
     from uwgen.emulator import NodeSpec, Scenario
     from uwgen.manifest.model import LinkConfig, LinkPolicy
-    from uwgen.runtime.link import Link
-    from uwgen.runtime.scheduler import DROP_REASONS
+    from uwgen.runtime.link.link import Link
+    from uwgen.runtime.link.scheduler import DROP_REASONS
 
     period = 0.05
     scen = Scenario(nodes=[NodeSpec("a", dest="b"), NodeSpec("b", position=(30, 0, 0))],

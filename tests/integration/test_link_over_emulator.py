@@ -16,9 +16,9 @@ import pytest
 
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 from uwgen.manifest.model import LinkConfig, LinkPolicy
-from uwgen.runtime.connection import Backoff
-from uwgen.runtime.framing import encode_frame
-from uwgen.runtime.link import Link
+from uwgen.runtime.link.connection import Backoff
+from uwgen.runtime.wire.framing import encode_frame
+from uwgen.runtime.link.link import Link
 
 from emulator.helpers import wait_for
 

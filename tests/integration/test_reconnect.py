@@ -13,8 +13,8 @@ import pytest
 
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 from uwgen.manifest.model import LinkConfig, LinkPolicy
-from uwgen.runtime.link import Link
-from uwgen.runtime.probation import reconnect_cap
+from uwgen.runtime.link.link import Link
+from uwgen.runtime.link.probation import reconnect_cap
 
 from emulator.helpers import wait_for
 

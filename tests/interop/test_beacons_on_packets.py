@@ -5,7 +5,7 @@ from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.linksim import LinkSim
 from uwgen.interop.discovery import DiscoveryAgent, bridge_beacons, discovery_policies
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime.framing import encode_frame
+from uwgen.runtime.wire.framing import encode_frame
 
 
 def test_a_beacon_round_beside_a_command_stream_shares_no_packet(rmw_manifest):

@@ -20,7 +20,7 @@ import pytest
 
 from uwgen.codegen import generate
 from uwgen.idl.loader import InterfaceLibrary
-from uwgen.runtime.codec import EncodeError
+from uwgen.runtime.wire.codec import EncodeError
 
 from conftest import load_peer
 

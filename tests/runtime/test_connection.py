@@ -10,8 +10,8 @@ from collections import deque
 import pytest
 
 from uwgen.manifest.model import LinkConfig
-from uwgen.runtime.connection import LOUD_RETRIES, Backoff, DesertConnection
-from uwgen.runtime.framing import FrameDecoder, encode_frame
+from uwgen.runtime.link.connection import LOUD_RETRIES, Backoff, DesertConnection
+from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
 
 from .tcp_server import TinyServer, free_port, wait_until
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from uwgen.runtime.envelope import (FRAGMENT, Envelope, EnvelopeError, Message, Sync, decode, from_v1,
+from uwgen.runtime.wire.envelope import (FRAGMENT, Envelope, EnvelopeError, Message, Sync, decode, from_v1,
                                     to_v1)
 
 
@@ -153,20 +153,20 @@ def test_a_damaged_envelope_is_refused_or_reencodes_exactly(env, data):
     ("00 05 58 18" + " 00" * 24, "00 05" + " 00" * 24),
 ])
 def test_packed_payloads_drop_their_byte_string_head_and_get_it_back(v1, v2):
-    from uwgen.runtime.envelope import add_packed_head, strip_packed_head
+    from uwgen.runtime.wire.envelope import add_packed_head, strip_packed_head
     assert strip_packed_head(bytes.fromhex(v1)) == bytes.fromhex(v2)
     assert add_packed_head(bytes.fromhex(v2)) == bytes.fromhex(v1)
 
 
 @pytest.mark.parametrize("v1", ["00 05", "00 05 41", "00 05 43 01", "00 05 F5", "02 14"])
 def test_a_packed_payload_without_its_byte_string_is_refused(v1):
-    from uwgen.runtime.envelope import strip_packed_head
+    from uwgen.runtime.wire.envelope import strip_packed_head
     with pytest.raises(EnvelopeError):
         strip_packed_head(bytes.fromhex(v1))
 
 
 def test_fragment_messages_are_recognised_in_both_forms():
-    from uwgen.runtime.envelope import is_fragment_message
+    from uwgen.runtime.wire.envelope import is_fragment_message
     assert is_fragment_message(Message(FRAGMENT, 0, b"\x01\x00\x02x"), None)
     assert is_fragment_message(Message(0, 250, b"\x01"), 250)
     assert not is_fragment_message(Message(0, 250, b"\x01"), None)

@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.linksim import LinkSim
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime import fec
+from uwgen.runtime.wire import fec
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.fragment import (
+from uwgen.runtime.wire.fragment import (
     Fragment, FragmentError, Fragmenter, Reassembler, encode_fragment, fragment_payload_for,
     parse_fragment)
 

@@ -7,11 +7,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime import envelope
+from uwgen.runtime.wire import envelope
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.filling import best_fill, first_keeping_best
-from uwgen.runtime.packets import PACKET_COUNTERS, Packer, message_measure
-from uwgen.runtime.scheduler import LinkScheduler
+from uwgen.runtime.link.filling import best_fill, first_keeping_best
+from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer, message_measure
+from uwgen.runtime.link.scheduler import LinkScheduler
 from uwgen.runtime.stats import Counters
 
 

@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.fragment import (Fragment, FragmentError, Fragmenter, Reassembler, encode_fragment,
+from uwgen.runtime.wire.fragment import (Fragment, FragmentError, Fragmenter, Reassembler, encode_fragment,
                                     is_fragment, parse_fragment)
-from uwgen.runtime.framing import FrameDecoder, encode_frame
+from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
 
 FID = 250
 
@@ -298,7 +298,7 @@ def test_a_message_lost_on_the_link_is_attributed_to_its_id_when_fragment_0_came
 
 # -- the compact fragment message of wire format 2 -------------------------------------------
 
-from uwgen.runtime.fragment import encode_compact, parse_any, parse_compact  # noqa: E402
+from uwgen.runtime.wire.fragment import encode_compact, parse_any, parse_compact  # noqa: E402
 
 
 @pytest.mark.parametrize("payload, message", [

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from uwgen.runtime.framing import MAX_PENDING, FrameDecoder, FrameError, encode_frame
+from uwgen.runtime.wire.framing import MAX_PENDING, FrameDecoder, FrameError, encode_frame
 
 from .framing_reference import reference_frames
 

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import pytest
 
-from uwgen.runtime import envelope
-from uwgen.runtime.packets import PacketHooks, join_hooks
+from uwgen.runtime.wire import envelope
+from uwgen.runtime.link.packets import PacketHooks, join_hooks
 
 
 def test_parts_of_joined_hooks_are_merged_and_overheads_added():
@@ -63,7 +63,7 @@ def test_the_sealer_numbers_packets_and_next_overheads_add_up():
 
 
 def test_the_packer_uses_the_sealers_number_and_leaves_the_room_it_asks_for():
-    from uwgen.runtime.packets import PACKET_COUNTERS, Packer
+    from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer
     from uwgen.runtime.stats import Counters
 
     class Queue:

@@ -9,9 +9,9 @@ import threading
 import pytest
 
 from uwgen.manifest.model import LinkConfig, LinkPolicy
-from uwgen.runtime.connection import Backoff
-from uwgen.runtime.framing import FrameDecoder, encode_frame
-from uwgen.runtime.link import Link
+from uwgen.runtime.link.connection import Backoff
+from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
+from uwgen.runtime.link.link import Link
 
 from .tcp_server import TinyServer, wait_until
 

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.linksim import LinkSim
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime import envelope
-from uwgen.runtime.framing import FrameDecoder, encode_frame
-from uwgen.runtime.packets import PacketHooks
+from uwgen.runtime.wire import envelope
+from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
+from uwgen.runtime.link.packets import PacketHooks
 
 
 def scenario(per: float = 0.0, seed: int = 1, mrl: int = 64) -> Scenario:

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from uwgen.runtime.codec import DecodeError, load_items, pack_items
+from uwgen.runtime.wire.codec import DecodeError, load_items, pack_items
 
 
 def reference(payload: bytes):

@@ -7,9 +7,9 @@ import pytest
 
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.framing import FrameDecoder, encode_frame
-from uwgen.runtime.pacing import Outbox, Pacer
-from uwgen.runtime.scheduler import DROP_REASONS, LinkScheduler
+from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
+from uwgen.runtime.link.pacing import Outbox, Pacer
+from uwgen.runtime.link.scheduler import DROP_REASONS, LinkScheduler
 
 
 def frames_from(*payloads: bytes):

@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.linksim import LinkSim
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime.framing import SYNC, FrameDecoder, encode_frame
-from uwgen.runtime.pacing import Outbox, Pacer
+from uwgen.runtime.wire.framing import SYNC, FrameDecoder, encode_frame
+from uwgen.runtime.link.pacing import Outbox, Pacer
 
 
 def writes_of(box: Outbox, frames: list[bytes]) -> list[tuple[bytes, list[int]]]:

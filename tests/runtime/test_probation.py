@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from uwgen.runtime.probation import Event, Probation, reconnect_cap
+from uwgen.runtime.link.probation import Event, Probation, reconnect_cap
 
 
 def test_a_connection_is_proven_after_the_probation_and_only_once():

@@ -4,10 +4,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from uwgen.runtime import envelope
-from uwgen.runtime.freshness import stamp
-from uwgen.runtime.heads import Heads
-from uwgen.runtime.staleness import Staleness
+from uwgen.runtime.wire import envelope
+from uwgen.runtime.delivery.freshness import stamp
+from uwgen.runtime.wire.heads import Heads
+from uwgen.runtime.delivery.staleness import Staleness
 
 DOC = (Path(__file__).resolve().parents[2] / "docs" / "wire-format.md").read_text()
 

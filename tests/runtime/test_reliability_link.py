@@ -1,4 +1,4 @@
-"""Reliability wired into wire format 2 links (uwgen.runtime.reliability): acks ride on packets,
+"""Reliability wired into wire format 2 links (uwgen.runtime.delivery.reliability): acks ride on packets,
 lost reliable messages are sent again and delivered once, the ledger closes from packet numbers,
 stale commands are refused, bad input is counted."""
 from __future__ import annotations
@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime import envelope
+from uwgen.runtime.wire import envelope
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.framing import FrameDecoder
-from uwgen.runtime.reliability import Reliability
+from uwgen.runtime.wire.framing import FrameDecoder
+from uwgen.runtime.delivery.reliability import Reliability
 
 RELIABLE = LinkPolicy(queue="fifo", depth=100, ttl=30.0, reliable=True)
 BEST_EFFORT = LinkPolicy(queue="fifo", depth=100, ttl=30.0)

@@ -1,11 +1,11 @@
-"""The reliability engine (uwgen.runtime.reliable): acks, loss, retransmission, delivery once."""
+"""The reliability engine (uwgen.runtime.delivery.reliable): acks, loss, retransmission, delivery once."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
 
-from uwgen.runtime.reliable import (AckError, ReliableLink, Report, RttEstimator, Sent,
+from uwgen.runtime.delivery.reliable import (AckError, ReliableLink, Report, RttEstimator, Sent,
                                     decode_reports, encode_reports, unwrap)
 
 SURFACE, VEHICLE = 1, 2

@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.fragment import Fragmenter, Reassembler
-from uwgen.runtime.scheduler import DROP_REASONS, LinkScheduler
+from uwgen.runtime.wire.fragment import Fragmenter, Reassembler
+from uwgen.runtime.link.scheduler import DROP_REASONS, LinkScheduler
 
 FID = 250
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from uwgen.runtime.envelope import FRAGMENT, Envelope, Message, Sync, decode, from_v1
+from uwgen.runtime.wire.envelope import FRAGMENT, Envelope, Message, Sync, decode, from_v1
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
 
@@ -70,7 +70,7 @@ def test_the_doc_has_the_fragment_examples():
 
 @pytest.mark.parametrize("row", fragment_rows(), ids=lambda r: r[0])
 def test_worked_fragment_message_is_what_the_codec_writes_and_reads(row):
-    from uwgen.runtime.fragment import Fragment, encode_compact, parse_compact
+    from uwgen.runtime.wire.fragment import Fragment, encode_compact, parse_compact
     _name, head, chunk, size, message = row
     transfer, index, count = (int(x) for x in head.split(","))
     f = Fragment(transfer, index, count, hexes(chunk), int(size) if size else None)
@@ -82,7 +82,7 @@ def test_worked_fragment_message_is_what_the_codec_writes_and_reads(row):
 
 
 def test_the_repair_example_inside_an_envelope_reads_as_the_doc_says():
-    from uwgen.runtime.fragment import Fragment, encode_compact
+    from uwgen.runtime.wire.fragment import Fragment, encode_compact
     frag = from_v1(encode_compact(Fragment(200, 3, 3, bytes.fromhex("AABB"), 5)))
     env = Envelope(0, 0, (frag, Message(0, 4, b"\x01")))
     assert env.encode()[3:12] == bytes.fromhex("E1 07 C8 03 03 00 05 AA BB")

@@ -3,7 +3,7 @@ with manual clocks (a monotonic one, and a wall clock that starts at WALL0)."""
 from __future__ import annotations
 
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.codec import pack_items, peek_header
+from uwgen.runtime.wire.codec import pack_items, peek_header
 from uwgen.security.guard import GuardConfig, LinkGuard
 
 KEY = bytes(range(32))

@@ -2,9 +2,9 @@
 built and opened as a link builds and opens them (runtime.packets.Packer / Unpacker)."""
 from __future__ import annotations
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.packets import PACKET_COUNTERS, Packer, Unpacker
+from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer, Unpacker
 from uwgen.runtime.stats import Counters
 from uwgen.security.packet_seal import PacketSeal
 

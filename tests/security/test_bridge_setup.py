@@ -9,7 +9,7 @@ from uwgen.bridge.plan import BridgePlan, PlanError
 from uwgen.bridge.security import check_security, guard_for
 from uwgen.cli import main
 from uwgen.manifest.model import SecurityPlan, Side
-from uwgen.runtime.table import ManifestInfo
+from uwgen.runtime.wire.table import ManifestInfo
 
 
 def package(tmp_path, key_file="net.key", tag_bytes=8):

@@ -109,7 +109,7 @@ def cmd_vel(pkg, x: float) -> bytes:
 
 def test_demo_vehicle_drops_a_strangers_cmd_vel_and_takes_the_surfaces(demo_guards, tmp_path):
     # The demo's links speak wire format 2: one tag per packet (PacketSeal).
-    from uwgen.runtime import envelope as env
+    from uwgen.runtime.wire import envelope as env
     from uwgen.security.guard import GuardConfig
     from uwgen.security.packet_seal import PacketSeal
 
@@ -137,8 +137,8 @@ def test_demo_battery_signed_still_fits_one_packet(demo_guards):
     # battery does not split it into two fragments (64-byte packets, 4-byte frame overhead),
     # even in a sync packet that asks for a sync (the most the seal adds: 23 bytes).
     from sensor_msgs.msg import BatteryState
-    from uwgen.runtime.envelope import HEAD, v1_message_size
-    from uwgen.runtime.framing import OVERHEAD
+    from uwgen.runtime.wire.envelope import HEAD, v1_message_size
+    from uwgen.runtime.wire.framing import OVERHEAD
     from uwgen.security.packet_seal import MAX_OVERHEAD
     pkg, guards = demo_guards
     b = BatteryState()

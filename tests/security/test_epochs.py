@@ -6,11 +6,11 @@ from __future__ import annotations
 import pytest
 
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.codec import pack_items
+from uwgen.runtime.wire.codec import pack_items
 from uwgen.security import guard as guard_module
 from uwgen.security import wire
 from uwgen.security.epochs import PeerEpoch, PeerEpochs, SendSession
-from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, sent_at, stamp
+from uwgen.runtime.delivery.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness, sent_at, stamp
 from uwgen.security.guard import GuardConfig, LinkGuard
 
 from .helpers import KEY, MODES, WALL0, config, surface, twist, vehicle

@@ -5,7 +5,7 @@ import random
 
 import pytest
 
-from uwgen.runtime.codec import pack_items
+from uwgen.runtime.wire.codec import pack_items
 from uwgen.security import wire
 from uwgen.security.guard import _plain
 

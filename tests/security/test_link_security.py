@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.codec import pack_items
-from uwgen.runtime.link import Link
+from uwgen.runtime.wire.codec import pack_items
+from uwgen.runtime.link.link import Link
 
 from .helpers import KEY, config, log_line, surface, twist, vehicle
 

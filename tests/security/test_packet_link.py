@@ -7,11 +7,11 @@ import random
 from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.linksim import LinkSim
 from uwgen.manifest.model import LinkConfig, LinkPolicy
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.framing import FrameDecoder
-from uwgen.runtime.link import Link
-from uwgen.runtime.packets import join_hooks
+from uwgen.runtime.wire.framing import FrameDecoder
+from uwgen.runtime.link.link import Link
+from uwgen.runtime.link.packets import join_hooks
 from uwgen.security.packet_seal import PacketSeal
 
 from .helpers import KEY, WALL0, config, twist

@@ -2,10 +2,10 @@
 protects, and what it costs."""
 from __future__ import annotations
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.codec import pack_items
-from uwgen.runtime.packets import PacketHooks, join_hooks
+from uwgen.runtime.wire.codec import pack_items
+from uwgen.runtime.link.packets import PacketHooks, join_hooks
 from uwgen.security.guard import SYNC_EVERY
 from uwgen.security.packet_seal import MAX_OVERHEAD, PacketSeal
 
@@ -62,7 +62,7 @@ def test_a_sync_part_added_to_a_recorded_packet_breaks_its_tag():
     epoch = bytes.fromhex(s.stats()["epoch"])
     from dataclasses import replace
 
-    from uwgen.runtime.freshness import stamp
+    from uwgen.runtime.delivery.freshness import stamp
     forged = replace(plain, sync=env.Sync(epoch, 0), time=stamp(WALL0)).encode()
     w = ManualClock(WALL0)
     fresh = vehicle(wall=w)                                   # a receiver with no state at all
@@ -108,7 +108,7 @@ def test_a_time_part_older_than_the_max_age_is_stale():
     wall = ManualClock(WALL0)
     s, v = surface(), vehicle(wall=wall)
     assert v.receive(s.send(twist(0.0))) == [twist(0.0)]
-    from uwgen.runtime.freshness import stamp
+    from uwgen.runtime.delivery.freshness import stamp
     stamping = PacketHooks(parts=lambda now: {"time": stamp(WALL0)})
     s.packer.hooks = join_hooks(stamping, s.seal.hooks())
     for _ in range(3):                                        # past the first sync packets

@@ -9,11 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.freshness import CLOCK_TOLERANCE, stamp
-from uwgen.runtime.packets import PACKET_COUNTERS, Packer
-from uwgen.runtime.scheduler import LinkScheduler
+from uwgen.runtime.delivery.freshness import CLOCK_TOLERANCE, stamp
+from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer
+from uwgen.runtime.link.scheduler import LinkScheduler
 from uwgen.runtime.stats import Counters
 from uwgen.security import packet_seal, packetwire, wire
 from uwgen.security.guard import SYNC_EVERY

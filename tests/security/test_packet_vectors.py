@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from uwgen.runtime import envelope as env
-from uwgen.runtime.codec import pack_items
+from uwgen.runtime.wire import envelope as env
+from uwgen.runtime.wire.codec import pack_items
 from uwgen.security import control, packetwire, wire
 from uwgen.security.keys import working_key
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from uwgen.runtime.codec import pack_items
+from uwgen.runtime.wire.codec import pack_items
 
 from .helpers import passes_to_bridge, surface, vehicle
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from uwgen.security import wire
-from uwgen.runtime.freshness import stamp
+from uwgen.runtime.delivery.freshness import stamp
 from uwgen.security.keys import working_key
 from uwgen.security.window import MAX_JUMP, NEW, TOO_FAR, ReplayWindow
 

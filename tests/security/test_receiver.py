@@ -3,7 +3,7 @@ seal will use them: 12-bit packet numbers in W, the epoch and time in a sync pac
 from __future__ import annotations
 
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.freshness import Freshness, stamp
+from uwgen.runtime.delivery.freshness import Freshness, stamp
 from uwgen.security.receiver import Numbering, Receiver
 from uwgen.security.wire import Sync
 

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.freshness import CLOCK_TOLERANCE
+from uwgen.runtime.delivery.freshness import CLOCK_TOLERANCE
 from uwgen.security.guard import SYNC_EVERY
 from uwgen.security.window import REPLAY, TOO_OLD, WINDOW, ReplayWindow
 

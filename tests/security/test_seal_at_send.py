@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.scheduler import LinkScheduler
+from uwgen.runtime.link.scheduler import LinkScheduler
 
 from .helpers import log_line, surface, twist, vehicle
 

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import pytest
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.fragment import Fragmenter, Reassembler
-from uwgen.runtime.packets import PACKET_COUNTERS, Packer, Unpacker
+from uwgen.runtime.wire.fragment import Fragmenter, Reassembler
+from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer, Unpacker
 from uwgen.runtime.stats import Counters
 from uwgen.security.guard import GuardConfig
 

@@ -8,7 +8,7 @@ import logging
 
 import pytest
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.security.errors import SecurityError
 from uwgen.security.guard import SYNC_FIRST, GuardConfig, LinkGuard
 from uwgen.security.packet_seal import PacketSeal, max_overhead

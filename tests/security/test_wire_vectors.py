@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from uwgen.runtime.codec import pack_items
+from uwgen.runtime.wire.codec import pack_items
 from uwgen.security import wire
 from uwgen.security.keys import working_key
 from uwgen.security.window import ReplayWindow

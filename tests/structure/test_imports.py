@@ -120,3 +120,32 @@ def test_a_carried_module_imports_only_carried_modules():
     carried = set(CARRIED.values())
     g = graph()
     assert sorted((v, w) for v in carried for w in g[v] if w not in carried) == []
+
+
+# The runtime's rooms, lowest first (uwgen/runtime/__init__.py): a module may import its own
+# room and the rooms below it, never one above. clock and stats are the floor every room uses.
+RUNTIME_ROOMS = ("uwgen.runtime.clock", "uwgen.runtime.stats", "uwgen.runtime.wire",
+                 "uwgen.runtime.link", "uwgen.runtime.delivery")
+
+
+def _room(module: str) -> int | None:
+    for rank, room in enumerate(RUNTIME_ROOMS):
+        if module == room or module.startswith(room + "."):
+            return max(rank, 1)   # clock and stats are one floor
+    return None
+
+
+def test_the_runtime_has_no_flat_room_of_modules():
+    top = sorted(p.stem for p in (PACKAGE / "runtime").glob("*.py") if p.stem != "__init__")
+    assert top == ["clock", "stats"]
+
+
+def test_runtime_rooms_import_only_their_own_room_or_lower_ones():
+    up = sorted((v, w) for v, ws in graph().items() if _room(v) is not None
+                for w in ws if _room(w) is not None and _room(w) > _room(v))
+    assert up == []
+
+
+def test_the_room_check_sees_an_upward_import():
+    assert _room("uwgen.runtime.delivery.acks") > _room("uwgen.runtime.wire.codec")
+    assert _room("uwgen.runtime.clock") == _room("uwgen.runtime.stats")

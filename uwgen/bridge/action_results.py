@@ -16,7 +16,7 @@ from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from uwgen.runtime.reliable import RttEstimator
+from uwgen.runtime.delivery.reliable import RttEstimator
 
 RECENT_RESULTS = 8        # finished goals per action whose result is kept for a repeated goal
 REPEAT_WINDOW = 1.5       # accept_timeouts after a goal first came in which a copy is a repeat

@@ -30,9 +30,9 @@ from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.plan import FEEDBACK_KEY_BASE
 from uwgen.bridge.wiring import Wiring
-from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
-from uwgen.runtime.reliable import command_rtt
-from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, RESULTS)
+from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.delivery.reliable import command_rtt
+from uwgen.runtime.wire.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELING, REJECTED, RESULTS)
 
 SERVER_GONE_GRACE = 1.0   # seconds the local server may be missing before its goals abort
 

@@ -36,9 +36,9 @@ from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.wiring import Wiring
 from uwgen.manifest.model import ACTION_HANDLES
-from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
-from uwgen.runtime.reliable import RttEstimator, command_rtt
-from uwgen.runtime.table import (ABORTED, ACCEPTED, CANCELED, CANCELING, REJECTED, RESULTS,
+from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.delivery.reliable import RttEstimator, command_rtt
+from uwgen.runtime.wire.table import (ABORTED, ACCEPTED, CANCELED, CANCELING, REJECTED, RESULTS,
                                  SUCCEEDED)
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-from uwgen.runtime.scheduler import DROP_REASONS
+from uwgen.runtime.link.scheduler import DROP_REASONS
 
 
 @dataclass

@@ -20,7 +20,7 @@ from uwgen.bridge.status import channel_stats
 from uwgen.bridge.wiring import Wiring
 from uwgen.interop.beacons import (DISCOVERY_ID, DISCOVERY_REQUEST_ID, DISCOVERY_REQUEST_TOPIC,
                                    DISCOVERY_TOPIC, BeaconError)
-from uwgen.runtime.codec import KIND_TOPIC
+from uwgen.runtime.wire.codec import KIND_TOPIC
 
 FLUSH_POLL = 0.01        # seconds between looks at the link while disconnect beacons leave
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from typing import Callable
 
 from uwgen.bridge.counters import BridgeCounters
-from uwgen.runtime.codec import DecodeError, peek_header
+from uwgen.runtime.wire.codec import DecodeError, peek_header
 
 Handler = Callable[[int, bytes], None]   # (id, whole payload)
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from uwgen.runtime.scheduler import DROP_REASONS
+from uwgen.runtime.link.scheduler import DROP_REASONS
 
 
 class SubscriptionLosses:

@@ -40,7 +40,7 @@ from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
 from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.packets import join_hooks
+from uwgen.runtime.link.packets import join_hooks
 
 __all__ = ["BridgeNode", "BRIDGE_NODE_PREFIX", "default_link_factory", "node_name_for",
            "qos_profile"]
@@ -54,7 +54,7 @@ LinkFactory = Callable[..., Any]
 
 
 def default_link_factory(**kwargs: Any) -> Any:
-    from uwgen.runtime.link import Link  # imported late: owned by the runtime
+    from uwgen.runtime.link.link import Link  # imported late: owned by the runtime
     return Link(**kwargs)
 
 

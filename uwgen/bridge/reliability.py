@@ -16,7 +16,7 @@ from typing import Any, Callable
 from uwgen.bridge.plan import BridgePlan
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import WALL_CLOCK, Clock
-from uwgen.runtime.reliability import Reliability
+from uwgen.runtime.delivery.reliability import Reliability
 
 
 def reliable_topics(plan: BridgePlan) -> dict[int, float | None]:

@@ -32,8 +32,8 @@ from typing import Any, Callable
 
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.codec import KIND_TOPIC, MAX_ID, DecodeError, load_items, pack_items
-from uwgen.runtime.framing import MAX_PAYLOAD, OVERHEAD
+from uwgen.runtime.wire.codec import KIND_TOPIC, MAX_ID, DecodeError, load_items, pack_items
+from uwgen.runtime.wire.framing import MAX_PAYLOAD, OVERHEAD
 
 FLAG_REQUEST = 1            # "announce yours too" (sent after a connect)
 MAX_FINGERPRINT = 32        # longest fingerprint a receiver takes (uwgen sends 4 bytes)

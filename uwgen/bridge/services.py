@@ -38,8 +38,8 @@ from uwgen.bridge.counters import ServiceCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.plan import TIMEOUT_REPLY_DEFAULT, is_rmw_desert
 from uwgen.bridge.wiring import Wiring
-from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE
-from uwgen.runtime.reliable import RttEstimator, command_rtt
+from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE
+from uwgen.runtime.delivery.reliable import RttEstimator, command_rtt
 
 WAIT_SHARE = 0.5      # of the manifest timeout a request may wait for the local server (the
                       # rest is for its trip and the response's: the caller's clock started

@@ -22,7 +22,7 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.loops import BRIDGE_NODE_PREFIX
 from uwgen.bridge.polling import LatestPoller
 from uwgen.bridge.wiring import Wiring, qos_profile
-from uwgen.runtime.codec import KIND_TOPIC
+from uwgen.runtime.wire.codec import KIND_TOPIC
 
 DRAIN_BATCH = 256     # most messages one subscription callback takes in one go
 

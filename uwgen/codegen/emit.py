@@ -450,7 +450,7 @@ def fill_slots(root: Node, value_of: dict[str, str], rest: str) -> list[str]:
     """The fast way to build an rclpy message: a new instance of each class, every slot
     stored directly (`o._x = x1`), numeric arrays made the containers rclpy keeps
     (ir.ros_store). Guarded by `C.fast_<key>`, which is true only for rclpy classes whose
-    layout uwgen.runtime.table.RosClasses verified, this one's and every inlined one's.
+    layout uwgen.runtime.wire.table.RosClasses verified, this one's and every inlined one's.
     None for a type with a leaf not on the wire (its default is the constructor's)."""
     if any(isinstance(leaf.encoding, Absent) for leaf in root.leaves()):
         return []

@@ -8,7 +8,7 @@ Each packed `CodecType` becomes four functions:
 Arrays of messages call the element type's put/get functions, so every field of a
 message, nested ones included, is in one bit string padded once at the end.
 
-Widths, masks, offsets and grids are all computed here; `uwgen.runtime.bits` only does
+Widths, masks, offsets and grids are all computed here; `uwgen.runtime.wire.bits` only does
 what cannot be written as one expression (floats, strings, loops over arrays).
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ from uwgen.codegen.ir import (
     NumberArray, Octets, Quantized, Text, TextArray, TimeOfDay, TimeSinceEpoch,
 )
 from uwgen.idl.model import ArrayKind
-from uwgen.runtime.bits import count_width, text_width
+from uwgen.runtime.wire.bits import count_width, text_width
 
 FLOAT_MIN_BITS = 18      # a 2-bit tag and a half
 

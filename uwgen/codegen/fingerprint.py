@@ -43,7 +43,7 @@ import cbor2
 
 from uwgen.codegen.ir import CodecType, variant_name
 from uwgen.manifest.model import DEFAULT_TAG_BYTES
-from uwgen.runtime.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 
 FINGERPRINT_BYTES = 4      # 2**-32 chance that two different schemas look alike (docs section 10)
 SCHEMA_MAGIC = "uwgen-schema"

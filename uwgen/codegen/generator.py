@@ -76,7 +76,7 @@ class ModulePlan:
     actions: list[ActionHolder] = field(default_factory=list)
     functions: list[Function] = field(default_factory=list)
     constants: list[str] = field(default_factory=list)
-    bits_imports: list[str] = field(default_factory=list)    # uwgen.runtime.bits helpers used
+    bits_imports: list[str] = field(default_factory=list)    # uwgen.runtime.wire.bits helpers used
 
 
     @property
@@ -309,7 +309,7 @@ def _local_packages(lib: InterfaceLibrary, used: list[str]) -> list[tuple[str, s
     return sorted((d.name, source_label(d, lib), build_digest(d)) for d in dirs)
 
 
-# Helpers of uwgen.runtime.bits that generated modules may call (imported as _name).
+# Helpers of uwgen.runtime.wire.bits that generated modules may call (imported as _name).
 BITS_HELPERS = (
     "end", "enum_index", "enum_indices", "finish", "from_time_of_day", "from_time_since", "get_bools",
     "get_bytes", "get_count", "get_float", "get_floats", "get_indices", "get_text", "get_texts",

@@ -23,8 +23,8 @@ from uwgen.manifest.model import (
     ENUM, MAX_COUNT, MAX_LENGTH, NATIVE, OMIT, PACKED, QUANTIZE, RMW_DESERT, STATIC, TIME_OF_DAY,
     TIME_SINCE_EPOCH, FieldEncoding,
 )
-from uwgen.runtime.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES, TYPED_TAGS, head_size
-from uwgen.runtime.framing import MAX_PAYLOAD
+from uwgen.runtime.wire.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES, TYPED_TAGS, head_size
+from uwgen.runtime.wire.framing import MAX_PAYLOAD
 
 
 STRUCT_CODES = {
@@ -510,7 +510,7 @@ class IRBuilder:
 # --- how rclpy holds a message (rosidl_generator_py's layout) --------------------------
 # Decoders that build rclpy messages fill their slots (`_x`) directly instead of calling
 # the constructor and property setters, which is most of rclpy's cost. They may only when
-# rclpy's class is laid out as assumed here; uwgen.runtime.table.RosClasses checks each
+# rclpy's class is laid out as assumed here; uwgen.runtime.wire.table.RosClasses checks each
 # class against its `ros_layout` the first time it is used and falls back to the
 # constructor when anything differs.
 

@@ -252,7 +252,7 @@ def _beacons(args) -> int:
     from uwgen.interop.beacons import encode_beacon
     from uwgen.interop.discovery import bridge_beacons
     from uwgen.interop.rmw_config import RmwConfigError
-    from uwgen.runtime.framing import encode_frame
+    from uwgen.runtime.wire.framing import encode_frame
 
     manifest = _load(args.manifest, _folders(args))
     if args.side not in manifest.sides:

@@ -31,8 +31,8 @@ from typing import Iterable
 
 from uwgen.bridge import ledger
 from uwgen.demo.records import read_records
-from uwgen.runtime.pacing import PACKET_HEADER
-from uwgen.runtime.scheduler import DROP_REASONS
+from uwgen.runtime.link.pacing import PACKET_HEADER
+from uwgen.runtime.link.scheduler import DROP_REASONS
 
 
 def percentile(values: list[float], q: float) -> float | None:
@@ -402,8 +402,8 @@ def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
 
     from uwgen.bridge.plan import is_rmw_desert
     from uwgen.codegen import generate
-    from uwgen.runtime import envelope as env
-    from uwgen.runtime.framing import OVERHEAD
+    from uwgen.runtime.wire import envelope as env
+    from uwgen.runtime.wire.framing import OVERHEAD
     from uwgen.security import packetwire, wire
     from uwgen.security.keys import new_epoch, new_master_key, working_key
 

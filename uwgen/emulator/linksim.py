@@ -21,7 +21,7 @@ from uwgen.emulator.core import Delivery, EmulatorCore
 from uwgen.emulator.scenario import Scenario
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.link import Link
+from uwgen.runtime.link.link import Link
 
 
 class LinkSim:

@@ -51,9 +51,9 @@ from uwgen.emulator.physics import SnrModel
 from uwgen.emulator.scenario import NodeSpec, Scenario
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.link import Link
-from uwgen.runtime.reliability import Reliability
-from uwgen.runtime.scheduler import DROP_REASONS
+from uwgen.runtime.link.link import Link
+from uwgen.runtime.delivery.reliability import Reliability
+from uwgen.runtime.link.scheduler import DROP_REASONS
 
 FRAGMENT_ID = 250
 SIDES = ("surface", "vehicle")
@@ -109,7 +109,7 @@ def rss_bytes() -> int:
 
 def link_ledger(sender_stats: dict, key: int) -> dict | None:
     """The sending link's own count of what became of entry `key` ({"sent", "delivered",
-    "lost_on_link", "in_flight", "unacknowledged", ...}: uwgen.runtime.reliability, wire
+    "lost_on_link", "in_flight", "unacknowledged", ...}: uwgen.runtime.delivery.reliability, wire
     format 2 links), or None when the link does not report one (wire format 1). Soak.check
     holds it exactly against what arrived."""
     ledger = sender_stats.get("ledger")

@@ -20,8 +20,8 @@ from enum import IntEnum
 import cbor2
 
 from uwgen.manifest.model import RMW_DESERT, RMW_DISCOVERY_ID, RMW_DISCOVERY_REQUEST_ID
-from uwgen.runtime.codec import KIND_TOPIC, RMW_MAX_TEXT_BYTES, DecodeError, load_items
-from uwgen.runtime.framing import MAX_PAYLOAD    # one frame; rmw_desert wraps LEN above 255
+from uwgen.runtime.wire.codec import KIND_TOPIC, RMW_MAX_TEXT_BYTES, DecodeError, load_items
+from uwgen.runtime.wire.framing import MAX_PAYLOAD    # one frame; rmw_desert wraps LEN above 255
 
 PROFILE = RMW_DESERT        # the profile whose entries speak this format and discovery
 DISCOVERY_ID = RMW_DISCOVERY_ID                  # `/discovery`: beacons

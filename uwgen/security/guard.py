@@ -21,7 +21,7 @@ from __future__ import annotations
 
 
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock, WALL_CLOCK
-from uwgen.runtime.codec import DecodeError, load_items
+from uwgen.runtime.wire.codec import DecodeError, load_items
 from uwgen.security import wire
 from uwgen.security.droplog import SUMMARY_PERIOD
 from uwgen.security.epochs import EPOCH_NUMBERS
@@ -29,7 +29,7 @@ from uwgen.security.errors import SecurityError
 from uwgen.security.files import SideLock
 from uwgen.security.side import (DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD,  # noqa: F401 (re-exported)
                                  GuardConfig, SideSeal)
-from uwgen.runtime.freshness import stamp
+from uwgen.runtime.delivery.freshness import stamp
 from uwgen.security.keys import new_epoch
 from uwgen.security.receiver import Numbering
 from uwgen.security.window import WINDOW

@@ -28,10 +28,10 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import SYSTEM_CLOCK, WALL_CLOCK, Clock
-from uwgen.runtime.freshness import stamp
-from uwgen.runtime.packets import PacketHooks
+from uwgen.runtime.delivery.freshness import stamp
+from uwgen.runtime.link.packets import PacketHooks
 from uwgen.runtime.stats import log_count
 from uwgen.security import control, packetwire, taglength, wire
 from uwgen.security.droplog import SUMMARY_PERIOD, log

@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from cryptography.hazmat.primitives.ciphers.aead import AESCCM
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.security import wire
 
 SEAL_VERSION = 3

@@ -26,7 +26,7 @@ from typing import Any
 
 from uwgen.runtime.clock import Clock
 from uwgen.security.epochs import EPOCH_NUMBERS, PeerEpoch, PeerEpochs
-from uwgen.runtime.freshness import Freshness
+from uwgen.runtime.delivery.freshness import Freshness
 from uwgen.security.wire import Sync
 from uwgen.security.window import NEW, WINDOW, ReplayWindow
 

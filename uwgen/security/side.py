@@ -11,7 +11,7 @@ from pathlib import Path
 
 from uwgen.manifest.model import DEFAULT_TAG_BYTES, TAG_BYTES
 from uwgen.runtime.clock import Clock
-from uwgen.runtime.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness
+from uwgen.runtime.delivery.freshness import CLOCK_TOLERANCE, MAX_AGE, Freshness
 from uwgen.runtime.stats import Counters
 from uwgen.security import wire
 from uwgen.security.droplog import DropLog

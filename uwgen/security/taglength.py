@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.security import packetwire
 
 

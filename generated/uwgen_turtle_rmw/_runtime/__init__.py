@@ -12,12 +12,12 @@ import sys as _sys
 
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
-    'codec': ('uwgen.runtime.codec', '2b379ef85d3cfa87'),
+    'codec': ('uwgen.runtime.wire.codec', '2b379ef85d3cfa87'),
     'model': ('uwgen.manifest.model', '0aad324aba99e273'),
-    'framing': ('uwgen.runtime.framing', 'efe84476329cc2eb'),
-    'bits': ('uwgen.runtime.bits', 'f2b4bb8438656c4f'),
-    'rosclasses': ('uwgen.runtime.rosclasses', '3ea002c11a9b520d'),
-    'table': ('uwgen.runtime.table', '773da2762888a641'),
+    'framing': ('uwgen.runtime.wire.framing', '2a5b2328562b0dbf'),
+    'bits': ('uwgen.runtime.wire.bits', '39059f7b8ccf3421'),
+    'rosclasses': ('uwgen.runtime.wire.rosclasses', '2ec3c0481f7093c3'),
+    'table': ('uwgen.runtime.wire.table', '2e0175bf53618b4a'),
 }
 
 

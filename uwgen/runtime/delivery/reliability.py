@@ -2,7 +2,7 @@
 
 `Reliability(...).hooks()` is the `PacketHooks` of issue 16 (docs/seams.md section 5); the
 bridge joins it with the seal's (`packets.join_hooks`) and passes it to `Link(hooks=)`. It
-drives the pure engine `uwgen.runtime.reliable.ReliableLink`:
+drives the pure engine `uwgen.runtime.delivery.reliable.ReliableLink`:
 
 - sending: every packet's messages are told to the engine (`sent`), with the deadline of
   messages of reliable entries (publication + ttl); an A part acknowledging the peers'
@@ -13,7 +13,7 @@ drives the pure engine `uwgen.runtime.reliable.ReliableLink`:
 - receiving: every envelope's number feeds the engine (`received`) and its A part the
   sender's ledger (`acked`); each whole message's head is taken off (`admit`): a reliable
   message is delivered once (copies counted `duplicates`), a message with a max age is
-  refused when older (`stale`, uwgen.runtime.staleness);
+  refused when older (`stale`, uwgen.runtime.delivery.staleness);
 - T (the packet's time, `freshness.stamp` of the injected wall clock) goes on every packet
   carrying a message with a max age.
 
@@ -28,17 +28,17 @@ import threading
 from collections import deque
 from dataclasses import asdict
 
-from uwgen.runtime import envelope as env
+from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
-from uwgen.runtime.framing import MAX_FRAME
-from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
-from uwgen.runtime.freshness import stamp
-from uwgen.runtime.heads import HeadError, Heads
-from uwgen.runtime.packets import PacketHooks, message_measure
-from uwgen.runtime.acks import A_ROOM, AckPolicy
-from uwgen.runtime.reliable import (RECEIVED_WINDOW, REPORT_KEY, ReliableLink, RttEstimator,
+from uwgen.runtime.wire.framing import MAX_FRAME
+from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.delivery.freshness import stamp
+from uwgen.runtime.wire.heads import HeadError, Heads
+from uwgen.runtime.link.packets import PacketHooks, message_measure
+from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
+from uwgen.runtime.delivery.reliable import (RECEIVED_WINDOW, REPORT_KEY, ReliableLink, RttEstimator,
                                     Sent, unwrap)
-from uwgen.runtime.staleness import Staleness
+from uwgen.runtime.delivery.staleness import Staleness
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.reliability")

@@ -46,7 +46,7 @@ emulator (64 B / 0.2 s, 300 m, a 10 Hz command stream plus a flood): command lat
 0.60 s and p95 0.80 s without the margin, 0.50 s and 0.62-0.70 s with 5 %, for 5 % less throughput.
 The margin is all the pace loses: a write the thread makes a little late (less than the margin)
 does not push the following ones back (`Pacer.wrote`), and a saturated link fills its packets
-(uwgen.runtime.filling), so link use is about 0.99 x 1 / 1.05 (benchmarks/envelope_bench.py).
+(uwgen.runtime.link.filling), so link use is about 0.99 x 1 / 1.05 (benchmarks/envelope_bench.py).
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from uwgen.manifest.model import LinkConfig
-from uwgen.runtime.framing import OVERHEAD, SYNC
+from uwgen.runtime.wire.framing import OVERHEAD, SYNC
 
 
 DEFAULT_MARGIN = 0.05

@@ -37,7 +37,7 @@ class FrameError(ValueError):
 def encode_frame(payload: bytes | bytearray | memoryview) -> bytes:
     """Wrap one payload (1 to 255 bytes) in a frame.
 
-    Longer payloads must be fragmented (uwgen.runtime.fragment) before they get here; rmw_desert
+    Longer payloads must be fragmented (uwgen.runtime.wire.fragment) before they get here; rmw_desert
     wraps LEN modulo 256 instead, which is ambiguous, so we refuse.
     """
     n = len(payload)

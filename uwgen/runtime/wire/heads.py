@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from uwgen.runtime.envelope import EnvelopeError, Message, from_v1, to_v1
+from uwgen.runtime.wire.envelope import EnvelopeError, Message, from_v1, to_v1
 
 AGE_UNIT = 0.25               # seconds per unit of the age item
 MAX_AGE_UNITS = 0xFFFF        # a 3-byte CBOR item at most

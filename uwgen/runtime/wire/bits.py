@@ -22,7 +22,7 @@ import time
 from collections import Counter
 from fractions import Fraction
 
-from uwgen.runtime.codec import F32_MAX, DecodeError, EncodeError
+from uwgen.runtime.wire.codec import F32_MAX, DecodeError, EncodeError
 
 DAY_NS = 86400 * 10 ** 9
 NS = 10 ** 9
@@ -79,7 +79,7 @@ def quantize(v, a: int, b: int, d: int, nmax: int, clamp: bool, path: str) -> in
     if clamp:
         if not CLAMPED[path]:
             log.warning("%s: %r is outside %s and was clamped (out_of_range: clamp); later ones are only "
-                        "counted (uwgen.runtime.bits.CLAMPED)", path, v, _grid(a, b, d, nmax))
+                        "counted (uwgen.runtime.wire.bits.CLAMPED)", path, v, _grid(a, b, d, nmax))
         CLAMPED[path] += 1
         return 0 if n < 0 else nmax
     raise EncodeError(path, f"{v!r} is outside {_grid(a, b, d, nmax)} (out_of_range: strict)")

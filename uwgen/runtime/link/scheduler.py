@@ -21,7 +21,7 @@ message offered is accounted for exactly once:
 where `queued` counts waiting messages including one being sent in fragments. `rate_limited` is
 informational: messages that were held back at least once by the rate limit while the link was free.
 
-With a splitter (uwgen.runtime.fragment.Fragmenter.split), every payload longer than `fec_over`
+With a splitter (uwgen.runtime.wire.fragment.Fragmenter.split), every payload longer than `fec_over`
 bytes (one packet's worth) is split when it starts to go out, so that no frame crosses a packet
 (a lost packet then never damages a frame outside it); a channel added `whole` (rmw_desert
 entries, which its nodes must read unsplit) is never split. On a channel whose policy asks for
@@ -50,8 +50,8 @@ from typing import Protocol
 
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.filling import first_keeping_best
-from uwgen.runtime.framing import MAX_PAYLOAD
+from uwgen.runtime.link.filling import first_keeping_best
+from uwgen.runtime.wire.framing import MAX_PAYLOAD
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.scheduler")
@@ -310,7 +310,7 @@ class LinkScheduler:
         `fill` (with `max_size`): at the tail of a packet (less room than two of the longest
         fitting messages, FILL_TAIL), of the channels that fit, the first in claim order that
         still lets `max_size` be filled as well as any choice of their next messages could
-        (uwgen.runtime.filling); claims move only for what is served, so a channel passed over
+        (uwgen.runtime.link.filling); claims move only for what is served, so a channel passed over
         goes first in the next packet. Filling from the start would let message sizes decide
         shares (measured: the priority-10 topic of envelope_bench's table 3 fell from 0.18 to
         0.15 of the link); the tail alone costs it nothing measurable.

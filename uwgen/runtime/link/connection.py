@@ -6,9 +6,9 @@ capped at one period or 1 s: DESERT drops what arrives for a node with no client
 is not listening or the connection drops, without crashing and without SIGPIPE (writes use
 MSG_NOSIGNAL and every socket error is a disconnect, not an exception out of the thread). A fresh
 connection is reported and counted as connected, and written to, only once it has proved itself
-(uwgen.runtime.probation); a proven one that never receives anything draws one warning.
+(uwgen.runtime.link.probation); a proven one that never receives anything draws one warning.
 
-Writes are paced (uwgen.runtime.pacing): one write of at most `max_read_length` bytes per `period`,
+Writes are paced (uwgen.runtime.link.pacing): one write of at most `max_read_length` bytes per `period`,
 filled by *pulling* payloads from `source` only when a write is allowed, so what waits, waits in the
 scheduler's queues where policy can act, and DESERT's unbounded queue holds about one period of data.
 A frame cut by a disconnect is abandoned and counted (never re-sent: the remote's decoder resyncs,
@@ -29,9 +29,9 @@ from collections.abc import Callable
 
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.framing import OVERHEAD, FrameDecoder, FrameError, encode_frame
-from uwgen.runtime.pacing import DEFAULT_MARGIN, MIN_FRAME, Outbox, Pacer
-from uwgen.runtime.probation import Event, Probation, reconnect_cap
+from uwgen.runtime.wire.framing import OVERHEAD, FrameDecoder, FrameError, encode_frame
+from uwgen.runtime.link.pacing import DEFAULT_MARGIN, MIN_FRAME, Outbox, Pacer
+from uwgen.runtime.link.probation import Event, Probation, reconnect_cap
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link")

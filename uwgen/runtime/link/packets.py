@@ -45,8 +45,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from uwgen.runtime import envelope as env
-from uwgen.runtime.framing import MAX_FRAME, OVERHEAD
+from uwgen.runtime.wire import envelope as env
+from uwgen.runtime.wire.framing import MAX_FRAME, OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.packets")

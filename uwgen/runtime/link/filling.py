@@ -1,6 +1,6 @@
 """Filling the tail of a packet: which waiting message to take so the packet ends up fullest.
 
-The link scheduler serves channels in claim order (uwgen.runtime.scheduler). Taken greedily,
+The link scheduler serves channels in claim order (uwgen.runtime.link.scheduler). Taken greedily,
 claim order leaves a packet's last bytes empty whenever the next message in that order is a
 little too long for them: with the demo's 6-14-byte messages a 64-byte packet then carries
 59 bytes in two packets of three (measured, benchmarks/envelope_bench.py). Here the scheduler

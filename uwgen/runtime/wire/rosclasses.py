@@ -15,7 +15,7 @@ array.array for numeric sequences, lists, ...). Anything else, and the decoders 
 type keep using the constructor, as they always may.
 
 Encoders use the same answer: for a message of a class with `C.fast_<key>`,
-uwgen.runtime.table.TypeCodec.encode calls the encoder that reads the slots (`m._x`)
+uwgen.runtime.wire.table.TypeCodec.encode calls the encoder that reads the slots (`m._x`)
 rather than the properties (a Python call each).
 """
 from __future__ import annotations

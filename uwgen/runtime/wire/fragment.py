@@ -17,7 +17,7 @@ docs/wire-format.md, section 7):
 Repair fragments (wire format section 11): a message of k data fragments may be followed by r repair
 fragments, `0, fragment_id, transfer, index, count, chunk, size` with index k..k+r-1 (so an older
 receiver refuses them as malformed and still rebuilds from the data fragments), each chunk a block
-of a systematic erasure code (uwgen.runtime.fec) over the data chunks, the last padded with zeros,
+of a systematic erasure code (uwgen.runtime.wire.fec) over the data chunks, the last padded with zeros,
 and `size` the length of the original payload. Any k of the k + r fragments rebuild the message.
 
 Every fragment payload is at most `max_payload` bytes (255, or less so that a fragment frame fits one
@@ -32,10 +32,10 @@ import zlib
 from collections import deque
 from dataclasses import dataclass, field
 
-from uwgen.runtime import fec
+from uwgen.runtime.wire import fec
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.envelope import H_FRAGMENT
-from uwgen.runtime.framing import MAX_PAYLOAD, OVERHEAD
+from uwgen.runtime.wire.envelope import H_FRAGMENT
+from uwgen.runtime.wire.framing import MAX_PAYLOAD, OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.fragment")

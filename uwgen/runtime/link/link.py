@@ -14,7 +14,7 @@ on the link's thread. Fragments are recognised by their header (kind 0, fragment
 fragment_id None nothing is treated as a fragment.
 
 Wire format 2 (`wire_format=2`, links of profiles native and packed): each write is one frame
-holding one envelope of several messages (uwgen.runtime.packets, envelope; wire format section
+holding one envelope of several messages (uwgen.runtime.link.packets, envelope; wire format section
 14); profile-`packed` payloads (ids in `packed_ids`) travel without their byte string's head.
 `hooks` (packets.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
 (the default, and what rmw_desert-profile links use) writes one frame per payload.
@@ -32,16 +32,16 @@ from typing import Any
 
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.connection import Backoff, DesertConnection
-from uwgen.runtime.envelope import EnvelopeError, add_packed_head, from_v1, strip_packed_head
-from uwgen.runtime.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
-from uwgen.runtime.framing import MAX_FRAME, MAX_PAYLOAD
-from uwgen.runtime.framing import OVERHEAD as FRAME_OVERHEAD
-from uwgen.runtime.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker, envelope_room,
+from uwgen.runtime.link.connection import Backoff, DesertConnection
+from uwgen.runtime.wire.envelope import EnvelopeError, add_packed_head, from_v1, strip_packed_head
+from uwgen.runtime.wire.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
+from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD
+from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker, envelope_room,
                                    message_measure)
-from uwgen.runtime.pacing import DEFAULT_MARGIN
-from uwgen.runtime.probation import reconnect_cap
-from uwgen.runtime.scheduler import LinkScheduler
+from uwgen.runtime.link.pacing import DEFAULT_MARGIN
+from uwgen.runtime.link.probation import reconnect_cap
+from uwgen.runtime.link.scheduler import LinkScheduler
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link")

@@ -7,13 +7,13 @@ each report's bitmap reaches (to the largest number named by a report the peer i
 have received: once a packet carrying a report is acknowledged, the numbers it named need
 not be named again, as QUIC stops repeating acknowledged ranges), and when a packet must
 leave with only the A part. It keeps its own state and reads the engine
-(`uwgen.runtime.reliable.ReliableLink`); the caller holds the lock and passes `now`.
+(`uwgen.runtime.delivery.reliable.ReliableLink`); the caller holds the lock and passes `now`.
 """
 from __future__ import annotations
 
 import math
 
-from uwgen.runtime.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink, Sent
+from uwgen.runtime.delivery.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink, Sent
 
 BITMAP_ROOM = 2          # bitmap bytes a report may always carry: packets leave room for one
                          # report of 17 numbers (the A part's length, R0-R2, 2 bytes: 6 bytes);

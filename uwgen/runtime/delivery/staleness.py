@@ -1,8 +1,8 @@
 """Is a received command too old? (docs/wire-format.md section 15.5, docs/seams.md section 4)
 
 A message of an entry with a max age (a ttl, a command's timeout) arrives with the packet's T
-(when the sender built the packet, on its wall clock: `uwgen.runtime.freshness`) and its age
-item (how long it waited before that, on the sender's monotonic clock: `uwgen.runtime.heads`).
+(when the sender built the packet, on its wall clock: `uwgen.runtime.delivery.freshness`) and its age
+item (how long it waited before that, on the sender's monotonic clock: `uwgen.runtime.wire.heads`).
 Its age on arrival is
 
     age + transit,   transit = receiver's wall clock - T
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from uwgen.runtime.freshness import CLOCK_TOLERANCE, Freshness
+from uwgen.runtime.delivery.freshness import CLOCK_TOLERANCE, Freshness
 
 MAX_TRANSIT = 10.0        # seconds: DESERT's queue, one acoustic packet, and margin
 

@@ -4,7 +4,7 @@ Generated modules hold the per-type `enc_*`/`dec_*` functions; this module wraps
 with the payload header (wire format section 3) and the profile's payload limits. The
 two namespaces decoders build messages from, rclpy classes (imported on first use, so a
 generated package imports without ROS) or the generated plain classes, are in
-uwgen.runtime.rosclasses.
+uwgen.runtime.wire.rosclasses.
 """
 from __future__ import annotations
 
@@ -14,12 +14,12 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from uwgen.manifest.model import ACTION_HANDLES, RMW_DESERT, LinkPolicy, Qos, Side
-from uwgen.runtime.codec import (
+from uwgen.runtime.wire.codec import (
     KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, MAX_SEQ, RMW_MAX_ITEMS, CodecError, DecodeError,
     EncodeError, load_items, pack_items, unexpected,
 )
-from uwgen.runtime.framing import MAX_PAYLOAD
-from uwgen.runtime.rosclasses import PlainClasses, RosClasses
+from uwgen.runtime.wire.framing import MAX_PAYLOAD
+from uwgen.runtime.wire.rosclasses import PlainClasses, RosClasses
 
 log = logging.getLogger("uwgen.codec")
 

@@ -20,7 +20,7 @@ is one envelope:
 
   With kind escape (`11`), bits 4-0 are 0 and two bytes follow: the kind (any but 0, 2, 3), then
   the id (1..255); bits 4-0 of 1 (H = 0x61) make a fragment message, no id: its body is
-  uwgen.runtime.fragment's compact fragment. The last message has no length: its body is what
+  uwgen.runtime.wire.fragment's compact fragment. The last message has no length: its body is what
   remains before the tag.
 
 This module is pure: bytes in, an `Envelope` out (or one `EnvelopeError`), and back. It interprets
