@@ -56,7 +56,8 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
     clock = wall if hasattr(wall, "now") else _Wall(wall)
     return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
-                       max_read_length=link.max_read_length, other_overhead=other_overhead)
+                       max_read_length=link.max_read_length, other_overhead=other_overhead,
+                       peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side})
 
 
 def link_ledger(link_stats: Any) -> dict[int, dict]:

@@ -13,7 +13,8 @@ link's decoder; each turn the link's housekeeping runs.
     sim.received["b"]      # [(time, payload), ...] delivered at b's Link
 
 `drop(side, n)` loses the n-th packet (0-based, counted per sending side) whatever the
-channel does: for tests that lose one given packet.
+channel does: for tests that lose one given packet. `hold(side, seconds, n...)` holds those
+packets back that long before they reach the channel (a frame recorded and released later).
 """
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ class DuplexSim:
         self.links: dict[str, Link] = {}
         self.written: dict[str, int] = {s: 0 for s in sides}
         self._drops: dict[str, set[int]] = {s: set() for s in sides}
+        self._holds: dict[str, dict[int, float]] = {s: {} for s in sides}
         for i, side in enumerate(sides):
             kw = dict(link_kw)
             kw.setdefault("sender_id", i + 1)
@@ -66,6 +68,10 @@ class DuplexSim:
         """Lose the given writes (0-based) of `side` before they reach the emulator."""
         self._drops[side].update(writes)
 
+    def hold(self, side: str, seconds: float, *writes: int) -> None:
+        """Hold the given writes (0-based) of `side` `seconds` before they reach the emulator."""
+        self._holds[side].update({n: seconds for n in writes})
+
     def run(self, until: float) -> None:
         t = self.clock.now()
         while t <= until:
@@ -78,7 +84,11 @@ class DuplexSim:
                 if batch:
                     n = self.written[side]
                     self.written[side] += 1
-                    if n not in self._drops[side]:
+                    held = self._holds[side].get(n)
+                    if held is not None:
+                        self.at(t + held, lambda s=side, b=batch: self.core.client_data(
+                            s, self.clock.now(), b))
+                    elif n not in self._drops[side]:
                         self.core.client_data(side, t, batch)
                     conn.outbox.sent(t)
             for d in self.core.advance(t):
