@@ -41,25 +41,35 @@ class DuplexSim:
         config = LinkConfig(max_read_length=scenario.max_read_length, period=scenario.period)
         self.received: dict[str, list[tuple[float, bytes]]] = {s: [] for s in sides}
         self.links: dict[str, Link] = {}
+        self._make = (config, hooks_for, link_kw_for, link_kw)
         self.written: dict[str, int] = {s: 0 for s in sides}
         self._drops: dict[str, set[int]] = {s: set() for s in sides}
         self._holds: dict[str, dict[int, float]] = {s: {} for s in sides}
-        for i, side in enumerate(sides):
-            kw = dict(link_kw)
-            kw.setdefault("sender_id", i + 1)
-            if hooks_for is not None:
-                kw["hooks"] = hooks_for(side)
-            if link_kw_for is not None:
-                kw.update(link_kw_for(side))
-            self.links[side] = Link(config=config, clock=self.clock, name=side,
-                                    on_payload=lambda p, s=side: self.received[s].append(
-                                        (self.clock.now(), p)), **kw)
-            self.links[side].connection.outbox.aligned = True
+        for side in sides:
+            self._start(side)
             self.core.client_attached(side, 0.0)
         self.step = step if step is not None else scenario.period / 8
         self._actions: list[tuple[float, int, Callable[[], object]]] = []
         self._seq = itertools.count()
         self._last_rx = {s: 0.0 for s in sides}
+
+    def _start(self, side: str) -> Link:
+        config, hooks_for, link_kw_for, link_kw = self._make
+        kw = dict(link_kw)
+        kw.setdefault("sender_id", self.sides.index(side) + 1)
+        if hooks_for is not None:
+            kw["hooks"] = hooks_for(side)
+        if link_kw_for is not None:
+            kw.update(link_kw_for(side))
+        link = self.links[side] = Link(config=config, clock=self.clock, name=side,
+                                       on_payload=lambda p, s=side: self.received[s].append(
+                                           (self.clock.now(), p)), **kw)
+        link.connection.outbox.aligned = True
+        return link
+
+    def restart(self, side: str) -> Link:
+        """`side`'s process starts again: a new Link (and hooks), nothing kept in memory."""
+        return self._start(side)
 
     def at(self, t: float, action: Callable[[], object]) -> None:
         heapq.heappush(self._actions, (t, next(self._seq), action))

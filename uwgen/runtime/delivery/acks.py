@@ -72,6 +72,11 @@ class AckPolicy:
                     self._idle[peer] = self._idle.get(peer, 0) + 1
         return out
 
+    def rename_epoch(self, peer: int, old: bytes, new: bytes) -> None:
+        """The peer's stand-in epoch `old` is `new` (learnt from K): the same start."""
+        if (peer, old) in self._confirmed:
+            self._confirmed[(peer, new)] = self._confirmed.pop((peer, old))
+
     def carried(self) -> list[Sent]:
         """The reports of the packet just built, as pseudo-messages for the engine's `sent`."""
         out = [Sent(REPORT_KEY, named, None) for named in self._reports]

@@ -18,7 +18,13 @@ drives the pure engine `uwgen.runtime.delivery.reliable.ReliableLink`:
   carrying a message with a max age.
 
 The per-entry ledger (`ledger()`, in the link's stats as `ledger`) is exact from packet
-numbers: sent = delivered + lost_on_link + in_flight + unacknowledged, per channel key.
+numbers: sent = delivered + lost_on_link + in_flight + unacknowledged + unknown, per channel
+key (`unknown`: sent before the peer restarted, reported missing by its new start).
+
+Epochs (docs/seams.md section 8): every wire-format-2 link carries the sender's per-start epoch
+in K. A sealed link's K is the seal's; on an unsealed one (`epoch_source` given) this side
+numbers its packets and gives K (`uwgen.runtime.delivery.epoch`). A receiver keys a sender's
+packets and reliable messages by (sender, epoch): a new epoch is a restart, never repeats.
 Everything is called on the link's thread except `stats()`; a lock keeps them apart.
 """
 from __future__ import annotations
@@ -26,6 +32,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections import deque
+from collections.abc import Callable
 from dataclasses import asdict
 
 from uwgen.runtime.wire import envelope as env
@@ -40,6 +47,7 @@ from uwgen.runtime.delivery.reliable import (DELAY_UNIT, RECEIVED_WINDOW, REPORT
                                              ReliableLink, RttEstimator, Sent, decode_reports,
                                              unwrap)
 from uwgen.runtime.delivery.clock_offset import ClockOffsets
+from uwgen.runtime.delivery.epoch import SendEpoch
 from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, Staleness
 from uwgen.runtime.stats import Counters, log_count
 
@@ -67,8 +75,13 @@ class Reliability:
                  max_ages: dict[int, float], wall: Clock = WALL_CLOCK,
                  ack_delay: float | None = None, ack_interval: float | None = None,
                  name: str = "link", max_read_length: int = MAX_FRAME,
-                 other_overhead: int = 0, peer_names: dict[int, str] | None = None):
+                 other_overhead: int = 0, peer_names: dict[int, str] | None = None,
+                 epoch_source: Callable[[], bytes] | None = None):
         self.sender, self.name, self.wall = sender, name, wall
+        # this side's epoch and numbers on an unsealed link (None: the seal gives K)
+        self.send_epoch = SendEpoch(epoch_source) if epoch_source is not None else None
+        self._sync = False                            # the packet being built carries K
+        self._building = 0                            # its number
         self.peer_names = dict(peer_names or {})
         # what a packet may hold besides P, W and the messages: the frame's payload minus what
         # the other joined hooks (the seal) may add; the A part takes what is left (acks.A_ROOM
@@ -104,10 +117,24 @@ class Reliability:
         self.first_offset_at: dict[int, float] = {}   # peer -> when its offset was first measured
 
     def hooks(self) -> PacketHooks:
+        numbering = {} if self.send_epoch is None else {
+            "number": self.number, "next_overhead": self.next_overhead}
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
-                           overhead=OVERHEAD, carrying=self.carrying, resend=self.resend,
+                           overhead=OVERHEAD + (0 if self.send_epoch is None else env.SYNC_LEN),
+                           carrying=self.carrying, resend=self.resend,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
-                           head_room=self.head_room, admit=self.admit, stats=self.stats)
+                           head_room=self.head_room, admit=self.admit, stats=self.stats,
+                           **numbering)
+
+    def next_overhead(self, now: float) -> int:
+        """Bytes the next packet's parts may take: T, an A part, and K when it is due."""
+        with self._lock:
+            return OVERHEAD + (env.SYNC_LEN if self.send_epoch.due(now) else 0)
+
+    def number(self) -> int:
+        with self._lock:
+            self._building = self.send_epoch.number()
+            return self._building
 
     # -- sending ------------------------------------------------------------------------
 
@@ -127,8 +154,10 @@ class Reliability:
         # peer measures our clock's offset (clock_offset.py)
         self._want_time = self._timed or (
             self._timed_reports < TIMED_REPORTS or now - self._last_timed_report >= TIMED_REPORT_EVERY)
+        self._sync = self.send_epoch is not None and self.send_epoch.due(now)
         used = sum(message_measure(p) for _, p in picked) - (1 if picked else 0)
-        self._room = self._part_room - used - (env.TIME_LEN if self._want_time else 0)
+        self._room = (self._part_room - used - (env.TIME_LEN if self._want_time or self._sync else 0)
+                      - (env.SYNC_LEN if self._sync else 0))
 
     def parts(self, now: float) -> dict:
         with self._lock:
@@ -136,7 +165,9 @@ class Reliability:
             ack = self.acks.a_part(self._epochs, now, self._room)
             if ack:
                 out["ack"] = ack
-            if self._timed or (ack and self._want_time):
+            if self._sync:
+                out["sync"] = self.send_epoch.part(self._building, now)
+            if self._timed or self._sync or (ack and self._want_time):
                 out["time"] = stamp(self.wall.now())
                 if ack:
                     self._timed_reports += 1
@@ -196,6 +227,8 @@ class Reliability:
                 self._sample_offset(peer, envelope, now)
                 before = self.engine.bad_acks
                 self.engine.acked(envelope.ack, now)
+                if self.send_epoch is not None and self.engine.largest_acked is not None:
+                    self.send_epoch.acked = True
                 self.acks.confirm()
                 if self.engine.bad_acks > before:
                     log_count(log, logging.WARNING, self.counters.inc("bad_acks"),
@@ -248,20 +281,43 @@ class Reliability:
                         got.offset, got.error, self.staleness.tolerance)
 
     def _epoch(self, envelope: env.Envelope) -> bytes:
-        """The sender's epoch: K's when the packet has one (the seal's); otherwise the last
-        known, or a new one when its number fell behind the window (it restarted)."""
+        """The sender's epoch: K's when the packet has one; otherwise the last known, or a
+        stand-in when none is known yet, or a new stand-in when its number fell behind the
+        window (a restarted sender whose packets with K were all lost)."""
         peer = envelope.sender
+        known = self._epochs.get(peer)
         if envelope.sync is not None:
-            self._epochs[peer] = envelope.sync.epoch
-            return envelope.sync.epoch
-        epoch = self._epochs.get(peer, b"")
+            epoch = envelope.sync.epoch
+            if known is not None and known != epoch:
+                if len(known) != env.EPOCH_LEN:      # a stand-in: the same start, now named
+                    self.engine.rename_epoch(peer, known, epoch)
+                    self.acks.rename_epoch(peer, known, epoch)
+                else:
+                    self._restarted(peer)
+            self._epochs[peer] = epoch
+            return epoch
+        epoch = known if known is not None else b""
         r = self.engine.receipts.get((peer, epoch))
         if r is not None and r.largest is not None and \
                 unwrap(envelope.number, r.largest) < r.largest - RECEIVED_WINDOW:
+            self._restarted(peer)
             self._restarts[peer] = self._restarts.get(peer, 0) + 1
-            self.counters.inc("restarts_seen")
-            epoch = self._epochs[peer] = b"restart %d" % self._restarts[peer]
+            epoch = b"restart %d" % self._restarts[peer]
+        self._epochs[peer] = epoch
         return epoch
+
+    def _restarted(self, peer: int) -> None:
+        """`peer` started again: its clock is measured again, it learns our epoch at once (K
+        on our next packets), and what it did not get of ours so far is `unknown`."""
+        self.counters.inc("restarts_seen")
+        log.info("[%s] %s started again (a new epoch): its packets and reliable messages are "
+                 "counted afresh; what it had not acknowledged of ours is counted unknown and "
+                 "reliable messages are sent again", self.name, self._who(peer))
+        self.offsets.forget(peer)
+        self._timed_reports = 0
+        if self.send_epoch is not None:
+            self.send_epoch.peer_restarted()
+        self.engine.peer_restarted()
 
     def admit(self, payload: bytes, now: float) -> bytes | None:
         with self._lock:
@@ -320,7 +376,8 @@ class Reliability:
     # -- reporting ---------------------------------------------------------------------------
 
     def ledger(self) -> dict[int, dict[str, int]]:
-        """Per channel key: sent = delivered + lost_on_link + in_flight + unacknowledged (copies),
+        """Per channel key: sent = delivered + lost_on_link + in_flight + unacknowledged + unknown
+        (copies),
         with resent and expired (reliable entries) and duplicates received."""
         with self._lock:
             flying = self.engine.in_flight()
