@@ -98,3 +98,22 @@ def test_a_far_restart_leaves_the_senders_ledger_exact_with_what_cannot_be_known
     assert closes(row) and row["in_flight"] == 0
     assert row["lost_on_link"] == 0                  # no loss on this channel: none is called lost
     assert set(got(sim, 1)) == set(range(60))        # the new start got the rest
+
+
+@pytest.mark.parametrize("farewell", [False, True], ids=["cut", "farewell"])
+def test_a_clean_stop_sends_the_last_acknowledgements_so_the_peers_ledger_closes(farewell):
+    sim, rel = restartable(sealed=False)
+    a = sim.links["a"]
+    a.add_channel(4, BEST_EFFORT)
+    for i in range(20):
+        sim.at(i * PERIOD, lambda i=i: a.offer(4, bytes((0, 4, i)) + bytes(4)))
+    sim.run(20 * PERIOD + 2.0)                       # all of them arrived
+    if farewell:
+        assert rel["b"].farewell()
+        sim.run(sim.clock.now() + 2 * PERIOD + 1.0)
+        assert not rel["b"].farewell_pending
+    sim.drop("b", *range(sim.written["b"], sim.written["b"] + 1000))    # b has stopped
+    sim.run(sim.clock.now() + 30.0)
+    row = rel["a"].ledger()[4]
+    assert closes(row) and row["sent"] == 20
+    assert (row["in_flight"] == 0 and row["delivered"] == 20) if farewell else row["in_flight"] > 0

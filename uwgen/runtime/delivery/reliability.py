@@ -165,6 +165,7 @@ class Reliability:
             ack = self.acks.a_part(self._epochs, now, self._room)
             if ack:
                 out["ack"] = ack
+                self.acks.final = False              # the last word has left (farewell)
             if self._sync:
                 out["sync"] = self.send_epoch.part(self._building, now)
             if self._timed or self._sync or (ack and self._want_time):
@@ -205,9 +206,21 @@ class Reliability:
         with self._lock:
             return self.acks.alone(now)
 
+    def farewell(self) -> bool:
+        """Closing: the next packet reports every peer's packets, so their ledgers close (a
+        clean stop leaves nothing `in_flight` there). False when there is nothing to report."""
+        with self._lock:
+            self.acks.final = any(r.largest is not None for r in self.engine.receipts.values())
+            return self.acks.final
+
+    @property
+    def farewell_pending(self) -> bool:
+        with self._lock:
+            return self.acks.final
+
     def next_time(self, now: float) -> float | None:
         with self._lock:
-            if self._queue:
+            if self._queue or self.acks.final:
                 return now
             times = [t for t in [self.engine.next_timeout()] if t is not None]
             times += self.acks.next_times()
