@@ -258,6 +258,7 @@ class _ManifestBuilder:
         manifest = self.sec.finish(manifest, root, self.senders)
         if manifest.uses_rmw_desert():
             checks.check_rmw_reserved(r, self.ids, manifest, top)
+            checks.check_mixed_commands(manifest)
         checks.check_repair(r, manifest, self.repair_nodes)
         return manifest
 
