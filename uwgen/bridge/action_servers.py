@@ -172,12 +172,15 @@ class ActionServers:
             counters.results_resent += 1
             self._offer(ident, recent, "result")
             return
-        # Neither running nor finished here (e.g. this bridge restarted): the goal is lost.
+        # Neither running nor finished here: never arrived (a goal older than its
+        # accept_timeout is refused on arrival, so it never will), or this bridge restarted
+        # and did not find it. Answered 0: no such goal here.
         codec = self.served[ident][0]
-        self.w.throttle.report(f"alost{ident}", f"{codec.name}: the client side asks for the "
-                                                f"result of goal {handle}, unknown here: aborted")
-        self._offer(ident, codec.encode_result(handle, ABORTED, codec.ros_class().Result()), "result")
-        counters.lost_goals += 1                          # counted once the aborted result is queued
+        self.w.throttle.report(f"alost{ident}", f"{codec.name}: the client side asks about "
+                                                f"goal {handle}, unknown here: answered 'no such "
+                                                "goal'", expected=True)
+        self._answer(ident, handle, REJECTED)
+        counters.lost_goals += 1
 
     def _resend_results(self, ident: int, now: float) -> None:
         """Results not acknowledged within the RTO go again, until the book gives them up."""
