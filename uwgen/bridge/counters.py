@@ -98,7 +98,9 @@ class ActionCounters:
     results_unacked: int = 0  # results never acknowledged within 2 accept_timeouts (given up)
     result_queries: int = 0   # requests for a result not (yet) received: sent by the client
                               # side, received by the server side
-    lost_goals: int = 0       # asked for a goal unknown here (e.g. after a restart): aborted
+    lost_goals: int = 0       # asked about a goal unknown here: answered "no such goal"
+    orphans_adopted: int = 0  # goals a previous start of this bridge left running: adopted
+    orphans_cancelled: int = 0  # such goals whose handle was busy again: cancelled
     feedback_sent: int = 0    # feedback offered to the link (latest-only: may be superseded)
     encode_errors: int = 0    # feedback or results that could not be encoded
     reply_refused: int = 0    # answers, results or feedback the link refused
