@@ -26,8 +26,9 @@ from uwgen.codegen.emit import Constants, Function, Lowering, module_alias
 from uwgen.codegen.emit_packed import PackedLowering
 from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest, seal_fingerprints
 from uwgen.codegen.vendor import runtime_files
-from uwgen.codegen.ir import (CodecType, IRBuilder, ProfileError, check_profile_limits, ros_layout, type_key,
-                              variant_name)
+from uwgen.codegen.encodings import type_key
+from uwgen.codegen.ir import CodecType, IRBuilder, ProfileError, check_profile_limits, variant_name
+from uwgen.codegen.rosidl_layout import ros_layout
 from uwgen.manifest.model import NATIVE, PACKED
 from uwgen.idl.loader import InterfaceLibrary, parts_of
 from uwgen.idl.model import (OCTET_TYPES, ActionDef, ArrayKind, DefinitionError, Field, MessageDef,
@@ -105,7 +106,7 @@ class PackagePlan:
     modules: list[ModulePlan]
     codecs: list[CodecEntry]
     ros_imports: list[tuple[str, str, str]]  # (class key, module, class name)
-    ros_layouts: list[tuple[str, str]]       # (class key, repr of ir.ros_layout)
+    ros_layouts: list[tuple[str, str]]       # (class key, repr of rosidl_layout.ros_layout)
     plain_keys: list[tuple[str, str, str]]   # (class key, generated module, class name)
     skipped: list[str] = field(default_factory=list)   # types a profile can never carry (bulk builds)
     fingerprints: dict[tuple[str, int], bytes] = field(default_factory=dict)  # ('topic'|'service', id) -> fp

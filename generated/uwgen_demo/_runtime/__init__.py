@@ -16,7 +16,7 @@ CARRIED = {
     'model': ('uwgen.manifest.model', '0aad324aba99e273'),
     'framing': ('uwgen.runtime.wire.framing', '2a5b2328562b0dbf'),
     'bits': ('uwgen.runtime.wire.bits', '39059f7b8ccf3421'),
-    'rosclasses': ('uwgen.runtime.wire.rosclasses', '2ec3c0481f7093c3'),
+    'rosclasses': ('uwgen.runtime.wire.rosclasses', '2b344e10ce05559c'),
     'table': ('uwgen.runtime.wire.table', '2e0175bf53618b4a'),
 }
 
