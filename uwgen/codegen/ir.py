@@ -27,7 +27,8 @@ from uwgen.codegen.rosidl_layout import ros_store
 from uwgen.codegen.shape import MAX_NESTING, NestingCheck
 from uwgen.idl.model import INTEGER_RANGES, OCTET_TYPES, ArrayKind, FieldType, MessageDef
 from uwgen.manifest.model import MAX_COUNT, MAX_LENGTH, NATIVE, PACKED, RMW_DESERT, FieldEncoding
-from uwgen.runtime.wire.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES, TYPED_TAGS, head_size
+from uwgen.runtime.wire.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES, head_size
+from uwgen.runtime.wire.typed_arrays import TYPED_TAGS
 from uwgen.runtime.wire.framing import MAX_PAYLOAD
 
 
