@@ -28,13 +28,13 @@ def cli(capsys, *argv: str) -> tuple[int, str]:
     return rc, out.out + out.err
 
 
-def bounded(code: str, seconds: float = 20.0) -> subprocess.CompletedProcess:
+def bounded(code: str, seconds: float = 20.0, argv: list[str] = ()) -> subprocess.CompletedProcess:
     """Run Python `code` in a child process that must finish within `seconds` (a hang, such
     as a regular expression backtracking for minutes, fails the test instead of blocking the
     suite: a hung C regex cannot be interrupted in this process)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     try:
-        return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+        return subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
                               timeout=seconds, env=env, cwd=ROOT)
     except subprocess.TimeoutExpired:
         raise AssertionError(f"still running after {seconds} s: {code}") from None
