@@ -39,10 +39,13 @@ _KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISCHR, "a character device"),
 class UnreadableFile(Exception):
     """A file that is not read, and why; str() names the file."""
 
-    def __init__(self, path: Path | str, message: str, missing: bool = False):
+    def __init__(self, path: Path | str, message: str, missing: bool = False,
+                 line: int = 0, column: int = 0, reason: str = ""):
         self.path = Path(path)
         self.message = message
         self.missing = missing       # nothing there at all (a caller may say how to make one)
+        self.line, self.column = line, column   # where in the text, for a decoding problem
+        self.reason = reason or message          # the message without the file's name
         super().__init__(message)
 
 
@@ -87,6 +90,24 @@ def _open_error(path: Path, what: str, exc: OSError) -> UnreadableFile:
     reason = reasons.get(exc.errno, f"cannot be opened: {exc.strerror or exc}")
     return UnreadableFile(path, f"{what} {name} {reason}",
                           missing=exc.errno in (errno.ENOENT, errno.ENOTDIR))
+
+
+def problem(path: Path | str, what: str) -> str | None:
+    """Why `path` could not be read as a regular file (a loop, a name too long, a device, a
+    folder, a FIFO), or None if it is one or is not there (a caller may say more about a
+    missing file). Looks only: nothing is opened, so nothing can block."""
+    path = Path(path)
+    try:
+        info = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError as exc:
+        return str(_open_error(path, what, exc))
+    except ValueError:
+        return f"{what} {shown(path)!r} has a NUL character in its name"
+    if not stat.S_ISREG(info.st_mode):
+        return f"{what} {shown(path)}{_target(path)} is {_kind(info.st_mode)}: only a regular file is read"
+    return None
 
 
 def read_bytes(path: Path | str, what: str, limit: int,
@@ -137,6 +158,7 @@ def read_text(path: Path | str, what: str, limit: int, encoding: str = "utf-8") 
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
         column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise UnreadableFile(path, f"{what} {shown(path)}:{line}:{column}: not valid "
-                                   f"{'UTF-8' if encoding == 'utf-8' else encoding} text "
-                                   f"(byte 0x{data[exc.start]:02x})") from None
+        reason = (f"not valid {'UTF-8' if encoding == 'utf-8' else encoding} text "
+                  f"(byte 0x{data[exc.start]:02x})")
+        raise UnreadableFile(path, f"{what} {shown(path)}:{line}:{column}: {reason}",
+                             line=line, column=column, reason=reason) from None

@@ -24,6 +24,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from uwgen import safefile
 from uwgen.idl import names
 from uwgen.idl.model import (
     ACTION_PARTS,
@@ -42,6 +43,7 @@ from uwgen.idl.model import (
 from uwgen.idl.values import ValueProblem, parse_scalar, parse_value
 
 SEPARATOR = "---"
+DEFINITION_LIMIT = 1024 ** 2   # the longest .msg/.srv/.action read (ROS's own are under 20 KiB)
 _ROS1_TYPES = {"time": "builtin_interfaces/Time", "duration": "builtin_interfaces/Duration"}
 
 
@@ -313,14 +315,12 @@ def _check_names(package: str, name: str, path: Path) -> None:
 
 
 def read_text(path: Path) -> str:
-    """The file's text as UTF-8; a decoding problem is a located DefinitionError."""
-    data = path.read_bytes()
+    """The file's text as UTF-8, read with uwgen.safefile (a regular file of at most
+    DEFINITION_LIMIT bytes); a problem is a located DefinitionError."""
     try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise DefinitionError(SourceRef(path, line, column), f"not valid UTF-8: {exc.reason}") from None
+        return safefile.read_text(path, "interface definition", DEFINITION_LIMIT)
+    except safefile.UnreadableFile as exc:
+        raise DefinitionError(SourceRef(path, exc.line or 1, exc.column or 1), exc.reason) from None
 
 
 def parse_file(path: Path | str, package: str | None = None):
