@@ -112,3 +112,21 @@ def test_commands_beyond_the_tolerance_are_refused_and_the_offset_named(offset, 
     told = re.search(r"sender 1's clock is ([\d.]+) s (ahead of|behind) ours \(\+-([\d.]+) s", caplog.text)
     assert told.group(2) == side and abs(float(told.group(1)) - abs(offset)) <= float(told.group(3)) + 0.1
     assert "GPS or NTP" in caplog.text and caplog.text.count("[b] sender 1's clock is") == 1
+
+
+@pytest.mark.parametrize("offset", [-6.0, -30.0])
+def test_a_sealed_link_refusing_a_far_clock_names_the_figure(offset, caplog):
+    """The seal refuses packets whose time is ahead of the receiver's clock by more than the
+    tolerance (nothing of that sender is taken, commands included); its log names by how
+    much, once per sender. (A clock behind is refused only past the packet's max age.)"""
+    from runtime.test_restarts import restartable
+    sim, _ = restartable(sealed=True, offsets={"b": offset})
+    sim.links["a"].add_channel(4, BEST_EFFORT)
+    for i in range(5):
+        sim.at(i * 1.0, lambda i=i: sim.links["a"].offer(4, bytes((0, 4, i))))
+    with caplog.at_level(logging.ERROR, logger="uwgen.security"):
+        sim.run(10.0)
+    told = re.findall(r"\[b\] sender 1 \(a\): a packet stamped ([\d.]+) s (behind|ahead of) our clock",
+                      caplog.text)
+    assert len(told) == 1 and abs(float(told[0][0]) - abs(offset)) < 1.0
+    assert told[0][1] == ("behind" if offset > 0 else "ahead of") and "GPS or NTP" in caplog.text

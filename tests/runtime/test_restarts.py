@@ -23,7 +23,7 @@ from security.helpers import KEY, config
 PERIOD = 0.5
 
 
-def restartable(sealed: bool, per: float = 0.0):
+def restartable(sealed: bool, per: float = 0.0, offsets: dict | None = None):
     """Two sides a (sender 1) and b (sender 2); a's reliable topic 7. Unsealed, each side's
     reliability gives K (a fresh epoch per start); sealed, the seal does."""
     scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),
@@ -35,13 +35,14 @@ def restartable(sealed: bool, per: float = 0.0):
 
     def hooks_for(side: str):
         me, peer = (1, 2) if side == "a" else (2, 1)
+        wall = Wall(clock, (offsets or {}).get(side, 0.0))
         seal = None
         if sealed:
             seal = PacketSeal(KEY, config(me, peer, "b" if side == "a" else "a", modes={7: "sign", 4: "sign"}),
-                              wall=Wall(clock), clock=clock, name=side,
+                              wall=wall, clock=clock, name=side,
                               epoch_source=lambda: next(epochs))
         engines[side] = Reliability(me, period=PERIOD, reliable={7: 60.0}, max_ages={},
-                                    wall=Wall(clock), name=side, max_read_length=64,
+                                    wall=wall, name=side, max_read_length=64,
                                     other_overhead=0 if seal is None else seal.hooks().overhead,
                                     epoch_source=None if sealed else (lambda: next(epochs)))
         return join_hooks(engines[side].hooks(), seal.hooks() if seal is not None else None)
