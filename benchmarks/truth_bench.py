@@ -160,8 +160,8 @@ def far_restart(sealed):
     return rel["a"].ledger()[7]
 
 
-def offset_cell(d):
-    s, rel = sim(offsets={"b": d})
+def offset_cell(d, sealed=False):
+    s, rel = sim(sealed, offsets={"b": d})
     s.links["a"].add_channel(9, COMMAND)
     s.links["b"].add_channel(4, BEST_EFFORT)
     for i in range(10):
@@ -173,7 +173,12 @@ def offset_cell(d):
     o = rel["b"].offsets.of(1)
     after = [p for t, p in s.received["b"] if p[1] == 9 and first is not None and t > first]
     c = rel["b"].counters
-    return first, o, len(after), {k: c[k] for k in ("clock_offset", "unexplained_delay", "stale") if c[k]}
+    refused = {k: c[k] for k in ("clock_offset", "unexplained_delay", "stale") if c[k]}
+    seal = rel["seals"].get("b")
+    if seal is not None and seal.counters["stale"]:
+        refused["seal: stale packets"] = seal.counters["stale"]
+    delivered = sum(1 for _, p in s.received["b"] if p[1] == 9)
+    return first, o, len(after), delivered, refused
 
 
 def main() -> int:
@@ -206,11 +211,16 @@ def main() -> int:
               f"{row['delivered']} lost_on_link {row['lost_on_link']} unknown {row['unknown']} "
               f"in_flight {row['in_flight']}: {'exact' if closes else 'DOES NOT CLOSE'}")
     print()
-    print("4. Receiver's clock off by d (tolerance 5 s): the peer's offset as measured")
-    print(f"{'d s':>5} | {'measured at s':>13} {'offset':>8} {'+-':>5} | {'delivered after':>15}  refused")
-    for d in (3, -3, 6, -6, 30, -30):
-        first, o, after, refused = offset_cell(float(d))
-        print(f"{d:>5} | {first:>13.2f} {o.offset:>8.2f} {o.error:>5.2f} | {after:>15}  {refused}")
+    print("4. Receiver's clock off by d (tolerance 5 s), 10 commands: the peer's offset as measured")
+    print(f"{'d s':>5} {'link':>8} | {'measured at s':>13} {'offset':>8} {'+-':>5} | "
+          f"{'delivered':>9} {'after it':>8}  refused")
+    for sealed in (False, True):
+        for d in (3, -3, 6, -6, 30, -30):
+            first, o, after, delivered, refused = offset_cell(float(d), sealed)
+            figures = (f"{first:>13.2f} {o.offset:>8.2f} {o.error:>5.2f}" if o is not None
+                       else f"{'never':>13} {'-':>8} {'-':>5}")
+            print(f"{d:>5} {'sealed' if sealed else 'unsealed':>8} | {figures} | {delivered:>9} "
+                  f"{after:>8}  {refused}")
     return 0
 
 
