@@ -9,8 +9,10 @@ schedule (the first `SYNC_FIRST` packets of an epoch, 1 in `SYNC_EVERY`, after `
 s without, and on the next `SYNC_ANSWER` packets after a peer's new epoch, so a peer that
 restarted learns ours at once), and also on every packet until one of this epoch's packets is
 acknowledged (at most `UNTIL_ACKED` packets: a one-way link never acknowledges), so losing
-the first packets does not hide a restart. A packet carrying K carries T too. Pure: the
-caller passes `now` and holds the lock.
+the first packets does not hide a restart. A packet carrying K carries T too. K is not
+reserved in every packet (that would shrink every fragment by 10 bytes): it goes on the next
+packet with room for it while due (`uwgen.runtime.delivery.reliability`). Pure: the caller
+passes `now` and holds the lock.
 """
 from __future__ import annotations
 

@@ -117,19 +117,14 @@ class Reliability:
         self.first_offset_at: dict[int, float] = {}   # peer -> when its offset was first measured
 
     def hooks(self) -> PacketHooks:
-        numbering = {} if self.send_epoch is None else {
-            "number": self.number, "next_overhead": self.next_overhead}
+        # Unsealed: this side numbers the packets (K names its epoch). K is not in `overhead`
+        # (which sizes fragments): it rides when the packet has room for it (`carrying`).
+        numbering = {} if self.send_epoch is None else {"number": self.number}
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
-                           overhead=OVERHEAD + (0 if self.send_epoch is None else env.SYNC_LEN),
-                           carrying=self.carrying, resend=self.resend,
+                           overhead=OVERHEAD, carrying=self.carrying, resend=self.resend,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
                            head_room=self.head_room, admit=self.admit, stats=self.stats,
                            **numbering)
-
-    def next_overhead(self, now: float) -> int:
-        """Bytes the next packet's parts may take: T, an A part, and K when it is due."""
-        with self._lock:
-            return OVERHEAD + (env.SYNC_LEN if self.send_epoch.due(now) else 0)
 
     def number(self) -> int:
         with self._lock:
@@ -154,8 +149,11 @@ class Reliability:
         # peer measures our clock's offset (clock_offset.py)
         self._want_time = self._timed or (
             self._timed_reports < TIMED_REPORTS or now - self._last_timed_report >= TIMED_REPORT_EVERY)
-        self._sync = self.send_epoch is not None and self.send_epoch.due(now)
         used = sum(message_measure(p) for _, p in picked) - (1 if picked else 0)
+        # K when due and the packet has room for it besides T and the A part's share (a
+        # packet filled by a full-size fragment carries it on a later one)
+        self._sync = (self.send_epoch is not None and self.send_epoch.due(now)
+                      and self._part_room - used - env.TIME_LEN - env.SYNC_LEN >= A_ROOM)
         self._room = (self._part_room - used - (env.TIME_LEN if self._want_time or self._sync else 0)
                       - (env.SYNC_LEN if self._sync else 0))
 
