@@ -207,10 +207,11 @@ def test_special_files_and_long_names_as_a_manifest_are_usage_errors_in_every_co
 LOADER = """
 import sys
 from pathlib import Path
-from uwgen.manifest.loader import ManifestError, load_sides
+from uwgen.idl.loader import InterfaceLibrary
+from uwgen.manifest.loader import ManifestError, load_manifest
 for name in sys.argv[1:]:
     try:
-        load_sides(Path(name))
+        load_manifest(Path(name), InterfaceLibrary([], installed=False))
     except ManifestError as exc:
         print(exc, flush=True)
 """
@@ -225,3 +226,20 @@ def test_the_manifest_loader_reads_only_a_regular_file_of_at_most_a_mebibyte(tmp
     assert res.returncode == 0 and len(lines) == len(names) + 1, res.stdout + res.stderr
     assert "is a character device" in lines[0] and "is a FIFO" in lines[2] and "symlink loop" in lines[3]
     assert lines[-1].endswith("big.yaml is 1048588 bytes long: uwgen reads at most 1 MiB")
+
+
+@pytest.mark.parametrize("change, says", [
+    (("id: 4\n", "id: 5\n"), "id 5 of topic /turtle1/pose is already used"),
+    (("type: geometry_msgs/msg/Twist", "type: geometry_msgs/msg/Twisty"), "Twisty"),
+    (("publisher: surface", "publisher: nobody"), "nobody"),
+])
+def test_emulate_refuses_what_build_refuses_at_the_same_place(tmp_path, capsys, change, says):
+    path = tmp_path / "uwgen.yaml"
+    path.write_text(DEMO.replace(*change, 1))
+    (tmp_path / "turtlesim").symlink_to(SAMPLES / "turtlesim")     # the interfaces beside it
+    outs = []
+    for argv in (["build", "-m", path, "-o", tmp_path / "out"], ["emulate", "-m", path, "--duration", "0.05"]):
+        rc, out = cli(capsys, *argv)
+        assert rc == 2 and says in out, (argv, out)
+        outs.append(re.findall(rf"{re.escape(str(path))}:\d+:\d+", out))
+    assert outs[0] == outs[1]

@@ -88,23 +88,6 @@ def load_manifest(path: Path, lib: InterfaceLibrary) -> Manifest:
     return _ManifestBuilder(Reader(path), lib).build(root)
 
 
-def load_sides(path: Path) -> tuple[str, dict[str, Side]]:
-    """The network name and the sides of the manifest at `path`, checked as load_manifest
-    checks them (file:line:column errors), without resolving any type: for tools that need
-    only the DESERT endpoints (`uwgen emulate -m`)."""
-    path = Path(path)
-    root = compose(path)
-    builder = _ManifestBuilder(Reader(path), None)  # type: ignore[arg-type] - no types read
-    r = builder.r
-    if root is None:
-        raise ManifestError(SourceRef(r.path, 1, 1), "empty manifest: expected a mapping with at least 'network' and 'sides'")
-    top = r.mapping(root, "the manifest", TOP_KEYS)
-    network = r.string(r.require(top, "network", root, "the manifest"), "network")
-    sides = read_sides(builder, r.require(top, "sides", root, "the manifest"))
-    builder.errors.raise_if_any(ManifestErrors)   # every broken side, each located
-    return network, sides
-
-
 def validate_ros_name(name: str) -> str | None:
     """Why `name` is not a fully qualified ROS 2 topic/service name, or None if it is one.
 
