@@ -266,3 +266,40 @@ def test_hexadecimal_and_quoted_text_are_not_surprises(tmp_path, lib):
     path = tmp_path / "uwgen.yaml"
     path.write_text(DEMO.replace("id: 4\n", "id: 0x4\n", 1))
     assert load_manifest(path, lib).topics[0].id == 4
+
+
+FOUR_MISTAKES = """\
+network: four
+colour: blue
+sides:
+  a: {port: 5000}
+  b: {port: 5001, sender_id: 16}
+security: {mode: sign, key_file: k.key}
+topics:
+  - {name: /x, id: 3, type: std_msgs/msg/String, publisher: a, rat: 5}
+  - {name: /y, id: 4, type: std_msgs/msg/String, publisher: a, rate: -1}
+  - {name: /z, id: 3, type: std_msgs/msg/String, publisher: b}
+"""
+
+
+def test_a_manifests_structural_value_and_id_mistakes_come_in_one_pass(tmp_path, capsys):
+    path = tmp_path / "uwgen.yaml"
+    path.write_text(FOUR_MISTAKES)
+    rc, out = cli(capsys, "build", "-m", path, "-o", tmp_path / "out")
+    assert rc == 2, out
+    located = re.findall(rf"{re.escape(str(path))}:(\d+):\d+: (.*)", out)
+    assert [(int(line), says.split(" ")[0:3]) for line, says in located] == [
+        (2, ["unknown", "key", "'colour'"]), (5, ["sender_id", "of", "side"]),
+        (8, ["unknown", "key", "'rat'"]), (9, ["rate", "of", "topic"]), (10, ["id", "3", "of"])], out
+    assert "5 errors" in out
+    # nothing that only follows from them: side b's wrong sender_id is not also "missing"
+    assert "needs a sender_id" not in out
+
+
+def test_a_misspelled_key_is_reported_once_not_again_as_what_it_left_out(tmp_path, lib):
+    path = tmp_path / "uwgen.yaml"
+    spec = "linear.x: {min: -2, max: 2, precision: 2, out_of_range: clamp}"
+    assert spec in DEMO
+    path.write_text(DEMO.replace(spec, "linear.x: {minimum: -2}", 1))   # and so "says nothing"
+    errors = load_error(path, lib)
+    assert len(errors) == 1 and "unknown key" in str(errors[0]), [str(e) for e in errors]

@@ -101,6 +101,24 @@ class Reader:
     def __init__(self, path: Path):
         self.path = path
         self._constructor = SafeConstructor()
+        # With a collector (the manifest builder's), an unknown, repeated or unreadable key
+        # is collected and skipped instead of ending the read: the rest of the mapping is
+        # still checked, so every mistake of a manifest comes in one pass.
+        self.collect = None
+        # (line, column) of the mappings a key was refused in: an error located at one of them
+        # afterwards ("says nothing", "missing the required key") is a consequence, not news.
+        self.damaged: set[tuple[int, int]] = set()
+
+    def _refuse(self, error: ManifestError, mapping: yaml.Node) -> None:
+        if self.collect is None:
+            raise error
+        self.damaged.add((mapping.start_mark.line + 1, mapping.start_mark.column + 1))
+        self.collect.add(error)
+
+    def consequence(self, error: Exception) -> bool:
+        """Whether `error` is located at a mapping whose own key was refused already."""
+        where = getattr(error, "where", None)
+        return where is not None and (where.line, where.column) in self.damaged
 
     def where(self, node: yaml.Node) -> SourceRef:
         mark = node.start_mark
@@ -117,13 +135,18 @@ class Reader:
             raise self.error(node, f"{what} must be a mapping, got {self.describe(node)}")
         entries: dict[str, tuple[yaml.Node, yaml.Node]] = {}
         for key_node, value_node in node.value:
-            key = self._key(key_node, what)
+            try:
+                key = self._key(key_node, what)
+            except ManifestError as error:
+                self._refuse(error, node)
+                continue
             if key in entries:
                 first = self.where(entries[key][0])
-                raise self.error(key_node, f"duplicate key '{key}' in {what} (first at line {first.line})")
-            if known and key not in known:
-                raise self.error(key_node, self.unknown_key_message(key, what, known))
-            entries[key] = (key_node, value_node)
+                self._refuse(self.error(key_node, f"duplicate key '{key}' in {what} (first at line {first.line})"), node)
+            elif known and key not in known:
+                self._refuse(self.error(key_node, self.unknown_key_message(key, what, known)), node)
+            else:
+                entries[key] = (key_node, value_node)
         return entries
 
     def open_mapping(self, node: yaml.Node, what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
@@ -132,9 +155,11 @@ class Reader:
 
     def check_keys(self, entries: dict[str, tuple[yaml.Node, yaml.Node]], what: str, known: tuple[str, ...]) -> None:
         """Refuse keys of an `open_mapping` that are not in `known`, in file order."""
-        for key, (key_node, _) in entries.items():
+        for key, (key_node, _) in list(entries.items()):
             if key not in known:
-                raise self.error(key_node, self.unknown_key_message(key, what, known))
+                self._refuse(self.error(key_node, self.unknown_key_message(key, what, known)),
+                             entries[key][1])   # no mapping node here: its value stands for it
+                del entries[key]
 
     def _key(self, key_node: yaml.Node, what: str) -> str:
         if not isinstance(key_node, yaml.ScalarNode):
