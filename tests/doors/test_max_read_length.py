@@ -68,3 +68,10 @@ def test_the_bridge_refuses_a_max_read_length_below_the_floor_with_exit_2(tmp_pa
                   "--key-file", key, "--max-read-length", value)
     assert rc == 2 and f"max_read_length {value} must be 47..4096 on this network" in out, out
     assert "the seal's 23 (its tag of 8)" in out and "Traceback" not in out
+
+
+def test_the_manifest_reference_states_the_floors_uwgen_computes():
+    text = (SAMPLES / "manifest-reference.yaml").read_text()
+    plain, tag8 = min_read_length(2, None), min_read_length(2, 8)
+    assert f"# the smallest fragment): {plain}, or {plain} + {max_overhead(0)} + tag_bytes with security on" in text
+    assert f"({tag8} with the" in text and tag8 == plain + max_overhead(0) + 8
