@@ -1,6 +1,6 @@
 """The key file door: any content gives the key or a SecurityError naming the file; never
-another exception. (The security state files this door also had are gone: issue 17 gives
-each start a fresh epoch instead.)"""
+another exception. (There are no security state files behind this door: each start
+takes a fresh epoch instead, docs/security.md.)"""
 from __future__ import annotations
 
 import os
