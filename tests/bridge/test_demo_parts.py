@@ -289,3 +289,37 @@ def test_demo_domains_are_two_different_ids_ros_advises_on_linux(monkeypatch, gi
     vehicle, surface = domains()
     assert vehicle != surface
     assert 0 <= vehicle <= 101 and 0 <= surface <= 101
+
+
+def _lost_seen(tmp_path, link: dict, received: int, receiver_seen: int):
+    write(tmp_path / "operator.jsonl", [{"t": 1.0, "ev": "start", "x": 0.0, "y": 0.0, "theta": 0.0}])
+    write(tmp_path / "vehicle.jsonl", [])
+    out = {"published": 16, "taken": 16, "dropped_by_subscription": 0, "dropped_by_policy": {}, "queued": 0,
+           "sent": 16}
+    inc = {"received": received, "lost_on_link": receiver_seen, "delivered": received,
+           "dropped_on_receive": {"decode_error": 0, "publish_error": 0}}
+    (tmp_path / "bridge_vehicle.json").write_text(json.dumps({"topics": {"/vehicle/battery": {
+        "accounting": out, "link": link}}}))
+    (tmp_path / "bridge_surface.json").write_text(json.dumps({"topics": {"/vehicle/battery": {
+        "accounting": inc}}}))
+    row = next(r for r in build_report(tmp_path).topics if r.name == "/vehicle/battery")
+    return row.lost, row.lost_seen
+
+
+def test_lost_seen_counts_messages_not_the_fragments_acks_name(tmp_path):
+    # 16 messages in 32 fragments: the acks name 9 fragments missing, 6 messages never completed,
+    # 2 of them with some fragments received
+    link = {"fragments_sent": 32, "on_link": {"sent": 32, "delivered": 23, "lost_on_link": 9,
+                                              "in_flight": 0, "unacknowledged": 0}}
+    lost, seen = _lost_seen(tmp_path, link, received=10, receiver_seen=2)
+    assert (lost, seen) == (6, 2) and seen <= lost
+
+
+def test_lost_seen_is_never_more_than_lost(tmp_path):
+    # unfragmented: the acks name 8 copies missing, but 2 of them arrived after all
+    link = {"fragments_sent": 0, "on_link": {"sent": 16, "delivered": 8, "lost_on_link": 8,
+                                             "in_flight": 0, "unacknowledged": 0}}
+    lost, seen = _lost_seen(tmp_path, link, received=10, receiver_seen=0)
+    assert (lost, seen) == (6, 6)
+    text = format_report(build_report(tmp_path))
+    assert "6 (6)" in text and "6 (8)" not in text

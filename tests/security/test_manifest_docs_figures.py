@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from uwgen.runtime.link.packets import envelope_room
 from uwgen.runtime.wire import envelope as env
 from uwgen.security import wire
 from uwgen.security.packet_seal import ASK_BYTES, SYNC_ANSWER, SYNC_BYTES, max_overhead
@@ -46,7 +47,8 @@ DEMO = [
     f"and the first {SYNC_FIRST} after a start)",
     f"{AVERAGE:.1f} on average: {air(AVERAGE, 4800):.3f} s of air time at this link's 4800 bit/s, "
     f"{air(AVERAGE, 200):.2f} s at 200 bit/s, and {TAG} of each 64-byte packet's bytes",
-    f"(a tag of {TAG} bytes, {TAG + SYNC_BYTES} on a sync packet)",
+    f"(a tag of {TAG} bytes, {TAG + SYNC_BYTES} on a sync packet, {max_overhead()} when it asks for one), "
+    f"which leaves {envelope_room(64, max_overhead())} bytes of messages",
 ]
 
 
