@@ -323,3 +323,31 @@ def test_lost_seen_is_never_more_than_lost(tmp_path):
     assert (lost, seen) == (6, 6)
     text = format_report(build_report(tmp_path))
     assert "6 (6)" in text and "6 (8)" not in text
+
+
+@pytest.mark.parametrize("given, expected", [("21", (21, 22)), ("205", (3, 4)), ("0", (0, 1))])
+def test_the_demo_uses_the_domains_its_help_and_docs_state(monkeypatch, given, expected):
+    from uwgen.cli import build_parser
+    from uwgen.demo.processes import domains
+    monkeypatch.setenv("ROS_DOMAIN_ID", given)
+    assert domains() == expected
+    parser = build_parser("demo")
+    demo = next(a for a in parser._subparsers._group_actions[0].choices.values() if a.prog.endswith("demo"))
+    text = " ".join(demo.format_help().split())
+    assert "ROS domain ROS_DOMAIN_ID (taken modulo 101" in text and "ROS_DOMAIN_ID + 1" in text
+    assert "two free TCP ports" in text
+    docs = " ".join((Path(__file__).resolve().parents[2] / "docs" / "demo.md").read_text().replace("`", "").split())
+    assert "ROS_DOMAIN_ID (modulo 101" in docs and "ROS_DOMAIN_ID + 1" in docs
+
+
+def test_the_run_shown_in_the_docs_has_the_lines_the_report_prints(tmp_path):
+    # headers, rules and legends carry no figures: each the docs show is one the report prints
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "demo.md").read_text(encoding="utf-8")
+    block = doc.split("## A run\n\n```\n", 1)[1].split("```", 1)[0].splitlines()
+    text = format_report(_square_report(tmp_path, {"ok": True, "status": "succeeded", "feedback": 1,
+                                                    "rtt": 3.0, "delta": 1.5}))
+    printed = set(text.splitlines())
+    fixed = [line for line in block if line.strip() and not any(c.isdigit() for c in line)]
+    assert len(fixed) >= 5 and [line for line in fixed if line not in printed] == []
+    for label in ("action /turtle1/rotate_absolute: succeeded after", "path: the poses the surface received"):
+        assert any(line.startswith(label) for line in block) and any(line.startswith(label) for line in printed)
