@@ -94,7 +94,7 @@ def sim(sealed=False, offsets=None, old=False, reliable_ttl=60.0):
             other_overhead=0 if seal is None else seal.hooks().overhead,
             epoch_source=None if sealed else (lambda: next(epochs)))
         if old:
-            rel.staleness = OldRule()
+            rel.judge.staleness = OldRule()
             rel.offsets.reported = lambda *a, **k: None          # no exchange measured
         return join_hooks(rel.hooks(), seal.hooks() if seal else None)
     s = DuplexSim(scen, ("a", "b"), hooks_for=hooks_for, wire_format=2, clock=clock)

@@ -19,6 +19,9 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 
+from typing import Any
+
+from uwgen.runtime.delivery.reliable import RECEIVED_WINDOW, unwrap
 from uwgen.runtime.wire import envelope as env
 
 SYNC_FIRST = 3            # the first packets of an epoch carry K (as the seal's)
@@ -69,3 +72,37 @@ class SendEpoch:
 
     def peer_restarted(self) -> None:
         self._answer = SYNC_ANSWER
+
+
+class PeerEpochs:
+    """Each peer's epoch as this side receives it: K's when a packet has one; otherwise the
+    last known, or a stand-in when none is known yet (named once K comes: the same start),
+    or a new stand-in when its number fell behind the received window (a restarted sender
+    whose packets with K were all lost)."""
+
+    def __init__(self):
+        self.known: dict[int, bytes] = {}
+        self._restarts: dict[int, int] = {}
+
+    def of(self, envelope: env.Envelope, receipts: dict[tuple[int, bytes], Any]
+           ) -> tuple[bytes, bytes | None, bool]:
+        """(epoch, the stand-in it renames or None, whether the peer restarted)."""
+        peer = envelope.sender
+        known = self.known.get(peer)
+        if envelope.sync is not None:
+            epoch = envelope.sync.epoch
+            self.known[peer] = epoch
+            if known is None or known == epoch:
+                return epoch, None, False
+            if len(known) != env.EPOCH_LEN:          # a stand-in: the same start, now named
+                return epoch, known, False
+            return epoch, None, True
+        epoch = known if known is not None else b""
+        r = receipts.get((peer, epoch))
+        if r is not None and r.largest is not None and \
+                unwrap(envelope.number, r.largest) < r.largest - RECEIVED_WINDOW:
+            self._restarts[peer] = self._restarts.get(peer, 0) + 1
+            self.known[peer] = b"restart %d" % self._restarts[peer]
+            return self.known[peer], None, True
+        self.known[peer] = epoch
+        return epoch, None, False

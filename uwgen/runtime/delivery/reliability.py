@@ -43,12 +43,9 @@ from uwgen.runtime.delivery.freshness import stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.packets import PacketHooks, message_measure
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
-from uwgen.runtime.delivery.reliable import (DELAY_UNIT, RECEIVED_WINDOW, REPORT_KEY, AckError,
-                                             ReliableLink, RttEstimator, Sent, decode_reports,
-                                             unwrap)
-from uwgen.runtime.delivery.clock_offset import ClockOffsets
-from uwgen.runtime.delivery.epoch import SendEpoch
-from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, Staleness
+from uwgen.runtime.delivery.reliable import REPORT_KEY, ReliableLink, RttEstimator, Sent
+from uwgen.runtime.delivery.judge import AgeJudge
+from uwgen.runtime.delivery.epoch import PeerEpochs, SendEpoch
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.reliability")
@@ -82,7 +79,6 @@ class Reliability:
         self.send_epoch = SendEpoch(epoch_source) if epoch_source is not None else None
         self._sync = False                            # the packet being built carries K
         self._building = 0                            # its number
-        self.peer_names = dict(peer_names or {})
         # what a packet may hold besides P, W and the messages: the frame's payload minus what
         # the other joined hooks (the seal) may add; the A part takes what is left (acks.A_ROOM
         # at least, kept free by `overhead`)
@@ -97,24 +93,23 @@ class Reliability:
         first = max(2.0, 8 * period)
         self.engine = ReliableLink(sender, RttEstimator(first, period, 60.0, period),
                                    ack_delay=self.ack_delay)
-        self.staleness = Staleness()
-        self.offsets = ClockOffsets()
         self._timed_reports = 0                       # packets with A and T since a peer's start
         self._last_timed_report = -float("inf")
         self._want_time = False
         self.counters = Counters(COUNTERS)
-        self.stale_by_id: dict[int, int] = {}
+        # commands' ages, with each peer's clock offset measured from exchanges (judge.py)
+        self.judge = AgeJudge(sender, name, wall, self.counters, self.max_ages, peer_names)
+        self.offsets, self.stale_by_id = self.judge.offsets, self.judge.stale_by_id
+        self.first_offset_at = self.judge.first_offset_at
         self._lock = threading.Lock()
         self._deadline_of: dict[int, float] = {}      # channel key -> its message being sent
         self._timed = False                           # the packet being built needs T
         self._queue: deque[Sent] = deque()            # lost reliable messages to send again
         self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
-        self._epochs: dict[int, bytes] = {}
-        self._restarts: dict[int, int] = {}
+        self._peers = PeerEpochs()                    # each peer's epoch, as received
+        self._epochs = self._peers.known
         self._rx: tuple[int, bytes, int | None] | None = None
-        self._offset_told: set[int] = set()
-        self.first_offset_at: dict[int, float] = {}   # peer -> when its offset was first measured
 
     def hooks(self) -> PacketHooks:
         # Unsealed: this side numbers the packets (K names its epoch). K is not in `overhead`
@@ -235,7 +230,7 @@ class Reliability:
                 self.counters.inc("duplicate_packets")
             self.acks.heard(peer, bool(envelope.messages), now)
             if envelope.ack is not None:
-                self._sample_offset(peer, envelope, now)
+                self.judge.sample(peer, envelope, self.engine.largest_sent, now)
                 before = self.engine.bad_acks
                 self.engine.acked(envelope.ack, now)
                 if self.send_epoch is not None and self.engine.largest_acked is not None:
@@ -244,77 +239,18 @@ class Reliability:
                 if self.engine.bad_acks > before:
                     log_count(log, logging.WARNING, self.counters.inc("bad_acks"),
                               "[%s] ignored an acknowledgement from %s that is malformed "
-                              "or names packets never sent: %s", self.name, self._who(peer),
+                              "or names packets never sent: %s", self.name, self.judge.who(peer),
                               envelope.ack.hex(" "))
             self._rx = (peer, epoch, envelope.time)
 
-    def _who(self, peer: int) -> str:
-        """`sender 1 (surface)`: the peer's sender id (W) and, when known, its side."""
-        name = self.peer_names.get(peer)
-        return f"sender {peer}" + (f" ({name})" if name else "")
-
-    def _sample_offset(self, peer: int, envelope: env.Envelope, now: float) -> None:
-        """The peer's report on our packets, with its packet's T: one NTP exchange."""
-        if envelope.time is None or self.engine.largest_sent is None:
-            return
-        try:
-            reports = decode_reports(envelope.ack)
-        except AckError:
-            return
-        for r in reports:
-            if r.peer != self.sender:
-                continue
-            number = unwrap(r.largest, self.engine.largest_sent)
-            got = self.offsets.reported(peer, number, int(round(r.delay / DELAY_UNIT)),
-                                        envelope.time, self.wall.now())
-            if got is not None:
-                self.counters.inc("offset_samples")
-                self.first_offset_at.setdefault(peer, now)
-                self._tell_offset(peer, got)
-
-    def _tell_offset(self, peer: int, got) -> None:
-        """One log line when a peer's offset is first measured beyond the tolerance (and
-        again when it comes back within it)."""
-        beyond = abs(got.offset) > self.staleness.tolerance
-        back = abs(got.offset) + got.error <= self.staleness.tolerance   # no flapping at the edge
-        if beyond and peer not in self._offset_told:
-            self._offset_told.add(peer)
-            log.error("[%s] %s's clock is %.1f s %s ours (+-%.2f s, measured from an "
-                      "exchange), more than the %.0f s tolerance: its commands are refused "
-                      "(counted clock_offset) until the clocks agree. Set both clocks from GPS "
-                      "or NTP", self.name, self._who(peer), abs(got.offset),
-                      "ahead of" if got.offset > 0 else "behind", got.error,
-                      self.staleness.tolerance)
-        elif back and peer in self._offset_told:
-            self._offset_told.discard(peer)
-            log.warning("[%s] %s's clock is now %.1f s from ours (+-%.2f s): within the "
-                        "%.0f s tolerance, its commands are taken again", self.name, self._who(peer),
-                        got.offset, got.error, self.staleness.tolerance)
-
     def _epoch(self, envelope: env.Envelope) -> bytes:
-        """The sender's epoch: K's when the packet has one; otherwise the last known, or a
-        stand-in when none is known yet, or a new stand-in when its number fell behind the
-        window (a restarted sender whose packets with K were all lost)."""
-        peer = envelope.sender
-        known = self._epochs.get(peer)
-        if envelope.sync is not None:
-            epoch = envelope.sync.epoch
-            if known is not None and known != epoch:
-                if len(known) != env.EPOCH_LEN:      # a stand-in: the same start, now named
-                    self.engine.rename_epoch(peer, known, epoch)
-                    self.acks.rename_epoch(peer, known, epoch)
-                else:
-                    self._restarted(peer)
-            self._epochs[peer] = epoch
-            return epoch
-        epoch = known if known is not None else b""
-        r = self.engine.receipts.get((peer, epoch))
-        if r is not None and r.largest is not None and \
-                unwrap(envelope.number, r.largest) < r.largest - RECEIVED_WINDOW:
-            self._restarted(peer)
-            self._restarts[peer] = self._restarts.get(peer, 0) + 1
-            epoch = b"restart %d" % self._restarts[peer]
-        self._epochs[peer] = epoch
+        """The sender's epoch (epoch.PeerEpochs), acting on a stand-in named or a restart."""
+        epoch, renamed, restarted = self._peers.of(envelope, self.engine.receipts)
+        if renamed is not None:
+            self.engine.rename_epoch(envelope.sender, renamed, epoch)
+            self.acks.rename_epoch(envelope.sender, renamed, epoch)
+        if restarted:
+            self._restarted(envelope.sender)
         return epoch
 
     def _restarted(self, peer: int) -> None:
@@ -323,7 +259,7 @@ class Reliability:
         self.counters.inc("restarts_seen")
         log.info("[%s] %s started again (a new epoch): its packets and reliable messages are "
                  "counted afresh; what it had not acknowledged of ours is counted unknown and "
-                 "reliable messages are sent again", self.name, self._who(peer))
+                 "reliable messages are sent again", self.name, self.judge.who(peer))
         self.offsets.forget(peer)
         self._timed_reports = 0
         if self.send_epoch is not None:
@@ -343,46 +279,9 @@ class Reliability:
             peer, epoch, time24 = self._rx if self._rx is not None else (-1, b"", None)
             if got.number is not None and not self.engine.deliver_once(peer, epoch, ident, got.number):
                 return None
-            if got.age is not None and self._stale(ident, peer, time24, got.age):
+            if got.age is not None and self.judge.refuses(ident, peer, time24, got.age):
                 return None
             return got.payload
-
-    def _stale(self, ident: int, peer: int, time24: int | None, age: float) -> bool:
-        if time24 is None:
-            self.counters.inc("untimed")
-        max_age = self.max_ages[ident]
-        verdict = self.staleness.judge(time24, age, max_age, self.wall.now(), self.offsets.of(peer))
-        if verdict.refused is None:
-            return False
-        self.stale_by_id[ident] = self.stale_by_id.get(ident, 0) + 1
-        n = self.counters.inc(verdict.refused)
-        o = verdict.offset
-        if verdict.refused == CLOCK_OFFSET:
-            log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: that sender's clock is "
-                      "%.1f s %s ours (+-%.2f s), beyond the %.0f s tolerance. Set both clocks "
-                      "from GPS or NTP (counted clock_offset)", self.name, ident, self._who(peer),
-                      abs(o.offset), "ahead of" if o.offset > 0 else "behind", o.error,
-                      self.staleness.tolerance)
-        elif verdict.refused == UNEXPLAINED:
-            log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: its packet's time says "
-                      "it took %.1f s on the way, outside [-%.0f, %.0f] s, and that sender's "
-                      "clock offset is not measured yet, so a delay cannot be told from an "
-                      "offset (age item %.1f s, max age %.1f s; counted unexplained_delay)",
-                      self.name, ident, self._who(peer), verdict.transit, self.staleness.tolerance,
-                      self.staleness.tolerance + self.staleness.max_transit, age, max_age)
-        else:
-            how = ("transit %.1f s, clock offset %+.2f +-%.2f s measured" % (
-                       verdict.transit, o.offset, o.error) if o is not None else
-                   "transit %.1f s, clock offset not measured yet (tolerance %.0f s)" % (
-                       verdict.transit or 0.0, self.staleness.tolerance)
-                   if verdict.transit is not None else "no packet time")
-            log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: %.1f s old (age item "
-                      "%.1f s, %s), its max age is %.1f s (counted stale)", self.name, ident,
-                      self._who(peer), verdict.age, age, how, max_age)
-        return True
 
     # -- reporting ---------------------------------------------------------------------------
 

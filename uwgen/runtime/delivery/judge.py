@@ -1,0 +1,112 @@
+"""How old a received command is, judged with its sender's measured clock offset, and the
+log lines that say why one is refused (docs/wire-format.md section 15.5, docs/seams.md
+section 8). `AgeJudge` holds the offsets (`clock_offset.ClockOffsets`), the rule
+(`staleness.Staleness`) and the per-sender log lines; `Reliability` calls it with its lock held.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from uwgen.runtime.clock import Clock
+from uwgen.runtime.delivery.clock_offset import ClockOffsets
+from uwgen.runtime.delivery.reliable import DELAY_UNIT, AckError, decode_reports, unwrap
+from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, Staleness
+from uwgen.runtime.stats import Counters, log_count
+
+log = logging.getLogger("uwgen.link.reliability")
+
+
+class AgeJudge:
+    """One side's judgement of its peers' commands' ages."""
+
+    def __init__(self, me: int, name: str, wall: Clock, counters: Counters,
+                 max_ages: dict[int, float], peer_names: dict[int, str] | None = None):
+        self.sender, self.name, self.wall, self.counters = me, name, wall, counters
+        self.max_ages = max_ages
+        self.peer_names = dict(peer_names or {})
+        self.staleness = Staleness()
+        self.offsets = ClockOffsets()
+        self.stale_by_id: dict[int, int] = {}
+        self._offset_told: set[int] = set()
+        self.first_offset_at: dict[int, float] = {}   # peer -> when its offset was first measured
+
+    def who(self, peer: int) -> str:
+        """`sender 1 (surface)`: the peer's sender id (W) and, when known, its side."""
+        name = self.peer_names.get(peer)
+        return f"sender {peer}" + (f" ({name})" if name else "")
+
+    def sample(self, peer: int, envelope: Any, largest_sent: int | None, now: float) -> None:
+        """The peer's report on our packets, with its packet's T: one NTP exchange."""
+        if envelope.time is None or largest_sent is None:
+            return
+        try:
+            reports = decode_reports(envelope.ack)
+        except AckError:
+            return
+        for r in reports:
+            if r.peer != self.sender:
+                continue
+            number = unwrap(r.largest, largest_sent)
+            got = self.offsets.reported(peer, number, int(round(r.delay / DELAY_UNIT)),
+                                        envelope.time, self.wall.now())
+            if got is not None:
+                self.counters.inc("offset_samples")
+                self.first_offset_at.setdefault(peer, now)
+                self._tell_offset(peer, got)
+
+    def _tell_offset(self, peer: int, got) -> None:
+        """One log line when a peer's offset is first measured beyond the tolerance (and
+        again when it comes back within it)."""
+        beyond = abs(got.offset) > self.staleness.tolerance
+        back = abs(got.offset) + got.error <= self.staleness.tolerance   # no flapping at the edge
+        if beyond and peer not in self._offset_told:
+            self._offset_told.add(peer)
+            log.error("[%s] %s's clock is %.1f s %s ours (+-%.2f s, measured from an "
+                      "exchange), more than the %.0f s tolerance: its commands are refused "
+                      "(counted clock_offset) until the clocks agree. Set both clocks from GPS "
+                      "or NTP", self.name, self.who(peer), abs(got.offset),
+                      "ahead of" if got.offset > 0 else "behind", got.error,
+                      self.staleness.tolerance)
+        elif back and peer in self._offset_told:
+            self._offset_told.discard(peer)
+            log.warning("[%s] %s's clock is now %.1f s from ours (+-%.2f s): within the "
+                        "%.0f s tolerance, its commands are taken again", self.name, self.who(peer),
+                        got.offset, got.error, self.staleness.tolerance)
+
+    def refuses(self, ident: int, peer: int, time24: int | None, age: float) -> bool:
+        if time24 is None:
+            self.counters.inc("untimed")
+        max_age = self.max_ages[ident]
+        verdict = self.staleness.judge(time24, age, max_age, self.wall.now(), self.offsets.of(peer))
+        if verdict.refused is None:
+            return False
+        self.stale_by_id[ident] = self.stale_by_id.get(ident, 0) + 1
+        n = self.counters.inc(verdict.refused)
+        o = verdict.offset
+        if verdict.refused == CLOCK_OFFSET:
+            log_count(log, logging.WARNING, n,
+                      "[%s] refused a message of id %d from %s: that sender's clock is "
+                      "%.1f s %s ours (+-%.2f s), beyond the %.0f s tolerance. Set both clocks "
+                      "from GPS or NTP (counted clock_offset)", self.name, ident, self.who(peer),
+                      abs(o.offset), "ahead of" if o.offset > 0 else "behind", o.error,
+                      self.staleness.tolerance)
+        elif verdict.refused == UNEXPLAINED:
+            log_count(log, logging.WARNING, n,
+                      "[%s] refused a message of id %d from %s: its packet's time says "
+                      "it took %.1f s on the way, outside [-%.0f, %.0f] s, and that sender's "
+                      "clock offset is not measured yet, so a delay cannot be told from an "
+                      "offset (age item %.1f s, max age %.1f s; counted unexplained_delay)",
+                      self.name, ident, self.who(peer), verdict.transit, self.staleness.tolerance,
+                      self.staleness.tolerance + self.staleness.max_transit, age, max_age)
+        else:
+            how = ("transit %.1f s, clock offset %+.2f +-%.2f s measured" % (
+                       verdict.transit, o.offset, o.error) if o is not None else
+                   "transit %.1f s, clock offset not measured yet (tolerance %.0f s)" % (
+                       verdict.transit or 0.0, self.staleness.tolerance)
+                   if verdict.transit is not None else "no packet time")
+            log_count(log, logging.WARNING, n,
+                      "[%s] refused a message of id %d from %s: %.1f s old (age item "
+                      "%.1f s, %s), its max age is %.1f s (counted stale)", self.name, ident,
+                      self.who(peer), verdict.age, age, how, max_age)
+        return True
