@@ -40,6 +40,7 @@ from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
 from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.link.mac import mac_for
 from uwgen.runtime.link.packets import join_hooks
 
 __all__ = ["BridgeNode", "BRIDGE_NODE_PREFIX", "default_link_factory", "node_name_for",
@@ -102,8 +103,13 @@ class BridgeNode(Node):
         # Acks, re-sends of reliable topics, delivery once, stale commands (wire format 2 only;
         # docs/seams.md section 5), joined with the per-packet seal's hooks (one tag per packet)
         # when the link is secured.
+        # When this side may write (docs/seams.md section 7): its turn, its slot's share.
+        self.mac = mac_for(plan.mac, plan.side, plan.senders, link_cfg, plan.wire_format)
+        if self.mac.mode != "none":
+            security_kw["mac"] = self.mac
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
-            seal_hooks.overhead if seal_hooks is not None else 0))
+            seal_hooks.overhead if seal_hooks is not None else 0) + self.mac.overhead,
+            turn_gap=self.mac.turn_gap())
         reliability_hooks = self.reliability.hooks() if self.reliability is not None else None
         if reliability_hooks is not None or seal_hooks is not None:
             security_kw["hooks"] = join_hooks(reliability_hooks, seal_hooks)
