@@ -59,6 +59,27 @@ def default_link_factory(**kwargs: Any) -> Any:
     return Link(**kwargs)
 
 
+def deadline_problems(plan: BridgePlan, link: Any) -> list[str]:
+    """Deadlines of this side's calls and goals that cannot fit one round trip under the MAC
+    (uwgen.manifest.mac.round_trip): said at start, as `uwgen analyze` says them."""
+    from uwgen.manifest.mac import round_trip
+    from uwgen.manifest.model import MacConfig
+    mac = plan.mac or MacConfig()
+    rt = round_trip(mac, link.period, link.max_read_length, list(plan.senders))
+    out = []
+    for entry, key in ((s, "timeout") for s in plan.called_services):
+        limit = getattr(entry, key, None)
+        if limit is not None and limit < rt:
+            out.append(f"service {entry.name}: its timeout {limit:g} s cannot fit one round trip "
+                       f"under mac {mac.mode} (about {rt:.1f} s): its calls will time out")
+    for entry in plan.offered_actions:
+        limit = getattr(entry, "accept_timeout", None)
+        if limit is not None and limit < rt:
+            out.append(f"action {entry.name}: its accept_timeout {limit:g} s cannot fit one round "
+                       f"trip under mac {mac.mode} (about {rt:.1f} s): its goals will be rejected")
+    return out
+
+
 def node_name_for(plan: BridgePlan) -> str:
     return f"{BRIDGE_NODE_PREFIX}{plan.network}_{plan.side}".replace("-", "_")
 
@@ -124,6 +145,8 @@ class BridgeNode(Node):
             self.rmw_discovery = RmwDiscovery(w, plan, self.link, flush_timeout)
             self.create_timer(LINK_TICK, self.rmw_discovery.check_link, callback_group=main_group)
         self.schema = attach_schema(plan, self.link, clock, link_cfg, logger_say(self._log))
+        for problem in deadline_problems(plan, link_cfg):
+            self._log.warning(problem)
         if self.schema is not None:   # SchemaGuard: fingerprints announced, mismatches refused
             self.create_timer(SCHEMA_TICK, self.schema.tick, callback_group=main_group)
 

@@ -127,3 +127,45 @@ def check_turns_wire(r: Reader, node: yaml.Node, config: MacConfig, uses_rmw_des
         raise r.error(node, "mac mode turns needs wire format 2 (its grants are C items), but an "
                       "entry in profile rmw_desert keeps this network on wire format 1: use "
                       "mode tdma or none")
+
+
+def mac_from_text(text: str, sides: list[str] | dict, what: str = "--mac") -> MacConfig:
+    """A `mac:` section given on a command line (a YAML flow mapping, as in the manifest:
+    `{mode: tdma, frame: 1.0, guard: 0.35}`), checked as the manifest's; ManifestError
+    located in `what`."""
+    from pathlib import Path
+
+    from uwgen import yamltext
+    from uwgen.manifest.nodes import ManifestError
+
+    try:
+        node = yaml.compose(text, Loader=yamltext.Loader)
+    except yaml.YAMLError as exc:
+        raise ManifestError(None, f"{what}: not YAML: {exc}") from None
+    if node is None:
+        raise ManifestError(None, f"{what}: empty; expected e.g. {{mode: turns}}")
+    names = {name: Side(name) for name in sides}
+    return read_mac(Reader(Path(what)), node, names)
+
+
+def round_trip(config: MacConfig, period: float, max_read_length: int,
+               sides: list[str] | None = None) -> float:
+    """Seconds a request and its answer take under the MAC at most, in the steady state, with
+    no loss: what a deadline must leave room for (uwgen analyze warns, the bridge logs).
+    One way: DESERT's period tick, its MAC's listen, the air time and the range; then the
+    wait for a turn: a frame (tdma), a round of turns (turns)."""
+    air = air_time(max_read_length, config.bitrate)
+    one_way = period + air + config.delay
+    if config.mode == "tdma":
+        return config.frame + 2 * one_way
+    if config.mode == "turns":
+        interval = max(period * 1.05, air)
+        names = sides or [config.leader]
+        followers = [s for s in names if s != config.leader]
+        cycle = config.turn_packets(config.leader) * interval + sum(
+            config.turn_packets(s) * interval + 2 * (one_way + LISTEN) for s in followers)
+        return cycle + 2 * one_way
+    return 2 * (one_way + LISTEN)
+
+
+LISTEN = 0.3      # s: DESERT's CSMA-ALOHA listen and back-off before a packet starts (mac.LISTEN)
