@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 
 from uwgen.emulator import tdma
 from uwgen.emulator.motion import Geometry
-from uwgen.emulator.physics import bpsk_per
+from uwgen.emulator.physics import locked_outcome
 from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario
 from uwgen.runtime.stats import Counters
 
@@ -459,23 +459,6 @@ class EmulatorCore:
         return snr.threshold_db if snr is not None else -math.inf
 
     def _decide(self, arr: _Arrival) -> str | None:
-        """Outcome of a packet the receiver stayed locked on to its end."""
-        snr = self.scenario.snr
-        if snr is None:
-            return "collision" if arr.interference > 0 else None
-        nbits = (len(arr.packet.data) + self.scenario.header_bytes) * 8
-        u = self._bit_error_rng.random() if snr.bpsk_errors else 1.0
-        snr_lin = 10 ** (arr.snr_db / 10)
-        if snr.bpsk_errors and u < bpsk_per(snr_lin, nbits):
-            return "snr"
-        if arr.interference > 0:
-            # DESERT draws the bit errors of noise plus interference with the same number;
-            # without bit errors, a SINR under the threshold is a collision.
-            signal = snr_lin * self._noise
-            sinr = signal / (self._noise + arr.interference)
-            if snr.bpsk_errors:
-                if u < bpsk_per(sinr, nbits):
-                    return "collision"
-            elif 10 * math.log10(sinr) < snr.threshold_db:
-                return "collision"
-        return None
+        """Outcome of a packet the receiver stayed locked on to its end (physics.locked_outcome)."""
+        return locked_outcome(self.scenario.snr, (len(arr.packet.data) + self.scenario.header_bytes) * 8,
+                              arr.snr_db, arr.interference, self._noise, self._bit_error_rng)
