@@ -166,3 +166,11 @@ def test_tdma_writes_at_most_a_slots_capacity_per_frame():
 def test_tdma_capacity_follows_desert_settings(kw, capacity):
     config = MacConfig(mode="tdma", frame=1.0, slots=("a", "b"), **kw)
     assert tdma_capacity(config, LINK) == capacity
+
+
+def test_an_end_lost_after_the_answer_costs_two_intervals_not_a_timeout():
+    lead, _ = pair()
+    write(lead, 0.0)                                 # grants sender 2 two packets
+    assert lead.next_write_at(0.1) > 0.8 + 3 * lead.interval   # the first timer is longer
+    lead.heard(2, b"", 0.8)                          # its first packet; the one with the end is lost
+    assert lead.next_write_at(0.9) == pytest.approx(0.8 + 3 * lead.interval)

@@ -298,10 +298,11 @@ class TurnMac(Mac):
                 return
             self._heard_in_wait += 1
             who, n, at, deadline = self._waiting
-            # It is answering: its end comes within its remaining packets, whatever the timer
-            # said (a late answer must not be talked over).
+            # It is answering: its end comes within its remaining packets plus a margin,
+            # whatever the first timer said: later (a late answer is never talked over) or
+            # sooner (a lost end costs two packet intervals, not a whole timeout).
             rest = max(0, n - self._heard_in_wait) + 2
-            self._waiting = (who, n, at, max(deadline, now + rest * self.interval))
+            self._waiting = (who, n, at, now + rest * self.interval)
             if any(i.code == TURN_END and i.sender == sender for i in items):
                 who, _n, at, _ = self._waiting
                 self.counts["ends_heard"] += 1
