@@ -28,6 +28,8 @@ share of all bytes the two sides wrote.
 from __future__ import annotations
 
 import argparse
+import itertools
+import os
 import random
 import sys
 import tempfile
@@ -110,7 +112,10 @@ def fibonacci(n: int) -> list[int]:
 class Side:
     """One ROS domain with its executor thread."""
 
-    domains = iter(range(150, 230))
+    # two domains of the caller's (ROS_DOMAIN_ID and the next), reused run after run: a run's
+    # contexts are shut down before the next starts
+    _base = int(os.environ.get("ROS_DOMAIN_ID", "150"))
+    domains = itertools.cycle((_base, _base + 1))
 
     def __init__(self, name: str):
         self.context = Context()
@@ -363,6 +368,53 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
             "lost_on_link": row.get("lost_on_link", 0), "expired": row.get("expired", 0)}
 
 
+def ledger_run(mac: str, seconds: float = 300.0, per: float = 0.0, seed: int = 5) -> dict:
+    """A saturated one-way link (the surface floods a best-effort fifo topic, the vehicle
+    sends only its acknowledgements) on simulated time: what the surface's ledger says was
+    lost on the link beside what the emulator lost."""
+    from uwgen.manifest.model import LinkConfig
+    from uwgen.runtime.link.mac import mac_for
+    scen = scenario(per, seed, mac)
+    config = mac_config(mac)
+    macs = {side: mac_for(config, side, SENDERS, LinkConfig(64, 0.2)) for side in SENDERS}
+    clock = ManualClock()
+    rel: dict[str, Reliability] = {}
+
+    def hooks_for(side: str):
+        rel[side] = Reliability(SENDERS[side], period=0.2, reliable={}, max_ages={}, wall=_Wall(clock),
+                                name=side, max_read_length=64, other_overhead=macs[side].overhead,
+                                turn_gap=macs[side].turn_gap())
+        return rel[side].hooks()
+    sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2, clock=clock,
+                    step=0.025, link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})
+    sim.links["surface"].add_channel(MISSION, LinkPolicy(queue="fifo", depth=50, ttl=30.0))
+    k = 0
+    t = 0.0
+    while t < seconds:                                  # 40 B every 0.05 s: 4x what it carries
+        sim.at(t, lambda k=k: sim.links["surface"].offer(MISSION, bytes((0, MISSION)) + bytes(38)))
+        k += 1
+        t += 0.05
+    sim.run(seconds + 30.0)
+    row = rel["surface"].ledger().get(MISSION, {})
+    got = sum(1 for _, p in sim.received["vehicle"] if p[1] == MISSION)
+    sent = row.get("sent", 0)
+    counters = {n: sim.core.counters(n) for n in SENDERS}
+    return {"sent": sent, "delivered": got, "ledger_lost": row.get("lost_on_link", 0),
+            "real_lost": sent - got, "ledger_delivered": row.get("delivered", 0),
+            "collisions": sum(c["lost_collision"] for c in counters.values()),
+            "ack_only_lost": counters["surface"]["lost_collision"] + counters["surface"]["lost_per"]}
+
+
+def ledger_table(macs: list[str]) -> None:
+    print("| mac | messages sent | delivered (vehicle) | really lost | ledger: delivered | "
+          "ledger: lost on link | packets lost to collisions |")
+    print("|---|---|---|---|---|---|---|")
+    for mac in macs:
+        r = ledger_run(mac)
+        print(f"| {mac} | {r['sent']} | {r['delivered']} | {r['real_lost']} | {r['ledger_delivered']} | "
+              f"{r['ledger_lost']} | {r['collisions']} |", flush=True)
+
+
 def _pct(values: list[float], q: float) -> float:
     return values[min(len(values) - 1, int(q * len(values)))] if values else float("nan")
 
@@ -393,6 +445,8 @@ def main() -> int:
     ap.add_argument("--no-topics", action="store_true", help="skip the reliable-topic table")
     ap.add_argument("--no-reference", action="store_true",
                     help="commands: run this build only, not the reference without retries")
+    ap.add_argument("--ledger", action="store_true",
+                    help="only the saturated one-way ledger table (simulated), per --mac")
     ap.add_argument("--mac", default="none",
                     help="comma-separated MACs to run (none, tdma, turns; see MACS); the first "
                          "row of each rate is the reference")
@@ -401,6 +455,9 @@ def main() -> int:
     unknown = [m for m in macs if m not in MACS]
     if unknown:
         ap.error(f"--mac: unknown {', '.join(unknown)} (known: {', '.join(MACS)})")
+    if args.ledger:
+        ledger_table(macs)
+        return 0
     if not args.no_topics:
         topic_table([float(p) for p in args.per.split(",")], args.seed, macs)
         print()
