@@ -80,9 +80,9 @@ def test_two_way_traffic_loses_nothing_to_collisions(e2e_package, mode):
             assert counters[node]["max_mac_queue"] <= 4
             assert stats[node]["mac"]["capacity_per_frame"] == 2
     else:
-        assert stats["surface"]["mac"]["ends_heard"] >= 3
+        assert stats["surface"]["mac"]["ends_heard"] >= 2
         grants = stats["vehicle"]["mac"]["grants_heard"]
-        assert grants >= 3
+        assert grants >= 2
         # Nothing leaves outside a turn, acknowledgements included: the vehicle wrote at most
         # what its grants allowed (2 packets each).
         assert stats["vehicle"]["connection"]["writes"] <= 2 * grants
