@@ -45,6 +45,8 @@ def run_demo(label: str, extra: list[str], per: float, seed: int, domain: int) -
            str(seed), "--out", str(out), *extra]
     proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     text = proc.stdout + proc.stderr
+    (out / "demo.txt").write_text(text)
+    why = next((ln.split(": ", 1)[-1] for ln in proc.stderr.splitlines() if ln.startswith("uwgen demo:")), "")
     nodes = json.loads((out / "emulator.json").read_text())["nodes"] if (out / "emulator.json").exists() else {}
     vehicle = {}
     if (out / "bridge_vehicle.json").exists():
@@ -55,7 +57,7 @@ def run_demo(label: str, extra: list[str], per: float, seed: int, domain: int) -
     path = re.search(r"stay within ([\d.]+) m", text)
     cmd_row = re.search(r"/turtle1/cmd_vel .* (\d+) ms +(\d+) ms", text)
     return {
-        "label": label, "per": per, "seed": seed, "rc": proc.returncode,
+        "label": label, "per": per, "seed": seed, "rc": proc.returncode, "why": why[:80],
         "collisions": sum(n.get("lost_collision", 0) for n in nodes.values()),
         "sent": sum(n.get("packets_sent", 0) for n in nodes.values()),
         "max_mac_queue": max((n.get("max_mac_queue", 0) for n in nodes.values()), default=0),
@@ -87,7 +89,7 @@ def main() -> int:
         for f in futures:
             r = f.result()
             print(f"| {r['label']} | {r['per']:g} | {r['seed']} | {r['collisions']} / {r['sent']} | "
-                  f"{r['max_mac_queue']} | {r['queue_drops']} | {r['stale']} | {r['cmd']} | {r['rc']} | "
+                  f"{r['max_mac_queue']} | {r['queue_drops']} | {r['stale']} | {r['cmd']} | {r['rc']}{' (' + r['why'] + ')' if r['rc'] else ''} | "
                   f"{r['errors']} | {r['path']:.2f} |", flush=True)
     return 0
 
