@@ -81,6 +81,9 @@ MACS = {
             "max_packet_per_slot: 1000, queue_size: 10, bitrate: 4800, range: 1000}",
     "turns": "{mode: turns, leader: surface, packets: {surface: 4, vehicle: 2}, bitrate: 4800, "
              "range: 1000}",
+    # a longer surface turn: its command stream (5/s, priority 10) leaves room for the rest
+    "turns8": "{mode: turns, leader: surface, packets: {surface: 8, vehicle: 2}, bitrate: 4800, "
+              "range: 1000}",
 }
 SENDERS = {"surface": 1, "vehicle": 2}
 
