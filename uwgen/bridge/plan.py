@@ -190,7 +190,8 @@ class BridgePlan:
         # when --max-read-length overrides the manifest: below it the link cannot send at all.
         from uwgen.linkfloor import check_option
         problem = check_option(link.max_read_length, self.wire_format,
-                               getattr(self.security, "tag_bytes", None) if self.security else None)
+                               getattr(self.security, "tag_bytes", None) if self.security else None,
+                               mac_bytes(self.mac))
         if problem:
             raise PlanError(problem)
         return opts
@@ -209,6 +210,12 @@ class BridgePlan:
                 + (f"; offers actions {names(self.offered_actions)}; serves actions "
                    f"{names(self.served_actions)}" if self.offered_actions or self.served_actions
                    else ""))
+
+
+def mac_bytes(mac: Any) -> int:
+    """What the MAC's C items add to a packet (mode turns), for the floor of max_read_length."""
+    from uwgen.runtime.link.mac import TurnMac
+    return TurnMac.overhead if getattr(mac, "mode", "none") == "turns" else 0
 
 
 def _sender_id(manifest: Any, side: str) -> int:
