@@ -60,12 +60,15 @@ def default_link_factory(**kwargs: Any) -> Any:
 
 
 def mac_round_trip(plan: BridgePlan, link: Any) -> float | None:
-    """What a request and its answer take under the plan's MAC (None: mode none, where the
-    commands' timers keep their measured default)."""
-    from uwgen.manifest.mac import round_trip
-    if plan.mac is None or plan.mac.mode == "none":
+    """The least a request and its answer can take under the plan's MAC: across the range
+    and on the air both ways, and a slot under TDMA (None: mode none, where the commands'
+    timers keep their default)."""
+    from uwgen.manifest.mac import air_time
+    mac = plan.mac
+    if mac is None or mac.mode == "none":
         return None
-    return round_trip(plan.mac, link.period, link.max_read_length, list(plan.senders))
+    least = 2 * (mac.delay + air_time(link.max_read_length, mac.bitrate))
+    return least + (mac.slot if mac.mode == "tdma" else 0.0)
 
 
 def deadline_problems(plan: BridgePlan, link: Any) -> list[str]:
