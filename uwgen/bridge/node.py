@@ -4,7 +4,8 @@ The node only wires parts to rclpy and the link; each part reads on its own:
 
 - `topics.TopicBridge`: subscriptions that send, publishers of what arrives, echo guard;
 - `services.StandIns` / `services.Servers`: bridged service calls, both sides;
-- `actions.ActionStandIns` / `action_servers.ActionServers`: bridged actions, both sides;
+- `actions.ActionStandIns` (what comes back: `action_answers.GoalAnswers`) /
+  `action_servers.ActionServers`: bridged actions, both sides;
 - `discovery.RmwDiscovery`: rmw_desert beacons, when an entry is in profile rmw_desert;
 - `status.StatusReporter`: ~/status, the stats file, drop log lines;
 - `dispatch.Dispatcher`: each received payload's header read once, routed by (kind, id).

@@ -42,7 +42,19 @@ FOLLOW_TOLERANCE = 0.5   # metres between the reported path and the commanded sq
 log = logging.getLogger("uwgen.demo")
 
 
+EPILOG = """\
+ROS domains: the vehicle's processes run in ROS domain ROS_DOMAIN_ID (taken modulo 101; when
+it is unset, 1 + this process's id modulo 100), the surface's in the next one, ROS_DOMAIN_ID + 1,
+as on two computers; discovery stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST).
+Both domains should be free of other ROS processes for the run.
+Ports: the emulated DESERT nodes listen on 127.0.0.1, on two free TCP ports the system picks
+(printed at start; the manifest's 4000 and 4001 are not used), and each bridge connects to its
+node's; with --desert, the given HOST:PORTs instead. DDS uses the UDP ports of the two domains
+(7400 + 250 x domain id, and a few above)."""
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.epilog = EPILOG
     parser.add_argument("--out", type=caller_path, default=None,
                         help="folder for logs, records, stats and the plot (default demo_output/ "
                              "in the checkout, or in uwgen's cache if the checkout is read-only)")
