@@ -33,6 +33,8 @@ class GoalAnswers:
 
     # -- the link (executor thread) --------------------------------------------------------
 
+    # -- the link (executor thread) --------------------------------------------------------
+
     def on_response(self, ident: int, payload: bytes) -> None:
         codec, counters, table = self.offered[ident], self.counters[ident], self.tables[ident]
         try:
@@ -65,11 +67,15 @@ class GoalAnswers:
             if code == ACCEPTED:     # a goal given up here (accept timeout) runs there: stop it
                 self.w.send(ident, codec.encode_cancel(handle))
         elif code in (ACCEPTED, REJECTED) and not state.answer.done():
-            if state.sends == 1:             # Karn: only an unambiguous round trip
+            if state.sends == 1 and not state.asking:   # Karn: only an unambiguous round trip
                 self.rtt[ident].sample(self.w.clock.now() - state.sent_at)
             if code == ACCEPTED:
                 counters.accepted += 1
-                pending.deadline = self.w.clock.now() + codec.result_timeout
+                if state.asking:
+                    self.w.log.info(f"{codec.name}: goal {state.handle} runs on the server side "
+                                    "(its answer came late): accepted")
+                pending.deadline = state.sent_at + codec.result_timeout if state.asking else \
+                    self.w.clock.now() + codec.result_timeout
                 state.next_query = self.w.clock.now() + codec.accept_timeout
             else:
                 counters.rejected += 1
@@ -79,6 +85,15 @@ class GoalAnswers:
             state.cancel.set_result(code)
         elif code == ACCEPTED and state.answer.done() and state.next_query:
             pass                      # the goal still runs: the reply to our result request
+        elif code == REJECTED and state.answer.done() and not state.result.done():
+            # the reply to our result request: no such goal there (its bridge restarted
+            # and did not find it running): it will not finish
+            counters.goals_lost_there += 1
+            self.w.throttle.report(f"alostthere{ident}", f"{codec.name}: goal {handle} is no "
+                                   "longer known on the server side (its bridge restarted?): "
+                                   "aborted here", expected=True)
+            table.complete(ident, handle)
+            state.result.set_result((ABORTED, codec.ros_class().Result()))
         else:
             counters.late_answers += 1     # a repeated answer: a copy crossed on the link
 
@@ -124,13 +139,27 @@ class GoalAnswers:
         now, say = self.w.clock.now(), self.w.throttle.report   # a dead link times out many
         for ident, table in self.tables.items():
             codec, counters = self.offered[ident], self.counters[ident]
+            for pending in table.pending(ident):
+                state = pending.token
+                if not state.answer.done() and not state.asking and pending.deadline <= now:
+                    # No answer within accept_timeout: the goal may run there all the same
+                    # (its answers lost). Ask, until result_timeout from the call.
+                    state.asking = True
+                    state.next_query = now
+                    pending.deadline = state.sent_at + max(codec.result_timeout, codec.accept_timeout)
+                    counters.accept_timeouts += 1
+                    say(f"aaccept{ident}", f"{codec.name}: goal {state.handle} got no answer "
+                                           f"within {codec.accept_timeout:g} s: asking the server "
+                                           "side whether it runs (not rejected while it may)",
+                        expected=True)
             for pending in table.expire():
                 state = pending.token
                 if not state.answer.done():
-                    counters.accept_timeouts += 1
-                    say(f"aaccept{ident}", f"{codec.name}: goal {state.handle} got no answer within "
-                                           f"{codec.accept_timeout:g} s: rejected (a cancel is sent, in "
-                                           "case only the answer was lost)", expected=True)
+                    counters.unknown_outcomes += 1
+                    say(f"aunknown{ident}", f"{codec.name}: goal {state.handle}: no word from the "
+                                            f"server side within {codec.result_timeout:g} s: "
+                                            "rejected here, a cancel is sent; it may have run "
+                                            "there (counted unknown_outcomes)", expected=True)
                     self.w.send(ident, codec.encode_cancel(state.handle))
                     state.answer.set_result(REJECTED)
                     continue
@@ -141,13 +170,15 @@ class GoalAnswers:
                 state.result.set_result((ABORTED, codec.ros_class().Result()))
             for pending in table.pending(ident):
                 state = pending.token
-                if state.answer.done() and not state.result.done() and state.next_query <= now:
-                    # Accepted, no result yet: ask (the server side re-sends it, says the
-                    # goal still runs, or reports it aborted when it does not know it).
-                    state.next_query = now + codec.accept_timeout
+                if (state.answer.done() or state.asking) and not state.result.done() \
+                        and state.next_query <= now:
+                    # No result yet, or no answer: ask (the server side re-sends the result,
+                    # says the goal still runs, or answers 0 when it knows no such goal).
+                    state.next_query = now + (self.rtt[ident].rto if state.asking
+                                              else codec.accept_timeout)
                     counters.result_queries += 1
                     self.w.send(ident, codec.encode_result_status(state.handle, received=False))
-                if not state.answer.done() and state.next_send <= now:
+                if not state.answer.done() and not state.asking and state.next_send <= now:
                     rtt = self.rtt[ident]
                     rtt.backoff()
                     state.sends += 1

@@ -17,10 +17,17 @@ result asks for it (`[2, id, 24 + handle, 1]`) every accept_timeout.
 
 Losses: a goal with no answer is sent again (same handle and bytes) every retransmission
 timeout (reliable.command_rtt: measured from this action's goal/answer round trips, at
-most a quarter of `accept_timeout`); no answer at all rejects the goal (or refuses the cancel) and
-sends a cancel, in case only the answer was lost; no result within `result_timeout` aborts
-the goal locally and sends a cancel for it. Every such case is logged and counted in
-~/status under `actions`.
+most a quarter of `accept_timeout`). A goal with no answer within `accept_timeout` may be
+running there (only the answers lost), so it is never rejected then: the client side asks
+the server side about it (a result request) until `result_timeout` from the call, and
+accepts it when the server side says it runs or sends its result, or rejects it when the
+server side knows no such goal (a goal is refused there once older than its accept_timeout,
+so one unknown then never runs). With no word at all by `result_timeout` it is rejected
+locally and a cancel is sent (counted `unknown_outcomes`: the one case where it may have
+run). A cancel with no answer is refused locally; no result within `result_timeout` aborts
+the goal locally and sends a cancel for it; an accepted goal the server side no longer
+knows (its bridge restarted without finding it) is aborted (`goals_lost_there`). Every such
+case is logged and counted in ~/status under `actions`.
 """
 from __future__ import annotations
 
@@ -60,6 +67,7 @@ class GoalState:
     next_send: float = 0.0                        # when to send it again while unanswered
     next_query: float = 0.0                       # accepted, no result: when to ask for it
     sent_at: float = 0.0                          # when the goal first left
+    asking: bool = False                          # unanswered past accept_timeout: asking
 
 
 class ActionStandIns(GoalAnswers):
