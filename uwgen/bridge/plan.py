@@ -85,8 +85,8 @@ class BridgePlan:
     manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
     manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
     sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
+    side_ids: dict[str, int] = field(default_factory=dict)   # every side's sender id (W)
     mac: Any = None               # manifest.model.MacConfig (None: mode none)
-    senders: dict[str, int] = field(default_factory=dict)   # every side's sender id (the MAC's turns)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str,
@@ -123,8 +123,8 @@ class BridgePlan:
             manifest_source=getattr(manifest, "source", "") or "",
             manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
             sender_id=_sender_id(manifest, side),
+            side_ids={s: _sender_id(manifest, s) for s in sides},
             mac=getattr(manifest, "mac", None),
-            senders={s: _sender_id(manifest, s) for s in sides},
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
