@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import json
 import random
-import threading
-import time
 from dataclasses import asdict
 from typing import Any, Callable
 
@@ -36,7 +34,7 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
-from uwgen.bridge.reliability import link_ledger, reliability_for
+from uwgen.bridge.reliability import farewell, link_ledger, reliability_for
 from uwgen.bridge.security import guard_for, link_security
 from uwgen.bridge.services import Servers, StandIns, service_status
 from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
@@ -307,7 +305,7 @@ class BridgeNode(Node):
         self._closed = True
         if self.rmw_discovery is not None:
             self.rmw_discovery.stop()      # disconnect beacons, while the link still runs
-        self._farewell()
+        farewell(self.reliability, self.link, self.options.link.period)
         try:
             self.link.stop()
         except Exception as exc:
@@ -327,27 +325,6 @@ class BridgeNode(Node):
             except Exception as exc:  # rclpy after its context was shut down
                 self._log.debug(f"destroy_node after shutdown: {exc}")
         return status
-
-    def _farewell(self) -> None:
-        """The last acknowledgements before the link closes (SIGINT/SIGTERM, close()): one
-        packet reporting every peer's packets, so their ledgers close; bounded by 2 periods
-        plus a second (wall clock: shutdown ends whatever an injected clock does)."""
-        rel = self.reliability
-        try:
-            if rel is None or not self.link.stats().get("connected") or not rel.farewell():
-                return
-        except Exception:
-            return
-        period = self.options.link.period
-        deadline = time.monotonic() + 2 * period + 1.0
-        waiter = threading.Event()
-        wake = getattr(getattr(self.link, "connection", None), "wake", None)
-        if wake is not None:
-            wake()
-        while rel.farewell_pending and time.monotonic() < deadline:
-            waiter.wait(0.01)
-        if not rel.farewell_pending:
-            waiter.wait(period)           # DESERT reads the last write before the socket closes
 
     def _flush_discovery(self) -> bool:
         """Wait (bounded) until the disconnect beacons have left; see RmwDiscovery.flush."""

@@ -69,3 +69,25 @@ def link_ledger(link_stats: Any) -> dict[int, dict]:
     """The link's per-entry ledger from its stats (keys as ints; JSON may have made them text)."""
     ledger = link_stats.get("ledger") if isinstance(link_stats, dict) else None
     return {int(k): v for k, v in (ledger or {}).items()}
+
+
+def farewell(reliability: Reliability | None, link: Any, period: float) -> None:
+    """The last acknowledgements before the link closes (SIGINT/SIGTERM, close()): one packet
+    reporting every peer's packets, so their ledgers close; bounded by 2 periods plus a
+    second (wall clock: shutdown ends whatever an injected clock does)."""
+    import threading
+    import time
+    try:
+        if reliability is None or not link.stats().get("connected") or not reliability.farewell():
+            return
+    except Exception:
+        return
+    deadline = time.monotonic() + 2 * period + 1.0
+    waiter = threading.Event()
+    wake = getattr(getattr(link, "connection", None), "wake", None)
+    if wake is not None:
+        wake()
+    while reliability.farewell_pending and time.monotonic() < deadline:
+        waiter.wait(0.01)
+    if not reliability.farewell_pending:
+        waiter.wait(period)           # DESERT reads the last write before the socket closes

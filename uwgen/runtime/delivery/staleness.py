@@ -10,10 +10,13 @@ sender's monotonic clock: `uwgen.runtime.wire.heads`). Its age on arrival is
 where `offset` is the sender's clock minus ours. Three cases:
 
 - the offset is measured (`clock_offset.ClockOffsets`, from an exchange): the message is
-  refused `stale` when age + transit + error > max age, `error` being the measurement's bound:
-  nothing older than its max age is taken, whatever the clocks and delays (a held packet's
-  transit is counted in full). An offset beyond the tolerance refuses every message with a
-  max age (`clock_offset`): the sides' clocks must be set (GPS, NTP) before commands run;
+  refused `stale` when age + transit > max age, the transit taken with the measured offset:
+  whatever the clocks and delays (a held packet's transit is counted in full), nothing is
+  taken later than its max age plus the measurement's `error` (half the least round trip
+  of an exchange, the two transits' possible asymmetry: shown in ~/status). Adding the error
+  to every age would refuse commands whose ttl is near one round trip (cmd_vel at 1 s over a
+  0.2 s link). An offset beyond the tolerance refuses every message with a max age
+  (`clock_offset`): the sides' clocks must be set (GPS, NTP) before commands run;
 - the offset is not measured yet (the first packets after a start): the clocks are taken to
   agree within `tolerance`; a transit outside [-tolerance, tolerance + max_transit] cannot be
   told from an offset and the message is refused (`unexplained_delay`), never judged by its
@@ -37,7 +40,7 @@ STALE, CLOCK_OFFSET, UNEXPLAINED = "stale", "clock_offset", "unexplained_delay"
 @dataclass
 class Verdict:
     refused: str | None           # None: taken; else STALE, CLOCK_OFFSET or UNEXPLAINED
-    age: float                    # the message's age as judged (seconds), error included
+    age: float                    # the message's age as judged (seconds)
     transit: float | None = None  # the packet's transit as judged (offset taken off when known)
     offset: Offset | None = None  # the sender's measured offset used
 
@@ -61,7 +64,7 @@ class Staleness:
             transit = apparent + offset.offset
             if abs(offset.offset) > self.tolerance:
                 return Verdict(CLOCK_OFFSET, age + max(transit, 0.0), transit, offset)
-            total = age + max(transit, 0.0) + offset.error
+            total = age + max(transit, 0.0)
             return Verdict(STALE if total > max_age else None, total, transit, offset)
         if not -self.tolerance <= apparent <= self.tolerance + self.max_transit:
             return Verdict(UNEXPLAINED, age + max(apparent, 0.0), apparent)
