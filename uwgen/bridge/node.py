@@ -34,6 +34,7 @@ from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
+from uwgen.bridge.medium import link_mac, mac_round_trip, warn_deadlines
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.reliability import link_ledger, reliability_for
@@ -62,39 +63,6 @@ def default_link_factory(**kwargs: Any) -> Any:
     return Link(**kwargs)
 
 
-def mac_round_trip(plan: BridgePlan, link: Any) -> float | None:
-    """The least a request and its answer can take under the plan's MAC: across the range
-    and on the air both ways, and a slot under TDMA (None: mode none, where the commands'
-    timers keep their default)."""
-    from uwgen.manifest.mac import air_time
-    mac = plan.mac
-    if mac is None or mac.mode == "none":
-        return None
-    least = 2 * (mac.delay + air_time(link.max_read_length, mac.bitrate))
-    return least + (mac.slot if mac.mode == "tdma" else 0.0)
-
-
-def deadline_problems(plan: BridgePlan, link: Any) -> list[str]:
-    """Deadlines of this side's calls and goals that cannot fit one round trip under the MAC
-    (uwgen.manifest.mac.round_trip): said at start, as `uwgen analyze` says them."""
-    from uwgen.manifest.mac import round_trip
-    from uwgen.manifest.model import MacConfig
-    mac = plan.mac or MacConfig()
-    rt = round_trip(mac, link.period, link.max_read_length, list(plan.side_ids))
-    out = []
-    for entry, key in ((s, "timeout") for s in plan.called_services):
-        limit = getattr(entry, key, None)
-        if limit is not None and limit < rt:
-            out.append(f"service {entry.name}: its timeout {limit:g} s cannot fit one round trip "
-                       f"under mac {mac.mode} (about {rt:.1f} s): its calls will time out")
-    for entry in plan.offered_actions:
-        limit = getattr(entry, "accept_timeout", None)
-        if limit is not None and limit < rt:
-            out.append(f"action {entry.name}: its accept_timeout {limit:g} s cannot fit one round "
-                       f"trip under mac {mac.mode} (about {rt:.1f} s): its goals will be rejected")
-    return out
-
-
 def node_name_for(plan: BridgePlan) -> str:
     return f"{BRIDGE_NODE_PREFIX}{plan.network}_{plan.side}".replace("-", "_")
 
@@ -112,10 +80,8 @@ class BridgeNode(Node):
         self.options = self._declare_parameters(options or plan.defaults)
         self._closed = False
         main_group = MutuallyExclusiveCallbackGroup()
-        # When this side may write (docs/seams.md section 7): its turn, its slot's share; the
-        # commands' retransmission timers start from its round trip and turn gap.
         link_cfg = self.options.link
-        self.mac = mac_for(plan.mac, plan.side, plan.side_ids, link_cfg, plan.wire_format)
+        self.mac = mac_for(plan.mac, plan.side, plan.side_ids, link_cfg, plan.wire_format)  # medium.py
         self.wiring = w = Wiring(node=self, send=self._send, clock=clock, options=self.options,
                                  log=self.get_logger(), main_group=main_group,
                                  service_group=ReentrantCallbackGroup(),
@@ -144,8 +110,7 @@ class BridgeNode(Node):
         # Acks, re-sends of reliable topics, delivery once, stale commands (wire format 2 only;
         # docs/seams.md section 5), joined with the per-packet seal's hooks (one tag per packet)
         # when the link is secured.
-        if self.mac.mode != "none":
-            security_kw["mac"] = self.mac
+        security_kw.update(link_mac(self.mac))
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
             seal_hooks.overhead if seal_hooks is not None else 0) + self.mac.overhead,
             turn_gap=self.mac.turn_gap())
@@ -163,8 +128,7 @@ class BridgeNode(Node):
             self.rmw_discovery = RmwDiscovery(w, plan, self.link, flush_timeout)
             self.create_timer(LINK_TICK, self.rmw_discovery.check_link, callback_group=main_group)
         self.schema = attach_schema(plan, self.link, clock, link_cfg, logger_say(self._log))
-        for problem in deadline_problems(plan, link_cfg):
-            self._log.warning(problem)
+        warn_deadlines(self._log, plan, link_cfg)
         if self.schema is not None:   # SchemaGuard: fingerprints announced, mismatches refused
             self.create_timer(SCHEMA_TICK, self.schema.tick, callback_group=main_group)
 
