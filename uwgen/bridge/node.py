@@ -126,6 +126,8 @@ class BridgeNode(Node):
                      self.action_servers, self.rmw_discovery, self.schema):
             if part is not None:
                 part.register(self.dispatcher)
+        for entry in plan.overheard:
+            self.dispatcher.overhears(entry.id)
 
         self.reporter = StatusReporter(w, plan.network, plan.side)
         self.create_timer(EXPIRY_TICK, self._expire, callback_group=main_group)

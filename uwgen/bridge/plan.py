@@ -10,6 +10,12 @@ serving side calls the real service, every other side offers a stand-in service.
 Actions likewise: the server side calls the real action server through an action client,
 every other side offers a stand-in action server.
 
+An entry that names its peers (a fleet vehicle's own entries, uwgen.manifest.fleet) is
+bridged by those sides only: vehicle 2 neither offers vehicle 1's services nor publishes
+its telemetry. The others' entries stay known (`overheard`): their packets are heard on
+the shared channel, their ids are in the seal's authenticated data and in schema
+announcements, and what arrives for them is counted `overheard`, not `unknown_id`.
+
 The generated package is duck-typed (see notes/contracts.md): `MANIFEST` with `network`,
 `sides` and `fragment_id`; `TOPICS`, `SERVICES` and `ACTIONS` (packages generated before
 actions have none) mapping id to codec objects.
@@ -23,7 +29,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from uwgen.manifest.model import NATIVE, PACKED, RMW_DESERT, LinkConfig, LinkPolicy, handle_range  # RMW_DESERT: discovery, seqs 1..999
+from uwgen.manifest.model import (NATIVE, PACKED, RMW_DESERT, LinkConfig, LinkPolicy,  # RMW_DESERT: discovery, seqs 1..999
+                                  handle_range, takes_part)
 
 # What a stand-in service does when its bridged call gets no response in time.
 TIMEOUT_REPLY_NONE = "none"        # send no response: the client's own timeout detects it
@@ -85,6 +92,10 @@ class BridgePlan:
     manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
     manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
     sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
+    # Codecs of the entries other sides bridge (fleet peers): topics, services, actions.
+    overheard_topics: list[Any] = field(default_factory=list)
+    overheard_services: list[Any] = field(default_factory=list)
+    overheard_actions: list[Any] = field(default_factory=list)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str,
@@ -98,9 +109,9 @@ class BridgePlan:
             raise PlanError(f"side {side!r} is not in manifest network {manifest.network!r} "
                             f"(sides: {', '.join(sorted(sides)) or 'none'})")
         entry = sides[side]
-        topics = sorted(package.TOPICS.values(), key=lambda t: t.id)
-        services = sorted(package.SERVICES.values(), key=lambda s: s.id)
-        actions = sorted(getattr(package, "ACTIONS", {}).values(), key=lambda a: a.id)
+        every = [sorted(group.values(), key=lambda e: e.id)
+                 for group in (package.TOPICS, package.SERVICES, getattr(package, "ACTIONS", {}))]
+        topics, services, actions = ([e for e in group if takes_part(e, side)] for group in every)
         return cls(
             network=manifest.network,
             side=side,
@@ -112,7 +123,7 @@ class BridgePlan:
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
             offered_actions=[a for a in actions if a.server != side],
             served_actions=[a for a in actions if a.server == side],
-            action_handles={a.id: handle_range(list(sides), side, a.server)
+            action_handles={a.id: handle_range(list(getattr(a, "peers", ()) or sides), side, a.server)
                             for a in actions if a.server != side},
             schema_id=getattr(manifest, "schema_id", None),
             schema_period=getattr(manifest, "schema_period", None),
@@ -121,6 +132,9 @@ class BridgePlan:
             manifest_source=getattr(manifest, "source", "") or "",
             manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
             sender_id=_sender_id(manifest, side),
+            overheard_topics=[t for t in every[0] if not takes_part(t, side)],
+            overheard_services=[s for s in every[1] if not takes_part(s, side)],
+            overheard_actions=[a for a in every[2] if not takes_part(a, side)],
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
@@ -136,6 +150,12 @@ class BridgePlan:
         chans += [(FEEDBACK_KEY_BASE + a.id, a.feedback_policy, f"{a.name} feedback", False)
                   for a in self.served_actions if a.feedback_policy is not None]
         return sorted(chans, key=lambda c: c[0])
+
+    @property
+    def overheard(self) -> list[Any]:
+        """Every entry this side hears but does not bridge, by id."""
+        return sorted((*self.overheard_topics, *self.overheard_services, *self.overheard_actions),
+                      key=lambda e: e.id)
 
     @property
     def topics(self) -> list[Any]:

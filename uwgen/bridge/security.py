@@ -85,7 +85,11 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
     path = key_path(plan, options)
     try:
         master = read_key_file(path)
-        entries = {e.id: e for e in (*plan.topics, *plan.services)}
+        # Every topic and service of the network, the fleet's others included: a packet of the
+        # shared channel may carry other vehicles' ids, all in its authenticated data.
+        entries = {e.id: e for e in (*plan.topics, *plan.services,
+                                     *getattr(plan, "overheard_topics", ()),
+                                     *getattr(plan, "overheard_services", ()))}
         ttls = {e.id: e.policy.ttl for e in (*plan.topics, *plan.services, *plan.offered_actions, *plan.served_actions)
                 if getattr(getattr(e, "policy", None), "ttl", None)}
         config = GuardConfig(
