@@ -21,7 +21,7 @@ from uwgen.codegen.ir import (
     NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch, variant_name,
 )
 from uwgen.idl.model import ArrayKind
-from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest
+from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest, takes_part
 from uwgen.runtime.wire.bits import text_width
 from uwgen.analyze_control import SideControl, control_costs, format_control, whole_payload
 from uwgen.codegen.fingerprint import wire_format_of
@@ -366,6 +366,8 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
         typical, worst, unlimited = schema, schema, []
         for e in entries:
             if e.sender not in (side.name, "*") or (e.sender == "*" and _server_of(manifest, e) == side.name):
+                continue
+            if not takes_part(manifest.entry(e.id), side.name):   # another fleet vehicle's entry
                 continue
             if e.rate is None:
                 unlimited.append(f"{e.kind} {e.name}")
