@@ -63,8 +63,13 @@ class Reliability:
                  max_ages: dict[int, float], wall: Clock = WALL_CLOCK,
                  ack_delay: float | None = None, ack_interval: float | None = None,
                  name: str = "link", max_read_length: int = MAX_FRAME,
-                 other_overhead: int = 0):
+                 other_overhead: int = 0, destinations: dict[int, frozenset[int]] | None = None):
         self.sender, self.name, self.wall = sender, name, wall
+        # wire id -> the peers (sender ids) its messages are for, on a channel shared by more
+        # than two sides (a fleet): a packet is acknowledged by each of them (ReliableLink).
+        # None: two sides, the first report settles a packet.
+        self.destinations = destinations
+        self._everyone = frozenset().union(*destinations.values()) if destinations else frozenset()
         # what a packet may hold besides P, W and the messages: the frame's payload minus what
         # the other joined hooks (the seal) may add; the A part takes what is left (acks.A_ROOM
         # at least, kept free by `overhead`)
@@ -135,9 +140,22 @@ class Reliability:
                 messages.append(Sent(key, payload, deadline))
             self._resending.clear()
             messages += self.acks.carried()      # its reports: confirmed once it is acked
-            self.engine.sent(number, messages, now)
+            self.engine.sent(number, messages, now, self._to(messages))
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
+
+    def _to(self, messages: list[Sent]) -> set[int] | None:
+        """The peers a packet must reach: those its messages are for, and those its reports
+        are about (None without destinations: two sides)."""
+        if self.destinations is None:
+            return None
+        to: set[int] = set()
+        for m in messages:
+            if m.key == REPORT_KEY:
+                to.add(m.ref[0])
+            else:
+                to |= self.destinations.get(wire_id(m.key), self._everyone)
+        return to
 
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:
@@ -176,7 +194,7 @@ class Reliability:
             self.acks.heard(peer, bool(envelope.messages), now)
             if envelope.ack is not None:
                 before = self.engine.bad_acks
-                self.engine.acked(envelope.ack, now)
+                self.engine.acked(envelope.ack, now, reporter=peer)
                 self.acks.confirm()
                 if self.engine.bad_acks > before:
                     log_count(log, logging.WARNING, self.counters.inc("bad_acks"),
