@@ -69,6 +69,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     # --side is a manifest side everywhere else; it was this command's square size.
     old_spelling(parser, "--side", "--square-size", "square_size", "demo", type=number(0, 1e3, above=True))
     parser.add_argument("--laps", type=whole(1, 100), default=1, help="laps of the square")
+    parser.add_argument("--vehicles", type=whole(1, 3), default=1, metavar="N",
+                        help="vehicles to drive, each on its own square behind its own bridge "
+                             "and DESERT node over one channel (default 1; 2 or 3: the fleet of "
+                             "msg_samples/fleet/uwgen.yaml, uwgen.demo.fleet)")
     parser.add_argument("--timeout", type=number(1, 1e6), default=180.0,
                         help="give up if the operator has not finished after this many seconds")
     parser.add_argument("--quiet", dest="quiet_command", action="store_true",
@@ -139,6 +143,10 @@ def _endpoint(hp: tuple[str, int]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "vehicles", 1) > 1 and (args.drive_away or args.desert):
+        print("uwgen demo: --vehicles runs on the emulator only (no --desert, no --drive-away)",
+              file=sys.stderr)
+        return 2
     if getattr(args, "drive_away", False):
         args.out = args.out or default_out()
         args.quiet = args.quiet or getattr(args, "quiet_command", False)
@@ -159,6 +167,9 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_FAILED
     for old in out.glob("*.json*"):
         old.unlink()
+    if getattr(args, "vehicles", 1) > 1:
+        from uwgen.demo import fleet
+        return fleet.run(args, say, quiet, out)
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
         return EXIT_FAILED

@@ -174,19 +174,23 @@ def _topic_row(name: str, direction: str, sender: dict, receiver: dict) -> Row:
     return row
 
 
-def build_report(out_dir: Path) -> Report:
+def build_report(out_dir: Path, side: str = "vehicle", namespace: str = "") -> Report:
+    """The demo's report from its records; in a fleet, of the vehicle `side` whose names are
+    under `namespace` (its records are operator_<side>.jsonl and vehicle_<side>.jsonl)."""
     out_dir = Path(out_dir)
-    op = list(read_records(out_dir / "operator.jsonl"))
-    veh = list(read_records(out_dir / "vehicle.jsonl"))
+    own = "" if side == "vehicle" else f"_{side}"
+    ns = namespace.rstrip("/")
+    op = list(read_records(out_dir / f"operator{own}.jsonl"))
+    veh = list(read_records(out_dir / f"vehicle{own}.jsonl"))
     surface = _load_json(out_dir / "bridge_surface.json")
-    vehicle = _load_json(out_dir / "bridge_vehicle.json")
+    vehicle = _load_json(out_dir / f"bridge_{side}.json")
     emulator = _load_json(out_dir / "emulator.json")
 
     def ev(records, name):
         return [r for r in records if r.get("ev") == name]
 
     rows = []
-    cmd = _topic_row("/turtle1/cmd_vel", "surface → vehicle", surface, vehicle)
+    cmd = _topic_row(f"{ns}/turtle1/cmd_vel", "surface → vehicle", surface, vehicle)
     cmd.published = len(ev(op, "cmd"))
     cmd.delivered = len(ev(veh, "cmd"))
     cmd.latencies = _latencies_by_key(((r["k"], r["t"]) for r in ev(op, "cmd")),
@@ -195,20 +199,20 @@ def build_report(out_dir: Path) -> Report:
 
     def pose_key(r):
         return tuple(round(r[k] / step) for k, step in POSE_KEY_STEPS)
-    pose = _topic_row("/turtle1/pose", "vehicle → surface", vehicle, surface)
+    pose = _topic_row(f"{ns}/turtle1/pose", "vehicle → surface", vehicle, surface)
     pose.published = len(ev(veh, "pose"))
     pose.delivered = len(ev(op, "pose_rx"))
     pose.latencies = _latencies_by_key(((pose_key(r), r["t"]) for r in ev(veh, "pose")),
                                        ((pose_key(r), r["t"]) for r in ev(op, "pose_rx")))
     rows.append(pose)
 
-    bat = _topic_row("/vehicle/battery", "vehicle → surface", vehicle, surface)
+    bat = _topic_row(f"{ns}/vehicle/battery", "vehicle → surface", vehicle, surface)
     bat.published = len(ev(veh, "battery"))
     bat.delivered = len(ev(op, "battery_rx"))
     bat.latencies = [r["t"] - r["stamp"] for r in ev(op, "battery_rx")]
     rows.append(bat)
 
-    logrow = _topic_row("/vehicle/log", "vehicle → surface", vehicle, surface)
+    logrow = _topic_row(f"{ns}/vehicle/log", "vehicle → surface", vehicle, surface)
     logrow.published = len(ev(veh, "log"))
     logrow.delivered = len(ev(op, "log_rx"))
     logrow.latencies = _latencies_by_key(((r["seq"], r["t"]) for r in ev(veh, "log")),
@@ -216,7 +220,7 @@ def build_report(out_dir: Path) -> Report:
     rows.append(logrow)
 
     services = []
-    for name in ("/vehicle/set_pen", "/turtle1/teleport_absolute"):
+    for name in (f"{ns}/vehicle/set_pen", f"{ns}/turtle1/teleport_absolute"):
         srow = ServiceRow(name)
         calls = [r for r in ev(op, "call") if r.get("name") == name]
         srow.calls = len(calls)
