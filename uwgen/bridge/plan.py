@@ -92,7 +92,8 @@ class BridgePlan:
     manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
     manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
     sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
-    senders: dict[str, int] = field(default_factory=dict)   # every side's sender id
+    mac: Any = None               # manifest.model.MacConfig (None: mode none)
+    senders: dict[str, int] = field(default_factory=dict)   # every side's sender id (the MAC's turns, fleet acks)
     # Codecs of the entries other sides bridge (fleet peers): topics, services, actions.
     overheard_topics: list[Any] = field(default_factory=list)
     overheard_services: list[Any] = field(default_factory=list)
@@ -133,7 +134,8 @@ class BridgePlan:
             manifest_source=getattr(manifest, "source", "") or "",
             manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
             sender_id=_sender_id(manifest, side),
-            senders={name: _sender_id(manifest, name) for name in sides},
+            mac=getattr(manifest, "mac", None),
+            senders={s: _sender_id(manifest, s) for s in sides},
             overheard_topics=[t for t in every[0] if not takes_part(t, side)],
             overheard_services=[s for s in every[1] if not takes_part(s, side)],
             overheard_actions=[a for a in every[2] if not takes_part(a, side)],

@@ -28,7 +28,7 @@ from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest, sea
 from uwgen.codegen.vendor import runtime_files
 from uwgen.codegen.ir import (CodecType, IRBuilder, ProfileError, check_profile_limits, ros_layout, type_key,
                               variant_name)
-from uwgen.manifest.model import NATIVE, PACKED
+from uwgen.manifest.model import NATIVE, PACKED, MacConfig
 from uwgen.idl.loader import InterfaceLibrary, parts_of
 from uwgen.idl.model import (OCTET_TYPES, ActionDef, ArrayKind, DefinitionError, Field, MessageDef,
                              ServiceDef, SourceRef)
@@ -488,6 +488,7 @@ def _manifest_view(plan: PackagePlan):
         "schema_digest": plan.schema_digest.hex(),
         "security": (repr(replace(manifest.security_plan(), seal_fingerprints=plan.seal_fingerprints))
                      if manifest.protected() else None),
+        "mac": repr(manifest.mac) if manifest.mac != MacConfig() else None,
         "sides": [(name, repr(side_without_where(side))) for name, side in sorted(manifest.sides.items())],
         "topics": [dict(id=t.id, name=t.name, type_name=t.type_name, publisher=t.publisher,
                         policy=repr(t.policy), qos=repr(t.qos), profile=t.profile,

@@ -2,16 +2,18 @@
 
 `uwgen emulate -m uwgen.yaml [scenario.yaml]`: the manifest says which nodes exist (its
 sides, by name), their ports and their link settings (max_read_length, period); a
-scenario file may add the physics (positions, waypoints, SNR model, TDMA, seed, ...) but
-not contradict the manifest. Sides without a position in the scenario are placed on a
+scenario file may add the physics (positions, waypoints, SNR model, seed, ...) but
+not contradict the manifest. The manifest's `mac:` section picks DESERT's MAC: UW/TDMA with its
+frame, slots and guard for mode tdma, stock CSMA-ALOHA otherwise (uwgen.emulator.tdma). Sides without a position in the scenario are placed on a
 line, `spacing` metres apart. With two sides each sends to the other; with more, each
 broadcasts (every other node receives what it sends).
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
-from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario, ScenarioError, load_scenario
+from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario, ScenarioError, TdmaSpec, load_scenario
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
@@ -20,7 +22,7 @@ def scenario_from_manifest(manifest: Path, physics: Path | None = None,
                            spacing: float = 1000.0) -> Scenario:
     """The scenario of `manifest`'s sides, with the scenario file `physics` laid on top.
     Raises ScenarioError (a bad manifest's ManifestError text is kept, file:line:column)."""
-    from uwgen.manifest.loader import load_sides
+    from uwgen.manifest.loader import load_mac, load_sides
     from uwgen.manifest.nodes import ManifestError
 
     try:
@@ -39,10 +41,28 @@ def scenario_from_manifest(manifest: Path, physics: Path | None = None,
             raise ScenarioError(f"side {side.name}'s DESERT node is at {side.host}: the "
                                 "emulator serves 127.0.0.1 only (use a real DESERT there, or "
                                 "host 127.0.0.1)", where)
+    try:
+        mac = load_mac(manifest, sides)
+    except ManifestError as exc:
+        raise ScenarioError(str(exc)) from None
     dest = None if len(sides) == 2 else BROADCAST
     base = [NodeSpec(side.name, port=side.port, position=(i * spacing, 0.0, 0.0), dest=dest,
                      period=side.link.period, max_read_length=side.link.max_read_length)
             for i, side in enumerate(sides.values())]
-    if physics is None:
-        return Scenario(nodes=base)
-    return load_scenario(physics, base_nodes=base)
+    if mac.mode == "tdma":
+        base = [replace(n, slot=mac.slot_of(n.name)) for n in base]
+    scenario = Scenario(nodes=base) if physics is None else load_scenario(physics, base_nodes=base)
+    return with_mac(scenario, mac)
+
+
+def with_mac(scenario: Scenario, mac) -> Scenario:
+    """`scenario` with the channel the manifest's `mac:` section asks DESERT for: UW/TDMA's
+    frame, slots, guard, max_packet_per_slot and queue_size for mode tdma; stock CSMA-ALOHA
+    for modes none and turns (turn-taking is the bridges'); the MAC's bitrate."""
+    if mac.mode == "tdma":
+        return replace(scenario, bitrate=mac.bitrate, tdma=TdmaSpec(
+            frame=mac.frame, guard=mac.guard, slots=len(mac.slots),
+            max_packet_per_slot=mac.max_packet_per_slot, queue_size=mac.queue_size))
+    if mac.mode == "turns":
+        return replace(scenario, bitrate=mac.bitrate, tdma=None)
+    return scenario

@@ -33,6 +33,7 @@ from uwgen.manifest.model import (
     LinkPolicy,
     Manifest,
     Qos,
+    MacConfig,
     Security,
     Service,
     Side,
@@ -41,6 +42,7 @@ from uwgen.manifest.model import (
 from uwgen.manifest.nodes import ManifestError, Reader, compose
 from uwgen.manifest.rosnames import ROS_TOKEN, validate_ros_name  # noqa: F401 (re-exported)
 from uwgen.manifest.policy import POLICY_KEYS, QOS_KEYS, read_policy, read_qos  # noqa: F401 (QOS_KEYS re-exported)
+from uwgen.manifest.mac import check_turns_wire, read_mac
 from uwgen.manifest.security import SecurityCheck, network_security
 from uwgen.manifest.sides import LINK_KEYS, SIDE_KEYS, SIDE_NAME, read_sides  # noqa: F401 (re-exported)
 from uwgen.manifest.typeref import resolve_type
@@ -50,7 +52,7 @@ __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "
 MANIFEST_NAME = "uwgen.yaml"
 
 TOP_KEYS = ("network", "package", "profile", "sides", "fleet", "fragment_id", "schema_id",
-            "schema_period", "defaults", "topics", "services", "actions", "security")
+            "schema_period", "defaults", "topics", "services", "actions", "security", "mac")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
 TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security",
               "reliability")
@@ -106,6 +108,16 @@ def load_sides(path: Path) -> tuple[str, dict[str, Side]]:
         builder.checked(None, read_fleet, builder, top["fleet"][1], sides)
     builder.errors.raise_if_any(ManifestErrors)   # every broken side, each located
     return network, sides
+
+
+def load_mac(path: Path, sides: dict[str, Side]) -> MacConfig:
+    """The `mac:` section of the manifest at `path` (its sides read by load_sides), checked
+    as load_manifest checks it: how `uwgen emulate -m` and the demo share the channel."""
+    path = Path(path)
+    root = compose(path)
+    r = Reader(path)
+    top = r.mapping(root, "the manifest", TOP_KEYS) if root is not None else {}
+    return read_mac(r, top["mac"][1], sides) if "mac" in top else MacConfig()
 
 
 class _ManifestBuilder:
@@ -177,6 +189,9 @@ class _ManifestBuilder:
         fleet: FleetTemplate | None = None
         if "fleet" in top:   # vehicles become sides; their entries are copied below
             fleet = self.checked(None, read_fleet, self, top["fleet"][1], sides)
+        mac = MacConfig()
+        if "mac" in top and sides:   # after the fleet: its vehicles have slots and turns too
+            mac = self.checked(mac, read_mac, r, top["mac"][1], sides)
 
         # Policy keys from `defaults` stay nodes (merged per key into each topic, errors
         # located); validated here even if no topic uses them. Their qos is read once.
@@ -236,7 +251,10 @@ class _ManifestBuilder:
             schema_period=schema_period,
             security=security,
             fleet=fleet.fleet if fleet is not None else None,
+            mac=mac,
         )
+        if "mac" in top:
+            check_turns_wire(r, top["mac"][1], mac, manifest.uses_rmw_desert())
         manifest = self.sec.finish(manifest, root, self.senders)
         if manifest.uses_rmw_desert():
             checks.check_rmw_reserved(r, self.ids, manifest, top)

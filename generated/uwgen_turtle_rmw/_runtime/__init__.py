@@ -13,11 +13,11 @@ import sys as _sys
 # name -> (uwgen module, sha256 prefix of its source when this package was built)
 CARRIED = {
     'codec': ('uwgen.runtime.wire.codec', '2b379ef85d3cfa87'),
-    'model': ('uwgen.manifest.model', '0561cdd079aeca40'),
+    'model': ('uwgen.manifest.model', '1b6abadb5bbc6737'),
     'framing': ('uwgen.runtime.wire.framing', '2a5b2328562b0dbf'),
     'bits': ('uwgen.runtime.wire.bits', '39059f7b8ccf3421'),
     'rosclasses': ('uwgen.runtime.wire.rosclasses', '2ec3c0481f7093c3'),
-    'table': ('uwgen.runtime.wire.table', '6afcc421a8d6c6ae'),
+    'table': ('uwgen.runtime.wire.table', 'b34328e4837a5928'),
 }
 
 

@@ -63,7 +63,8 @@ class Reliability:
                  max_ages: dict[int, float], wall: Clock = WALL_CLOCK,
                  ack_delay: float | None = None, ack_interval: float | None = None,
                  name: str = "link", max_read_length: int = MAX_FRAME,
-                 other_overhead: int = 0, destinations: dict[int, frozenset[int]] | None = None):
+                 other_overhead: int = 0, turn_gap: float = 0.0,
+                 destinations: dict[int, frozenset[int]] | None = None):
         self.sender, self.name, self.wall = sender, name, wall
         # wire id -> the peers (sender ids) its messages are for, on a channel shared by more
         # than two sides (a fleet): a packet is acknowledged by each of them (ReliableLink).
@@ -81,8 +82,10 @@ class Reliability:
                            aged=frozenset(max_ages))
         self.ack_delay = ack_delay if ack_delay is not None else max(1.0, 4 * period)
         self.ack_interval = ack_interval if ack_interval is not None else max(2.0, 8 * period)
-        first = max(2.0, 8 * period)
-        self.engine = ReliableLink(sender, RttEstimator(first, period, 60.0, period),
+        # The retransmission timer's first value and floor are the MAC's (docs/seams.md
+        # section 6): a reply may wait `turn_gap` for the peer's turn, besides a period.
+        first = max(2.0, 8 * period) + turn_gap
+        self.engine = ReliableLink(sender, RttEstimator(first, period + turn_gap, 60.0, period),
                                    ack_delay=self.ack_delay)
         self.staleness = Staleness()
         self.counters = Counters(COUNTERS)
