@@ -3,7 +3,7 @@
 behind its own bridge, against the same per-vehicle workload between two sides, same run.
 
     python benchmarks/fleet_bench.py [--vehicles 8] [--per 0.1] [--calls 13] [--goals 13]
-                                     [--seed 5] [--mac tdma|none]
+                                     [--seed 5] [--mac tdma|turns|none]
 
 The network is one manifest with a `fleet:` section (uwgen.manifest.fleet): each vehicle
 carries 2 topics (a command from the surface, telemetry from the vehicle, both one message
@@ -11,11 +11,12 @@ every --every seconds), 1 service and 1 action, under its own namespace and ids.
 is its own ROS domain (ROS_DOMAIN_ID and the ones after it) in this process; the surface
 calls each vehicle's service and sends goals to its action, vehicle by vehicle in parallel.
 
-The channel: 4800 bit/s, 64-byte packets, vehicles on a 100 m circle around the surface,
---per packet error rate on top of collisions. With `--mac tdma` the emulator runs UW/TDMA
-(one slot per node, a guard over the longest delay) and each side's period is set so that
-it writes no more than its slot drains (the manifest's `mac:` when the link's MAC exists);
-`--mac none` is DESERT's stock CSMA-ALOHA.
+The channel: 4800 bit/s, 64-byte packets (one every 0.2 s at most), vehicles on a 100 m
+circle around the surface, --per packet error rate on top of collisions. The manifest's
+`mac:` section shares it, for the bridges and the emulator alike: `tdma` is DESERT's UW/TDMA
+(one slot per side in the fleet's turn order, a guard over a packet's air time and the
+longest delay; each bridge writes no more than its slot drains), `turns` the surface granting
+each vehicle its turn in order over stock CSMA-ALOHA, `none` stock CSMA-ALOHA alone.
 
 It prints one row per network (the fleet and the two-side reference): telemetry and commands
 delivered (unique messages received over published), calls ok within their timeout with the
@@ -45,7 +46,8 @@ from test_msgs.srv import BasicTypes
 
 from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan, import_package
-from uwgen.emulator import BROADCAST, NodeSpec, Scenario, TdmaSpec, run_emulator
+from uwgen.emulator import BROADCAST, NodeSpec, Scenario, run_emulator
+from uwgen.emulator.from_manifest import with_mac
 
 BITRATE = 4800.0
 MRL = 64
@@ -60,6 +62,7 @@ network: fleetbench
 package: {package}
 sides:
   surface: {{port: 4000, link: {{max_read_length: {mrl}, period: {period}}}}}
+mac: {mac}
 fleet:
   vehicles: {vehicles}
   name: auv{{n}}
@@ -77,22 +80,31 @@ fleet:
 """
 
 
-def tdma_for(nodes: int) -> tuple[TdmaSpec, float]:
-    """(UW/TDMA frame, each side's period): a guard over the longest delay (across the
-    circle), two packets per slot, the period one slot's drain."""
-    air = (MRL + HEADER) * 8 / BITRATE
-    guard = 2 * RADIUS / SOUND + 0.02
-    slot = guard + 2 * air + 0.02
-    frame = nodes * slot
-    return TdmaSpec(frame=frame, guard=guard), frame / 2
+PERIOD = 0.2
+SLOT_PACKETS = 3
 
 
-def build_package(vehicles: int, period: float):
+def mac_section(mode: str, nodes: int) -> str:
+    """The manifest's mac: for `nodes` sides. TDMA: a guard of one packet's air time plus the
+    longest delay (across the circle), an ON window in which SLOT_PACKETS packets start."""
+    common = f"bitrate: {BITRATE:g}, range: {2 * RADIUS:g}"
+    if mode == "tdma":
+        air = (MRL + HEADER) * 8 / BITRATE
+        guard = round(air + 2 * RADIUS / SOUND + 0.02, 3)
+        slot = guard + (SLOT_PACKETS - 1) * max(air, PERIOD) + 0.02
+        return (f"{{mode: tdma, frame: {nodes * slot:.3f}, guard: {guard}, "
+                f"max_packet_per_slot: {SLOT_PACKETS}, queue_size: 10, {common}}}")
+    if mode == "turns":
+        return f"{{mode: turns, leader: surface, packets: {{surface: 3}}, {common}}}"
+    return f"{{mode: none, {common}}}"
+
+
+def build_package(vehicles: int, period: float, mac: str):
     from uwgen.cli import main as uwgen_main
     package = f"uwgen_fleetbench{vehicles}"
     root = Path(tempfile.mkdtemp(prefix=f"{package}_"))
     (root / "uwgen.yaml").write_text(MANIFEST.format(
-        package=package, vehicles=vehicles, mrl=MRL, period=round(period, 3),
+        package=package, vehicles=vehicles, mrl=MRL, period=round(period, 3), mac=mac,
         timeout=CALL_TIMEOUT, result=RESULT_TIMEOUT))
     if uwgen_main(["--quiet", "build", "-m", str(root / "uwgen.yaml"),
                    "-o", str(root / "generated" / package)]) != 0:
@@ -147,15 +159,17 @@ def wait(future, seconds: float) -> bool:
 
 def run(vehicles: int, args, base_domain: int) -> dict:
     names = [f"auv{n}" for n in range(1, vehicles + 1)]
-    tdma, period = tdma_for(vehicles + 1) if args.mac == "tdma" else (None, 0.2)
-    package = build_package(vehicles, period)
+    period = PERIOD
+    package = build_package(vehicles, period, mac_section(args.mac, vehicles + 1))
+    mac = package.MANIFEST.mac
     nodes = [NodeSpec("surface", dest=BROADCAST if vehicles > 1 else "auv1")]
     for k, name in enumerate(names):
         angle = 2 * math.pi * k / vehicles
         nodes.append(NodeSpec(name, position=(RADIUS * math.cos(angle), RADIUS * math.sin(angle), 0.0),
                               dest="surface"))
-    scen = Scenario(nodes=nodes, period=period, max_read_length=MRL, bitrate=BITRATE,
-                    per=args.per, seed=args.seed, tdma=tdma)
+    scen = with_mac(Scenario(nodes=nodes, period=period, max_read_length=MRL, bitrate=BITRATE,
+                             per=args.per, seed=args.seed), mac)
+    frame = mac.frame if mac is not None and mac.mode == "tdma" else 2.0
     got = {"cmd": {v: set() for v in names}, "telemetry": {v: set() for v in names}}
     published = {"cmd": dict.fromkeys(names, 0), "telemetry": dict.fromkeys(names, 0)}
     ok = {"calls": 0, "goals": 0}
@@ -194,7 +208,7 @@ def run(vehicles: int, args, base_domain: int) -> dict:
             for v in names:
                 clients[v].wait_for_service(timeout_sec=20.0)
                 actions[v].wait_for_server(timeout_sec=20.0)
-            time.sleep(2 * (tdma.frame if tdma else 1.0) + 2.0)   # links up, schemas exchanged
+            time.sleep(2 * frame + 2.0)   # links up, schemas exchanged
             stop = threading.Event()
 
             def chatter(v: str, offset: float):
@@ -243,7 +257,7 @@ def run(vehicles: int, args, base_domain: int) -> dict:
             stop.set()
             for t in talk:
                 t.join()
-            time.sleep(2 * (tdma.frame if tdma else 1.0) + 3.0)   # what is in flight lands
+            time.sleep(2 * frame + 3.0)   # what is in flight lands
             elapsed = time.monotonic() - started
         finally:
             counters = emu.all_counters()
@@ -262,7 +276,7 @@ def run(vehicles: int, args, base_domain: int) -> dict:
         "per_lost": sum(c["lost_per"] for c in counters.values()),
         "sent": sum(c["packets_sent"] for c in counters.values()),
         "queue": max(c["max_queue_bytes"] for c in counters.values()),
-        "time": elapsed, "frame": tdma.frame if tdma else None, "period": period,
+        "time": elapsed, "mac": mac, "period": period,
     }
 
 
@@ -274,7 +288,7 @@ def main() -> int:
     ap.add_argument("--goals", type=int, default=13, help="action goals per vehicle")
     ap.add_argument("--every", type=float, default=8.0, help="seconds between a vehicle's topic messages")
     ap.add_argument("--seed", type=int, default=5)
-    ap.add_argument("--mac", choices=("tdma", "none"), default="tdma")
+    ap.add_argument("--mac", choices=("tdma", "turns", "none"), default="tdma")
     args = ap.parse_args()
     base = int(os.environ.get("ROS_DOMAIN_ID") or 150)
     rows = [run(1, args, base), run(args.vehicles, args, base)]
@@ -292,7 +306,7 @@ def main() -> int:
               f"{r['collision']:>10}{r['per_lost']:>10}{r['sent']:>9}{r['queue']:>12}{r['time']:>8.0f}")
     fleet = rows[-1]
     print("  (first row: the two-side reference, same workload per vehicle, same run; "
-          f"TDMA frame {fleet['frame'] or 0:.2f} s, period {fleet['period']:.2f} s)")
+          f"fleet's mac: {fleet['mac']})")
     print("  telemetry per vehicle: " + ", ".join(f"{v} {x:.2f}" for v, x in fleet["per_vehicle"].items()))
     met = (fleet["telemetry"] >= goal and fleet["calls"][0] >= 0.99 * fleet["calls"][1]
            and fleet["goals"][0] >= 0.99 * fleet["goals"][1])
