@@ -47,6 +47,7 @@ raise `uwgen_fleet_demo._runtime.codec.DecodeError`, a message that cannot be en
 """
 from ._runtime.model import LinkConfig, LinkPolicy, Qos, Side
 from ._runtime.model import SecurityPlan
+from ._runtime.model import MacConfig
 from ._runtime.table import ActionCodec, ManifestInfo, ServiceCodec, TopicCodec, TypeCodec, find_codec
 from ._runtime.table import ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELED, CANCELING, REJECTED, SUCCEEDED  # noqa: F401
 
@@ -117,11 +118,12 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
     security=SecurityPlan(key_file='../keys/demo.key', senders={'auv1': 2, 'auv2': 3, 'auv3': 4, 'surface': 1}, modes={10: 'encrypt', 11: 'sign', 12: 'encrypt', 13: 'encrypt', 14: 'encrypt', 20: 'encrypt', 21: 'sign', 22: 'encrypt', 23: 'encrypt', 24: 'encrypt', 30: 'encrypt', 31: 'sign', 32: 'encrypt', 33: 'encrypt', 34: 'encrypt', 249: 'sign'}, tag_bytes=8, seal_fingerprints={}),
+    mac=MacConfig(mode='tdma', bitrate=4800.0, range=300.0, frame=3.1, guard=0.34, slots=('surface', 'auv1', 'auv2', 'auv3'), max_packet_per_slot=3, queue_size=10, leader='', packets=()),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "619375d214ffd73e",
+    "manifest": "9a2544efb71b8bea",
     "sources": {
         "../turtlesim/action/RotateAbsolute.action": "f559ab5b32a954b2",
         "../turtlesim/msg/Color.msg": "9cd63f14c0afc12d",
@@ -142,7 +144,7 @@ TOPICS = {
     10: TopicCodec(
         id=10, name="/auv1/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="packed",
-        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=10, repair=0, strict=False, reliable=False),
+        policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=4.0, priority=10, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t10"],
         peers=('surface', 'auv1'),
@@ -158,7 +160,7 @@ TOPICS = {
     20: TopicCodec(
         id=20, name="/auv2/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="packed",
-        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=10, repair=0, strict=False, reliable=False),
+        policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=4.0, priority=10, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t20"],
         peers=('surface', 'auv2'),
@@ -174,7 +176,7 @@ TOPICS = {
     30: TopicCodec(
         id=30, name="/auv3/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="packed",
-        policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=10, repair=0, strict=False, reliable=False),
+        policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=4.0, priority=10, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t30"],
         peers=('surface', 'auv3'),

@@ -8,10 +8,11 @@ What runs (msg_samples/fleet/uwgen.yaml, built to generated/uwgen_fleet_demo):
     vehicle k's domain: vehicle simulator under /auvk <-> bridge_auvk <-> DESERT node "auvk"
 
 Each vehicle is a side of the manifest's `fleet:` section: its commands are its own ids,
-its telemetry comes under its namespace. The channel is shared by time division (UW/TDMA:
-one slot per node, a guard over the farthest delay), each bridge writing no more than its
-slot drains. The report has one row per vehicle; the demo fails unless every vehicle
-followed its square (docs/demo.md).
+its telemetry comes under its namespace. The channel is shared as the manifest's `mac:`
+section says (UW/TDMA, one slot per side in the fleet's order; `--mac turns` has the
+surface grant each vehicle its turn instead, `--mac none` is stock CSMA-ALOHA), for the
+bridges and the emulator alike. The report has one row per vehicle; the demo fails unless
+every vehicle followed its square (docs/demo.md).
 """
 from __future__ import annotations
 
@@ -34,37 +35,42 @@ FOLLOW_TOLERANCE = 0.5       # metres between the reported path and the commande
 SQUARE_GAP = 2.0             # metres between two vehicles' squares
 BITRATE = 4800.0
 MRL = 64
-HEADER = 4                   # bytes DESERT adds to each packet
 SPREAD = math.radians(20)    # the vehicles' bearings from the surface, this far apart
-PACKETS_PER_SLOT = 2
+PERIOD = 0.2                 # s between two packets of a side (DESERT's period_)
 CALL_TIMEOUT = 24.0          # s the operator waits for a call (the manifest's 20 s + margin)
 
 
-def tdma(vehicles: int, distance: float):
-    """(UW/TDMA of one slot per node, each side's period): the guard covers the farthest
-    delay, a slot carries PACKETS_PER_SLOT packets, and a side writes one packet per
-    frame / PACKETS_PER_SLOT, what its slot drains."""
-    from uwgen.emulator import TdmaSpec
-    air = (MRL + HEADER) * 8 / BITRATE
-    guard = distance / 1500.0 + 0.02
-    frame = (vehicles + 1) * (guard + PACKETS_PER_SLOT * air + 0.02)
-    return TdmaSpec(frame=frame, guard=guard), frame / PACKETS_PER_SLOT
+def fleet_mac(args: argparse.Namespace):
+    """The MAC of bridges and emulator: the fleet manifest's (--mac manifest or tdma), the
+    surface granting turns (--mac turns), or none."""
+    from uwgen.manifest.loader import load_mac, load_sides
+    from uwgen.manifest.model import MacConfig
+    base = load_mac(MANIFEST, load_sides(MANIFEST)[1])
+    mode = getattr(args, "mac", "manifest")
+    if mode in ("manifest", "tdma") and (mode == "manifest" or base.mode == "tdma"):
+        return base
+    if mode == "turns":
+        return MacConfig(mode="turns", bitrate=base.bitrate, range=args.distance, leader="surface")
+    if mode == "tdma":
+        raise ValueError(f"{MANIFEST} gives no TDMA to run (its mac is {base.mode})")
+    return MacConfig(bitrate=base.bitrate)
 
 
 def scenario(args: argparse.Namespace):
     from uwgen.emulator import BROADCAST, NodeSpec, Scenario
     from uwgen.emulator.physics import phy
+    from uwgen.emulator.from_manifest import with_mac
     names = [f"auv{k}" for k in range(1, args.vehicles + 1)]
-    spec, period = tdma(args.vehicles, args.distance)
+    mac = fleet_mac(args)
     nodes = [NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest=BROADCAST)]
     for k, name in enumerate(names):
         bearing = (k - (len(names) - 1) / 2) * SPREAD
         nodes.append(NodeSpec(name, port=0, position=(args.distance * math.cos(bearing),
                                                       args.distance * math.sin(bearing), 0.0),
                               dest="surface"))
-    scen = Scenario(nodes=nodes, period=period, max_read_length=MRL, bitrate=BITRATE, per=args.per,
-                    seed=args.seed, snr=phy(args.phy), tdma=spec)
-    return scen, names, period
+    scen = Scenario(nodes=nodes, period=PERIOD, max_read_length=MRL, bitrate=BITRATE, per=args.per,
+                    seed=args.seed, snr=phy(args.phy))
+    return with_mac(scen, mac), names, mac
 
 
 def run(args: argparse.Namespace, say, quiet: bool, out: Path) -> int:
@@ -79,7 +85,12 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path) -> int:
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
         return 1
-    scen, names, period = scenario(args)
+    from uwgen.commands.demo import mac_text
+    try:
+        scen, names, mac = scenario(args)
+    except ValueError as exc:
+        print(f"uwgen demo: {exc}", file=sys.stderr)
+        return 2
     say(f"uwgen demo: a surface station drives {len(names)} simulated vehicles over one emulated "
         "acoustic channel")
     try:
@@ -100,17 +111,16 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path) -> int:
     t0 = time.monotonic()
     with keys, run_emulator(scen) as emu:
         say(f"  emulated DESERT nodes: surface and {', '.join(names)}, {args.distance:g} m from the "
-            f"surface; UW/TDMA frame {scen.tdma.frame:.2f} s (one slot each, guard "
-            f"{scen.tdma.guard:.2f} s), {MRL} B every {period:.2f} s at {BITRATE:g} bit/s, PHY "
-            f"{args.phy}, packet error rate {args.per:g}")
+            f"surface; {MRL} B every {PERIOD:g} s at {BITRATE:g} bit/s, PHY {args.phy}, packet "
+            f"error rate {args.per:g}; the channel shared by {describe_fleet_mac(mac)}")
         say("  ROS domains: " + ", ".join(f"{n} {d}" for n, d in doms.items()) + f"; logs in {out}")
         envs = {n: _env(d, [str(GENERATED)], iface) for n, d in doms.items()}
         try:
             for side in [*names, "surface"]:
                 procs.append(Proc(f"bridge_{side}", [
                     py, "-m", f"{PACKAGE}.bridge_{side}", "--port", str(emu.port(side)),
-                    "--period", f"{period:.3f}", "--stats-file", str(out / f"bridge_{side}.json"),
-                    "--status-period", "5", *key_args], envs[side], out, not quiet))
+                    "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5",
+                    "--mac", mac_text(mac), *key_args], envs[side], out, not quiet))
             for k, v in enumerate(names):
                 procs.append(Proc(f"vehicle_{v}", [py, "-m", "uwgen.demo.vehicle", "--namespace", f"/{v}",
                                                    "--record", str(out / f"vehicle_{v}.jsonl")],
@@ -121,7 +131,7 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path) -> int:
                     py, "-m", "uwgen.demo.operator", "--namespace", f"/{v}", "--start", start,
                     "--record", str(out / f"operator_{v}.jsonl"), "--square-size", str(args.square_size),
                     "--laps", str(args.laps), "--call-timeout", str(CALL_TIMEOUT), "--speed", "0.25",
-                    "--lag", f"{scen.tdma.frame:.2f}", "--max-drive", "240", "--service-wait", "60"],
+                    "--lag", f"{lag(mac, len(names)):.2f}", "--max-drive", "240", "--service-wait", "60"],
                     envs["surface"], out, not quiet)
                 procs.append(op)
                 operators.append(op)
@@ -142,7 +152,7 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path) -> int:
     print(format_fleet(reports, counters))
     for v, report in reports.items():
         plot_paths(report, out / f"demo-path-{v}.png",
-                   f"uwgen demo, {v} of {len(names)}: {args.distance:g} m, PER {args.per:g}, TDMA")
+                   f"uwgen demo, {v} of {len(names)}: {args.distance:g} m, PER {args.per:g}, mac {mac.mode}")
     print(f"plots: {out}/demo-path-auv*.png\nrun took {elapsed:.0f} s; logs in {out}")
     crashed = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
     if crashed:
@@ -155,6 +165,26 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path) -> int:
     worst = max(r.deviation_max for r in reports.values())
     print(f"every vehicle followed its commands: reported paths within {worst:.2f} m of their squares")
     return 0
+
+
+def lag(mac, vehicles: int) -> float:
+    """Seconds the pilot expects a pose and a command to take: about one frame (or one round
+    of turns) under a MAC."""
+    if mac.mode == "tdma":
+        return mac.frame
+    if mac.mode == "turns":
+        return 1.0 + 0.8 * vehicles
+    return 1.0
+
+
+def describe_fleet_mac(mac) -> str:
+    if mac.mode == "tdma":
+        return (f"UW/TDMA (frame {mac.frame:g} s, {len(mac.slots)} slots in the order "
+                f"{', '.join(mac.slots)}, guard {mac.guard:g} s, max_packet_per_slot "
+                f"{mac.max_packet_per_slot})")
+    if mac.mode == "turns":
+        return "turns the surface grants each vehicle in order, over CSMA-ALOHA"
+    return "stock CSMA-ALOHA (no MAC of uwgen's)"
 
 
 def vehicle_problems(report) -> list[str]:
