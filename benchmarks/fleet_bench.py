@@ -6,8 +6,10 @@ behind its own bridge, against the same per-vehicle workload between two sides, 
                                      [--seed 5] [--mac tdma|turns|none]
 
 The network is one manifest with a `fleet:` section (uwgen.manifest.fleet): each vehicle
-carries 2 topics (a command from the surface, telemetry from the vehicle, both one message
-every --every seconds), 1 service and 1 action, under its own namespace and ids. Every side
+carries 2 topics (telemetry from the vehicle every --every seconds, a command from the
+surface every --cmd-every telemetry messages), 1 service (request and response carry one
+int32: the manifest omits BasicTypes' 13 other fields) and 1 action, under its own namespace
+and ids. Every side
 is its own ROS domain (ROS_DOMAIN_ID and the ones after it) in this process; the surface
 calls each vehicle's service and sends goals to its action, vehicle by vehicle in parallel.
 
@@ -73,7 +75,8 @@ fleet:
     - {{name: cmd, id: 10, type: std_msgs/msg/String, publisher: surface, queue: fifo, depth: 4, ttl: 60}}
     - {{name: telemetry, id: 11, type: std_msgs/msg/String, publisher: fleet, queue: fifo, depth: 4, ttl: 60}}
   services:
-    - {{name: echo, id: 12, type: test_msgs/srv/BasicTypes, server: fleet, timeout: {timeout}}}
+    - {{name: echo, id: 12, type: test_msgs/srv/BasicTypes, server: fleet, timeout: {timeout},
+       request_fields: {omit}, response_fields: {omit}}}
   actions:
     - {{name: fib, id: 13, type: test_msgs/action/Fibonacci, server: fleet, accept_timeout: {timeout},
        result_timeout: {result}, max_goals: 2, feedback: false}}
@@ -82,6 +85,14 @@ fleet:
 
 PERIOD = 0.2
 SLOT_PACKETS = 3
+
+
+# Only int32_value is used: the other 13 fields of BasicTypes are not sent (as a manifest
+# would for a command), so a request is a few bytes, not 40.
+OMIT = "{" + ", ".join(f"{f}: {{omit: true}}" for f in (
+    "bool_value", "byte_value", "char_value", "float32_value", "float64_value", "int8_value",
+    "uint8_value", "int16_value", "uint16_value", "uint32_value", "int64_value", "uint64_value",
+    "string_value")) + "}"
 
 
 def mac_section(mode: str, nodes: int) -> str:
@@ -105,7 +116,7 @@ def build_package(vehicles: int, period: float, mac: str):
     root = Path(tempfile.mkdtemp(prefix=f"{package}_"))
     (root / "uwgen.yaml").write_text(MANIFEST.format(
         package=package, vehicles=vehicles, mrl=MRL, period=round(period, 3), mac=mac,
-        timeout=CALL_TIMEOUT, result=RESULT_TIMEOUT))
+        timeout=CALL_TIMEOUT, result=RESULT_TIMEOUT, omit=OMIT))
     if uwgen_main(["--quiet", "build", "-m", str(root / "uwgen.yaml"),
                    "-o", str(root / "generated" / package)]) != 0:
         sys.exit("uwgen build of the benchmark manifest failed")
@@ -175,6 +186,8 @@ def run(vehicles: int, args, base_domain: int) -> dict:
     ok = {"calls": 0, "goals": 0}
     lock = threading.Lock()
     sides: dict[str, Side] = {}
+    bridges: dict[str, BridgeNode] = {}
+    link_stats: dict[str, dict] = {}
     with run_emulator(scen) as emu:
         try:
             for i, name in enumerate(["surface", *names]):
@@ -183,6 +196,7 @@ def run(vehicles: int, args, base_domain: int) -> dict:
                 bridge = BridgeNode(plan, plan.options(port=emu.port(name), status_period=0),
                                     context=side.context, rng=random.Random(args.seed + i))
                 side.executor.add_node(bridge)
+                bridges[name] = bridge
             surface = sides["surface"].node
             pubs, clients, actions = {}, {}, {}
             for v in names:
@@ -216,8 +230,9 @@ def run(vehicles: int, args, base_domain: int) -> dict:
                 stop.wait(offset)
                 while not stop.is_set():
                     k += 1
-                    for topic, pub in zip(("cmd", "telemetry"), pubs[v]):
-                        pub.publish(String(data=f"{v} {topic} {k}"))
+                    topics = ("telemetry", "cmd") if k % args.cmd_every == 0 else ("telemetry",)
+                    for topic in topics:
+                        pubs[v][topic == "telemetry"].publish(String(data=f"{v} {topic} {k}"))
                         with lock:
                             published[topic][v] += 1
                     stop.wait(args.every)
@@ -261,6 +276,11 @@ def run(vehicles: int, args, base_domain: int) -> dict:
             elapsed = time.monotonic() - started
         finally:
             counters = emu.all_counters()
+            for name in ("surface", names[0]):
+                if name in bridges:
+                    link_stats[name] = bridges[name].link.stats()
+                    link_stats[name]["services"] = {
+                        k: getattr(c, "__dict__", c) for k, c in bridges[name].service_counters.items()}
             for side in sides.values():
                 side.close()
 
@@ -276,7 +296,7 @@ def run(vehicles: int, args, base_domain: int) -> dict:
         "per_lost": sum(c["lost_per"] for c in counters.values()),
         "sent": sum(c["packets_sent"] for c in counters.values()),
         "queue": max(c["max_queue_bytes"] for c in counters.values()),
-        "time": elapsed, "mac": mac, "period": period,
+        "time": elapsed, "mac": mac, "period": period, "links": link_stats, "emulator": counters,
     }
 
 
@@ -286,15 +306,19 @@ def main() -> int:
     ap.add_argument("--per", type=float, default=0.1)
     ap.add_argument("--calls", type=int, default=13, help="service calls per vehicle")
     ap.add_argument("--goals", type=int, default=13, help="action goals per vehicle")
-    ap.add_argument("--every", type=float, default=8.0, help="seconds between a vehicle's topic messages")
+    ap.add_argument("--every", type=float, default=8.0, help="seconds between a vehicle's telemetry messages")
+    ap.add_argument("--cmd-every", type=int, default=3,
+                    help="a command to each vehicle every this many telemetry messages")
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--mac", choices=("tdma", "turns", "none"), default="tdma")
+    ap.add_argument("--verbose", action="store_true", help="also print link and emulator counters")
     args = ap.parse_args()
     base = int(os.environ.get("ROS_DOMAIN_ID") or 150)
     rows = [run(1, args, base), run(args.vehicles, args, base)]
     goal = 0.95 * (1 - args.per)
     print(f"\nfleet benchmark: PER {args.per:g}, {BITRATE:g} bit/s, {MRL} B packets, MAC {args.mac}, "
-          f"seed {args.seed}; per vehicle 2 topics (one message each every {args.every:g} s), "
+          f"seed {args.seed}; per vehicle 2 topics (telemetry every {args.every:g} s, a command every "
+          f"{args.every * args.cmd_every:g} s), "
           f"{args.calls} calls, {args.goals} goals")
     head = (f"{'network':<22}{'telemetry':>10}{'commands':>10}{'calls ok':>14}{'goals ok':>14}"
             f"{'collided':>10}{'PER lost':>10}{'packets':>9}{'max queue B':>12}{'time s':>8}")
@@ -310,6 +334,13 @@ def main() -> int:
     print("  telemetry per vehicle: " + ", ".join(f"{v} {x:.2f}" for v, x in fleet["per_vehicle"].items()))
     met = (fleet["telemetry"] >= goal and fleet["calls"][0] >= 0.99 * fleet["calls"][1]
            and fleet["goals"][0] >= 0.99 * fleet["goals"][1])
+    if args.verbose:
+        import json
+        for r in rows:
+            print(f"-- {r['network']}: emulator nodes", json.dumps(r["emulator"]))
+            for name, st in r["links"].items():
+                brief = {k: st.get(k) for k in ("mac", "packets", "reliability", "services")}
+                print(f"-- {r['network']}: link of {name}", json.dumps(brief, default=str)[:3000])
     print(f"goal (telemetry >= {goal:.3f}, calls and goals >= 0.99): {'met' if met else 'NOT met'}")
     return 0
 
