@@ -231,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
         old.unlink()
     if getattr(args, "vehicles", 1) > 1:
         from uwgen.demo import fleet
-        return fleet.run(args, say, quiet, out)
+        return fleet.run(args, say, quiet, out, mac_text)
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
         return EXIT_FAILED

@@ -73,7 +73,9 @@ def scenario(args: argparse.Namespace):
     return with_mac(scen, mac), names, mac
 
 
-def run(args: argparse.Namespace, say, quiet: bool, out: Path) -> int:
+def run(args: argparse.Namespace, say, quiet: bool, out: Path, mac_text) -> int:
+    """The fleet demo; `mac_text(mac)`: the MAC as the bridges' --mac takes it (the demo
+    command's, which imports this module)."""
     from uwgen.demo.report import build_report, plot_paths
     from uwgen.emulator import run_emulator
     from uwgen.typesupport import BuildError, ensure_interfaces
@@ -85,7 +87,6 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path) -> int:
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
         return 1
-    from uwgen.commands.demo import mac_text
     try:
         scen, names, mac = scenario(args)
     except ValueError as exc:
