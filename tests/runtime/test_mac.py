@@ -51,7 +51,7 @@ def test_mode_none_always_allows():
 
 def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
     lead, follower = pair()
-    lead.backlog = lambda now: True
+    lead.carries = True                              # its packets carry messages
     assert write(lead, 0.0) == b"" and write(lead, 0.21) == b""
     grant = write(lead, 0.42)                        # the third packet carries the grant
     assert grant == bytes([0x22, 2])
@@ -67,6 +67,14 @@ def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
     assert lead.next_write_at(1.1) == -math.inf
     assert lead.counts["ends_heard"] == 1 and lead.counts["missed"] == 0
     assert lead.rtt[2].samples == 1 and lead.rtt[2].srtt == pytest.approx(1.1 - 0.42)
+
+
+def test_the_leader_ends_its_turn_at_its_first_packet_without_messages():
+    lead, _ = pair()
+    lead.carries = True
+    assert write(lead, 0.0) == b""
+    lead.carries = False                             # nothing more: the grant goes alone
+    assert write(lead, 0.21) == bytes([0x22, 2])
 
 
 def test_a_follower_writes_at_most_the_packets_granted():
@@ -158,3 +166,11 @@ def test_tdma_writes_at_most_a_slots_capacity_per_frame():
 def test_tdma_capacity_follows_desert_settings(kw, capacity):
     config = MacConfig(mode="tdma", frame=1.0, slots=("a", "b"), **kw)
     assert tdma_capacity(config, LINK) == capacity
+
+
+def test_an_end_lost_after_the_answer_costs_two_intervals_not_a_timeout():
+    lead, _ = pair()
+    write(lead, 0.0)                                 # grants sender 2 two packets
+    assert lead.next_write_at(0.1) > 0.8 + 3 * lead.interval   # the first timer is longer
+    lead.heard(2, b"", 0.8)                          # its first packet; the one with the end is lost
+    assert lead.next_write_at(0.9) == pytest.approx(0.8 + 3 * lead.interval)

@@ -69,7 +69,8 @@ class ActionServers:
             wiring.loops.watch_server(codec.name, action=True)
             self.goals[codec.id] = {}
             self.results[codec.id] = ResultBook(
-                codec.accept_timeout, command_rtt(codec.accept_timeout, wiring.options.link.period))
+                codec.accept_timeout, command_rtt(codec.accept_timeout, wiring.options.link.period,
+                                                  wiring.round_trip, wiring.turn_gap))
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.served:

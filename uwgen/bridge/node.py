@@ -59,6 +59,15 @@ def default_link_factory(**kwargs: Any) -> Any:
     return Link(**kwargs)
 
 
+def mac_round_trip(plan: BridgePlan, link: Any) -> float | None:
+    """What a request and its answer take under the plan's MAC (None: mode none, where the
+    commands' timers keep their measured default)."""
+    from uwgen.manifest.mac import round_trip
+    if plan.mac is None or plan.mac.mode == "none":
+        return None
+    return round_trip(plan.mac, link.period, link.max_read_length, list(plan.senders))
+
+
 def deadline_problems(plan: BridgePlan, link: Any) -> list[str]:
     """Deadlines of this side's calls and goals that cannot fit one round trip under the MAC
     (uwgen.manifest.mac.round_trip): said at start, as `uwgen analyze` says them."""
@@ -97,9 +106,15 @@ class BridgeNode(Node):
         self.options = self._declare_parameters(options or plan.defaults)
         self._closed = False
         main_group = MutuallyExclusiveCallbackGroup()
+        # When this side may write (docs/seams.md section 7): its turn, its slot's share; the
+        # commands' retransmission timers start from its round trip and turn gap.
+        link_cfg = self.options.link
+        self.mac = mac_for(plan.mac, plan.side, plan.senders, link_cfg, plan.wire_format)
         self.wiring = w = Wiring(node=self, send=self._send, clock=clock, options=self.options,
                                  log=self.get_logger(), main_group=main_group,
-                                 service_group=ReentrantCallbackGroup())
+                                 service_group=ReentrantCallbackGroup(),
+                                 round_trip=mac_round_trip(plan, link_cfg),
+                                 turn_gap=self.mac.turn_gap())
         self._log = w.log
         self.counters = BridgeCounters()
         self.unavailable = w.unavailable                 # entry name -> why it is not bridged
@@ -118,14 +133,11 @@ class BridgeNode(Node):
 
         self._wake = self.create_guard_condition(self._drain_inbox, callback_group=main_group)
         self.inbox = Inbox(self._wake.trigger)
-        link_cfg = self.options.link
         self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
         security_kw, seal_hooks = link_security(self.guard)
         # Acks, re-sends of reliable topics, delivery once, stale commands (wire format 2 only;
         # docs/seams.md section 5), joined with the per-packet seal's hooks (one tag per packet)
         # when the link is secured.
-        # When this side may write (docs/seams.md section 7): its turn, its slot's share.
-        self.mac = mac_for(plan.mac, plan.side, plan.senders, link_cfg, plan.wire_format)
         if self.mac.mode != "none":
             security_kw["mac"] = self.mac
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(

@@ -31,6 +31,7 @@ from pathlib import Path
 from uwgen.argtypes import number, whole
 from uwgen.commands.options import old_spelling
 from uwgen.emulator.from_manifest import with_mac
+from uwgen.manifest.model import MacConfig
 from uwgen.emulator.physics import DEFAULT_PHY, PHYS, phy
 from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
 
@@ -71,6 +72,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "the vehicle its turn over stock CSMA-ALOHA), turns, tdma (DESERT's "
                              "UW/TDMA: --frame, --guard, --max-packet-per-slot) or none (stock "
                              "CSMA-ALOHA, packets of the two sides collide)")
+    parser.add_argument("--bridge-mac", dest="bridge_mac", choices=("same", "none"), default="same",
+                        help="for comparison: none makes the bridges write as if DESERT ran "
+                             "CSMA-ALOHA whatever --mac says (a bridge unaware of the MAC); "
+                             "default same")
     parser.add_argument("--frame", type=number(0.01, 3600), default=1.0, metavar="S",
                         help="with --mac tdma: frame_duration (default 1.0, 2 slots)")
     parser.add_argument("--guard", type=number(0, 3600), default=0.25, metavar="S",
@@ -111,7 +116,6 @@ def demo_mac(args: argparse.Namespace):
     from dataclasses import replace
 
     from uwgen.manifest.loader import load_mac, load_sides
-    from uwgen.manifest.model import MacConfig
     from uwgen.manifest.nodes import ManifestError
     try:
         base = load_mac(DEMO_MANIFEST, load_sides(DEMO_MANIFEST)[1])
@@ -268,7 +272,8 @@ def run(args: argparse.Namespace) -> int:
                     period=0.2, max_read_length=64, bitrate=4800.0, per=args.per, seed=args.seed,
                     snr=phy(args.phy))
     scen = with_mac(scen, mac)
-    key_args = [*key_args, "--mac", mac_text(mac)]
+    bridge_mac = mac if args.bridge_mac == "same" else MacConfig(bitrate=mac.bitrate)
+    key_args = [*key_args, "--mac", mac_text(bridge_mac)]
     vdom, sdom = domains()
     py = sys.executable
     procs: list[Proc] = []

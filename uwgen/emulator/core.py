@@ -8,34 +8,25 @@ PDR sweep drive it with explicit times, so timing, loss and collision statistics
 exact, deterministic (seeded) and fast.
 
 What one node does (after DESERT's UW/APPLICATION in TCP mode, UW/CSMA_ALOHA or UW/TDMA,
-and UW/PHYSICAL):
-- bytes from its client are cut into packets of at most max_read_length bytes and queued;
-  the queue is unbounded, as in DESERT;
-- every `period` seconds (ticks on a fixed grid from the node's start) one queued packet
-  goes down to the MAC;
-- CSMA-ALOHA: the MAC's only carrier sense is the PHY's lock (DESERT's Phy2MacStartRx: a
-  packet the receiver acquired). It waits while it sends or is locked on a packet, listens
-  for `listen_time` (+ jitter) and transmits when the listen ends, unless it is locked on a
-  packet by then: then it listens again once that reception ends. A packet that began
-  arriving while the node was sending is never acquired, so the MAC does not hear it;
+and UW/PHYSICAL; docs/emulator.md, "What a node does", says each rule in full):
+- bytes from its client are cut into packets of at most max_read_length bytes and queued
+  (unbounded, as in DESERT); every `period` (a fixed grid from the node's start) one goes
+  down to the MAC;
+- CSMA-ALOHA: the only carrier sense is the PHY's lock (DESERT's Phy2MacStartRx); it waits
+  while sending or locked, listens `listen_time` (+ jitter), sends when the listen ends
+  unless locked by then (then it listens again after that reception);
   TDMA: as DESERT's UW/TDMA (uwgen.emulator.tdma): a packet starts anywhere in the node's
   ON window (slot - guard) and may end past it, at most max_packet_per_slot per window, and
   a full MAC queue (queue_size) drops the new packet, counted;
-- a packet is on the air for (bytes + header) * 8 / bitrate seconds and reaches every other
-  node after distance / sound speed, the distance (and the SNR) taken when it is sent:
-  nodes may move along waypoints or be placed live by `set_position` (uwgen.emulator.motion);
-- a receiver locks onto the first packet it can acquire; a packet that arrives while it is
-  transmitting or already locked is lost, and a transmission starting during a reception
-  kills that reception (half duplex); the locked packet is lost if the interference of
-  overlapping packets makes it draw bit errors ("collision"): the interference is each
-  overlapping packet's power weighted by the fraction of the reception it overlaps
-  (DESERT's MEANPOWER model), and the bit errors are BPSK's at that SINR;
-- with an SNR model, a packet whose faded SNR is under the acquisition threshold, or that
-  draws BPSK bit errors, is lost ("snr"); then the fixed packet error rate applies ("per");
-- a packet's destination is one node or every other node (`dest: "*"`, broadcast, as
-  DESERT's IP broadcast address): each addressee receives, or loses, its own copy;
-- an intact packet for this node is written to its client, or dropped ("no_client") when
-  none is connected.
+- a packet is on the air (bytes + header) * 8 / bitrate seconds and reaches every other node
+  after distance / sound speed, taken when it is sent (nodes may move: uwgen.emulator.motion);
+- a receiver locks onto the first packet it can acquire; one arriving while it sends or is
+  locked is lost, and sending kills a reception (half duplex); the locked packet is lost
+  ("collision") if the MEANPOWER interference of overlapping packets makes it draw BPSK bit
+  errors; with an SNR model a packet under the acquisition threshold or with bit errors is
+  lost ("snr"); then the fixed packet error rate applies ("per");
+- a packet is for one node or, `dest: "*"`, every other (each its own copy); an intact one
+  is written to the node's client, or dropped ("no_client") when none is connected.
 """
 from __future__ import annotations
 
@@ -49,7 +40,7 @@ from dataclasses import dataclass, field
 
 from uwgen.emulator import tdma
 from uwgen.emulator.motion import Geometry
-from uwgen.emulator.physics import bpsk_per
+from uwgen.emulator.physics import locked_outcome
 from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario
 from uwgen.runtime.stats import Counters
 
@@ -459,23 +450,6 @@ class EmulatorCore:
         return snr.threshold_db if snr is not None else -math.inf
 
     def _decide(self, arr: _Arrival) -> str | None:
-        """Outcome of a packet the receiver stayed locked on to its end."""
-        snr = self.scenario.snr
-        if snr is None:
-            return "collision" if arr.interference > 0 else None
-        nbits = (len(arr.packet.data) + self.scenario.header_bytes) * 8
-        u = self._bit_error_rng.random() if snr.bpsk_errors else 1.0
-        snr_lin = 10 ** (arr.snr_db / 10)
-        if snr.bpsk_errors and u < bpsk_per(snr_lin, nbits):
-            return "snr"
-        if arr.interference > 0:
-            # DESERT draws the bit errors of noise plus interference with the same number;
-            # without bit errors, a SINR under the threshold is a collision.
-            signal = snr_lin * self._noise
-            sinr = signal / (self._noise + arr.interference)
-            if snr.bpsk_errors:
-                if u < bpsk_per(sinr, nbits):
-                    return "collision"
-            elif 10 * math.log10(sinr) < snr.threshold_db:
-                return "collision"
-        return None
+        """Outcome of a packet the receiver stayed locked on to its end (physics.locked_outcome)."""
+        return locked_outcome(self.scenario.snr, (len(arr.packet.data) + self.scenario.header_bytes) * 8,
+                              arr.snr_db, arr.interference, self._noise, self._bit_error_rng)

@@ -168,4 +168,4 @@ def round_trip(config: MacConfig, period: float, max_read_length: int,
     return 2 * (one_way + LISTEN)
 
 
-LISTEN = 0.3      # s: DESERT's CSMA-ALOHA listen and back-off before a packet starts (mac.LISTEN)
+LISTEN = 0.05     # s: DESERT's CSMA-ALOHA listen before a packet starts (runtime.link.mac.LISTEN)

@@ -234,10 +234,13 @@ class Link:
         return min(times) if times else None
 
     def _backlog(self, now: float, hooks: PacketHooks) -> bool:
-        """Whether another packet wants to leave now (the MAC keeps a turn for it)."""
+        """Whether another packet wants to leave by the time the pacer allows the next write
+        (the MAC keeps the turn for it: a stream offered at the link's pace fills the turn)."""
+        pacer = self.connection.pacer
+        horizon = now + pacer.period * (1.0 + pacer.margin)
         times = [self.scheduler.next_ready_time(now),
                  hooks.next_time(now) if hooks.next_time is not None else None]
-        return any(t is not None and t <= now for t in times)
+        return any(t is not None and t <= horizon for t in times)
 
     def _source(self, now: float) -> bytes | None:
         picked = self.scheduler.next_payload(now)

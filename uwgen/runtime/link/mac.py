@@ -36,7 +36,7 @@ from uwgen.runtime.link.pacing import DEFAULT_MARGIN, PACKET_HEADER
 TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255)
 TURN_END = 3            # C item `3S`: sender S ends its turn
 INF = math.inf
-LISTEN = 0.3            # s: what DESERT's CSMA-ALOHA may add before a packet starts (listen, jitter)
+LISTEN = 0.05           # s: DESERT's CSMA-ALOHA listen before a packet starts (10-20 ms measured, docs/emulator.md)
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,7 @@ class Mac:
 
     def __init__(self):
         self.backlog: Callable[[float], bool] = lambda now: False   # set by the Link
+        self.carries = False             # the packet being built carries messages
 
     def next_write_at(self, now: float) -> float:
         return -INF
@@ -117,7 +118,11 @@ class Mac:
         if self.mode != "turns":
             return None             # nothing to add to packets: the connection asks it directly
         return PacketHooks(parts=self._part, received=self._received, overhead=self.overhead,
-                           ack_only=self.must_send, next_time=self.next_time)
+                           ack_only=self.must_send, next_time=self.next_time,
+                           carrying=self._carrying)
+
+    def _carrying(self, picked: list, now: float) -> None:
+        self.carries = bool(picked)
 
     def _part(self, now: float) -> dict:
         control = self.parts(now)
@@ -182,9 +187,8 @@ class _RoundTrip:
             self.srtt = 0.875 * self.srtt + 0.125 * rtt
         self.samples += 1
 
-    @property
-    def timeout(self) -> float:
-        return self.srtt + 4 * self.rttvar
+    def timeout(self, floor: float) -> float:
+        return self.srtt + max(4 * self.rttvar, floor)
 
 
 class TurnMac(Mac):
@@ -256,7 +260,10 @@ class TurnMac(Mac):
         if not self._holding:
             return b""
         self._sent += 1
-        if self._sent < self._granted and self.backlog(now):
+        # The leader keeps its turn while its packets carry messages (a command stream
+        # offered at the link's pace fills it); a follower while more is queued.
+        more = self.carries if self.leading else self.backlog(now)
+        if self._sent < self._granted and more:
             self._closing = None
             return b""
         if self.leading:
@@ -277,7 +284,8 @@ class TurnMac(Mac):
         if closing.code == TURN_GRANT:
             self.counts["grants_sent"] += 1
             self._next += 1
-            deadline = now + self.rtt[closing.sender].timeout + closing.count * self.interval
+            deadline = (now + self.rtt[closing.sender].timeout(2 * self.interval)
+                        + closing.count * self.interval)
             self._waiting = (closing.sender, closing.count, now, deadline)
             self._heard_in_wait = 0
         else:
@@ -289,6 +297,12 @@ class TurnMac(Mac):
             if self._waiting is None or sender != self._waiting[0]:
                 return
             self._heard_in_wait += 1
+            who, n, at, deadline = self._waiting
+            # It is answering: its end comes within its remaining packets plus a margin,
+            # whatever the first timer said: later (a late answer is never talked over) or
+            # sooner (a lost end costs two packet intervals, not a whole timeout).
+            rest = max(0, n - self._heard_in_wait) + 2
+            self._waiting = (who, n, at, now + rest * self.interval)
             if any(i.code == TURN_END and i.sender == sender for i in items):
                 who, _n, at, _ = self._waiting
                 self.counts["ends_heard"] += 1
