@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 from uwgen.demo.processes import GENERATED, ROOT, Proc, _env, domains, network_key
+from uwgen.demo.vehicle import CMD_TIMEOUT
 
 PACKAGE = "uwgen_fleet_demo"
 MANIFEST = ROOT / "msg_samples" / "fleet" / "uwgen.yaml"
@@ -38,6 +39,10 @@ MRL = 64
 SPREAD = math.radians(20)    # the vehicles' bearings from the surface, this far apart
 PERIOD = 0.2                 # s between two packets of a side (DESERT's period_)
 CALL_TIMEOUT = 24.0          # s the operator waits for a call (the manifest's 20 s + margin)
+MAX_DRIVE = 420.0            # s the operators may take for their squares: commands arrive a
+                             # frame apart and a turtle stops 1 s after its last one, so each
+                             # moves about a third of the time
+MIN_TIMEOUT = 600.0          # s the fleet demo waits for its operators at least (--timeout)
 
 
 def fleet_mac(args: argparse.Namespace):
@@ -131,12 +136,14 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path, mac_text) -> int:
                 op = Proc(f"operator_{v}", [
                     py, "-m", "uwgen.demo.operator", "--namespace", f"/{v}", "--start", start,
                     "--record", str(out / f"operator_{v}.jsonl"), "--square-size", str(args.square_size),
-                    "--laps", str(args.laps), "--call-timeout", str(CALL_TIMEOUT), "--speed", "0.25",
-                    "--lag", f"{lag(mac, len(names)):.2f}", "--max-drive", "240", "--service-wait", "60"],
+                    "--laps", str(args.laps), "--call-timeout", str(CALL_TIMEOUT), "--speed", "0.3",
+                    "--turn", "0.5", "--lag", f"{lag(mac, len(names)):.2f}",
+                    "--share", f"{min(1.0, CMD_TIMEOUT / lag(mac, len(names))):.2f}",
+                    "--max-drive", str(MAX_DRIVE), "--service-wait", "60"],
                     envs["surface"], out, not quiet)
                 procs.append(op)
                 operators.append(op)
-            end = time.monotonic() + args.timeout
+            end = time.monotonic() + max(args.timeout, MIN_TIMEOUT)
             for op in operators:
                 try:
                     op.proc.wait(max(1.0, end - time.monotonic()))

@@ -66,10 +66,15 @@ class Pilot:
     """
 
     def __init__(self, waypoints: list[tuple[float, float]], speed: float = 0.4,
-                 turn: float = 0.6, lag: float = 1.0, reach: float = 0.15, rate: float = RATE):
+                 turn: float = 0.6, lag: float = 1.0, reach: float = 0.15, rate: float = RATE,
+                 share: float = 1.0):
         self.waypoints = list(waypoints)
         self.speed, self.turn, self.lag, self.reach = speed, turn, lag, reach
         self.dt = 1.0 / rate
+        # the share of the time a command sent acts on the vehicle: 1 when commands arrive
+        # more often than the vehicle's command timeout; less when a MAC delivers them in
+        # bursts (a TDMA frame apart) and the vehicle stops in between
+        self.share = share
         self.index = 0
         self.pose: tuple[float, float, float, float] | None = None   # x, y, theta, t received
         self.sent: list[tuple[float, float, float]] = []              # (t, lin, ang)
@@ -89,9 +94,9 @@ class Pilot:
         self.sent = [c for c in self.sent if c[0] > t - 3 * self.lag]
         for ts, lin, ang in self.sent:
             if ts > since:
-                th += ang * self.dt
-                x += lin * math.cos(th) * self.dt
-                y += lin * math.sin(th) * self.dt
+                th += ang * self.dt * self.share
+                x += lin * math.cos(th) * self.dt * self.share
+                y += lin * math.sin(th) * self.dt * self.share
         return x, y, th
 
     def command(self, t: float) -> tuple[float, float] | None:
@@ -137,6 +142,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds to wait for each bridged call (the manifest's timeout + margin)")
     parser.add_argument("--lag", type=float, default=1.0,
                         help="seconds the pilot expects a pose and a command to take over the link")
+    parser.add_argument("--share", type=float, default=1.0,
+                        help="the share of the time a command acts on the vehicle (less than 1 when "
+                             "commands arrive further apart than the vehicle's command timeout)")
     args, ros_args = parser.parse_known_args(argv)
 
     import rclpy
@@ -156,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     log = node.get_logger()
     ns = args.namespace.rstrip("/")
     waypoints = square_waypoints(args.start, args.side, args.laps)
-    pilot = Pilot(waypoints, speed=args.speed, turn=args.turn, lag=args.lag)
+    pilot = Pilot(waypoints, speed=args.speed, turn=args.turn, lag=args.lag, share=args.share)
     cmd_pub = node.create_publisher(Twist, f"{ns}/turtle1/cmd_vel", 10)
     pen = node.create_client(SetPen, f"{ns}/vehicle/set_pen")
     teleport = node.create_client(TeleportAbsolute, f"{ns}/turtle1/teleport_absolute")
