@@ -128,7 +128,7 @@ MANIFEST = ManifestInfo(
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "3a4e3d6a93979b0a",
+    "manifest": "630c3995062f14eb",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",

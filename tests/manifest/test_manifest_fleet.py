@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import pytest
 
-from uwgen.manifest.loader import load_sides
 from uwgen.manifest.model import takes_part
 
 from .helpers import error_of, load_text, write_manifest
@@ -110,9 +109,12 @@ def test_vehicles_may_be_named_by_a_list_and_the_namespace_pattern_uses_n_and_na
     assert m.entry(14).name == "/fleet/bravo_2/pose"
 
 
-def test_uwgen_emulate_sees_every_vehicle_as_a_side(tmp_path):
-    network, sides = load_sides(write_manifest(tmp_path, FLEET))
-    assert network == "survey" and list(sides) == ["surface", "auv1", "auv2", "auv3"]
+def test_the_mac_gives_every_vehicle_a_slot_in_turn_order(tmp_path):
+    from uwgen.manifest.mac import mac_of_file
+    text = FLEET.replace("        fleet:", "        mac: {mode: tdma, frame: 2.0, guard: 0.1}\n        fleet:")
+    m = load_text(tmp_path, text)
+    assert m.mac.slots == ("surface", "auv1", "auv2", "auv3")
+    assert mac_of_file(write_manifest(tmp_path, text)).slots == m.mac.slots     # as the demo reads it
 
 
 @pytest.mark.parametrize("change, line, column, words", [

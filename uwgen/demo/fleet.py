@@ -48,9 +48,9 @@ MIN_TIMEOUT = 600.0          # s the fleet demo waits for its operators at least
 def fleet_mac(args: argparse.Namespace):
     """The MAC of bridges and emulator: the fleet manifest's (--mac manifest or tdma), the
     surface granting turns (--mac turns), or none."""
-    from uwgen.manifest.loader import load_mac, load_sides
+    from uwgen.manifest.mac import mac_of_file
     from uwgen.manifest.model import MacConfig
-    base = load_mac(MANIFEST, load_sides(MANIFEST)[1])
+    base = mac_of_file(MANIFEST)
     mode = getattr(args, "mac", "manifest")
     if mode in ("manifest", "tdma") and (mode == "manifest" or base.mode == "tdma"):
         return base

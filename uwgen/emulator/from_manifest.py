@@ -1,10 +1,12 @@
 """An emulated network from a uwgen manifest: one DESERT node per side.
 
-`uwgen emulate -m uwgen.yaml [scenario.yaml]`: the manifest says which nodes exist (its
-sides, by name), their ports and their link settings (max_read_length, period); a
+`uwgen emulate -m uwgen.yaml [scenario.yaml]`: the manifest (validated as every command
+validates it) says which nodes exist (its sides, by name), their ports and their link
+settings (max_read_length, period); a
 scenario file may add the physics (positions, waypoints, SNR model, seed, ...) but
-not contradict the manifest. The manifest's `mac:` section picks DESERT's MAC: UW/TDMA with its
-frame, slots and guard for mode tdma, stock CSMA-ALOHA otherwise (uwgen.emulator.tdma). Sides without a position in the scenario are placed on a
+not contradict the manifest. The manifest's `mac:` section picks DESERT's MAC: UW/TDMA with
+its frame, slots and guard for mode tdma, stock CSMA-ALOHA otherwise (uwgen.emulator.tdma).
+Sides without a position in the scenario are placed on a
 line, `spacing` metres apart. With two sides each sends to the other; with more, each
 broadcasts (every other node receives what it sends).
 """
@@ -14,23 +16,38 @@ from dataclasses import replace
 from pathlib import Path
 
 from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario, ScenarioError, TdmaSpec, load_scenario
+from uwgen.idl.model import DefinitionError
+from uwgen.manifest.nodes import ManifestError
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def load_checked(manifest: Path):
+    """The manifest, validated as `uwgen build` and `analyze` validate it (its types resolved
+    from the interface packages beside it and the installed ones, every entry and id checked,
+    each side's max_read_length above the network's floor): the emulator never runs a
+    network the bridges would refuse. ManifestError or DefinitionError, located."""
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.linkfloor import check_read_lengths
+    from uwgen.manifest.loader import load_manifest
+    from uwgen.typesupport import package_dirs
+
+    folder = Path(manifest).parent
+    lib = InterfaceLibrary([folder] if package_dirs(folder) else [], installed=True)
+    loaded = load_manifest(Path(manifest), lib)
+    check_read_lengths(loaded)
+    return loaded
 
 
 def scenario_from_manifest(manifest: Path, physics: Path | None = None,
                            spacing: float = 1000.0) -> Scenario:
     """The scenario of `manifest`'s sides, with the scenario file `physics` laid on top.
     Raises ScenarioError (a bad manifest's ManifestError text is kept, file:line:column)."""
-    from uwgen.manifest.loader import load_mac, load_sides
-    from uwgen.manifest.nodes import ManifestError
-
     try:
-        _network, sides = load_sides(manifest)
-    except ManifestError as exc:
+        checked = load_checked(manifest)
+    except (ManifestError, DefinitionError) as exc:
         raise ScenarioError(str(exc)) from None
-    except OSError as exc:
-        raise ScenarioError(f"cannot read manifest: {exc.strerror or exc}", str(manifest)) from None
+    sides, mac = checked.sides, checked.mac
     if len(sides) < 2:
         raise ScenarioError(f"the manifest has {len(sides)} side: an emulated network needs "
                             "at least 2", str(manifest))
@@ -41,10 +58,6 @@ def scenario_from_manifest(manifest: Path, physics: Path | None = None,
             raise ScenarioError(f"side {side.name}'s DESERT node is at {side.host}: the "
                                 "emulator serves 127.0.0.1 only (use a real DESERT there, or "
                                 "host 127.0.0.1)", where)
-    try:
-        mac = load_mac(manifest, sides)
-    except ManifestError as exc:
-        raise ScenarioError(str(exc)) from None
     dest = None if len(sides) == 2 else BROADCAST
     base = [NodeSpec(side.name, port=side.port, position=(i * spacing, 0.0, 0.0), dest=dest,
                      period=side.link.period, max_read_length=side.link.max_read_length)

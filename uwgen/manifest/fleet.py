@@ -106,6 +106,13 @@ def read_fleet(b: Any, node: yaml.Node, sides: dict[str, Side]) -> FleetTemplate
     return FleetTemplate(Fleet(tuple(names), namespaces, leaders, stride), templates)
 
 
+def vehicle_names(r: Any, node: yaml.Node) -> list[str]:
+    """The vehicles' side names of a `fleet:` section, in turn order (for readers that need
+    the sides only: `uwgen.manifest.mac.mac_of_file`)."""
+    fields = r.mapping(node, "fleet", FLEET_KEYS)
+    return _vehicle_names(r, fields, r.require(fields, "vehicles", node, "fleet"))
+
+
 def expand(b: Any, tmpl: FleetTemplate, kind: str, read: Callable[..., Any], sides: dict[str, Side],
            *args: Any) -> list[Any]:
     """Every vehicle's copy of the `kind` templates, read with `read(node, peer sides, *args)`

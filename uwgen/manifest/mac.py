@@ -169,3 +169,24 @@ def round_trip(config: MacConfig, period: float, max_read_length: int,
 
 
 LISTEN = 0.05     # s: DESERT's CSMA-ALOHA listen before a packet starts (runtime.link.mac.LISTEN)
+
+
+def mac_of_file(path) -> MacConfig:
+    """The `mac:` section of the manifest at `path`, checked against its side names only
+    (no type is resolved): for the demo, which knows its manifest is otherwise valid."""
+    from pathlib import Path
+
+    from uwgen.manifest.nodes import compose
+    path = Path(path)
+    root = compose(path)
+    r = Reader(path)
+    if not isinstance(root, yaml.MappingNode):
+        return MacConfig()
+    top = {k.value: v for k, v in root.value}
+    if "mac" not in top or not isinstance(top.get("sides"), yaml.MappingNode):
+        return MacConfig()
+    sides = {k.value: Side(k.value) for k, _ in top["sides"].value}
+    if isinstance(top.get("fleet"), yaml.MappingNode):   # a fleet's vehicles have slots and turns too
+        from uwgen.manifest.fleet import vehicle_names
+        sides.update({v: Side(v) for v in vehicle_names(r, top["fleet"])})
+    return read_mac(r, top["mac"], sides)
