@@ -98,6 +98,7 @@ class BridgePlan:
     overheard_topics: list[Any] = field(default_factory=list)
     overheard_services: list[Any] = field(default_factory=list)
     overheard_actions: list[Any] = field(default_factory=list)
+    side_ids: dict[str, int] = field(default_factory=dict)   # every side's sender id (W)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str,
@@ -139,6 +140,7 @@ class BridgePlan:
             overheard_topics=[t for t in every[0] if not takes_part(t, side)],
             overheard_services=[s for s in every[1] if not takes_part(s, side)],
             overheard_actions=[a for a in every[2] if not takes_part(a, side)],
+            side_ids={s: _sender_id(manifest, s) for s in sides},
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:

@@ -81,7 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run_g = parser.add_argument_group("running")
     run_g.add_argument("--duration", type=number(0, 1e9), default=None, metavar="S",
                        help="stop after S seconds (default: until Ctrl-C / SIGTERM)")
-    run_g.add_argument("--crash-every", type=float, default=None, metavar="S",
+    run_g.add_argument("--crash-every", type=number(0, 1e9, above=True), default=None, metavar="S",
                        help="make DESERT crash at random, on average every S seconds (every "
                             "client disconnected, queues lost), as real DESERT does under load")
     run_g.add_argument("--crash-down", type=number(0, 1e9), default=1.0, metavar="S",

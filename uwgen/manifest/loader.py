@@ -255,6 +255,8 @@ class _ManifestBuilder:
         if manifest.uses_rmw_desert():
             with errors.attempt(ManifestError):
                 checks.check_rmw_reserved(r, self.ids, manifest, top)
+            with errors.attempt(ManifestError):
+                checks.check_mixed_commands(manifest)
         with errors.attempt(ManifestError):
             checks.check_repair(r, manifest, self.repair_nodes)
         errors.raise_if_any(ManifestErrors)

@@ -10,11 +10,8 @@ peer's acknowledgements say, `acked(peer, a_bytes, now)`. From them it knows, pe
 numbers), re-sends lost messages of reliable entries until their deadline (`due(now)`),
 and measures the round trip for its retransmission timer (`RttEstimator`).
 
-On a shared channel with more than one peer (a fleet: the surface hears every vehicle) a
-packet is acknowledged per peer: `sent(..., to=peers)` names the peers it must reach (the
-sides its messages are for, and those its reports are about), `acked(..., reporter=)` names
-whose report it is, and the packet is delivered once each of them acknowledged it, lost as
-soon as one of them reports it missing. Without `to`, the first report settles it (two sides).
+With more than one peer (a fleet) a packet is delivered once each peer in `sent(..., to=)`
+acknowledged it (`acked(..., reporter=)`), lost once one reports it missing (docs/fleets.md).
 
 As a receiver it records each peer's packet numbers (`received`), builds the A part
 that acknowledges them (`ack_for`: largest number plus a bitmap of the ones before, as
@@ -173,6 +170,8 @@ class EntryLedger:
     resent: int = 0                 # reliable messages handed back by due()
     expired: int = 0                # reliable messages lost with their deadline passed
     unacknowledged: int = 0         # copies in packets no ack named before they were forgotten
+    unknown: int = 0                # copies sent before the peer restarted that its new start
+                                    # reports missing: its old start may have had them
 
 
 @dataclass
@@ -181,6 +180,7 @@ class _Packet:
     at: float
     messages: list[Sent]
     timed_out: bool = False
+    fate_unknown: bool = False      # sent before the peer's restart was seen
     waiting: set[int] | None = None   # peers whose ack it still needs (None: anyone's)
 
     def awaits(self, reporter: int | None) -> bool:
@@ -228,8 +228,8 @@ class ReliableLink:
 
     def sent(self, number: int, messages: list[Sent], now: float,
              to: Iterable[int] | None = None) -> None:
-        """Packet `number` (unwrapped, growing) left now carrying `messages`; `to`: the
-        peers that must each acknowledge it (None: the first report settles it)."""
+        """Packet `number` (unwrapped, growing) left now carrying `messages`, for peers `to`
+        (None: the first report settles it)."""
         for m in messages:
             if m.key != REPORT_KEY:
                 self.entry(m.key).sent += 1
@@ -290,11 +290,21 @@ class ReliableLink:
         if packet.timed_out:
             self.spurious += 1
 
+    def peer_restarted(self) -> None:
+        """The peer started again (a new epoch): what it did not get of the packets sent so
+        far may have reached its previous start, so those are counted `unknown`, not lost
+        (their reliable messages are still sent again: the new start has no memory of them)."""
+        for packet in self.outstanding.values():
+            packet.fate_unknown = True
+
     def _lost(self, packet: _Packet, now: float) -> None:
         for m in packet.messages:
             if m.key == REPORT_KEY:
                 continue
-            self.entry(m.key).lost_on_link += 1
+            if packet.fate_unknown:
+                self.entry(m.key).unknown += 1
+            else:
+                self.entry(m.key).lost_on_link += 1
             if not packet.timed_out:
                 self._again(m, now)
 
@@ -411,6 +421,15 @@ class ReliableLink:
         `ack_delay`: the link should send a packet with only the A part."""
         r = self._current(peer)
         return r is not None and r.eliciting_since is not None and now - r.eliciting_since >= self.ack_delay
+
+    def rename_epoch(self, peer: int, old: bytes, new: bytes) -> None:
+        """What was kept of `peer` under a stand-in epoch (`old`: not known yet) is its epoch
+        `new`, learnt from K: the same start, not a restart."""
+        r = self.receipts.pop((peer, old), None)
+        if r is not None:
+            self.receipts[(peer, new)] = r
+        for (p, e, key) in [k for k in self._delivered if k[0] == peer and k[1] == old]:
+            self._delivered[(p, new, key)] = self._delivered.pop((p, e, key))
 
     def _current(self, peer: int) -> PeerReceipts | None:
         for (p, _epoch), r in self.receipts.items():
