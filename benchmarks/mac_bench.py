@@ -42,8 +42,8 @@ def run_demo(label: str, extra: list[str], per: float, seed: int, domain: int) -
     out = Path(tempfile.mkdtemp(prefix="uwgen_macbench_"))
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     cmd = [sys.executable, "-m", "uwgen.cli", "demo", "--quiet", "--per", str(per), "--seed",
-           str(seed), "--out", str(out), *extra]
-    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
+           str(seed), "--out", str(out), "--timeout", "400", *extra]
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=1200)
     text = proc.stdout + proc.stderr
     (out / "demo.txt").write_text(text)
     why = next((ln.split(": ", 1)[-1] for ln in proc.stderr.splitlines() if ln.startswith("uwgen demo:")), "")

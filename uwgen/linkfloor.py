@@ -72,9 +72,10 @@ def check_read_lengths(manifest: Manifest) -> None:
     errors.raise_if_any(ManifestErrors)
 
 
-def check_option(max_read_length: int, wire_format: int, tag_bytes: int | None) -> str | None:
+def check_option(max_read_length: int, wire_format: int, tag_bytes: int | None,
+                 mac_bytes: int = 0) -> str | None:
     """Why a --max-read-length given on a command line cannot work, or None."""
-    floor = min_read_length(wire_format, tag_bytes)
+    floor = min_read_length(wire_format, tag_bytes, mac_bytes)
     if not floor <= max_read_length <= DESERT_MAX_READ_LENGTH:
         return (f"max_read_length {max_read_length} must be {floor}..{DESERT_MAX_READ_LENGTH} on this "
                 f"network ({why_floor(wire_format, tag_bytes)}; DESERT crashes above "

@@ -156,13 +156,13 @@ def test_an_ack_naming_a_packet_never_sent_is_counted_not_believed():
     assert s.bad_acks == 2 and s.entry(20).delivered == 0
 
 
-def test_command_timer_starts_from_the_macs_round_trip_and_never_below_its_turn_gap():
+def test_command_timer_never_fires_before_the_answer_could_come_back():
     from uwgen.runtime.delivery.reliable import command_rtt
     plain = command_rtt(10.0, 0.2)
     assert plain.rto == 2.5                           # a quarter, without a MAC's figures
-    under = command_rtt(10.0, 0.2, round_trip=5.3, turn_gap=1.0)
-    assert under.rto == 5.3                           # no copy before its answer can come back
-    under.sample(0.1)
-    assert under.rto >= 0.2 + 1.0                     # floor: a period and the turn gap
-    under.sample(9.0)
-    assert under.rto <= 5.3                           # measured, up to the MAC's round trip
+    far = command_rtt(10.0, 0.2, round_trip=4.9)      # 3.5 km: 2 x 2.33 s and two packets
+    assert far.rto == 4.9
+    far.sample(0.1)
+    assert far.rto >= 4.9                             # never below the least round trip
+    turns = command_rtt(10.0, 0.2, round_trip=0.5, turn_gap=3.0)
+    assert turns.rto == 3.2                           # a period and the turn gap

@@ -100,7 +100,7 @@ def with_mac(plan: BridgePlan, text: str) -> BridgePlan:
     from uwgen.manifest.mac import mac_from_text
     from uwgen.manifest.nodes import ManifestError
     try:
-        return replace(plan, mac=mac_from_text(text, list(plan.senders)))
+        return replace(plan, mac=mac_from_text(text, list(plan.side_ids)))
     except ManifestError as exc:
         raise PlanError(f"--mac: {exc.message if exc.where is None else exc}") from None
 

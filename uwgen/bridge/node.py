@@ -63,12 +63,15 @@ def default_link_factory(**kwargs: Any) -> Any:
 
 
 def mac_round_trip(plan: BridgePlan, link: Any) -> float | None:
-    """What a request and its answer take under the plan's MAC (None: mode none, where the
-    commands' timers keep their measured default)."""
-    from uwgen.manifest.mac import round_trip
-    if plan.mac is None or plan.mac.mode == "none":
+    """The least a request and its answer can take under the plan's MAC: across the range
+    and on the air both ways, and a slot under TDMA (None: mode none, where the commands'
+    timers keep their default)."""
+    from uwgen.manifest.mac import air_time
+    mac = plan.mac
+    if mac is None or mac.mode == "none":
         return None
-    return round_trip(plan.mac, link.period, link.max_read_length, list(plan.senders))
+    least = 2 * (mac.delay + air_time(link.max_read_length, mac.bitrate))
+    return least + (mac.slot if mac.mode == "tdma" else 0.0)
 
 
 def deadline_problems(plan: BridgePlan, link: Any) -> list[str]:
@@ -77,7 +80,7 @@ def deadline_problems(plan: BridgePlan, link: Any) -> list[str]:
     from uwgen.manifest.mac import round_trip
     from uwgen.manifest.model import MacConfig
     mac = plan.mac or MacConfig()
-    rt = round_trip(mac, link.period, link.max_read_length, list(plan.senders))
+    rt = round_trip(mac, link.period, link.max_read_length, list(plan.side_ids))
     out = []
     for entry, key in ((s, "timeout") for s in plan.called_services):
         limit = getattr(entry, key, None)
@@ -112,7 +115,7 @@ class BridgeNode(Node):
         # When this side may write (docs/seams.md section 7): its turn, its slot's share; the
         # commands' retransmission timers start from its round trip and turn gap.
         link_cfg = self.options.link
-        self.mac = mac_for(plan.mac, plan.side, plan.senders, link_cfg, plan.wire_format)
+        self.mac = mac_for(plan.mac, plan.side, plan.side_ids, link_cfg, plan.wire_format)
         self.wiring = w = Wiring(node=self, send=self._send, clock=clock, options=self.options,
                                  log=self.get_logger(), main_group=main_group,
                                  service_group=ReentrantCallbackGroup(),

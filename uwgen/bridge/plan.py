@@ -92,13 +92,12 @@ class BridgePlan:
     manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
     manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
     sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
+    side_ids: dict[str, int] = field(default_factory=dict)   # every side's sender id (W)
     mac: Any = None               # manifest.model.MacConfig (None: mode none)
-    senders: dict[str, int] = field(default_factory=dict)   # every side's sender id (the MAC's turns, fleet acks)
     # Codecs of the entries other sides bridge (fleet peers): topics, services, actions.
     overheard_topics: list[Any] = field(default_factory=list)
     overheard_services: list[Any] = field(default_factory=list)
     overheard_actions: list[Any] = field(default_factory=list)
-    side_ids: dict[str, int] = field(default_factory=dict)   # every side's sender id (W)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str,
@@ -135,12 +134,11 @@ class BridgePlan:
             manifest_source=getattr(manifest, "source", "") or "",
             manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
             sender_id=_sender_id(manifest, side),
+            side_ids={s: _sender_id(manifest, s) for s in sides},
             mac=getattr(manifest, "mac", None),
-            senders={s: _sender_id(manifest, s) for s in sides},
             overheard_topics=[t for t in every[0] if not takes_part(t, side)],
             overheard_services=[s for s in every[1] if not takes_part(s, side)],
             overheard_actions=[a for a in every[2] if not takes_part(a, side)],
-            side_ids={s: _sender_id(manifest, s) for s in sides},
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
@@ -212,7 +210,8 @@ class BridgePlan:
         # when --max-read-length overrides the manifest: below it the link cannot send at all.
         from uwgen.linkfloor import check_option
         problem = check_option(link.max_read_length, self.wire_format,
-                               getattr(self.security, "tag_bytes", None) if self.security else None)
+                               getattr(self.security, "tag_bytes", None) if self.security else None,
+                               mac_bytes(self.mac))
         if problem:
             raise PlanError(problem)
         return opts
@@ -231,6 +230,12 @@ class BridgePlan:
                 + (f"; offers actions {names(self.offered_actions)}; serves actions "
                    f"{names(self.served_actions)}" if self.offered_actions or self.served_actions
                    else ""))
+
+
+def mac_bytes(mac: Any) -> int:
+    """What the MAC's C items add to a packet (mode turns), for the floor of max_read_length."""
+    from uwgen.runtime.link.mac import TurnMac
+    return TurnMac.overhead if getattr(mac, "mode", "none") == "turns" else 0
 
 
 def _sender_id(manifest: Any, side: str) -> int:

@@ -75,10 +75,9 @@ class Reliability:
                  max_ages: dict[int, float], wall: Clock = WALL_CLOCK,
                  ack_delay: float | None = None, ack_interval: float | None = None,
                  name: str = "link", max_read_length: int = MAX_FRAME,
-                 other_overhead: int = 0, turn_gap: float = 0.0,
-                 destinations: dict[int, frozenset[int]] | None = None,
-                 peer_names: dict[int, str] | None = None,
-                 epoch_source: Callable[[], bytes] | None = None):
+                 other_overhead: int = 0, peer_names: dict[int, str] | None = None,
+                 epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0,
+                 destinations: dict[int, frozenset[int]] | None = None):
         self.sender, self.name, self.wall = sender, name, wall
         # wire id -> the peers (sender ids) its messages are for, on a channel shared by more
         # than two sides (a fleet): a packet is acknowledged by each of them (ReliableLink).

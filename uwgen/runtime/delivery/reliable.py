@@ -111,16 +111,13 @@ def command_rtt(timeout: float, period: float, round_trip: float | None = None,
     is measured, and never more, so at least four copies fit before the deadline (a 20 % loss
     each way fails four request/response rounds with probability 0.36^4 = 1.7 %, six with
     0.2 %). Its first value and floor are the MAC's (docs/seams.md section 7): never less than
-    the link's `period` plus `turn_gap` (a reply may wait that long for the peer's turn), and
-    with the `round_trip` the MAC expects (uwgen.manifest.mac.round_trip), at first that, and
-    measured round trips up to it are honoured: a copy never leaves before its answer could
-    have come back."""
-    floor = period + turn_gap
+    the link's `period` plus `turn_gap` (a reply may wait that long for the peer's turn), nor
+    than `round_trip`, the least a request and its answer can take under the MAC (both ways
+    across the range, and a slot under TDMA): a copy never leaves before its answer could
+    have come back, however short the deadline."""
+    floor = max(period + turn_gap, round_trip or 0.0)
     quarter = max(timeout / 4, floor)
-    if round_trip is None:
-        return RttEstimator(quarter, floor, quarter, period)
-    first = max(floor, round_trip)
-    return RttEstimator(first, floor, max(first, quarter), period)
+    return RttEstimator(quarter, floor, quarter, period)
 
 
 class RttEstimator:
