@@ -42,6 +42,7 @@ class Wiring:
     service_group: Any             # reentrant group: stand-in calls await futures
     unavailable: dict[str, str] = field(default_factory=dict)  # entry name -> why not bridged
     wall: Callable[[], float] = time.time   # the system clock ROS stamps messages with
+    recorder: Any = None           # uwgen.bridge.recorder.BridgeRecorder with --record
     said: set[str] = field(default_factory=set)
     throttle: LogThrottle = field(init=False)  # error lines a remote peer can cause: bounded
     loops: LoopGuard = field(init=False)       # services/actions another bridge here handles
