@@ -10,6 +10,8 @@ Channels of a recording (docs/operators.md, "Recordings"):
   as, the same on both sides, which is how `uwgen log` matches them;
 - `/uwgen/packets` (json): every packet the link wrote (`tx`, outcome `sent`) or read (`rx`,
   outcome `delivered N`, `fragment`, `control` or `dropped REASON`), with its size and bytes;
+- `/uwgen/unheard` (json): the messages published while no subscriber listened (same time
+  as the message's record; `uwgen log` does not count them delivered);
 - `/uwgen/status` (json): the bridge's ~/status snapshot on every status period and at
   exit (the last one has the final counts);
 - metadata `uwgen`: network, side, the link's packet size and period.
@@ -33,6 +35,7 @@ from uwgen.fieldkit.writer import DEFAULT_KEEP, DEFAULT_MAX_BYTES, RotatingMcap
 
 PACKETS = "/uwgen/packets"
 STATUS = "/uwgen/status"
+UNHEARD = "/uwgen/unheard"
 PACKET_SCHEMA = json.dumps({
     "type": "object", "title": "uwgen packet",
     "properties": {"dir": {"type": "string", "enum": ["tx", "rx"]}, "size": {"type": "integer"},
@@ -62,6 +65,7 @@ class BridgeRecorder:
                                 **writer_kw)
         self._packets = self.out.channel(PACKETS, "json", ("uwgen/Packet", "jsonschema", PACKET_SCHEMA))
         self._status = self.out.channel(STATUS, "json", None)
+        self._unheard = self.out.channel(UNHEARD, "json", None)
         self._topics: dict[str, tuple[int, Callable[[Any], bytes]]] = {}
 
     def _ns(self) -> int:
@@ -84,8 +88,10 @@ class BridgeRecorder:
         ch = self.out.channel(name, "cdr", (ros_type_name(cls), "ros2msg", definition(cls)))
         self._topics[name] = (ch, serialize_message)
 
-    def message(self, name: str, msg: Any, payload: bytes, published: float | None = None) -> None:
-        """A message taken (`published`: its publication time, system clock) or published."""
+    def message(self, name: str, msg: Any, payload: bytes, published: float | None = None,
+                listeners: int | None = None) -> None:
+        """A message taken (`published`: its publication time, system clock) or published
+        (`listeners`: the subscriptions its publisher had then)."""
         entry = self._topics.get(name)
         if entry is None:
             return
@@ -93,6 +99,8 @@ class BridgeRecorder:
         now = self._ns()
         self.out.add(ch, now, serialize(msg), int(published * 1e9) if published else now,
                      zlib.crc32(payload))
+        if listeners == 0:
+            self.out.add(self._unheard, now, json.dumps({"topic": name}).encode())
 
     def status(self, status: dict) -> None:
         self.out.add(self._status, self._ns(), json.dumps(status, sort_keys=True, default=str).encode())

@@ -209,7 +209,7 @@ class TopicBridge:
             return
         counters.published += 1
         if self.w.recorder is not None:
-            self.w.recorder.message(codec.name, msg, payload)
+            self.w.recorder.message(codec.name, msg, payload, listeners=pub.get_subscription_count())
 
     # -- status ------------------------------------------------------------------------
 

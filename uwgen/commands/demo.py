@@ -54,6 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "the manifest's msg_samples/keys/demo.key, or in uwgen's cache if "
                              "the checkout is read-only); nothing else is kept beside it (no "
                              "state file: every start picks a new random epoch)")
+    parser.add_argument("--no-record", action="store_true",
+                        help="do not record the bridges (by default each writes bridge_<side>.mcap "
+                             "in --out, summarised by `uwgen log` into link.png)")
     parser.add_argument("--docs", action="store_true",
                         help="also write the plot to docs/demo-path.png")
     parser.add_argument("--distance", type=number(1, 1e5), default=300.0, help="metres between the nodes")
@@ -138,6 +141,22 @@ def _endpoint(hp: tuple[str, int]) -> str:
     return f"{hp[0]}:{hp[1]}"
 
 
+def _link_plot(out: Path, title: str) -> None:
+    """The bridges' recordings: where they are, and their plots (uwgen log)."""
+    from uwgen.fieldkit.plots import plot_summary
+    from uwgen.fieldkit.reader import RecordingError, read_recordings
+    from uwgen.fieldkit.summary import summarise
+    files = sorted(out.glob("bridge_*.mcap"))
+    try:
+        summary = summarise(read_recordings(files))
+    except RecordingError as exc:
+        print(f"uwgen demo: the bridges' recordings are not readable: {exc}", file=sys.stderr)
+        return
+    plot = plot_summary(summary, out / "link.png", title)
+    print(f"recordings: {', '.join(f.name for f in files)} (`uwgen log {' '.join(str(f) for f in files)}` "
+          f"prints this table from them); link plot: {plot}")
+
+
 def run(args: argparse.Namespace) -> int:
     if getattr(args, "drive_away", False):
         args.out = args.out or default_out()
@@ -157,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"uwgen demo: cannot write {out}: {exc.strerror}; give another folder with --out",
               file=sys.stderr)
         return EXIT_FAILED
-    for old in out.glob("*.json*"):
+    for old in (*out.glob("*.json*"), *out.glob("bridge_*.mcap")):
         old.unlink()
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
@@ -210,7 +229,8 @@ def run(args: argparse.Namespace) -> int:
                 procs.append(Proc(f"bridge_{side}", [
                     py, "-m", f"{PACKAGE}.bridge_{side}", "--host", endpoints[side][0],
                     "--port", str(ports[side]),
-                    "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5", *key_args],
+                    "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5", *key_args,
+                    *([] if args.no_record else ["--record", str(out / f"bridge_{side}.mcap")])],
                     env, out, not quiet))
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
                                           str(out / "vehicle.jsonl")], venv, out, not quiet))
@@ -241,7 +261,10 @@ def run(args: argparse.Namespace) -> int:
     if args.docs:
         plot_paths(report, ROOT / "docs" / "demo-path.png", title)
         print("plot: docs/demo-path.png")
-    print(f"plot: {plot}\nrun took {elapsed:.0f} s; logs in {out}")
+    print(f"plot: {plot}")
+    if not args.no_record:
+        _link_plot(out, title)
+    print(f"run took {elapsed:.0f} s; logs in {out}")
     if crashed:
         print(f"uwgen demo: processes ended badly: {crashed} (see their logs)", file=sys.stderr)
         return EXIT_FAILED
