@@ -89,6 +89,14 @@ class RotatingMcap:
         self._queue.append((channel, log_ns, data, log_ns if publish_ns is None else publish_ns,
                             sequence))
 
+    def sync(self) -> None:
+        """Write what is queued and end the chunk in progress now (the thread does it every
+        `flush_every` seconds)."""
+        with self._lock:
+            self._drain()
+            if not self._failed:
+                self._guarded(self._flush)
+
     def close(self) -> None:
         """Write what is queued, finish the file (summary and footer). Idempotent."""
         if self._stop.is_set():
