@@ -181,11 +181,13 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=8.0)
     parser.add_argument("--rates", type=float, nargs="+", default=[1000.0, 5000.0])
     parser.add_argument("--baseline", metavar="PYTHON", help="also measure the bridge of this interpreter's uwgen")
+    parser.add_argument("--domain", type=int, default=None, metavar="N",
+                        help="ROS domains N and N+1 (default: 40 + pid %% 150)")
     parser.add_argument("--record", action="store_true",
                         help="also measure this checkout's bridge recording to an MCAP file")
     args = parser.parse_args()
 
-    base = 40 + os.getpid() % 150
+    base = 40 + os.getpid() % 150 if args.domain is None else args.domain
     d_surface, d_vehicle = base, base + 1
     procs: list[subprocess.Popen] = []
     with tempfile.TemporaryDirectory() as tmp:

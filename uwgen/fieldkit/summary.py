@@ -22,6 +22,7 @@ from uwgen.fieldkit.reader import Recording, clock
 from uwgen.fieldkit.table import Row, ServiceRow, format_tables, latencies_by_key, ms, topic_row
 from uwgen.runtime.link.pacing import PACKET_HEADER
 from uwgen.runtime.link.scheduler import DROP_REASONS
+from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
 
 
 @dataclass
@@ -127,7 +128,7 @@ def _packets(by_side: dict[str, Recording]) -> dict[str, Side]:
                     arrived = heard[p.data] > 0
                     if arrived:
                         heard[p.data] -= 1
-                side.sent.append((p.t, p.size + PACKET_HEADER, arrived))
+                side.sent.append((p.t, p.size + FRAME_OVERHEAD + PACKET_HEADER, arrived))
             else:
                 kind, _, reason = p.outcome.partition(" ")
                 side.received[kind] += 1
@@ -155,8 +156,8 @@ def format_summary(s: Summary) -> str:
                      + f"; {rec.max_read_length} B every {rec.period:g} s")
         if side is not None:
             lost = side.lost
-            lines.append(f"  sent {len(side.sent)} packets ({side.air_bytes} B on the air, DESERT's "
-                         f"{PACKET_HEADER}-byte header included)"
+            lines.append(f"  sent {len(side.sent)} packets ({side.air_bytes} B on the air: frames and "
+                         f"DESERT's {PACKET_HEADER}-byte header included)"
                          + (f", {lost} lost on the way" if lost is not None else "")
                          + f"; received {sum(side.received.values())}"
                          + (f" ({', '.join(f'{k} {n}' for k, n in sorted(side.received.items()))})"
