@@ -245,3 +245,14 @@ def test_log_draws_the_plots(tmp_path):
     png = tmp_path / "link.png"
     assert uwgen_main(["log", str(s), str(v), "--plot", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_a_recording_that_cannot_be_created_is_refused_before_the_bridge_starts(tmp_path):
+    from uwgen.bridge.plan import PlanError
+    from uwgen.bridge.recorder import recorder_for
+    plan = SimpleNamespace(network="net", side="surface", outgoing_topics=[], incoming_topics=[])
+    options = SimpleNamespace(record=tmp_path / "no" / "such" / "dir" / "x.mcap",
+                              record_max_bytes=1 << 20, record_keep=2, link=LINK)
+    with pytest.raises(PlanError, match=r"cannot record to .*x\.mcap: No such file"):
+        recorder_for(plan, options)
+    assert recorder_for(plan, SimpleNamespace(record=None)) is None
