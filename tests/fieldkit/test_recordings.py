@@ -65,8 +65,8 @@ def two_sides(tmp_path: Path, n: int = 5, lose: set[int] = frozenset()):
                "dropped_by_policy": {"superseded": 0}, "queued": 0, "sent": n}
     acc_in = {"received": n - len(lose), "lost_on_link": 0, "delivered": n - len(lose),
               "dropped_on_receive": {"decode_error": 0}}
-    s.status({"topics": {"/cmd": {"accounting": acc_out, "link": {}}}})
-    v.status({"topics": {"/cmd": {"accounting": acc_in}}})
+    s.status({"topics": {"/cmd": {"accounting": acc_out, "link": {}}}}, final=True)
+    v.status({"topics": {"/cmd": {"accounting": acc_in}}}, final=True)
     s.close()
     v.close()
     return tmp_path / "s.mcap", tmp_path / "v.mcap"
@@ -256,3 +256,16 @@ def test_a_recording_that_cannot_be_created_is_refused_before_the_bridge_starts(
     with pytest.raises(PlanError, match=r"cannot record to .*x\.mcap: No such file"):
         recorder_for(plan, options)
     assert recorder_for(plan, SimpleNamespace(record=None)) is None
+
+
+def test_status_snapshots_are_recorded_at_most_every_few_seconds_and_always_the_final_one(tmp_path):
+    from uwgen.bridge.recorder import STATUS_EVERY
+    wall = Wall()
+    rec = recorder(tmp_path / "s.mcap", "surface", {}, wall)
+    for k in range(10):                       # a timer every second
+        rec.status({"n": k})
+        wall.t += 1.0
+    rec.status({"n": "final"}, final=True)
+    rec.close()
+    got = [s["n"] for _t, s in read_file(tmp_path / "s.mcap").statuses]
+    assert got == [k for k in range(10) if k % int(STATUS_EVERY) == 0] + ["final"]

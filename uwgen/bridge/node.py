@@ -270,7 +270,10 @@ class BridgeNode(Node):
         return status
 
     def publish_diagnostics(self) -> Any:
-        return self.diagnostics.publish(self.status())
+        status = self.status()
+        if self.wiring.recorder is not None:
+            self.wiring.recorder.status(status)
+        return self.diagnostics.publish(status)
 
     # -- shutdown --------------------------------------------------------------------------
 
@@ -292,7 +295,7 @@ class BridgeNode(Node):
         self.reporter.write(json.dumps(status, sort_keys=True, default=str))
         self.reporter.final_report(status)     # drops and errors not yet in a log line
         if self.wiring.recorder is not None:
-            self.wiring.recorder.status(status)
+            self.wiring.recorder.status(status, final=True)
             self.wiring.recorder.close()
         self.wiring.throttle.flush()
         if self.context.ok():

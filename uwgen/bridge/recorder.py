@@ -12,8 +12,9 @@ Channels of a recording (docs/operators.md, "Recordings"):
   outcome `delivered N`, `fragment`, `control` or `dropped REASON`), with its size and bytes;
 - `/uwgen/unheard` (json): the messages published while no subscriber listened (same time
   as the message's record; `uwgen log` does not count them delivered);
-- `/uwgen/status` (json): the bridge's ~/status snapshot on every status period and at
-  exit (the last one has the final counts);
+- `/uwgen/status` (json): the bridge's ~/status snapshot, at most every STATUS_EVERY
+  seconds as the ~/status and /diagnostics timers compute it, and at exit (the last one has
+  the final counts; a recording cut short has those of a few seconds before);
 - metadata `uwgen`: network, side, the link's packet size and period.
 
 Times are the system clock's (ns since the epoch; `wall`, injectable), so the two sides'
@@ -36,6 +37,7 @@ from uwgen.fieldkit.writer import DEFAULT_KEEP, DEFAULT_MAX_BYTES, RotatingMcap
 PACKETS = "/uwgen/packets"
 STATUS = "/uwgen/status"
 UNHEARD = "/uwgen/unheard"
+STATUS_EVERY = 2.0    # s: the most often a status snapshot is recorded (the final one always)
 PACKET_SCHEMA = json.dumps({
     "type": "object", "title": "uwgen packet",
     "properties": {"dir": {"type": "string", "enum": ["tx", "rx"]}, "size": {"type": "integer"},
@@ -67,6 +69,7 @@ class BridgeRecorder:
         self._status = self.out.channel(STATUS, "json", None)
         self._unheard = self.out.channel(UNHEARD, "json", None)
         self._topics: dict[str, tuple[int, Callable[[Any], bytes]]] = {}
+        self._status_at = float("-inf")
 
     def _ns(self) -> int:
         return int(self.wall() * 1e9)
@@ -102,8 +105,13 @@ class BridgeRecorder:
         if listeners == 0:
             self.out.add(self._unheard, now, json.dumps({"topic": name}).encode())
 
-    def status(self, status: dict) -> None:
-        self.out.add(self._status, self._ns(), json.dumps(status, sort_keys=True, default=str).encode())
+    def status(self, status: dict, final: bool = False) -> None:
+        """A status snapshot: recorded when `final` or STATUS_EVERY seconds after the last."""
+        now = self.wall()
+        if not final and now - self._status_at < STATUS_EVERY:
+            return
+        self._status_at = now
+        self.out.add(self._status, int(now * 1e9), json.dumps(status, sort_keys=True, default=str).encode())
 
     def stats(self) -> dict:
         return self.out.stats()
