@@ -269,3 +269,45 @@ def test_status_snapshots_are_recorded_at_most_every_few_seconds_and_always_the_
     rec.close()
     got = [s["n"] for _t, s in read_file(tmp_path / "s.mcap").statuses]
     assert got == [k for k in range(10) if k % int(STATUS_EVERY) == 0] + ["final"]
+
+
+KILLED_WRITER = """
+import sys, time
+from pathlib import Path
+from types import SimpleNamespace
+from std_msgs.msg import String
+from uwgen.bridge.recorder import BridgeRecorder, RecordOptions
+rec = BridgeRecorder(RecordOptions(Path(sys.argv[1])), network="net", side="surface",
+                     link_config=SimpleNamespace(max_read_length=64, period=0.2), topics={"/log": "out"})
+rec.topic("/log", String)
+start, k = time.monotonic(), 0
+while True:
+    rec.message("/log", String(data=f"line {k}"), b"%d" % k)
+    rec.packet(0.0, "tx", b"%d" % k, "sent")
+    k += 1
+    if k == 60:
+        print("written", flush=True)
+    time.sleep(0.05)
+"""
+
+
+def test_a_recording_of_a_killed_process_is_read_up_to_its_last_complete_chunk(tmp_path, capsys):
+    import signal
+    import subprocess
+    import sys
+    path = tmp_path / "killed.mcap"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen([sys.executable, "-c", KILLED_WRITER, str(path)], stdout=subprocess.PIPE,
+                            text=True, env=env)
+    try:
+        assert proc.stdout.readline().strip() == "written"      # 3 s: a few chunks ended
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+    got = read_file(path)
+    lines = [m.data for m in got.messages["/log"]]
+    assert len(lines) >= 20 and len(got.packets) == len(lines)
+    assert got.ends and str(path) in got.ends[0]
+    assert uwgen_main(["log", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "killed.mcap" in out and ("cut short" in out or "without its summary" in out)
