@@ -247,13 +247,14 @@ def main() -> int:
     extra = f"{'record +%':>10}{'rec KiB':>8}" if args.record else ""
     print(f"{'bridge':<9}{'rate/s':>7}{'msgs':>7}{'bridge us/msg':>14}{'bare us/msg':>12}{'bare events':>12}"
           f"{'ratio':>7}{'msg/s at 1 core':>16}{'RSS MiB':>8}{'alert p50 s':>12}{'p95 s':>7}{'n':>4}{extra}")
-    plain, extra_cpu = None, {}
+    plain, extra_cpu, extra_ratio = None, {}, {}
     for label, rate, sent, ub, us, ue, ratio, core, rss, p50, p95, n in rows:
         more = ""
         if label == "this":
-            plain = ub
+            plain = (ub, ratio)
         if label == "record":
-            extra_cpu.setdefault(rate, []).append((ub / plain - 1) * 100)
+            extra_cpu.setdefault(rate, []).append((ub / plain[0] - 1) * 100)
+            extra_ratio.setdefault(rate, []).append((ratio / plain[1] - 1) * 100)
             more = f"{extra_cpu[rate][-1]:>+10.1f}{sizes.get(rate, 0):>8.0f}"
         print(f"{label:<9}{rate:>7.0f}{sent:>7}{ub:>14.1f}{us:>12.1f}{ue:>12.1f}{ratio:>7.2f}{core:>16.0f}{rss:>8.1f}"
               f"{p50:>12.2f}{p95:>7.2f}{n:>4}{more}")
@@ -263,8 +264,11 @@ def main() -> int:
           + ("; record +%: the recording bridge's CPU per message over the same rate's plain run "
              "(`this` just before), rec KiB: what it wrote" if args.record else ""))
     for rate, extra in extra_cpu.items():
+        by_ratio = extra_ratio[rate]
         print(f"recording at {rate:.0f} msg/s: {statistics.median(extra):+.1f} % bridge CPU per message "
-              f"(median of {len(extra)} pairs: {', '.join(f'{x:+.1f}' for x in extra)})")
+              f"(median of {len(extra)} pairs: {', '.join(f'{x:+.1f}' for x in extra)}); "
+              f"{statistics.median(by_ratio):+.1f} % in the bridge's ratio to the bare node over the "
+              f"same seconds ({', '.join(f'{x:+.1f}' for x in by_ratio)})")
     return 0
 
 
