@@ -13,7 +13,7 @@ per topic and service and a plot of the commanded and reported path are produced
 The link is secured as the manifest says (docs/security.md): both bridges get the network
 key with --key-file; the demo creates it when missing (uwgen.demo.keys).
 Everything is written to --out (default demo_output/); --docs also writes the plot to
-docs/demo-path.png. See docs/demo.md.
+docs/demo-path.png (and the recordings' plots to docs/demo-link.png). See docs/demo.md.
 """
 from __future__ import annotations
 
@@ -58,7 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="do not record the bridges (by default each writes bridge_<side>.mcap "
                              "in --out, summarised by `uwgen log` into link.png)")
     parser.add_argument("--docs", action="store_true",
-                        help="also write the plot to docs/demo-path.png")
+                        help="also write the plots to docs/demo-path.png and docs/demo-link.png")
     parser.add_argument("--distance", type=number(1, 1e5), default=300.0, help="metres between the nodes")
     parser.add_argument("--per", type=number(0, 1), default=0.05,
                         help="packet error rate on top of collisions (default 0.05)")
@@ -141,8 +141,9 @@ def _endpoint(hp: tuple[str, int]) -> str:
     return f"{hp[0]}:{hp[1]}"
 
 
-def _link_plot(out: Path, title: str) -> None:
-    """The bridges' recordings: where they are, and their plots (uwgen log)."""
+def _link_plot(out: Path, title: str, docs: bool) -> None:
+    """The bridges' recordings: where they are, and their plots (uwgen log); with `docs`,
+    also docs/demo-link.png."""
     from uwgen.fieldkit.plots import plot_summary
     from uwgen.fieldkit.reader import RecordingError, read_recordings
     from uwgen.fieldkit.summary import summarise
@@ -153,6 +154,8 @@ def _link_plot(out: Path, title: str) -> None:
         print(f"uwgen demo: the bridges' recordings are not readable: {exc}", file=sys.stderr)
         return
     plot = plot_summary(summary, out / "link.png", title)
+    if docs:
+        plot_summary(summary, ROOT / "docs" / "demo-link.png", title)
     print(f"recordings: {', '.join(f.name for f in files)} (`uwgen log {' '.join(str(f) for f in files)}` "
           f"prints this table from them); link plot: {plot}")
 
@@ -263,7 +266,7 @@ def run(args: argparse.Namespace) -> int:
         print("plot: docs/demo-path.png")
     print(f"plot: {plot}")
     if not args.no_record:
-        _link_plot(out, title)
+        _link_plot(out, title, args.docs)
     print(f"run took {elapsed:.0f} s; logs in {out}")
     if crashed:
         print(f"uwgen demo: processes ended badly: {crashed} (see their logs)", file=sys.stderr)
