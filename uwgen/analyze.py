@@ -16,10 +16,11 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 
-from uwgen.codegen.ir import (
-    Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, IRBuilder, MessageArray, Number,
-    NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch, variant_name,
+from uwgen.codegen.encodings import (
+    Absent, Bool, BoolArray, ByteScalar, Enumerated, Filler, MessageArray, Number, NumberArray, Octets,
+    Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
 )
+from uwgen.codegen.ir import CodecType, IRBuilder, variant_name
 from uwgen.idl.model import ArrayKind
 from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest
 from uwgen.runtime.wire.bits import text_width

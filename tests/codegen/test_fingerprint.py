@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from uwgen.codegen.fingerprint import FINGERPRINT_BYTES, canonical, digest
-from uwgen.codegen.generator import plan_build, render_package, write_package
+from uwgen.codegen.generator import plan_build
+from uwgen.codegen.render import render_package, write_package
 
 BASE_MSGS = {
     "fp_msgs/msg/Inner.msg": "float64 a\nint32[<=4] b\n",

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from uwgen.codegen.emit import NEST_CHUNK, Constants, Lowering
-from uwgen.codegen.generator import plan_build, render_package, write_package
+from uwgen.codegen.generator import plan_build
+from uwgen.codegen.render import render_package, write_package
 from uwgen.codegen.ir import IRBuilder
 from uwgen.codegen.shape import MAX_NESTING
 from uwgen.idl.loader import InterfaceLibrary

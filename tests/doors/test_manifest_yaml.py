@@ -3,7 +3,9 @@ located `file:line:column` error; never a traceback (OverflowError from a 400-di
 RecursionError from YAML nested thousands deep), never long."""
 from __future__ import annotations
 
+import os
 import re
+from pathlib import Path
 
 import pytest
 import yaml
@@ -13,7 +15,7 @@ from hypothesis import strategies as st
 from uwgen.errors import ErrorList
 from uwgen.manifest.loader import ManifestError, load_manifest
 
-from .helpers import SAMPLES, cli
+from .helpers import SAMPLES, bounded, cli
 
 DEMO = (SAMPLES / "uwgen.yaml").read_text()
 HUGE = "9" * 400
@@ -163,3 +165,63 @@ def test_any_mutated_manifest_loads_or_fails_with_a_located_error(tmp_path, caps
     for argv in (["build", "-m", path, "-o", tmp_path / "out", SAMPLES], ["analyze", "-m", path, SAMPLES]):
         rc, out = cli(capsys, *argv)
         assert rc == 0 or (rc in (1, 2) and out.strip()), (argv, rc, out)
+
+
+# Each name is tried in a child process that must end within the deadline: a manifest read
+# with no size limit took /dev/zero to a MemoryError and a FIFO blocked its open forever.
+SPECIAL_MANIFESTS = """
+import sys
+from uwgen.cli import main
+for name in sys.argv[1:]:
+    for argv in (["build", "-m", name, "-o", "/nonexistent/out"], ["analyze", "-m", name],
+                 ["emulate", "-m", name, "--duration", "0.05"], ["rmw-config", "export", "-m", name]):
+        try:
+            rc = main(argv)
+        except SystemExit as exc:
+            rc = exc.code
+        print(rc, argv[0], flush=True)
+"""
+
+
+def special_names(tmp_path):
+    """name -> path of every kind of file a manifest's name must not lead to."""
+    os.symlink("/dev/zero", tmp_path / "zero.yaml")
+    os.mkfifo(tmp_path / "fifo.yaml")
+    os.symlink(tmp_path / "b.yaml", tmp_path / "loop.yaml")
+    os.symlink(tmp_path / "loop.yaml", tmp_path / "b.yaml")
+    return {"zero": tmp_path / "zero.yaml", "urandom": Path("/dev/urandom"), "fifo": tmp_path / "fifo.yaml",
+            "loop": tmp_path / "loop.yaml", "long": tmp_path / ("m" * 5000)}
+
+
+def test_special_files_and_long_names_as_a_manifest_are_usage_errors_in_every_command(tmp_path):
+    names = special_names(tmp_path)
+    res = bounded(SPECIAL_MANIFESTS, seconds=60, argv=[str(p) for p in names.values()])
+    assert "Traceback" not in res.stderr, res.stderr[-3000:]
+    assert res.stdout.split() == ["2", "build", "2", "analyze", "2", "emulate", "2", "rmw-config"] * len(names), res.stdout
+    for says in ("zero.yaml (a symlink to /dev/zero) is a character device: only a regular file is read",
+                 "/dev/urandom is a character device", "fifo.yaml is a FIFO (named pipe)",
+                 "loop.yaml is a symlink loop", "(a name of 5", "has a name too long for this system"):
+        assert res.stderr.count(says) == 4, (says, res.stderr[-3000:])
+
+
+LOADER = """
+import sys
+from pathlib import Path
+from uwgen.manifest.loader import ManifestError, load_sides
+for name in sys.argv[1:]:
+    try:
+        load_sides(Path(name))
+    except ManifestError as exc:
+        print(exc, flush=True)
+"""
+
+
+def test_the_manifest_loader_reads_only_a_regular_file_of_at_most_a_mebibyte(tmp_path):
+    names = special_names(tmp_path)
+    big = tmp_path / "big.yaml"
+    big.write_text("network: n\n" + "#" * (1024 ** 2) + "\n")
+    res = bounded(LOADER, seconds=30, argv=[str(p) for p in (*names.values(), big)])
+    lines = res.stdout.splitlines()
+    assert res.returncode == 0 and len(lines) == len(names) + 1, res.stdout + res.stderr
+    assert "is a character device" in lines[0] and "is a FIFO" in lines[2] and "symlink loop" in lines[3]
+    assert lines[-1].endswith("big.yaml is 1048588 bytes long: uwgen reads at most 1 MiB")

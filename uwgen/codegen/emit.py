@@ -17,11 +17,11 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from uwgen.codegen.ir import (
-    Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, MessageArray, Node, Number,
-    NumberArray, NumberRun, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
-    segments,
+from uwgen.codegen.encodings import (
+    Absent, Bool, BoolArray, ByteScalar, Enumerated, Filler, MessageArray, Number, NumberArray, Octets,
+    Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
 )
+from uwgen.codegen.ir import CodecType, Node, NumberRun, segments
 from uwgen.idl.model import ArrayKind
 
 F32_MAX = "3.4028234663852886e+38"
@@ -449,7 +449,7 @@ class Lowering:
 def fill_slots(root: Node, value_of: dict[str, str], rest: str) -> list[str]:
     """The fast way to build an rclpy message: a new instance of each class, every slot
     stored directly (`o._x = x1`), numeric arrays made the containers rclpy keeps
-    (ir.ros_store). Guarded by `C.fast_<key>`, which is true only for rclpy classes whose
+    (rosidl_layout.ros_store). Guarded by `C.fast_<key>`, which is true only for rclpy classes whose
     layout uwgen.runtime.wire.table.RosClasses verified, this one's and every inlined one's.
     None for a type with a leaf not on the wire (its default is the constructor's)."""
     if any(isinstance(leaf.encoding, Absent) for leaf in root.leaves()):

@@ -12,7 +12,8 @@ from pathlib import Path
 
 from uwgen.buildinfo import make_record
 from uwgen.errors import ErrorList
-from uwgen.codegen.generator import plan_build, render_package, stale_files, write_package
+from uwgen.codegen.generator import plan_build
+from uwgen.codegen.render import render_package, stale_files, write_package
 from uwgen.codegen.ir import ProfileError
 from uwgen.codegen.vendor import VendorError
 from uwgen.commands.options import add_folders, add_manifest

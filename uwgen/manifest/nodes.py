@@ -13,7 +13,7 @@ from pathlib import Path
 import yaml
 from yaml.constructor import ConstructorError, SafeConstructor
 
-from uwgen import yamltext
+from uwgen import safefile, yamltext
 from uwgen.idl.model import SourceRef
 
 
@@ -41,11 +41,11 @@ class ManifestError(Exception):
 def compose(path: Path) -> yaml.Node | None:
     """The YAML document of `path` as a node tree (None for an empty document)."""
     try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ManifestError(SourceRef(path, 1, 1), f"not valid UTF-8: {exc.reason}") from None
-    except OSError as exc:
-        raise ManifestError(None, f"{path}: cannot read manifest: {exc.strerror or exc}") from None
+        text = yamltext.read(path, "manifest")
+    except safefile.UnreadableFile as exc:
+        if exc.line:
+            raise ManifestError(SourceRef(path, exc.line, exc.column), exc.reason) from None
+        raise ManifestError(None, str(exc)) from None
     try:
         return yaml.compose(text, Loader=yamltext.Loader)
     except yaml.MarkedYAMLError as exc:
