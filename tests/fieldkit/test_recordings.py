@@ -311,3 +311,17 @@ def test_a_recording_of_a_killed_process_is_read_up_to_its_last_complete_chunk(t
     assert uwgen_main(["log", str(path)]) == 0
     out = capsys.readouterr().out
     assert "killed.mcap" in out and ("cut short" in out or "without its summary" in out)
+
+
+def test_service_round_trips_come_from_the_calling_sides_recording(tmp_path):
+    wall = Wall()
+    rec = recorder(tmp_path / "s.mcap", "surface", {}, wall)
+    rec.call("/set_pen", wall.t, wall.t + 0.9, True)
+    rec.call("/set_pen", wall.t + 5, wall.t + 17, False)           # timed out: no round trip
+    rec.call("/set_pen", wall.t + 20, wall.t + 21.5, True)
+    rec.status({"services": {"/set_pen": {"role": "client", "local_calls": 3, "responses": 2,
+                                          "link": {}}}}, final=True)
+    rec.close()
+    row = summarise([read_file(tmp_path / "s.mcap")]).services[0]
+    assert (row.name, row.calls, row.ok, row.failed) == ("/set_pen", 3, 2, 1)
+    assert [round(x, 3) for x in row.rtts] == [0.9, 1.5]

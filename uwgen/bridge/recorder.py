@@ -12,6 +12,8 @@ Channels of a recording (docs/operators.md, "Recordings"):
   outcome `delivered N`, `fragment`, `control` or `dropped REASON`), with its size and bytes;
 - `/uwgen/unheard` (json): the messages published while no subscriber listened (same time
   as the message's record; `uwgen log` does not count them delivered);
+- `/uwgen/calls` (json): each call of a bridged service made here (the side that calls it):
+  the service, when it was called, when it ended, whether a response came back;
 - `/uwgen/status` (json): the bridge's ~/status snapshot, at most every STATUS_EVERY
   seconds as the ~/status and /diagnostics timers compute it, and at exit (the last one has
   the final counts; a recording cut short has those of a few seconds before);
@@ -37,6 +39,7 @@ from uwgen.fieldkit.writer import DEFAULT_KEEP, DEFAULT_MAX_BYTES, RotatingMcap
 PACKETS = "/uwgen/packets"
 STATUS = "/uwgen/status"
 UNHEARD = "/uwgen/unheard"
+CALLS = "/uwgen/calls"
 STATUS_EVERY = 2.0    # s: the most often a status snapshot is recorded (the final one always)
 PACKET_SCHEMA = json.dumps({
     "type": "object", "title": "uwgen packet",
@@ -68,6 +71,7 @@ class BridgeRecorder:
         self._packets = self.out.channel(PACKETS, "json", ("uwgen/Packet", "jsonschema", PACKET_SCHEMA))
         self._status = self.out.channel(STATUS, "json", None)
         self._unheard = self.out.channel(UNHEARD, "json", None)
+        self._calls = self.out.channel(CALLS, "json", None)
         self._topics: dict[str, tuple[int, Callable[[Any], bytes]]] = {}
         self._status_at = float("-inf")
 
@@ -104,6 +108,11 @@ class BridgeRecorder:
                      zlib.crc32(payload))
         if listeners == 0:
             self.out.add(self._unheard, now, json.dumps({"topic": name}).encode())
+
+    def call(self, service: str, start: float, end: float, ok: bool) -> None:
+        """A call of a bridged service on this side: from `start` to `end` (system clock)."""
+        record = {"service": service, "start": start, "end": end, "ok": ok}
+        self.out.add(self._calls, int(end * 1e9), json.dumps(record).encode())
 
     def status(self, status: dict, final: bool = False) -> None:
         """A status snapshot: recorded when `final` or STATUS_EVERY seconds after the last."""

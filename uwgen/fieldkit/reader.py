@@ -16,6 +16,7 @@ from pathlib import Path
 PACKETS = "/uwgen/packets"     # the recorder's channels (uwgen.bridge.recorder)
 STATUS = "/uwgen/status"
 UNHEARD = "/uwgen/unheard"
+CALLS = "/uwgen/calls"
 MAGIC = b"\x89MCAP0\r\n"
 
 
@@ -57,6 +58,7 @@ class Recording:
     schemas: dict[str, tuple[str, str, bytes]] = field(default_factory=dict)  # topic -> (name, enc, text)
     ends: list[str] = field(default_factory=list)   # how each cut-short file ends
     unheard: set[tuple[str, int]] = field(default_factory=set)   # (topic, log ns) nobody heard
+    calls: list[dict] = field(default_factory=list)  # service calls made here: service, start, end, ok
 
     @property
     def status(self) -> dict:
@@ -157,6 +159,8 @@ def _message(rec: Recording, channels: dict, schemas: dict, m, path: Path) -> No
         rec.packets.append(Packet(t, d["dir"], int(d["size"]), d["outcome"], bytes.fromhex(d["data"])))
     elif ch.topic == STATUS:
         rec.statuses.append((t, json.loads(m.data)))
+    elif ch.topic == CALLS:
+        rec.calls.append(json.loads(m.data))
     elif ch.topic == UNHEARD:
         rec.unheard.add((json.loads(m.data)["topic"], m.log_time))
     else:
@@ -183,6 +187,7 @@ def read_recordings(paths: list[Path]) -> list[Recording]:
         for topic, msgs in one.messages.items():
             into.messages.setdefault(topic, []).extend(msgs)
         into.statuses += one.statuses
+        into.calls += one.calls
         into.ends += one.ends
         into.schemas.update(one.schemas)
     for rec in by_side.values():

@@ -9,7 +9,8 @@ to the receiving bridge's publication. A message the receiving bridge published 
 subscriber listened (`/uwgen/unheard`) is not delivered. A payload sent more than once (a vehicle standing
 still publishes the same pose again and again) is ambiguous and left out of the latencies,
 as the demo leaves out such keys; one received more often than it was sent is a duplicate.
-A packet is the same on both sides when its bytes are: a packet one side wrote that the
+A service's round trip runs from the local call to the response the calling side's bridge
+returned (`/uwgen/calls`). A packet is the same on both sides when its bytes are: a packet one side wrote that the
 other never read was lost on the way. Counts (taken, policy, on link, lost) are the
 bridges' own, from the last status each recorded (the final one unless cut short).
 """
@@ -112,6 +113,9 @@ def _services(recordings: list[Recording]) -> list[ServiceRow]:
             exact = link.get("on_link")
             if isinstance(exact, dict) and "lost_on_link" in exact:
                 row.lost_on_link = (row.lost_on_link or 0) + int(exact["lost_on_link"])
+        for call in rec.calls:
+            if call.get("ok") and call.get("service") in rows:
+                rows[call["service"]].rtts.append(float(call["end"]) - float(call["start"]))
     return [rows[n] for n in sorted(rows)]
 
 
@@ -174,7 +178,8 @@ def format_summary(s: Summary) -> str:
         lines.append("one side only: lost and latencies need both sides' recordings")
     lines.append("")
     lines += format_tables(s.topics, s.services)
-    lines.append("  round trip: not recorded by the bridges (the demo's report has it from the operator)")
+    if any(r.ok and not r.rtts for r in s.services):
+        lines.append("  round trip: from the calling side's recording (not given here)")
     dups = {k: v for k, v in s.duplicates.items() if v}
     lines.append("duplicates delivered: " + (", ".join(f"{k} {v}" for k, v in dups.items()) if dups else "none"))
     for name, pts in s.latency_series.items():
