@@ -96,6 +96,8 @@ class BridgeNode(Node):
         self.action_servers = ActionServers(w, plan.served_actions, self.action_counters)
         names = plan.entry_names()
         if names and all(name in self.unavailable for name in names):
+            if w.recorder is not None:
+                w.recorder.close()
             raise PlanError(f"nothing to bridge on side {plan.side}: rclpy has no type support "
                             f"here for any of its entries ({', '.join(names)})")
 
