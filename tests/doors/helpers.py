@@ -64,7 +64,8 @@ def definition_through_build(folder: Path, text: str, kind: str, profile: str = 
     analysis do with it, in this process: parse, plan and render the package, analyse the
     sizes. Returns "built", or the located error's text; any other exception escapes."""
     from uwgen.analyze import analyze
-    from uwgen.codegen.generator import plan_build, render_package
+    from uwgen.codegen.generator import plan_build
+    from uwgen.codegen.render import render_package
     from uwgen.errors import ErrorList
     from uwgen.idl.loader import InterfaceLibrary
     from uwgen.idl.model import DefinitionError
