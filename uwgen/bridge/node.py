@@ -4,7 +4,8 @@ The node only wires parts to rclpy and the link; each part reads on its own:
 
 - `topics.TopicBridge`: subscriptions that send, publishers of what arrives, echo guard;
 - `services.StandIns` / `services.Servers`: bridged service calls, both sides;
-- `actions.ActionStandIns` / `action_servers.ActionServers`: bridged actions, both sides;
+- `actions.ActionStandIns` (what comes back: `action_answers.GoalAnswers`) /
+  `action_servers.ActionServers`: bridged actions, both sides;
 - `discovery.RmwDiscovery`: rmw_desert beacons, when an entry is in profile rmw_desert;
 - `status.StatusReporter`: ~/status, the stats file, drop log lines;
 - `diagnostics.Diagnostics`: /diagnostics, OK/WARN/ERROR per bridge and entry;
@@ -21,6 +22,8 @@ from __future__ import annotations
 
 import json
 import random
+import threading
+import time
 from dataclasses import asdict
 from typing import Any, Callable
 
@@ -286,6 +289,7 @@ class BridgeNode(Node):
         self._closed = True
         if self.rmw_discovery is not None:
             self.rmw_discovery.stop()      # disconnect beacons, while the link still runs
+        self._farewell()
         try:
             self.link.stop()
         except Exception as exc:
@@ -308,6 +312,27 @@ class BridgeNode(Node):
             except Exception as exc:  # rclpy after its context was shut down
                 self._log.debug(f"destroy_node after shutdown: {exc}")
         return status
+
+    def _farewell(self) -> None:
+        """The last acknowledgements before the link closes (SIGINT/SIGTERM, close()): one
+        packet reporting every peer's packets, so their ledgers close; bounded by 2 periods
+        plus a second (wall clock: shutdown ends whatever an injected clock does)."""
+        rel = self.reliability
+        try:
+            if rel is None or not self.link.stats().get("connected") or not rel.farewell():
+                return
+        except Exception:
+            return
+        period = self.options.link.period
+        deadline = time.monotonic() + 2 * period + 1.0
+        waiter = threading.Event()
+        wake = getattr(getattr(self.link, "connection", None), "wake", None)
+        if wake is not None:
+            wake()
+        while rel.farewell_pending and time.monotonic() < deadline:
+            waiter.wait(0.01)
+        if not rel.farewell_pending:
+            waiter.wait(period)           # DESERT reads the last write before the socket closes
 
     def _flush_discovery(self) -> bool:
         """Wait (bounded) until the disconnect beacons have left; see RmwDiscovery.flush."""

@@ -91,6 +91,7 @@ class BridgePlan:
     manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
     manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
     sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
+    side_ids: dict[str, int] = field(default_factory=dict)   # every side's sender id (W)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str,
@@ -127,6 +128,7 @@ class BridgePlan:
             manifest_source=getattr(manifest, "source", "") or "",
             manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
             sender_id=_sender_id(manifest, side),
+            side_ids={s: _sender_id(manifest, s) for s in sides},
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
@@ -187,7 +189,15 @@ class BridgePlan:
         opts = replace(d, host=d.host if host is None else host,
                        port=d.port if port is None else int(port), link=link,
                        **{k: v for k, v in extra.items() if v is not None})
-        return opts.check()
+        opts.check()
+        # The floor of this network's packets (envelope, reliability, seal, a fragment), also
+        # when --max-read-length overrides the manifest: below it the link cannot send at all.
+        from uwgen.linkfloor import check_option
+        problem = check_option(link.max_read_length, self.wire_format,
+                               getattr(self.security, "tag_bytes", None) if self.security else None)
+        if problem:
+            raise PlanError(problem)
+        return opts
 
     def entry_names(self) -> list[str]:
         """Every topic, service and action this side bridges, by name."""

@@ -16,6 +16,7 @@ from typing import Any, Callable
 from uwgen.bridge.plan import BridgePlan
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import WALL_CLOCK, Clock
+from uwgen.runtime.delivery.epoch import new_epoch
 from uwgen.runtime.delivery.reliability import Reliability
 
 
@@ -56,7 +57,10 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
     clock = wall if hasattr(wall, "now") else _Wall(wall)
     return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
-                       max_read_length=link.max_read_length, other_overhead=other_overhead)
+                       max_read_length=link.max_read_length, other_overhead=other_overhead,
+                       peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},
+                       # K on an unsealed link is this side's; a sealed link's is the seal's
+                       epoch_source=new_epoch if plan.security is None else None)
 
 
 def link_ledger(link_stats: Any) -> dict[int, dict]:

@@ -19,7 +19,8 @@ import keyword
 from pathlib import Path
 
 from uwgen.errors import Collector
-from uwgen.codegen.emit import Constants, Lowering, module_alias
+from uwgen.codegen.emit import Lowering
+from uwgen.codegen.emit_common import Constants, module_alias
 from uwgen.codegen.emit_packed import PackedLowering
 from uwgen.codegen.encodings import type_key
 from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest, seal_fingerprints
@@ -62,6 +63,7 @@ def plan_build(folders: list[Path], names: list[str] = (), manifest_path: Path |
     manifest, choose the names, plan the package. `names` add interfaces to the folders'
     own; `all_installed` builds every interface known. The package name defaults to the
     manifest's, then to uwgen_<first folder's name>."""
+    from uwgen.linkfloor import check_read_lengths
     from uwgen.manifest.loader import load_manifest   # yaml, only when a build runs
 
     from uwgen.manifest.loader import ManifestError
@@ -77,6 +79,9 @@ def plan_build(folders: list[Path], names: list[str] = (), manifest_path: Path |
     if manifest_path:
         with errors.attempt(ManifestError, DefinitionError):
             manifest = load_manifest(Path(manifest_path), lib)
+        if manifest is not None:
+            with errors.attempt(ManifestError):
+                check_read_lengths(manifest)     # the floor of this network's packets
     errors.raise_if_any()
     wanted = lib.all_names() if all_installed else [*lib.local_names(), *names]
     wanted = sorted({lib.normalize(n) or n for n in wanted})

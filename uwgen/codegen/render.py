@@ -14,7 +14,7 @@ from pathlib import Path
 
 import jinja2
 
-from uwgen.codegen.emit import module_alias
+from uwgen.codegen.emit_common import module_alias
 from uwgen.codegen.encodings import type_key
 from uwgen.codegen.ir import variant_name
 from uwgen.codegen.package_plan import PackagePlan

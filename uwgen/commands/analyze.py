@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from uwgen.argtypes import number
+from uwgen import safefile
 from uwgen.commands.options import add_folders, add_manifest
 from uwgen.idl.model import DefinitionError
 from uwgen.manifest.loader import MANIFEST_NAME, ManifestError
@@ -27,18 +28,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from uwgen.analyze import DEFAULT_BITRATE, analyze, format_analysis, to_json
+    from uwgen.analyze import DEFAULT_BITRATE, analyze
+    from uwgen.analyze_report import format_analysis, to_json
     from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.linkfloor import check_read_lengths
     from uwgen.manifest.loader import load_manifest
 
     folders = list(args.folders)
     manifest_path = args.manifest or ((folders[0] / MANIFEST_NAME) if folders else Path(MANIFEST_NAME))
     parent = manifest_path.parent
+    why = safefile.problem(manifest_path, "manifest")
+    if why is not None:          # a name too long, a loop, a device: said as it is
+        print(f"uwgen analyze: {why}", file=sys.stderr)
+        return EXIT_INPUT
+    if not manifest_path.is_file():
+        print(f"uwgen analyze: no manifest at {safefile.shown(manifest_path)} (give one with -m)",
+              file=sys.stderr)
+        return EXIT_INPUT
     if not folders and (any(parent.glob("*/msg/*.msg")) or any(parent.glob("*/srv/*.srv"))):
         folders = [parent]   # interfaces next to the manifest, as `uwgen build` keeps them
-    if not manifest_path.is_file():
-        print(f"uwgen analyze: no manifest at {manifest_path} (give one with -m)", file=sys.stderr)
-        return EXIT_INPUT
     bitrate = args.bitrate if args.bitrate is not None else DEFAULT_BITRATE
     if not bitrate > 0:
         print(f"uwgen analyze: --bitrate must be > 0, got {bitrate:g}", file=sys.stderr)
@@ -46,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         lib = InterfaceLibrary(folders, installed=True)
         manifest = load_manifest(manifest_path, lib)
+        check_read_lengths(manifest)
         result = analyze(manifest, lib.get, bitrate)
     except (ManifestError, DefinitionError) as exc:
         print(f"uwgen analyze: {exc}", file=sys.stderr)

@@ -43,7 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="YAML scenario (msg_samples/scenarios/*.yaml); flags override it")
     add_manifest(parser, help="one node per side, named after it, with its port and link "
                               "settings; a scenario file then only adds physics (positions, "
-                              "waypoints, snr, tdma, seed, ...)")
+                              "waypoints, snr, tdma, seed, ...). Validated as `uwgen build -m` "
+                              "validates it (types from the interface packages beside it, or "
+                              "installed)")
     g = parser.add_argument_group("nodes (without a scenario file)")
     g.add_argument("--nodes", type=whole(1, MAX_NODES), default=None, metavar="N",
                    help="number of nodes, on a line, each sending to the next (default 2)")
@@ -79,7 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run_g = parser.add_argument_group("running")
     run_g.add_argument("--duration", type=number(0, 1e9), default=None, metavar="S",
                        help="stop after S seconds (default: until Ctrl-C / SIGTERM)")
-    run_g.add_argument("--crash-every", type=float, default=None, metavar="S",
+    run_g.add_argument("--crash-every", type=number(0, 1e9, above=True), default=None, metavar="S",
                        help="make DESERT crash at random, on average every S seconds (every "
                             "client disconnected, queues lost), as real DESERT does under load")
     run_g.add_argument("--crash-down", type=number(0, 1e9), default=1.0, metavar="S",

@@ -288,7 +288,7 @@ def load_scenario(path: Path | str, base_nodes: list[NodeSpec] | None = None) ->
     except safefile.UnreadableFile as exc:
         if exc.line:
             raise ScenarioError(exc.reason, f"{path}:{exc.line}:{exc.column}") from None
-        raise ScenarioError(exc.message, str(path)) from None
+        raise ScenarioError(exc.message) from None
     doc = _Doc(path)
     try:
         root = yaml.compose(text, Loader=yamltext.Loader)

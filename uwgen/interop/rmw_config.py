@@ -152,7 +152,7 @@ def read_conf(path: Path) -> dict[str, int]:
     except safefile.UnreadableFile as exc:
         if exc.line:
             raise RmwConfigError(exc.reason, SourceRef(path, exc.line, exc.column)) from None
-        raise RmwConfigError(exc.message, str(path)) from None
+        raise RmwConfigError(exc.message) from None
     return parse_conf(text, str(path))
 
 
@@ -238,7 +238,7 @@ def read_hints(path: Path) -> dict[str, str]:
     try:
         data = yamltext.safe_load(yamltext.read(path, "hints file"))
     except safefile.UnreadableFile as exc:
-        raise RmwConfigError(exc.message, str(path)) from None
+        raise RmwConfigError(exc.message) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = SourceRef(Path(path), mark.line + 1, mark.column + 1) if mark else str(path)

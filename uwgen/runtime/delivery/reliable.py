@@ -158,6 +158,8 @@ class EntryLedger:
     resent: int = 0                 # reliable messages handed back by due()
     expired: int = 0                # reliable messages lost with their deadline passed
     unacknowledged: int = 0         # copies in packets no ack named before they were forgotten
+    unknown: int = 0                # copies sent before the peer restarted that its new start
+                                    # reports missing: its old start may have had them
 
 
 @dataclass
@@ -166,6 +168,7 @@ class _Packet:
     at: float
     messages: list[Sent]
     timed_out: bool = False
+    fate_unknown: bool = False      # sent before the peer's restart was seen
 
 
 @dataclass
@@ -259,11 +262,21 @@ class ReliableLink:
         if packet.timed_out:
             self.spurious += 1
 
+    def peer_restarted(self) -> None:
+        """The peer started again (a new epoch): what it did not get of the packets sent so
+        far may have reached its previous start, so those are counted `unknown`, not lost
+        (their reliable messages are still sent again: the new start has no memory of them)."""
+        for packet in self.outstanding.values():
+            packet.fate_unknown = True
+
     def _lost(self, packet: _Packet, now: float) -> None:
         for m in packet.messages:
             if m.key == REPORT_KEY:
                 continue
-            self.entry(m.key).lost_on_link += 1
+            if packet.fate_unknown:
+                self.entry(m.key).unknown += 1
+            else:
+                self.entry(m.key).lost_on_link += 1
             if not packet.timed_out:
                 self._again(m, now)
 
@@ -380,6 +393,15 @@ class ReliableLink:
         `ack_delay`: the link should send a packet with only the A part."""
         r = self._current(peer)
         return r is not None and r.eliciting_since is not None and now - r.eliciting_since >= self.ack_delay
+
+    def rename_epoch(self, peer: int, old: bytes, new: bytes) -> None:
+        """What was kept of `peer` under a stand-in epoch (`old`: not known yet) is its epoch
+        `new`, learnt from K: the same start, not a restart."""
+        r = self.receipts.pop((peer, old), None)
+        if r is not None:
+            self.receipts[(peer, new)] = r
+        for (p, e, key) in [k for k in self._delivered if k[0] == peer and k[1] == old]:
+            self._delivered[(p, new, key)] = self._delivered.pop((p, e, key))
 
     def _current(self, peer: int) -> PeerReceipts | None:
         for (p, _epoch), r in self.receipts.items():
