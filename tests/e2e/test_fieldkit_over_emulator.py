@@ -67,6 +67,8 @@ def test_both_bridges_record_what_crossed(e2e_package, tmp_path):
         twist.linear.x = 0.25
         cmd_pub.publish(twist)
         wait_for(lambda: len(logs) == 5 and cmds, timeout=15.0, what="logs and the command")
+        time.sleep(0.5)                                   # the last acknowledgements cross
+        closing = time.time()                             # what leaves later has no reader
         for side in ("surface", "vehicle"):
             net.bridges[side].close()                     # the recordings are finished
 
@@ -86,5 +88,6 @@ def test_both_bridges_record_what_crossed(e2e_package, tmp_path):
     assert len(log.latencies) == 5 and all(0 < x < 5 for x in log.latencies)
     assert rows["/cmd_vel"].delivered == 1
     for side in summary.sides.values():                   # no packet lost at PER 0
-        assert side.sent and side.lost == 0
+        before = [arrived for t, _b, arrived in side.sent if t < closing - 0.2]
+        assert before and all(before), side
         assert side.received["delivered"] > 0
