@@ -75,7 +75,8 @@ class ActionServers:
             wiring.loops.watch_server(codec.name, action=True)
             self.goals[codec.id] = {}
             self.results[codec.id] = ResultBook(
-                codec.accept_timeout, command_rtt(codec.accept_timeout, wiring.options.link.period))
+                codec.accept_timeout, command_rtt(codec.accept_timeout, wiring.options.link.period,
+                                                  wiring.round_trip, wiring.turn_gap))
             self.watches[codec.id] = OrphanWatch(
                 wiring.node, codec.name, codec.id,
                 lambda handle, uuid, info, i=codec.id: self._adopt(i, handle, uuid, info),

@@ -98,7 +98,8 @@ class ActionStandIns(GoalAnswers):
             table.set_seq_range(codec.id, first, last)
             self.handles[codec.id] = range(first, last + 1)
             self.tables[codec.id] = table
-            self.rtt[codec.id] = command_rtt(codec.accept_timeout, wiring.options.link.period)
+            self.rtt[codec.id] = command_rtt(codec.accept_timeout, wiring.options.link.period,
+                                             wiring.round_trip, wiring.turn_gap)
             self.offered[codec.id] = codec
             self._offer(codec, cls)
             wiring.loops.watch_standin(codec.name, action=True,

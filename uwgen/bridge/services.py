@@ -59,9 +59,10 @@ class Outgoing:
     sends: int = 1
 
 
-def service_rtt(codec: Any, period: float) -> RttEstimator:
+def service_rtt(codec: Any, period: float, round_trip: float | None = None,
+                turn_gap: float = 0.0) -> RttEstimator:
     """The retransmission timer of one service's requests (reliable.command_rtt)."""
-    return command_rtt(codec.timeout, period)
+    return command_rtt(codec.timeout, period, round_trip, turn_gap)
 
 
 class StandIns:
@@ -90,7 +91,8 @@ class StandIns:
             if is_rmw_desert(codec):
                 self.calls.set_seq_range(codec.id, *RMW_DESERT_SEQ_RANGE)
             else:   # an rmw_desert server would run a copy again: never re-sent to one
-                self.rtt[codec.id] = service_rtt(codec, wiring.options.link.period)
+                self.rtt[codec.id] = service_rtt(codec, wiring.options.link.period,
+                                                 wiring.round_trip, wiring.turn_gap)
 
     def _offer(self, codec: Any, cls: Any) -> None:
         srv = self.w.node.create_service(cls, codec.name, self._standin(codec),

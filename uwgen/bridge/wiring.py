@@ -43,6 +43,8 @@ class Wiring:
     unavailable: dict[str, str] = field(default_factory=dict)  # entry name -> why not bridged
     wall: Callable[[], float] = time.time   # the system clock ROS stamps messages with
     recorder: Any = None           # uwgen.bridge.recorder.BridgeRecorder with --record
+    round_trip: float | None = None  # what the MAC expects a request and its answer to take
+    turn_gap: float = 0.0            # the MAC's longest wait for the peer's turn (runtime.link.mac)
     said: set[str] = field(default_factory=set)
     throttle: LogThrottle = field(init=False)  # error lines a remote peer can cause: bounded
     loops: LoopGuard = field(init=False)       # services/actions another bridge here handles

@@ -4,7 +4,8 @@ LinkSim (uwgen.emulator.linksim) sends one way; acknowledgements (docs/wire-form
 section 15) need the other way too. Here each side's Link both sends and receives, as its
 connection thread would: when the pacer allows a write, the outbox's batch (pulled from
 the link's packer) goes to the emulated DESERT node; what the node delivers goes to the
-link's decoder; each turn the link's housekeeping runs.
+link's decoder; each turn the link's housekeeping runs. A side writes only when its
+link's MAC allows it too (`Link(mac=...)`, through `link_kw_for`), as the connection does.
 
     sim = DuplexSim(scenario, ("a", "b"), wire_format=2, hooks_for=lambda side: ...)
     sim.links["a"].add_channel(7, LinkPolicy(queue="fifo", depth=100, reliable=True, ttl=30))
@@ -90,8 +91,11 @@ class DuplexSim:
                 heapq.heappop(self._actions)[2]()
             for side, link in self.links.items():
                 conn = link.connection
+                if link.mac.next_write_at(t) > t:     # not this side's turn (runtime.link.mac)
+                    continue
                 batch = conn.outbox.take(t, conn._pull, conn._fit)
                 if batch:
+                    link.mac.wrote(t, len(batch))
                     n = self.written[side]
                     self.written[side] += 1
                     held = self._holds[side].get(n)

@@ -242,6 +242,8 @@ class PacketSeal(SideSeal):
     def _control(self, e: env.Envelope) -> None:
         now = self.clock.now()
         for item in control.items(e.control):
+            if item.code in control.MAC_CODES:
+                continue                     # the link's MAC reads them (hooks.received)
             if item.code != control.SYNC_REQUEST:
                 log_count(log, logging.WARNING, self.counters.inc("unknown_control"),
                           "[%s] sender %d's packet has a control item of code %d this build does "

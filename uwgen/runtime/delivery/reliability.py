@@ -76,7 +76,7 @@ class Reliability:
                  ack_delay: float | None = None, ack_interval: float | None = None,
                  name: str = "link", max_read_length: int = MAX_FRAME,
                  other_overhead: int = 0, peer_names: dict[int, str] | None = None,
-                 epoch_source: Callable[[], bytes] | None = None):
+                 epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0):
         self.sender, self.name, self.wall = sender, name, wall
         # this side's epoch and numbers on an unsealed link (None: the seal gives K)
         self.send_epoch = SendEpoch(epoch_source) if epoch_source is not None else None
@@ -94,8 +94,10 @@ class Reliability:
                            aged=frozenset(max_ages))
         self.ack_delay = ack_delay if ack_delay is not None else max(1.0, 4 * period)
         self.ack_interval = ack_interval if ack_interval is not None else max(2.0, 8 * period)
-        first = max(2.0, 8 * period)
-        self.engine = ReliableLink(sender, RttEstimator(first, period, 60.0, period),
+        # The retransmission timer's first value and floor are the MAC's (docs/seams.md
+        # section 6): a reply may wait `turn_gap` for the peer's turn, besides a period.
+        first = max(2.0, 8 * period) + turn_gap
+        self.engine = ReliableLink(sender, RttEstimator(first, period + turn_gap, 60.0, period),
                                    ack_delay=self.ack_delay)
         self.staleness = Staleness()
         self.offsets = ClockOffsets()

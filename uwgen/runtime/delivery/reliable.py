@@ -101,14 +101,20 @@ def unwrap(number: int, near: int) -> int:
 
 # -- round trip --------------------------------------------------------------------------
 
-def command_rtt(timeout: float, period: float) -> RttEstimator:
+def command_rtt(timeout: float, period: float, round_trip: float | None = None,
+                turn_gap: float = 0.0) -> RttEstimator:
     """The retransmission timer of one command (service call, goal, result) whose deadline
-    is `timeout` after it first left: a quarter of it until the link is measured, and never
-    more, so at least four copies fit before the deadline (a 20 % loss each way fails four
-    request/response rounds with probability 0.36^4 = 1.7 %, six with 0.2 %); never less
-    than the link's `period` (no packet leaves faster)."""
-    quarter = max(timeout / 4, period)
-    return RttEstimator(quarter, period, quarter, period)
+    is `timeout` after it first left. Without a MAC's figures: a quarter of it until the link
+    is measured, and never more, so at least four copies fit before the deadline (a 20 % loss
+    each way fails four request/response rounds with probability 0.36^4 = 1.7 %, six with
+    0.2 %). Its first value and floor are the MAC's (docs/seams.md section 7): never less than
+    the link's `period` plus `turn_gap` (a reply may wait that long for the peer's turn), nor
+    than `round_trip`, the least a request and its answer can take under the MAC (both ways
+    across the range, and a slot under TDMA): a copy never leaves before its answer could
+    have come back, however short the deadline."""
+    floor = max(period + turn_gap, round_trip or 0.0)
+    quarter = max(timeout / 4, floor)
+    return RttEstimator(quarter, floor, quarter, period)
 
 
 class RttEstimator:
