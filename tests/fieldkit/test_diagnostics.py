@@ -77,3 +77,14 @@ def test_extra_checks_judge_the_bridge_status():
         return [(WARN, "MAC turn missed")] if st.get("mac", {}).get("missed") else []
     a = Assessor("net", "surface", clock=ManualClock(), checks=[turn_health])
     assert a.assess({**status(), "mac": {"missed": 1}})[0].message == "MAC turn missed"
+
+
+def test_mac_turns_missed_warn_on_the_bridge():
+    clock = ManualClock()
+    a = Assessor("net", "surface", clock=clock)
+    st = status()
+    st["link"]["mac"] = {"mode": "turns", "missed": 0, "dropped_turns": 0}
+    assert a.assess(st)[0].level == OK
+    st["link"]["mac"] = {"mode": "turns", "missed": 2, "dropped_turns": 0}
+    v = a.assess(st)[0]
+    assert v.level == WARN and "2 MAC turns missed" in v.message and v.values["mac"] == "turns"

@@ -8,13 +8,14 @@ One DiagnosticStatus for the bridge (`uwgen <network>/<side>`) and one per entry
 - ERROR: the link to the DESERT node is down; an entry whose link is down is WARN;
 - WARN, while it happens and for HOLD seconds after: drops since the last look (stale or
   expired messages, queue overflow, frames not authentic, payloads that did not decode,
-  an executor that fell behind), a peer clock the receiver finds off, a full queue, and a
+  an executor that fell behind), a peer clock the receiver finds off, MAC turns missed or
+  dropped (mode `turns`: the link's `mac` stats), a full queue, and a
   delivery ratio under DELIVERY_WARN over the copies the far side acknowledged or named
   lost since the last look (wire format 2; ERROR under DELIVERY_ERROR);
 - OK otherwise. Every status carries its figures as key/value pairs.
 
-`CHECKS` is the list of extra checks of the bridge's status (the MAC's turn health goes
-there): each takes the status dict and returns (level, text) pairs. Pure except the
+`CHECKS` is the list of extra checks of the bridge's status: each takes the status dict and
+returns (level, text) pairs. Pure except the
 publisher: `Assessor` takes a clock and a status dict, so tests drive it without ROS.
 """
 from __future__ import annotations
@@ -43,7 +44,9 @@ BRIDGE_DROPS = {("security", "dropped"): "frames dropped as not authentic",
                 ("bridge", "bad_header"): "payloads with a bad header",
                 ("reliability", "clock_offset"): "messages from a peer whose clock is off",
                 ("reliability", "stale"): "stale messages dropped on arrival",
-                ("connection", "reconnects"): "reconnects to the DESERT node"}
+                ("connection", "reconnects"): "reconnects to the DESERT node",
+                ("mac", "missed"): "MAC turns missed (a grant or an end lost, the turn taken back)",
+                ("mac", "dropped_turns"): "MAC turns dropped (granted too late to use)"}
 
 Check = Callable[[dict], list[tuple[int, str]]]
 CHECKS: list[Check] = []   # extra checks of the bridge's status (e.g. the MAC's turn health)
@@ -89,7 +92,10 @@ class Assessor:
         if not up:
             bridge.worse(ERROR, "link down: not connected to the DESERT node")
         sections = {"security": status.get("security") or {}, "bridge": status.get("bridge") or {},
-                    "reliability": link.get("reliability") or {}, "connection": conn}
+                    "reliability": link.get("reliability") or {}, "connection": conn,
+                    "mac": link.get("mac") or {}}
+        if sections["mac"].get("mode"):
+            bridge.values["mac"] = str(sections["mac"]["mode"])
         for (section, counter), text in BRIDGE_DROPS.items():
             self._drops(bridge, (section, counter), sections[section].get(counter), text, now)
         for check in self.checks:
