@@ -19,10 +19,8 @@ holding one envelope of several messages (uwgen.runtime.link.packets, envelope; 
 `hooks` (packets.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
 (the default, and what rmw_desert-profile links use) writes one frame per payload.
 
-Observers (`link.observers`, docs/seams.md): callables the link calls on its own thread with
-`(time, direction, packet, outcome)` for every packet it writes ("tx", outcome "sent") and
-every packet it reads ("rx", outcome "delivered N", "fragment", "control", or "dropped
-REASON"); a recorder (uwgen.bridge.recorder) is one. Empty, they cost one list test a packet.
+Observers (`link.observers`): callables told of every packet written and read, with what became
+of it (uwgen.runtime.link.watch; a bridge recorder is one).
 
 Security: with a `guard` (uwgen.security.guard.LinkGuard) a whole payload is protected when it
 leaves its queue, before it is fragmented, and every whole payload received (after reassembly)
@@ -48,15 +46,12 @@ from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Un
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.probation import reconnect_cap
 from uwgen.runtime.link.scheduler import LinkScheduler
+from uwgen.runtime.link.watch import PacketWatch
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link")
 
 LINK_COUNTERS = ("payloads_delivered", "nested_fragments", "not_packed")
-# Packet counters whose increase says why a packet read was refused whole.
-UNPACK_DROPS = {"bad_envelopes": "bad_envelope", "version_1": "bad_envelope",
-                "unknown_kind": "bad_envelope", "opened_none": "seal"}
-Observer = Callable[[float, str, bytes, str], None]   # (time, "tx"|"rx", packet, outcome)
 WIRE_FORMATS = (1, 2)
 
 
@@ -100,9 +95,9 @@ class Link:
         self.packet_counters = Counters(PACKET_COUNTERS)
         v2 = wire_format == 2
         self._pulled_key: int | None = None       # channel of the payload pulled last
-        self.observers: list[Observer] = []       # see module docstring
-        self._rx_drop: str | None = None          # why the packet being read was dropped
-        self._rx_fragment = False                 # it held a fragment
+        self.watch = w = PacketWatch(name, clock, lambda: self.counters["payloads_delivered"],
+                                     self.packet_counters)
+        self.observers = self.watch.observers     # see module docstring
         rng = rng or random.Random()
 
         self.fragmenter: Fragmenter | None = None
@@ -142,13 +137,13 @@ class Link:
             self.unpacker = Unpacker(self.hooks, counters=self.packet_counters, name=name)
         self.connection = DesertConnection(
             host, port, self.config, clock=clock, one_frame=v2,
-            source=self._next_packet if v2 else self._source,
-            on_frame=self._on_packet if v2 else self._on_v1_frame,
+            source=w.tx(self.packer.next_packet if v2 else self._source),
+            on_frame=w.rx(self._on_packet if v2 else self._on_frame, envelopes=v2),
             name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
             stall_timeout=stall_timeout,
             next_ready=self._next_ready if v2 else self.scheduler.next_ready_time,
             on_tick=self._tick, pace_margin=pace_margin,
-            bitrate=bitrate, source_fit=None if v2 else self._source_fit, mac=self.mac)
+            bitrate=bitrate, source_fit=None if v2 else w.tx(self._source_fit), mac=self.mac)
 
     # -- contract API --------------------------------------------------------------------------
 
@@ -259,85 +254,39 @@ class Link:
         if picked is None:
             return None
         self._pulled_key = picked[0]
-        if self.observers:
-            self._observe(now, "tx", picked[1], "sent")
         return picked[1]
-
-    def _next_packet(self, now: float) -> bytes | None:
-        data = self.packer.next_packet(now)
-        if data is not None and self.observers:
-            self._observe(now, "tx", data, "sent")
-        return data
-
-    def _observe(self, now: float, direction: str, data: bytes, outcome: str) -> None:
-        for observer in self.observers:
-            try:
-                observer(now, direction, data, outcome)
-            except Exception:  # noqa: BLE001 - an observer never stops the link
-                log.exception("[%s] a packet observer failed", self.name)
-
-    def _rx_outcome(self, delivered: int, data: bytes, refused: dict[str, int] | None) -> None:
-        """Tell the observers what became of one packet read (`refused`: UNPACK_DROPS
-        counters before it was read)."""
-        why = next((UNPACK_DROPS[k] for k, n in (refused or {}).items()
-                    if self.packet_counters[k] > n), None)
-        if delivered:
-            outcome = f"delivered {delivered}"
-        elif self._rx_drop is not None or why is not None:
-            outcome = f"dropped {self._rx_drop or why}"
-        elif self.reassembler is not None and self._rx_fragment:
-            outcome = "fragment"
-        else:
-            outcome = "control"
-        self._observe(self.clock.now(), "rx", data, outcome)
-
-    def _on_v1_frame(self, payload: bytes) -> None:
-        if not self.observers:
-            self._on_frame(payload)
-            return
-        before, self._rx_drop, self._rx_fragment = self.counters["payloads_delivered"], None, False
-        self._on_frame(payload)
-        self._rx_outcome(self.counters["payloads_delivered"] - before, payload, None)
 
     def _source_fit(self, now: float, max_size: int) -> bytes | None:
         # The frame pulled last did not fit and is held: its channel must not overtake it.
         held = self._pulled_key if self.connection.outbox.pending else None
         picked = self.scheduler.next_payload(now, max_size, exclude=held)
-        if picked is not None and self.observers:
-            self._observe(now, "tx", picked[1], "sent")
         return None if picked is None else picked[1]
 
     def _on_packet(self, data: bytes) -> None:
-        observed = bool(self.observers)
-        if observed:
-            before, self._rx_drop, self._rx_fragment = self.counters["payloads_delivered"], None, False
-            refused = {k: self.packet_counters[k] for k in UNPACK_DROPS}
         for payload in self.unpacker.feed(data, self.clock.now()):
             self._on_frame(payload)
-        if observed:
-            self._rx_outcome(self.counters["payloads_delivered"] - before, data, refused)
 
     def _on_frame(self, payload: bytes) -> None:
         if self.reassembler is not None and is_fragment(payload, self.fragment_id,
                                                          compact=self.wire_format == 2):
-            self._rx_fragment = True
+            self.watch.fragment = True
             whole = self.reassembler.feed(payload)
             if whole is None:
                 return
             if is_fragment(whole, self.fragment_id, compact=self.wire_format == 2):
                 self.counters.inc("nested_fragments")    # never sent by uwgen: refuse to recurse
-                self._rx_drop = "nested_fragment"
+                self.watch.drop = "nested_fragment"
                 return
             payload = whole
         if self.guard is not None:
             payload = self.guard.unprotect(payload)
             if payload is None:
-                self._rx_drop = "security"
+                self.watch.drop = "security"
                 return                                   # counted by the guard
         if self.wire_format == 2 and self.hooks.admit is not None:
             payload = self.hooks.admit(payload, self.clock.now())
             if payload is None:
-                self._rx_drop = "not_admitted"
+                self.watch.drop = "not_admitted"
                 return                                   # a copy, or stale: counted by the hook
         if self.packed_ids and _wire_id(payload) in self.packed_ids:
             try:
@@ -346,7 +295,7 @@ class Link:
                 log_count(log, logging.WARNING, self.counters.inc("not_packed"),
                           "[%s] dropped a received payload of a packed id without its fields: %s",
                           self.name, e)
-                self._rx_drop = "not_packed"
+                self.watch.drop = "not_packed"
                 return
         self.counters.inc("payloads_delivered")
         if self._on_payload is not None:
