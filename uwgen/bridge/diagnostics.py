@@ -182,3 +182,35 @@ class Diagnostics:
         except Exception:  # noqa: BLE001 - the context is shutting down
             pass
         return msg
+
+
+class Watching:
+    """The node's field kit: /diagnostics on a timer and the recording (with --record), both
+    fed the node's status; `record` takes the ~/status timer's snapshots too."""
+
+    def __init__(self, node: Any, wiring: Any, plan: Any, status: Callable[[], dict]):
+        self.recorder = wiring.recorder
+        self.status = status
+        self.diagnostics = Diagnostics(wiring, plan.network, plan.side,
+                                       {key: policy.depth for key, policy, _n, _w in plan.channels()})
+        if self.recorder is not None and hasattr(node.link, "observers"):
+            node.link.observers.append(self.recorder.packet)
+        if wiring.options.diagnostics_period > 0:
+            node.create_timer(wiring.options.diagnostics_period, self.tick,
+                              callback_group=wiring.main_group)
+
+    def tick(self) -> Any:
+        status = self.status()
+        self.record(status)
+        return self.diagnostics.publish(status)
+
+    def record(self, status: dict, final: bool = False) -> dict:
+        """Record a status snapshot (when recording); returns it."""
+        if self.recorder is not None:
+            self.recorder.status(status, final=final)
+        return status
+
+    def close(self, status: dict) -> None:
+        if self.recorder is not None:
+            self.recorder.status(status, final=True)
+            self.recorder.close()

@@ -8,8 +8,8 @@ The node only wires parts to rclpy and the link; each part reads on its own:
   `action_servers.ActionServers`: bridged actions, both sides;
 - `discovery.RmwDiscovery`: rmw_desert beacons, when an entry is in profile rmw_desert;
 - `status.StatusReporter`: ~/status, the stats file, drop log lines;
-- `diagnostics.Diagnostics`: /diagnostics, OK/WARN/ERROR per bridge and entry;
-- `recorder.BridgeRecorder` (with --record): packets, messages and status in an MCAP file;
+- `diagnostics.Watching`: /diagnostics (OK/WARN/ERROR per bridge and entry) and, with
+  --record, the recording (`recorder.BridgeRecorder`: packets, messages, status in MCAP);
 - `dispatch.Dispatcher`: each received payload's header read once, routed by (kind, id).
 
 Threads. Everything here runs on the executor's thread except `_on_link_payload`, which
@@ -34,7 +34,7 @@ from uwgen.bridge import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
-from uwgen.bridge.diagnostics import Diagnostics
+from uwgen.bridge.diagnostics import Watching
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
@@ -164,8 +164,6 @@ class BridgeNode(Node):
                                  clock=clock, name=plan.side, **plan.link_options(), **security_kw)
         for key, policy, name, whole in plan.channels():
             self.link.add_channel(key, policy, name, whole=whole)
-        if w.recorder is not None and hasattr(self.link, "observers"):
-            self.link.observers.append(w.recorder.packet)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery
@@ -184,11 +182,7 @@ class BridgeNode(Node):
                 part.register(self.dispatcher)
 
         self.reporter = StatusReporter(w, plan.network, plan.side)
-        self.diagnostics = Diagnostics(w, plan.network, plan.side,
-                                       {key: policy.depth for key, policy, _n, _w in plan.channels()})
-        if self.options.diagnostics_period > 0:
-            self.create_timer(self.options.diagnostics_period, self.publish_diagnostics,
-                              callback_group=main_group)
+        self.watching = Watching(self, w, plan, self.status)   # /diagnostics, the recording
         self.create_timer(EXPIRY_TICK, self._expire, callback_group=main_group)
         self.create_timer(GRAPH_TICK, self._check_graph, callback_group=main_group)
         if self.options.status_period > 0:
@@ -225,11 +219,7 @@ class BridgeNode(Node):
                                  max_read_length=get("max_read_length"), period=get("period"),
                                  status_period=float(get("status_period")),
                                  timeout_reply=get("service_timeout_reply"),
-                                 stats_file=opts.stats_file, key_file=opts.key_file,
-                                 security_state=opts.security_state, record=opts.record,
-                                 record_max_bytes=opts.record_max_bytes,
-                                 record_keep=opts.record_keep,
-                                 diagnostics_period=opts.diagnostics_period)
+                                 **opts.unparameterised())
 
     # -- the parts' state, under the names the node has always had ------------------------
 
@@ -313,16 +303,7 @@ class BridgeNode(Node):
         return self.rmw_discovery.status() if self.rmw_discovery is not None else None
 
     def publish_status(self) -> dict:
-        status = self.reporter.publish(self.status())
-        if self.wiring.recorder is not None:
-            self.wiring.recorder.status(status)
-        return status
-
-    def publish_diagnostics(self) -> Any:
-        status = self.status()
-        if self.wiring.recorder is not None:
-            self.wiring.recorder.status(status)
-        return self.diagnostics.publish(status)
+        return self.watching.record(self.reporter.publish(self.status()))
 
     # -- shutdown --------------------------------------------------------------------------
 
@@ -344,9 +325,7 @@ class BridgeNode(Node):
         status = self.status()
         self.reporter.write(json.dumps(status, sort_keys=True, default=str))
         self.reporter.final_report(status)     # drops and errors not yet in a log line
-        if self.wiring.recorder is not None:
-            self.wiring.recorder.status(status, final=True)
-            self.wiring.recorder.close()
+        self.watching.close(status)
         self.wiring.throttle.flush()
         if self.context.ok():
             self.destroy_node()   # raises only on a bug: let it be seen

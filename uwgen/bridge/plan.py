@@ -53,6 +53,11 @@ class BridgeOptions:
     record_keep: int = 8            # newest recording files kept (0: all)
     diagnostics_period: float = 1.0  # seconds between /diagnostics messages (0: none)
 
+    def unparameterised(self) -> dict:
+        """The options no ROS parameter overrides (the node passes them through as they are)."""
+        return {k: getattr(self, k) for k in ("stats_file", "key_file", "security_state", "record",
+                                              "record_max_bytes", "record_keep", "diagnostics_period")}
+
     def check(self) -> "BridgeOptions":
         if not 0 < self.port < 65536:
             raise PlanError(f"port {self.port} is not a TCP port (1..65535)")
