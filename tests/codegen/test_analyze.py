@@ -137,8 +137,13 @@ services:
     assert "service /enable: its timeout 2 s cannot fit one round trip under mac tdma" in warnings
 
 
+# TIGHT's link at the floor of an unsecured wire format 2 network (uwgen.linkfloor: 24 bytes),
+# still 8 bytes a second: the command line refuses 8, below that floor
+TIGHT_AT_FLOOR = TIGHT.replace("max_read_length: 8, period: 1.0", "max_read_length: 24, period: 3.0")
+
+
 def test_traffic_that_cannot_fit_is_a_clear_warning_and_strict_fails(tmp_path):
-    (tmp_path / "uwgen.yaml").write_text(TIGHT)
+    (tmp_path / "uwgen.yaml").write_text(TIGHT_AT_FLOOR)
     res = run_cli("-m", tmp_path / "uwgen.yaml", "--strict")
     assert res.returncode == 1, res.stderr
     assert "WARNING: side surface: configured traffic needs 310.0 B/s" in res.stdout   # 5/s x 62-byte packets
@@ -146,7 +151,7 @@ def test_traffic_that_cannot_fit_is_a_clear_warning_and_strict_fails(tmp_path):
 
 
 def test_json_output_for_tools(tmp_path):
-    (tmp_path / "uwgen.yaml").write_text(TIGHT)
+    (tmp_path / "uwgen.yaml").write_text(TIGHT_AT_FLOOR)
     res = run_cli("-m", tmp_path / "uwgen.yaml", "--json", "--bitrate", "200")
     data = json.loads(res.stdout)
     assert data["bitrate"] == 200.0
