@@ -55,6 +55,15 @@ class BridgeOptions:
     stats_file: Path | None = None  # also write the status JSON here (periodically and at exit)
     key_file: Path | None = None    # network key (default: the manifest's security key_file)
     security_state: Path | None = None  # the side's lock file (default: next to the key file)
+    record: Path | None = None      # MCAP recording of this side (uwgen.bridge.recorder)
+    record_max_bytes: int = 64 * 1024 * 1024   # a recording file this big is rotated
+    record_keep: int = 8            # newest recording files kept (0: all)
+    diagnostics_period: float = 1.0  # seconds between /diagnostics messages (0: none)
+
+    def unparameterised(self) -> dict:
+        """The options no ROS parameter overrides (the node passes them through as they are)."""
+        return {k: getattr(self, k) for k in ("stats_file", "key_file", "security_state", "record",
+                                              "record_max_bytes", "record_keep", "diagnostics_period")}
 
     def check(self) -> "BridgeOptions":
         if not 0 < self.port < 65536:
@@ -69,6 +78,8 @@ class BridgeOptions:
                             f"{', '.join(TIMEOUT_REPLIES)}")
         if self.status_period < 0:
             raise PlanError("status period must be >= 0")
+        if self.diagnostics_period < 0:
+            raise PlanError("diagnostics period must be >= 0")
         return self
 
 

@@ -32,6 +32,7 @@ MISSION_LINE_AT = 4.0    # s after start: the long log line (> 255 bytes: fragme
 ROTATE_SPEED = 0.6       # rad/s at most while turning to a heading (the action)
 ROTATE_TOLERANCE = 0.02  # rad: a heading this close is reached
 ROTATE_STEP = 0.1        # s between rotation commands (and feedback)
+LISTEN_WAIT = 10.0       # s at most to wait for the bridge's subscriptions before publishing
 
 
 class VehicleSim:
@@ -193,6 +194,13 @@ def main(argv: list[str] | None = None) -> int:
     node.create_service(SetPen, f"{ns}/vehicle/set_pen", on_set_pen)
     ActionServer(node, RotateAbsolute, f"{ns}/turtle1/rotate_absolute", rotate,
                  cancel_callback=lambda goal_handle: CancelResponse.ACCEPT)
+    # Publish once the bridge listens (bounded): what is published before its subscription
+    # matched reaches nobody, and the report's counts would start with a gap.
+    deadline = time.monotonic() + LISTEN_WAIT
+    while (min(p.get_subscription_count() for p in (pose_pub, battery_pub, log_pub)) == 0
+           and time.monotonic() < deadline and not stop.is_set()):
+        rclpy.spin_once(node, timeout_sec=0.05)
+    start = state["last_log"] = time.monotonic()
     node.create_timer(STEP, step)
     node.create_timer(POSE_PERIOD, publish_pose)
     node.create_timer(BATTERY_PERIOD, publish_battery)
