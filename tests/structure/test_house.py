@@ -21,7 +21,6 @@ OVER_LIMIT = {
     "uwgen/runtime/wire/fragment.py",
     "uwgen/runtime/link/scheduler.py",
     "uwgen/emulator/core.py",
-    "uwgen/demo/report.py",
 }
 
 
