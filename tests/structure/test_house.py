@@ -37,7 +37,6 @@ LONG_CLASSES = {
     "uwgen/emulator/server.py:Emulator",
     "uwgen/idl/loader.py:InterfaceLibrary",
     "uwgen/bridge/action_servers.py:ActionServers",
-    "uwgen/bridge/node.py:BridgeNode",
     "uwgen/runtime/delivery/reliability.py:Reliability",
 }
 
