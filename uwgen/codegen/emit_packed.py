@@ -13,8 +13,10 @@ what cannot be written as one expression (floats, strings, loops over arrays).
 """
 from __future__ import annotations
 
-from uwgen.codegen.emit import (F32_MAX, Function, Lowering, field_access, func_name, index_max, not_read,
-                                not_sent, quantize_lines)
+from uwgen.codegen.emit import Lowering
+from uwgen.codegen.emit_common import (
+    F32_MAX, Function, field_access, func_name, index_max, not_read, not_sent, quantize_lines,
+)
 from uwgen.codegen.encodings import (
     Bool, BoolArray, ByteScalar, Enumerated, Filler, MessageArray, Number, NumberArray, Octets,
     Quantized, Text, TextArray, TimeOfDay, TimeSinceEpoch,

@@ -1,7 +1,7 @@
 """The leaf encodings of the codec IR: how one field (a scalar or a whole array) is written.
 
-Each is a frozen dataclass whose `kind` selects its lowering in uwgen.codegen.emit (and
-uwgen.codegen.emit_packed); the ones built from a manifest's field encodings (wire format
+Each is a frozen dataclass whose `kind` selects its lowering in uwgen.codegen.emit and
+emit_decode (and uwgen.codegen.emit_packed); the ones built from a manifest's field encodings (wire format
 section 8) carry everything precomputed. The tree that holds them and the builder are in
 uwgen.codegen.ir.
 """
@@ -25,7 +25,7 @@ STRUCT_CODES = {
 
 # --- leaf encodings ------------------------------------------------------------------
 # Each says how one field (a scalar or a whole array) is written; `kind` selects the
-# lowering in uwgen.codegen.emit.
+# lowering in uwgen.codegen.emit and emit_decode.
 
 @dataclass(frozen=True)
 class Number:

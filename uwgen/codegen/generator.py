@@ -19,7 +19,8 @@ import keyword
 from pathlib import Path
 
 from uwgen.errors import Collector
-from uwgen.codegen.emit import Constants, Lowering, module_alias
+from uwgen.codegen.emit import Lowering
+from uwgen.codegen.emit_common import Constants, module_alias
 from uwgen.codegen.emit_packed import PackedLowering
 from uwgen.codegen.encodings import type_key
 from uwgen.codegen.fingerprint import manifest_fingerprints, package_digest, seal_fingerprints

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from uwgen.codegen.emit import Function, module_alias
+from uwgen.codegen.emit_common import Function, module_alias
 from uwgen.manifest.model import Manifest
 
 
@@ -71,7 +71,7 @@ class CodecEntry:
     enc: str
     dec: str
     variant: str = ""  # '' or the name of a manifest field-encoding variant ('t4', 'q21', 'r21')
-    enc_slots: str = ""  # the encoder that reads rclpy's slots (emit.slots_name), if any
+    enc_slots: str = ""  # the encoder that reads rclpy's slots (emit_common.slots_name), if any
 
 
 @dataclass

@@ -4,7 +4,7 @@ constants as class attributes; what decoders build when rclpy is not wanted.
 """
 from __future__ import annotations
 
-from uwgen.codegen.emit import module_alias
+from uwgen.codegen.emit_common import module_alias
 from uwgen.codegen.package_plan import ModulePlan, PlainClass, PlainField
 from uwgen.idl.model import OCTET_TYPES, ArrayKind, Field, MessageDef
 

@@ -28,7 +28,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from uwgen.analyze import DEFAULT_BITRATE, analyze, format_analysis, to_json
+    from uwgen.analyze import DEFAULT_BITRATE, analyze
+    from uwgen.analyze_report import format_analysis, to_json
     from uwgen.idl.loader import InterfaceLibrary
     from uwgen.linkfloor import check_read_lengths
     from uwgen.manifest.loader import load_manifest

@@ -31,7 +31,8 @@ log = logging.getLogger("uwgen.emulator")
 
 COUNTER_COLUMNS = ("bytes_in", "packets_queued", "packets_sent", "packets_delivered",
                    "lost_per", "lost_snr", "lost_collision", "lost_no_client",
-                   "queue_bytes", "max_queue_bytes", "dropped_restart", "clients")
+                   "queue_bytes", "max_queue_bytes", "dropped_restart", "clients",
+                   "max_mac_queue", "dropped_queue_full")
 
 
 # More nodes than any acoustic network has: the emulator runs one socket server per node.

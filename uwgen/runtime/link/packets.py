@@ -7,7 +7,7 @@ packet), and tells the hooks which messages went in which packet number. `Unpack
 opens one received frame's envelope and returns its messages as wire format 1 payloads, for the
 link's fragment, security and dispatch layers, which are unchanged.
 
-The seams of issues 16 and 17 (docs/seams.md section 5) are the `PacketHooks`:
+The seams of reliability and the seal (docs/seams.md section 5) are the `PacketHooks`:
 
 - `parts(now)` -> dict of extra `Envelope` fields (`time`, `ack`, `control`, `sync`) for the
   packet being built; `overhead` is the most bytes they and the seal add to a packet;
@@ -23,7 +23,7 @@ The seams of issues 16 and 17 (docs/seams.md section 5) are the `PacketHooks`:
   sender's full packet number (not reduced mod 4096);
 - `received(envelope, now)` for every envelope accepted, before its messages are delivered.
 
-Reliability (issue 16) also uses (docs/seams.md section 5, "Session 5"):
+Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"):
 
 - `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`;
 - `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
@@ -58,7 +58,8 @@ PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "message
 
 @dataclass
 class PacketHooks:
-    """What reliability (issue 16) and the per-packet seal (issue 17) plug into; all optional."""
+    """What reliability (wire-format.md section 15) and the per-packet seal (section 12.2) plug
+    into; all optional."""
 
     parts: Callable[[float], dict] | None = None
     seal: Callable[[env.Envelope], bytes] | None = None
@@ -81,7 +82,8 @@ class PacketHooks:
 def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     """One `PacketHooks` from several (reliability's and the seal's, docs/seams.md section 5).
 
-    `parts` are merged in order. T (`time`) may come from both (each stamps its own wall clock
+    `parts` are merged in order; C (`control`) items of several hooks are joined (the seal's
+    sync request, the MAC's grants and ends). T (`time`) may come from both (each stamps its own wall clock
     as the packet is built, so they may differ by a tick): the first one given is kept. Any other
     part two hooks give must have the same value, otherwise building the packet fails with
     EnvelopeError.
@@ -106,6 +108,9 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
         for make in makers:
             for name, value in make(now).items():
                 if name == "time" and name in out:
+                    continue
+                if name == "control" and name in out:
+                    out[name] = out[name] + value     # C items of the seal and of the MAC
                     continue
                 if name in out and out[name] != value:
                     raise env.EnvelopeError(f"two hooks give the envelope's {name} part "
