@@ -130,3 +130,11 @@ def test_rmw_config_export_replaces_a_file_with_other_content_only_with_force(ca
     assert rc == 0 and "/mine" not in target.read_text(), said
     rc, said = cli(capsys, "rmw-config", "export", "-m", manifest, "-o", target, SAMPLES)
     assert rc == 0 and "is up to date" in said, said         # the same table again: no --force needed
+
+
+@pytest.mark.parametrize("command", ["analyze", "build"])
+def test_an_interface_folder_with_a_name_too_long_is_a_located_error(capsys, tmp_path, command):
+    folder = tmp_path / ("d" * 5000)
+    argv = [command, folder, *(["-o", tmp_path / "out"] if command == "build" else ["-m", SAMPLES])]
+    rc, out = cli(capsys, *argv)
+    assert rc == 2 and "interface folder cannot be looked at: File name too long" in out, out[-500:]
