@@ -94,7 +94,8 @@ def test_demo_out_and_key_file_are_taken_from_the_callers_folder(tmp_path, monke
 
 
 def test_ros_interfaces_of_a_missing_or_empty_folder_exits_2(capsys, tmp_path):
-    for folder, says in ((tmp_path / "nosuch_dir", "no such folder"), (tmp_path, "no interface package here")):
+    for folder, says in ((tmp_path / "nosuch_dir", "no such folder"), (tmp_path, "no interface package here"),
+                         (tmp_path / ("d" * 5000), "cannot be looked at: File name too long")):
         rc, out = cli(capsys, "ros-interfaces", folder)
         assert rc == 2 and says in out, out
 
