@@ -139,3 +139,9 @@ def test_an_interface_folder_with_a_name_too_long_is_a_located_error(capsys, tmp
     argv = [command, folder, *(["-o", tmp_path / "out"] if command == "build" else ["-m", SAMPLES])]
     rc, out = cli(capsys, *argv)
     assert rc == 2 and "interface folder cannot be looked at: File name too long" in out, out[-500:]
+
+
+def test_a_bridge_package_dir_with_a_name_too_long_is_a_usage_error(capsys, tmp_path):
+    rc, out = cli(capsys, "bridge", "-m", SAMPLES / "uwgen.yaml", "--side", "vehicle",
+                  "--package-dir", tmp_path / ("p" * 5000))
+    assert rc == 2 and "not found in" in out and "(a name of 50" in out and len(out) < 1000, out[-500:]
