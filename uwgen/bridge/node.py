@@ -8,6 +8,8 @@ The node only wires parts to rclpy and the link; each part reads on its own:
   `action_servers.ActionServers`: bridged actions, both sides;
 - `discovery.RmwDiscovery`: rmw_desert beacons, when an entry is in profile rmw_desert;
 - `status.StatusReporter`: ~/status, the stats file, drop log lines;
+- `diagnostics.Watching`: /diagnostics (OK/WARN/ERROR per bridge and entry) and, with
+  --record, the recording (`recorder.BridgeRecorder`: packets, messages, status in MCAP);
 - `dispatch.Dispatcher`: each received payload's header read once, routed by (kind, id).
 
 Threads. Everything here runs on the executor's thread except `_on_link_payload`, which
@@ -32,10 +34,12 @@ from uwgen.bridge import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
+from uwgen.bridge.diagnostics import Watching
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
+from uwgen.bridge.recorder import recorder_for
 from uwgen.bridge.reliability import link_ledger, reliability_for
 from uwgen.bridge.security import guard_for, link_security
 from uwgen.bridge.services import Servers, StandIns, service_status
@@ -122,6 +126,7 @@ class BridgeNode(Node):
                                  round_trip=mac_round_trip(plan, link_cfg),
                                  turn_gap=self.mac.turn_gap())
         self._log = w.log
+        w.recorder = recorder_for(plan, self.options, w.wall)   # None without --record
         self.counters = BridgeCounters()
         self.unavailable = w.unavailable                 # entry name -> why it is not bridged
         self.service_counters: dict = {}
@@ -134,6 +139,8 @@ class BridgeNode(Node):
         self.action_servers = ActionServers(w, plan.served_actions, self.action_counters)
         names = plan.entry_names()
         if names and all(name in self.unavailable for name in names):
+            if w.recorder is not None:
+                w.recorder.close()
             raise PlanError(f"nothing to bridge on side {plan.side}: rclpy has no type support "
                             f"here for any of its entries ({', '.join(names)})")
 
@@ -173,8 +180,11 @@ class BridgeNode(Node):
                      self.action_servers, self.rmw_discovery, self.schema):
             if part is not None:
                 part.register(self.dispatcher)
+        for entry in plan.overheard:
+            self.dispatcher.overhears(entry.id)
 
         self.reporter = StatusReporter(w, plan.network, plan.side)
+        self.watching = Watching(self, w, plan, self.status)   # /diagnostics, the recording
         self.create_timer(EXPIRY_TICK, self._expire, callback_group=main_group)
         self.create_timer(GRAPH_TICK, self._check_graph, callback_group=main_group)
         if self.options.status_period > 0:
@@ -211,8 +221,7 @@ class BridgeNode(Node):
                                  max_read_length=get("max_read_length"), period=get("period"),
                                  status_period=float(get("status_period")),
                                  timeout_reply=get("service_timeout_reply"),
-                                 stats_file=opts.stats_file, key_file=opts.key_file,
-                                 security_state=opts.security_state)
+                                 **opts.unparameterised())
 
     # -- the parts' state, under the names the node has always had ------------------------
 
@@ -296,7 +305,7 @@ class BridgeNode(Node):
         return self.rmw_discovery.status() if self.rmw_discovery is not None else None
 
     def publish_status(self) -> dict:
-        return self.reporter.publish(self.status())
+        return self.watching.record(self.reporter.publish(self.status()))
 
     # -- shutdown --------------------------------------------------------------------------
 
@@ -318,6 +327,7 @@ class BridgeNode(Node):
         status = self.status()
         self.reporter.write(json.dumps(status, sort_keys=True, default=str))
         self.reporter.final_report(status)     # drops and errors not yet in a log line
+        self.watching.close(status)
         self.wiring.throttle.flush()
         if self.context.ok():
             self.destroy_node()   # raises only on a bug: let it be seen
