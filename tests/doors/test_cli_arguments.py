@@ -3,6 +3,7 @@ never a traceback (OverflowError from 1e400 or a 400-digit number), never a run 
 not end (`uwgen emulate --nodes 100000000` built a hundred million nodes)."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -145,3 +146,20 @@ def test_a_bridge_package_dir_with_a_name_too_long_is_a_usage_error(capsys, tmp_
     rc, out = cli(capsys, "bridge", "-m", SAMPLES / "uwgen.yaml", "--side", "vehicle",
                   "--package-dir", tmp_path / ("p" * 5000))
     assert rc == 2 and "not found in" in out and "(a name of 50" in out and len(out) < 1000, out[-500:]
+
+
+LOG = """
+import sys
+from uwgen.cli import main
+for name in sys.argv[1:]:
+    print(main(["log", name]), flush=True)
+"""
+
+
+def test_log_refuses_a_device_or_a_fifo_as_a_recording_at_once(tmp_path):
+    # Before: `uwgen log /dev/zero` or a FIFO never ended.
+    from .helpers import bounded
+    os.mkfifo(tmp_path / "run.mcap")
+    res = bounded(LOG, seconds=60, argv=["/dev/zero", str(tmp_path / "run.mcap")])
+    assert res.stdout.split() == ["2", "2"], res.stdout + res.stderr[-2000:]
+    assert "/dev/zero is a character device" in res.stderr and "run.mcap is a FIFO" in res.stderr
