@@ -213,7 +213,7 @@ class Packer:
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         sources = [] if h.resend is None else [lambda room: h.resend(now, room)]
         sources.append(lambda room: self.scheduler.next_payload(now, room if picked else None,
-                                                                fill=True))
+                                                                fill=True, packet=self.number))
         for source in sources:
             while budget > 1:
                 got = source(budget)
