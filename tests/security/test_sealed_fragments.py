@@ -27,7 +27,7 @@ class Queue:
     def __init__(self, items):
         self.items = list(items)
 
-    def next_payload(self, now, budget=None, exclude=None, *, fill=False, packet=None):
+    def next_payload(self, now, budget=None, exclude=None, *, fill=False, **_):
         if not self.items or (budget is not None and env.v1_message_size(self.items[0][1]) > budget):
             return None
         return self.items.pop(0)

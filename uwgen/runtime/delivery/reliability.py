@@ -95,11 +95,24 @@ class Reliability:
 
     def hooks(self) -> PacketHooks:
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
-                           overhead=OVERHEAD, carrying=self.carrying, resend=self.resend,
+                           overhead=OVERHEAD, next_overhead=self.next_overhead,
+                           part_room=self.part_room, carrying=self.carrying, resend=self.resend,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
                            head_room=self.head_room, admit=self.admit, stats=self.stats)
 
     # -- sending ------------------------------------------------------------------------
+
+    def next_overhead(self, now: float) -> int:
+        """Room the next packet keeps for an A part: one report's (acks.A_ROOM) when one is
+        due, else none (docs/seams.md section 9: nothing is reserved by constant). T is
+        counted per message instead (`part_room`)."""
+        with self._lock:
+            return A_ROOM if self.acks.due(self._epochs, now) else 0
+
+    def part_room(self, key: int) -> int:
+        """Bytes a message of channel `key` brings into its packet's parts: T (3) for an
+        entry with a max age, once a packet."""
+        return env.TIME_LEN if wire_id(key) in self.max_ages else 0
 
     def head_room(self, key: int) -> int:
         return self.heads.room(wire_id(key))

@@ -37,6 +37,12 @@ Reliability (issue 16) also uses (docs/seams.md section 5, "Session 5"):
 - `admit(payload, now)` -> the payload without its head, or None (a duplicate, a stale
   command: counted by the hook), for every whole payload received;
 - `stats()` -> a JSON-able dict the link reports (e.g. the per-entry ledger).
+
+Heads sized per packet (docs/seams.md section 9): `next_overhead(now)` is what the hooks add
+to *this* packet whatever it carries (an A part when an ack is due, the seal's tag and sync),
+and `part_room(key)` what a message of channel `key` brings into its packet's parts the first
+time one is picked (T, for an entry with a max age): the packer charges it once a packet,
+so nothing is reserved by constant.
 """
 from __future__ import annotations
 
@@ -74,6 +80,7 @@ class PacketHooks:
     next_time: Callable[[float], float | None] | None = None
     stamp: Callable[[int, bytes, float, float], bytes] | None = None
     head_room: Callable[[int], int] | None = None
+    part_room: Callable[[int], int] | None = None
     admit: Callable[[bytes, float], bytes | None] | None = None
     stats: Callable[[], dict] | None = None
 
@@ -91,7 +98,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     `next_overhead` the sum of each hook's (its `overhead` when it gives none). Likewise at most
     one hook may give the message heads (`stamp`, `head_room`, `admit`) and at most one
     `resend`; `ack_only` is any hook's, `next_time` the earliest, `stats` the union of the
-    hooks' dicts."""
+    hooks' dicts, `part_room` the sum."""
     given = [h for h in hooks if h is not None]
     sealers = [h for h in given if h.seal is not None or h.open is not None or h.number is not None]
     if len(sealers) > 1:
@@ -131,6 +138,10 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     askers = [h.ack_only for h in given if h.ack_only is not None]
     timers = [h.next_time for h in given if h.next_time is not None]
     reporters = [h.stats for h in given if h.stats is not None]
+    roomers = [h.part_room for h in given if h.part_room is not None]
+
+    def part_room(key: int) -> int:
+        return sum(room(key) for room in roomers)
 
     def carrying(picked: list[tuple[int, bytes]], now: float) -> None:
         for tell in carriers:
@@ -159,6 +170,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
                        ack_only=ack_only if askers else None,
                        next_time=next_time if timers else None,
                        stamp=header.stamp, head_room=header.head_room, admit=header.admit,
+                       part_room=part_room if roomers else None,
                        stats=stats if reporters else None)
 
 
@@ -208,12 +220,23 @@ class Packer:
         messages: list[env.Message] = []
         h = self.hooks
         budget = self.room
+        charged = 0               # bytes of parts the picked messages bring (part_room)
         if h.next_overhead is not None:
             budget = envelope_room(self.max_read_length, min(h.next_overhead(now), h.overhead))
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
-        sources = [] if h.resend is None else [lambda room: h.resend(now, room)]
-        sources.append(lambda room: self.scheduler.next_payload(now, room if picked else None,
-                                                                fill=True, packet=self.number))
+        # A message that brings a part (T) fits only with that part: the scheduler counts
+        # `extra(key)` into each channel's next size; a re-sent one is offered the room less
+        # the most a part may add.
+        roomy = h.part_room
+
+        def extra(key: int) -> int:
+            return max(0, roomy(key) - charged) if roomy is not None else 0
+
+        sources = [] if h.resend is None else [
+            lambda room: h.resend(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0))]
+        sources.append(lambda room: self.scheduler.next_payload(
+            now, room if picked else None, fill=True, packet=self.number,
+            extra=extra if roomy is not None else None))
         for source in sources:
             while budget > 1:
                 got = source(budget)
@@ -229,6 +252,11 @@ class Packer:
                     continue
                 picked.append((key, payload))
                 budget -= messages[-1].size(last=False)
+                if h.part_room is not None:
+                    more = h.part_room(key) - charged
+                    if more > 0:        # a part this message brings (T): charged once a packet
+                        budget -= more
+                        charged += more
         if not messages:
             if h.ack_only is None or not h.ack_only(now):
                 return None
