@@ -33,8 +33,8 @@ def test_one_packet_carries_several_messages_in_one_envelope():
         sim.sender.offer(4, p)
     sim.run(1.0)
     assert [p for _, p in sim.received] == sent
-    # messages of 12 bytes (H, 11 of body), 13 with a length: 4 fit (frame 4, P W 3, 3 x 13 + 12)
-    assert len(sim.packets) == 2 and [len(d.data) for d in sim.packets] == [58, 58]
+    # bodies of 11 bytes of one id: a run (H 62, H' 04, n) of 4 fits (frame 4, P W 3, 3 + 4 x 11)
+    assert len(sim.packets) == 2 and [len(d.data) for d in sim.packets] == [54, 54]
     envs = envelopes(sim)
     assert [e.number for e in envs] == [0, 1] and {e.sender for e in envs} == {3}
     assert [len(e.messages) for e in envs] == [4, 4]
@@ -47,7 +47,7 @@ def test_packed_ids_travel_without_their_byte_string_head():
     sim.run(0.5)
     assert [p for _, p in sim.received] == [bytes.fromhex("00 05 42 7D 23")]
     # frame: 99 99 LEN, P, W, then H = 05 and the two bytes of fields: 3 bytes of message
-    assert sim.packets[0].data == bytes.fromhex("99 99 06 40 00 00 05 7D 23 55")
+    assert sim.packets[0].data == bytes.fromhex("99 99 06 60 00 00 05 7D 23 55")
 
 
 def test_a_payload_of_a_packed_id_that_is_not_packed_is_refused_and_counted(caplog):
@@ -89,14 +89,26 @@ def test_a_v1_peer_is_refused_counted_and_logged_once(caplog):
     assert caplog.text.count("wire format 1") == 1
 
 
+def test_a_wire_format_2_peer_is_counted_and_logged_once(caplog):
+    sim = LinkSim(scenario(), "a", "b", wire_format=2)
+    got = []
+    sim.receiver._on_payload = got.append
+    conn = sim.receiver.connection
+    with caplog.at_level(logging.ERROR, logger="uwgen.link"):
+        for _ in range(3):
+            conn._deliver(conn.decoder.feed(encode_frame(bytes.fromhex("40 10 05 04 7D 23"))))
+    assert got == [] and sim.receiver.stats()["packets"]["version_2"] == 3
+    assert caplog.text.count("wire format 2") == 1
+
+
 def test_garbage_envelopes_are_counted_not_delivered():
     sim = LinkSim(scenario(), "a", "b", wire_format=2)
     got = []
     sim.receiver._on_payload = got.append
     conn = sim.receiver.connection
-    conn._deliver(conn.decoder.feed(encode_frame(bytes.fromhex("40 00 00 84 09 01"))
-                                    + encode_frame(bytes.fromhex("40 00 00 60 07 04 01"))
-                                    + encode_frame(bytes.fromhex("40 00 01 07 F5"))))
+    conn._deliver(conn.decoder.feed(encode_frame(bytes.fromhex("60 00 00 84 09 01"))
+                                    + encode_frame(bytes.fromhex("60 00 00 60 07 04 01"))
+                                    + encode_frame(bytes.fromhex("60 00 01 07 F5"))))
     assert got == [bytes.fromhex("00 07 F5")]
     stats = sim.receiver.stats()["packets"]
     assert stats["bad_envelopes"] == 1 and stats["unknown_kind"] == 1

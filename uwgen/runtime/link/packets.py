@@ -58,7 +58,7 @@ from uwgen.runtime.stats import Counters, log_count
 log = logging.getLogger("uwgen.link.packets")
 
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
-                   "bad_envelopes", "version_1", "unknown_kind", "refused_payloads", "opened_none",
+                   "bad_envelopes", "version_1", "version_2", "unknown_kind", "refused_payloads", "opened_none",
                    "ack_only_sent")
 
 
@@ -219,10 +219,11 @@ class Packer:
         picked: list[tuple[int, bytes]] = []
         messages: list[env.Message] = []
         h = self.hooks
-        budget = self.room
+        room = self.room
         charged = 0               # bytes of parts the picked messages bring (part_room)
         if h.next_overhead is not None:
-            budget = envelope_room(self.max_read_length, min(h.next_overhead(now), h.overhead))
+            room = envelope_room(self.max_read_length, min(h.next_overhead(now), h.overhead))
+        budget = room
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         # A message that brings a part (T) fits only with that part: the scheduler counts
         # `extra(key)` into each channel's next size; a re-sent one is offered the room less
@@ -251,12 +252,13 @@ class Packer:
                               self.name, key, e)
                     continue
                 picked.append((key, payload))
-                budget -= messages[-1].size(last=False)
                 if h.part_room is not None:
                     more = h.part_room(key) - charged
                     if more > 0:        # a part this message brings (T): charged once a packet
-                        budget -= more
                         charged += more
+                # what the messages take as encoded (a message joining a run costs its body
+                # alone), counted as `message_measure` counts: each with a length byte
+                budget = room - charged - len(env.encode_messages(messages)) - 1
         if not messages:
             if h.ack_only is None or not h.ack_only(now):
                 return None
@@ -264,7 +266,7 @@ class Packer:
             h.carrying(picked, now)
         number = h.number() if h.number is not None else self.number
         try:
-            envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, tuple(messages),
+            envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, env.ordered(messages),
                                     **(h.parts(now) if h.parts is not None else {}))
             data = h.seal(envelope) if h.seal is not None else envelope.encode()
         except env.EnvelopeError as e:
@@ -321,6 +323,12 @@ class Unpacker:
         return out
 
     def _bad(self, data: bytes, e: env.EnvelopeError) -> list[bytes]:
+        if e.version == 2:
+            if self.counters.inc("version_2") == 1:
+                log.error("[%s] the far side speaks wire format 2 (P %02X): its packets are "
+                          "refused. Rebuild it with this uwgen (wire format %d); further ones "
+                          "are only counted (version_2)", self.name, data[0], env.VERSION)
+            return []
         if e.version == 0:
             if self.counters.inc("version_1") == 1:
                 log.error("[%s] the far side speaks wire format 1 (its first byte %02X is a "
