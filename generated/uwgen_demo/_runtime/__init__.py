@@ -14,7 +14,7 @@ import sys as _sys
 CARRIED = {
     'codec': ('uwgen.runtime.wire.codec', '2b379ef85d3cfa87'),
     'model': ('uwgen.manifest.model', '0aad324aba99e273'),
-    'framing': ('uwgen.runtime.wire.framing', '2a5b2328562b0dbf'),
+    'framing': ('uwgen.runtime.wire.framing', '4e590fa24efcefa2'),
     'bits': ('uwgen.runtime.wire.bits', '39059f7b8ccf3421'),
     'rosclasses': ('uwgen.runtime.wire.rosclasses', '2ec3c0481f7093c3'),
     'table': ('uwgen.runtime.wire.table', '2e0175bf53618b4a'),

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from uwgen.runtime.wire import envelope as env
-from uwgen.runtime.wire.framing import MAX_FRAME, OVERHEAD
+from uwgen.runtime.wire.framing import MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.packets")
@@ -183,9 +183,24 @@ def _one(hooks: list[PacketHooks], names: tuple[str, ...], what: str) -> PacketH
 
 
 def envelope_room(max_read_length: int, overhead: int = 0) -> int:
-    """Bytes of messages one packet holds: the frame's payload minus P, W and `overhead`, plus
-    one (the last message has no length byte, and `message_measure` counts one per message)."""
-    return min(max_read_length, MAX_FRAME) - OVERHEAD - env.HEAD - overhead + 1
+    """Bytes of messages one packet holds: the short frame's payload (wire format 3) minus P, W
+    and `overhead`, plus one (the last message has no length byte, and `message_measure`
+    counts one per message)."""
+    return (min(max_read_length, MAX_PAYLOAD + SHORT_OVERHEAD) - SHORT_OVERHEAD - env.HEAD
+            - overhead + 1)
+
+
+def envelope_check(payload: bytes) -> bool:
+    """Whether `payload` decodes as an envelope (a sealed one with any tag length a link may
+    have): what the short frame's decoder asks of a start before it takes it."""
+    for tag_len in env.TAG_LENGTHS:
+        try:
+            env.decode(payload, tag_len)
+            return True
+        except env.EnvelopeError:
+            if not payload[0] & env.FLAG_S:
+                return False
+    return False
 
 
 def message_measure(payload: bytes) -> int:
