@@ -77,7 +77,7 @@ def samples() -> dict[str, object]:
     }
 
 
-# The types of issue 19's goal, in its order: the geometric mean is taken over these.
+# The realistic message types this benchmark times, in order: the geometric mean is taken over these.
 TABLE = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/PoseStamped", "sensor_msgs/msg/NavSatFix",
          "sensor_msgs/msg/Imu", "sensor_msgs/msg/BatteryState", "sensor_msgs/msg/LaserScan",
          "nav_msgs/msg/Odometry", "std_msgs/msg/String")

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Commands benchmark (issue 16): service calls and action goals over the emulated acoustic
+"""Commands benchmark (wire-format.md sections 5, 13, 15): service calls and action goals over the emulated acoustic
 link at several packet error rates (plus the emulator's collisions), with two-way topic
-traffic as in the demo, against the same workload without issue 16's retries, same run.
+traffic as in the demo, against the same workload without the commands' retries, same run.
 
     .venv/bin/python benchmarks/commands_bench.py [--per 0,0.1,0.2,0.3] [--calls 12]
                                                   [--goals 6] [--seed 3]
@@ -12,7 +12,7 @@ real server (a request or goal run more than once), and the air time spent on re
 acknowledgements (copies of requests, goals, results and answers; result acknowledgements
 and requests; 4 bytes of framing each) as a share of all bytes the two sides wrote.
 
-Modes: `retries` is this build; `reference` is the same build with issue 16's retries off
+Modes: `retries` is this build; `reference` is the same build with the commands' retries off
 (no request copies, no result copies, no result acknowledgements or requests; goals are
 still sent again while unanswered, as wire format 1 always did).
 

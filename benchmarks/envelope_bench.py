@@ -13,7 +13,7 @@ Table 1, the demo's mix, secured as the demo is (docs/demo.md): cmd_vel publishe
 rate 0.2), 8 log lines every 20 s (not protected), an encrypted teleport request every 30 s, and
 each side's schema announcement (signed) at start; real messages through the demo package's
 codecs. Air bytes per delivered message, both directions; goal: wire format 2 <= half of 1.
-Wire format 2 is sealed as a bridge seals it: one tag per packet (PacketSeal, issue 17) when
+Wire format 2 is sealed as a bridge seals it: one tag per packet (PacketSeal, wire-format.md 12.2) when
 that is on the branch, else per message; with the default 8-byte tag, and again with the
 6- and 4-byte tags the manifest's `security: {tag_bytes}` offers (docs/security.md weighs them). Then what those bytes carry, per delivered message:
 DESERT's 4 bytes per packet, frames, packet heads (P, W, parts but the tag), message heads (kind
@@ -54,7 +54,7 @@ except ImportError:     # a baseline build (--baseline): the long frame only
 from uwgen.runtime.link.link import Link
 from uwgen.security.guard import GuardConfig, LinkGuard
 
-try:            # the per-packet seal (issue 17): what a bridge uses on wire format 2 links
+try:            # the per-packet seal (wire-format 12.2): what a bridge uses on wire format 2 links
     from uwgen.security.packet_seal import PacketSeal
 except ImportError:     # not on this branch yet: wire format 2 is sealed per message
     PacketSeal = None

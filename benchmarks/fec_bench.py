@@ -8,11 +8,11 @@ always waiting (the case where cut-and-fill cuts frames across packets):
 
 - "1-frame": 40-byte payloads (44-byte frames; they fit a packet, so repair does not apply);
 - "4-frag": 180-byte payloads: 4 data fragments of at most 51 bytes (48 with repair), or,
-  before issue 10, one 184-byte frame over 3 packets (payloads under 256 bytes were not
-  fragmented then).
+  without packet alignment, one 184-byte frame over 3 packets (payloads under 256 bytes not
+  fragmented).
 
-Configurations: "before" = cut-and-fill writes, no repair, no fragments under 256 bytes (the
-code before issue 10); "aligned" = packet-aligned writes, fragments, no repair; "repair 2" =
+Configurations: "before" = cut-and-fill writes, no repair, no fragments under 256 bytes (no
+packet alignment, wire-format.md section 11); "aligned" = packet-aligned writes, fragments, no repair; "repair 2" =
 aligned + 2 repair fragments per message. Reference columns: (1-p)^4 (four fragments, no repair) and P(>= 4 of 6 arrive).
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Secure link benchmark: bytes per frame and encode+decode time with security off, sign and
-encrypt, for the benchmark messages, against `off` measured in the same run, and against the
-design of issue 9 that this one replaced (same run, same disk).
+encrypt, for the benchmark messages, against `off` measured in the same run, and against a
+seal that keeps its counters in a state file (same run, same disk).
 
     .venv/bin/python benchmarks/security_bench.py [--quick]
 
@@ -9,15 +9,15 @@ A round trip is: generated codec encode, LinkGuard.protect (sign/encrypt), frame
 LinkGuard.unprotect and codec decode into rclpy instances, between two guards of one network.
 The guards keep nothing on disk (a fresh epoch per start), so `us` is all crypto and codec.
 
-`before` is issue 9's design: the same AES-CCM per frame, plus a state file written (temporary
+`before` is a seal with a state file: the same AES-CCM per frame, plus a state file written (temporary
 file, fsync, rename, fsync of the folder) once per 256 frames sent and once per 16 accepted;
-that write is timed here with the same write path, and its share per frame added. Bytes: issue
-9's sync word was 4 bytes on 1 frame in 32, this one is 13 bytes (number bits, epoch, time) on 1
+that write is timed here with the same write path, and its share per frame added. Bytes: that
+seal's sync word was 4 bytes on 1 frame in 32, this one is 13 bytes (number bits, epoch, time) on 1
 frame in 64 (and the first 3 of each epoch, and one after 30 s without any); `avg B` spreads
 the sync words over all frames of a sender that sends at least one frame every 30 s.
 
 The second table is wire format 2 (links of profiles native and packed): packets of 1 to 4
-protected messages, sealed per message (each payload by LinkGuard, as before session 5) and per
+protected messages, sealed per message (each payload by LinkGuard, wire format 1's seal) and per
 packet (one tag, PacketSeal), both through the link's packer and unpacker, measured in the same
 run (interleaved). Bytes are averaged over a long run of packets sealed by fresh sides, sync
 packets included (the first 3 of an epoch, then 1 in 64); `us` is seal + open of one packet
@@ -43,7 +43,7 @@ from uwgen.security.files import write_private  # noqa: E402
 from uwgen.security.guard import SYNC_EVERY, GuardConfig, LinkGuard  # noqa: E402
 from uwgen.security.packet_seal import PacketSeal  # noqa: E402
 
-BEFORE_SYNC_BYTES, BEFORE_SYNC_EVERY = 4, 32     # issue 9's sync word
+BEFORE_SYNC_BYTES, BEFORE_SYNC_EVERY = 4, 32     # the state-file seal's sync word
 BEFORE_SEND_BLOCK, BEFORE_RECV_BLOCK = 256, 16   # its state-file writes: per frames sent, accepted
 
 MESSAGES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/Pose", "sensor_msgs/msg/NavSatFix",
@@ -138,7 +138,7 @@ class Queue:
 
 
 def per_message_pair(mode: str):
-    """A sending and a receiving side sealing each message (wire format 2 before session 5)."""
+    """A sending and a receiving side sealing each message (wire format 1's per-payload seal on wire format 2 packets)."""
     tx, rx = guards(mode)
     queue = Queue([], tx.protect)
     packer = Packer(queue, sender=1, max_read_length=255, counters=Counters(PACKET_COUNTERS))

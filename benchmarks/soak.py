@@ -9,7 +9,7 @@ framing's 0x99 / 0x55 bytes, records the process's resident set (RSS) from the s
 through the whole run, then drains and checks: every counter adds up, nothing delivered
 twice, out of order or with wrong content (no false frame allowed), and per flow the ledger
 closes (sent = delivered + lost; the receiver never counts more lost than did not arrive;
-the sending link's own ledger, once it reports one, says exactly that: issue 16). Prints the
+the sending link's own ledger, once it reports one, says exactly that: wire-format.md section 15.7). Prints the
 figures, the ledger, the RSS samples and the simulated hours per wall second; exits 1 if a
 check fails or RSS grew by more than GROWTH_LIMIT over the run (warm-up included). The test
 suite runs a short version (tests/emulator/test_soak.py); UWGEN_SOAK_HOURS=24 runs the long

@@ -4,228 +4,27 @@ For every topic and service part, the bits (packed) and bytes (native) of each f
 the smallest, typical and largest payload in each profile, the air time of a message,
 and per sending side a link budget: rates times message sizes against the link's
 `max_read_length / period`. Everything is computed from the codec IR, the same one the
-generator lowers, so the numbers follow the wire format (sections 4, 8, 9).
-
-"Typical" is a stated convention, not a measurement: indices at the middle of their grid,
-float32 values that need single precision and float64 values that need double, strings of
-8 bytes (or their bound), sequences of 4 elements (or their bound). "Worst" takes every field at its
-largest; it is None (unbounded) when a string or sequence has no bound.
+generator lowers, so the numbers follow the wire format (sections 4, 8, 9). The sizes of
+single fields, and what "typical" and "worst" mean, are uwgen.analyze_sizes; control
+traffic is uwgen.analyze_control; the text and JSON forms are uwgen.analyze_report.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
-from uwgen.codegen.ir import (
-    Absent, Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, IRBuilder, MessageArray, Number,
-    NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch, variant_name,
-)
-from uwgen.idl.model import ArrayKind
-from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest
-from uwgen.runtime.wire.bits import text_width
-from uwgen.analyze_control import SideControl, control_costs, format_control, whole_payload
+from uwgen.analyze_control import DESERT_PACKET_OVERHEAD, SideControl, control_costs, whole_payload
+from uwgen.analyze_sizes import Size, Sizer, describe
+from uwgen.codegen.encodings import Filler
 from uwgen.codegen.fingerprint import wire_format_of
+from uwgen.codegen.ir import IRBuilder, variant_name
+from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest
 from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
-from uwgen.security.packet_seal import SYNC_BYTES, max_overhead
+from uwgen.security.packet_seal import max_overhead
 
-TYPICAL_TEXT = 8            # bytes of a typical string
-TYPICAL_COUNT = 4           # elements of a typical sequence
-DESERT_PACKET_OVERHEAD = 4  # bytes DESERT adds per packet (UDP and IP headers; wire format section 1)
 PACKET_ALONE = FRAME_OVERHEAD + ENVELOPE_HEAD   # wire format 2: frame, P and W around one message
 DEFAULT_BITRATE = 4800.0    # bit/s of DESERT's default modem settings used by the emulator
-
-
-@dataclass(frozen=True)
-class Size:
-    """Smallest, typical and largest size of something (largest None: unbounded)."""
-    min: int
-    typical: int
-    max: int | None
-
-    def __add__(self, other: "Size") -> "Size":
-        top = None if self.max is None or other.max is None else self.max + other.max
-        return Size(self.min + other.min, self.typical + other.typical, top)
-
-    def times(self, lo: int, typ: int, hi: int | None) -> "Size":
-        top = None if hi is None or self.max is None else self.max * hi
-        return Size(self.min * lo, self.typical * typ, top)
-
-
-ZERO = Size(0, 0, 0)
-
-
-def cbor_uint(n: int) -> int:
-    """Bytes of CBOR's shortest unsigned integer n."""
-    return 1 if n < 24 else 2 if n < 0x100 else 3 if n < 0x10000 else 5 if n < 0x100000000 else 9
-
-
-def _smaller(a: Size, b: Size) -> Size:
-    """The size of whichever of two forms the encoder picks, the smaller each time."""
-    top = b.max if a.max is None else a.max if b.max is None else min(a.max, b.max)
-    return Size(min(a.min, b.min), min(a.typical, b.typical), top)
-
-
-def _counts(array: ArrayKind, size: int | None) -> tuple[int, int, int | None]:
-    if array is ArrayKind.FIXED:
-        return size, size, size
-    if array is ArrayKind.BOUNDED:
-        return 0, min(size, TYPICAL_COUNT), size
-    return 0, TYPICAL_COUNT, None
-
-
-def _index_max(enc) -> int:
-    if isinstance(enc, Enumerated):
-        return len(enc.values) - 1
-    if isinstance(enc, TimeOfDay):
-        return enc.count - 1
-    return enc.nmax
-
-
-def describe(enc) -> str:
-    """A short human description of a leaf encoding."""
-    if isinstance(enc, Quantized):
-        step = (enc.high - enc.low) / enc.nmax
-        return f"{float(enc.low):g}..{float(enc.high):g} step {float(step):g}{' clamp' if enc.clamp else ''}"
-    if isinstance(enc, Enumerated):
-        return f"one of {len(enc.values)} values"
-    if isinstance(enc, TimeOfDay):
-        return f"time of day, step {enc.step_ns / 1e9:g} s"
-    if isinstance(enc, TimeSinceEpoch):
-        return f"time since epoch, step {enc.step_ns / 1e9:g} s"
-    if isinstance(enc, Static):
-        return f"static {enc.value!r}"
-    if isinstance(enc, Absent):
-        return "not sent"
-    if isinstance(enc, Number):
-        return enc.prim
-    if isinstance(enc, Text):
-        return "string" + (f"<={enc.bound}" if enc.bound is not None else "")
-    return enc.kind.replace("_", " ")
-
-
-class Sizer:
-    """Sizes of codec IR leaves in bits (packed) or bytes (native, rmw_desert)."""
-
-    def __init__(self, builder: IRBuilder):
-        self.builder = builder
-
-    def message(self, ct: CodecType) -> Size:
-        total = ZERO
-        for leaf in ct.root.leaves():
-            total = total + self.leaf(leaf.encoding, ct.profile)
-        return total
-
-    def leaf(self, enc, profile: str) -> Size:
-        return self.bits(enc) if profile == PACKED else self.bytes(enc, profile)
-
-    # --- packed: bits -------------------------------------------------------------------
-
-    def bits(self, enc) -> Size:
-        if isinstance(enc, (Absent, Static)):
-            return ZERO
-        if isinstance(enc, Filler) or isinstance(enc, Bool):
-            return Size(1, 1, 1)
-        if isinstance(enc, ByteScalar):
-            return Size(8, 8, 8)
-        if isinstance(enc, (TimeOfDay, TimeSinceEpoch)):
-            return Size(enc.bits, enc.bits, enc.bits)
-        if isinstance(enc, Number):
-            if enc.is_float:
-                return Size(18, 34, 34) if enc.prim == "float32" else Size(18, 66, 66)
-            lo, hi = enc.range
-            w = (hi - lo).bit_length()
-            return Size(w, w, w)
-        if isinstance(enc, Text):
-            return self._text_bits(enc)
-        prefix = self._prefix_bits(enc.array, enc.size) if hasattr(enc, "array") else ZERO
-        if isinstance(enc, (Quantized, Enumerated)):
-            one = Size(enc.bits, enc.bits, enc.bits)
-            if enc.array is ArrayKind.NONE:
-                return one
-            return prefix + one.times(*_counts(enc.array, enc.size))
-        if isinstance(enc, Octets):
-            return prefix + Size(8, 8, 8).times(*_counts(enc.array, enc.size))
-        if isinstance(enc, NumberArray):
-            one = self.bits(Number(enc.prim, enc.code))
-        elif isinstance(enc, BoolArray):
-            one = Size(1, 1, 1)
-        elif isinstance(enc, TextArray):
-            one = self._text_bits(enc.text)
-        elif isinstance(enc, MessageArray):
-            one = self.message(self.builder.by_key(enc.type_key, PACKED))
-        else:
-            raise AssertionError(enc)
-        return prefix + one.times(*_counts(enc.array, enc.size))
-
-    @staticmethod
-    def _prefix_bits(array: ArrayKind, size: int | None) -> Size:
-        if array is ArrayKind.FIXED:
-            return ZERO
-        if array is ArrayKind.BOUNDED:
-            w = size.bit_length()
-            return Size(w, w, w)
-        return Size(8, 8, None)    # a varint: 8 bits per 7 bits of count
-
-    @staticmethod
-    def _text_bits(enc: Text) -> Size:
-        if enc.bound is None:
-            return Size(8, 8 + 8 * TYPICAL_TEXT, None)
-        w = text_width(enc.bound)
-        return Size(w, w + 8 * min(enc.bound, TYPICAL_TEXT), w + 8 * 4 * enc.bound)
-
-    # --- native / rmw_desert: bytes -----------------------------------------------------
-
-    def bytes(self, enc, profile: str) -> Size:
-        if isinstance(enc, (Absent, Static)):
-            return ZERO
-        if isinstance(enc, (Filler, Bool)):
-            return Size(1, 1, 1)
-        if isinstance(enc, ByteScalar):
-            return Size(1, 2, 2)
-        if isinstance(enc, (Quantized, Enumerated, TimeOfDay, TimeSinceEpoch)) and \
-                getattr(enc, "array", ArrayKind.NONE) is ArrayKind.NONE:
-            top = _index_max(enc)
-            return Size(1, cbor_uint(top // 2), cbor_uint(top))
-        if isinstance(enc, Number):
-            if enc.is_float:
-                return Size(3, 5, 5) if enc.code == "f" else Size(3, 9, 9)
-            lo, hi = enc.range
-            return Size(1, 1, cbor_uint(max(hi, -1 - lo)))
-        if isinstance(enc, Text):
-            return self._text_bytes(enc)
-        counts = _counts(enc.array, enc.size)
-        count = ZERO if enc.array is ArrayKind.FIXED and not getattr(enc, "fixed_count", False) else \
-            Size(1, cbor_uint(counts[1]), None if counts[2] is None else cbor_uint(counts[2]))
-        if isinstance(enc, Octets):
-            return count + Size(1, 1, 1).times(*counts)
-        if isinstance(enc, (Quantized, Enumerated)):
-            top = _index_max(enc)
-            one = Size(1, cbor_uint(top // 2), cbor_uint(top))
-        elif isinstance(enc, NumberArray):
-            one = self.bytes(Number(enc.prim, enc.code), profile)
-        elif isinstance(enc, BoolArray):
-            one = Size(1, 1, 1)
-        elif isinstance(enc, TextArray):
-            one = self._text_bytes(enc.text)
-        elif isinstance(enc, MessageArray):
-            one = self.message(self.builder.by_key(enc.type_key, profile))
-        else:
-            raise AssertionError(enc)
-        items = count + one.times(*counts)
-        if isinstance(enc, NumberArray) and enc.tag is not None:   # or one typed array (4.1)
-            def typed(k: int) -> int:
-                return 2 + cbor_uint(enc.width * k) + enc.width * k
-            lo, typ, hi = counts
-            return _smaller(items, Size(typed(lo), typed(typ), None if hi is None else typed(hi)))
-        return items
-
-    @staticmethod
-    def _text_bytes(enc: Text) -> Size:
-        if enc.bound is None:
-            return Size(1, 1 + TYPICAL_TEXT, None)
-        top = enc.max_bytes if enc.max_bytes is not None else 4 * enc.bound
-        return Size(1, 1 + min(enc.bound, TYPICAL_TEXT), cbor_uint(top) + top)
 
 
 # --- whole messages and the link ----------------------------------------------------------
@@ -471,60 +270,3 @@ def _packed_bytes(bits: int, wire: int = 1) -> int:
     format 1 (wire format 2 says the length once, in the envelope)."""
     n = (bits + 7) // 8
     return n if wire == 2 else n + (1 if n < 24 else 2 if n < 256 else 3)
-
-
-# --- output -------------------------------------------------------------------------------
-
-def _b(x: int | None) -> str:
-    return "unbounded" if x is None else str(x)
-
-
-def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
-    lines = [f"network {a.network}: message sizes (payload and frame bytes; typical / worst) and air time "
-             f"at {a.bitrate:g} bit/s"]
-    if a.wire_format == 2:
-        lines.append("wire format 2: payload = the message in its packet's envelope (header H, no kind "
-                     "and id items); frame = that message alone in a packet (+ 4 frame, + 3 P and W); "
-                     "messages sharing a packet pay 1 length byte each instead")
-    if a.tag_bytes is not None:
-        lines.append(f"secure link: one {a.tag_bytes}-byte tag per packet (security tag_bytes; "
-                     f"{a.tag_bytes + SYNC_BYTES} on sync packets), counted in frames and budgets of "
-                     f"protected entries; forgery odds 2^-{8 * a.tag_bytes} per packet "
-                     "(docs/wire-format.md 12.2)")
-    for e in a.entries:
-        rate = "no rate limit" if e.rate is None else f"{e.rate:g}/s"
-        sender = "each client side" if e.sender == "*" else e.sender
-        lines += ["", f"{e.kind} {e.name} (id {e.id}, {e.type_name}), sent by {sender}, {rate}"]
-        lines.append(f"  {'field':<34}{'encoding':<34}{'packed bits':>12}{'native bytes':>14}")
-        for f in e.fields:
-            pb = f"{f.bits.typical}" if f.bits.min == f.bits.max else f"{f.bits.min}..{_b(f.bits.max)}"
-            nb = f"{f.bytes.typical}" if f.bytes.min == f.bytes.max else f"{f.bytes.min}..{_b(f.bytes.max)}"
-            lines.append(f"  {f.path:<34}{f.encoding[:33]:<34}{pb:>12}{nb:>14}")
-        mrl = max_read_length.get(e.sender, min(max_read_length.values()))
-        lines.append(f"  {'profile':<20}{'payload typ/worst':>20}{'frame typ/worst':>18}{'air time typ':>14}")
-        for p in e.profiles:
-            mark = " *" if p.configured else ""
-            air = air_time(p.frame.typical, a.bitrate, mrl)
-            lines.append(f"  {p.label + mark:<20}{f'{p.payload.typical}/{_b(p.payload.max)}':>20}"
-                         f"{f'{p.frame.typical}/{_b(p.frame.max)}':>18}{air:>13.3f}s")
-    lines += format_control(a.control)
-    lines += ["", "link budget (what each side sends, at the configured rates and sizes; * = configured profile)"]
-    if a.budgets and a.budgets[0].schema:
-        lines.append(f"  (includes {a.budgets[0].schema:.2f} B/s of periodic schema announcements per side)")
-    lines.append(f"  capacity: one packet of max_read_length bytes per period, and at most what "
-                 f"{a.bitrate:g} bit/s carries (4 bytes per packet are DESERT's)")
-    lines.append(f"  {'side':<12}{'capacity B/s':>14}{'limited by':>12}{'typical B/s':>13}{'worst B/s':>12}  verdict")
-    for b in a.budgets:
-        worst = "unbounded" if b.worst is None else f"{b.worst:.1f}"
-        verdict = "fits" if b.fits else "DOES NOT FIT" if b.typical > b.capacity or (
-            b.worst is not None and b.worst > b.capacity) else "check warnings"
-        lines.append(f"  {b.side:<12}{b.capacity:>14.1f}{b.limited_by:>12}{b.typical:>13.1f}{worst:>12}  {verdict}")
-    for w in a.warnings():
-        lines.append(f"WARNING: {w}")
-    return "\n".join(lines)
-
-
-def to_json(a: Analysis) -> dict:
-    out = asdict(a)
-    out["warnings"] = a.warnings()
-    return out

@@ -45,3 +45,14 @@ def whole(lo: int, hi: int):
         return value
     parse.__name__ = "whole number"
     return parse
+
+
+def caller_path(text: str):
+    """A path as the caller means it: `~` expanded, and a relative one made absolute against
+    the folder the command was started in, at once. A command that hands the path to child
+    processes running elsewhere (the demo's run in the checkout) would otherwise have them
+    write where the caller never looks."""
+    from pathlib import Path
+    if not text:
+        raise argparse.ArgumentTypeError("must be a path, got ''")
+    return Path(text).expanduser().absolute()

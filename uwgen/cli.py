@@ -73,6 +73,33 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _innermost(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.ArgumentParser:
+    """The (sub-)command parser `args` were read by: `uwgen rmw-config import`'s, not uwgen's."""
+    while True:
+        sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+        chosen = getattr(args, sub.dest, None) if sub is not None else None
+        if chosen not in getattr(sub, "choices", {}):
+            return parser
+        parser = sub.choices[chosen]
+
+
+def parse(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespace:
+    """parse_args, but DIR arguments may also come after options that follow other positional
+    arguments (`rmw-config import CONF --type N=T DIR`: argparse takes a command's positional
+    arguments in one run and refused the DIR after --type as unrecognized, with uwgen's
+    usage). Anything else unrecognized is refused by the command's own parser (exit 2)."""
+    args, extra = parser.parse_known_args(argv)
+    if not extra:
+        return args
+    command = _innermost(parser, args)
+    folders = next((a for a in command._actions if a.dest == "folders"), None)
+    if folders is None or any(a.startswith("-") for a in extra):
+        command.error(f"unrecognized arguments: {' '.join(extra)}")
+    convert = folders.type or (lambda text: text)
+    args.folders = [*(args.folders or []), *(convert(a) for a in extra)]
+    return args
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     first = next((a for a in argv if not a.startswith("-")), None)
@@ -84,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(module, "TAKES_COMMAND", False) and "--" in argv:
         cut = argv.index("--")
         argv, tail = argv[:cut], argv[cut + 1:]
-    args = parser.parse_args(argv)
+    args = parse(parser, argv)
     args.command_line = tail
     # A command's own --quiet (uwgen demo --quiet) is as quiet as the global one.
     quiet = args.quiet or getattr(args, "quiet_command", False)

@@ -378,8 +378,8 @@ def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: boo
     env["PYTHONPATH"] = os.pathsep.join([str(tools), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     env["PATH"] = os.pathsep.join([str(venv / "bin"), env.get("PATH", "")])
     build.mkdir(parents=True)
-    log.info("building rclpy type support of %s with rosidl into %s (about 30 s, once per "
-             "version of its files)", package, work)
+    log.info("building rclpy type support of %s with rosidl into %s (about 2 min on 2 "
+             "cores, once per version of its files)", package, work)
     steps = [
         ["cmake", str(src), f"-DCMAKE_PREFIX_PATH={';'.join(prefixes)}",
          f"-DCMAKE_INSTALL_PREFIX={install}", f"-DPython3_EXECUTABLE={sys.executable}",

@@ -5,18 +5,25 @@ thousand levels deep (`[[[[...`) ends in RecursionError instead of an error mess
 YAML file uwgen reads (manifests, scenarios, hints) goes through `Loader`, which refuses
 nesting deeper than MAX_DEPTH with an ordinary `yaml.MarkedYAMLError` at the line and
 column where the too-deep collection starts; the callers already turn those into located
-errors.
+errors. `read` reads such a file safely (a regular file of at most MAX_BYTES).
 
-    node = yaml.compose(text, Loader=Loader)        # or yaml.load(text, Loader=Loader)
+    node = yaml.compose(read(path, "manifest"), Loader=Loader)   # or yaml.load(...)
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 import yaml
 from yaml.composer import ComposerError
 
+from uwgen import safefile
+
 # A manifest is at most about 6 levels deep (topics > entry > fields > path > options);
 # anything past this is not a configuration but an attack or an accident.
 MAX_DEPTH = 64
+# The most bytes of one YAML file uwgen reads: the demo's manifest is 6 KiB; a file past
+# this (or /dev/zero behind a manifest's name) is refused before it is read.
+MAX_BYTES = 1024 ** 2
 
 
 class Loader(yaml.SafeLoader):
@@ -42,3 +49,9 @@ class Loader(yaml.SafeLoader):
 def safe_load(text: str):
     """yaml.safe_load with the depth bound (raises yaml.YAMLError subclasses only)."""
     return yaml.load(text, Loader=Loader)
+
+
+def read(path: Path | str, what: str) -> str:
+    """The text of the YAML file `path` (regular, at most MAX_BYTES, UTF-8), read with
+    `uwgen.safefile`; safefile.UnreadableFile if not."""
+    return safefile.read_text(path, what, MAX_BYTES)

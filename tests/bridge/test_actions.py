@@ -279,6 +279,25 @@ def test_garbage_on_the_action_id_is_counted(pair, side, payload, counter):
     wait_for(lambda: counted(bridges[side])[counter] == 1, what=f"{counter} counted")
 
 
+def test_an_answer_or_result_for_a_goal_that_finished_here_is_a_late_copy_not_a_drop(pair):
+    # answers and results are sent again until acknowledged: a copy that crosses the end of
+    # its goal is expected on a lossy link, counted late_answers; a handle never used is unknown
+    from uwgen.runtime.wire.codec import load_items
+    surface, vehicle, bridges, links = pair
+    links.links["surface"].mute = True               # the goal never arrives: it times out
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    assert not send_goal(client).accepted
+    handle = next(load_items(p)[2] for k, p in links.links["surface"].offers if load_items(p)[0] == 2)
+    links.links["surface"].inject(pack_items([3, 9, handle, 1]))        # its answer, late
+    links.links["surface"].inject(pack_items([3, 9, handle, 4, 0]))        # its result, late
+    wait_for(lambda: counted(bridges["surface"])["late_answers"] == 2, what="both counted late")
+    unused = next(h for h in bridges["surface"].action_standins.handles[9] if h != handle)
+    links.links["surface"].inject(pack_items([3, 9, unused, 4, 0]))
+    wait_for(lambda: counted(bridges["surface"])["unknown"] == 1, what="the stranger counted unknown")
+    assert counted(bridges["surface"])["late_answers"] == 2
+
+
 def test_payloads_in_the_wrong_direction_are_counted(pair):
     surface, vehicle, bridges, links = pair
     links.links["vehicle"].inject(pack_items([3, 9, 5, 1]))     # the vehicle sends answers

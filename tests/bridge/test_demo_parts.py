@@ -289,3 +289,65 @@ def test_demo_domains_are_two_different_ids_ros_advises_on_linux(monkeypatch, gi
     vehicle, surface = domains()
     assert vehicle != surface
     assert 0 <= vehicle <= 101 and 0 <= surface <= 101
+
+
+def _lost_seen(tmp_path, link: dict, received: int, receiver_seen: int):
+    write(tmp_path / "operator.jsonl", [{"t": 1.0, "ev": "start", "x": 0.0, "y": 0.0, "theta": 0.0}])
+    write(tmp_path / "vehicle.jsonl", [])
+    out = {"published": 16, "taken": 16, "dropped_by_subscription": 0, "dropped_by_policy": {}, "queued": 0,
+           "sent": 16}
+    inc = {"received": received, "lost_on_link": receiver_seen, "delivered": received,
+           "dropped_on_receive": {"decode_error": 0, "publish_error": 0}}
+    (tmp_path / "bridge_vehicle.json").write_text(json.dumps({"topics": {"/vehicle/battery": {
+        "accounting": out, "link": link}}}))
+    (tmp_path / "bridge_surface.json").write_text(json.dumps({"topics": {"/vehicle/battery": {
+        "accounting": inc}}}))
+    row = next(r for r in build_report(tmp_path).topics if r.name == "/vehicle/battery")
+    return row.lost, row.lost_seen
+
+
+def test_lost_seen_counts_messages_not_the_fragments_acks_name(tmp_path):
+    # 16 messages in 32 fragments: the acks name 9 fragments missing, 6 messages never completed,
+    # 2 of them with some fragments received
+    link = {"fragments_sent": 32, "on_link": {"sent": 32, "delivered": 23, "lost_on_link": 9,
+                                              "in_flight": 0, "unacknowledged": 0}}
+    lost, seen = _lost_seen(tmp_path, link, received=10, receiver_seen=2)
+    assert (lost, seen) == (6, 2) and seen <= lost
+
+
+def test_lost_seen_is_never_more_than_lost(tmp_path):
+    # unfragmented: the acks name 8 copies missing, but 2 of them arrived after all
+    link = {"fragments_sent": 0, "on_link": {"sent": 16, "delivered": 8, "lost_on_link": 8,
+                                             "in_flight": 0, "unacknowledged": 0}}
+    lost, seen = _lost_seen(tmp_path, link, received=10, receiver_seen=0)
+    assert (lost, seen) == (6, 6)
+    text = format_report(build_report(tmp_path))
+    assert "6 (6)" in text and "6 (8)" not in text
+
+
+@pytest.mark.parametrize("given, expected", [("21", (21, 22)), ("205", (3, 4)), ("0", (0, 1))])
+def test_the_demo_uses_the_domains_its_help_and_docs_state(monkeypatch, given, expected):
+    from uwgen.cli import build_parser
+    from uwgen.demo.processes import domains
+    monkeypatch.setenv("ROS_DOMAIN_ID", given)
+    assert domains() == expected
+    parser = build_parser("demo")
+    demo = next(a for a in parser._subparsers._group_actions[0].choices.values() if a.prog.endswith("demo"))
+    text = " ".join(demo.format_help().split())
+    assert "ROS domain ROS_DOMAIN_ID (taken modulo 101" in text and "ROS_DOMAIN_ID + 1" in text
+    assert "two free TCP ports" in text
+    docs = " ".join((Path(__file__).resolve().parents[2] / "docs" / "demo.md").read_text().replace("`", "").split())
+    assert "ROS_DOMAIN_ID (modulo 101" in docs and "ROS_DOMAIN_ID + 1" in docs
+
+
+def test_the_run_shown_in_the_docs_has_the_lines_the_report_prints(tmp_path):
+    # headers, rules and legends carry no figures: each the docs show is one the report prints
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "demo.md").read_text(encoding="utf-8")
+    block = doc.split("## A run\n\n```\n", 1)[1].split("```", 1)[0].splitlines()
+    text = format_report(_square_report(tmp_path, {"ok": True, "status": "succeeded", "feedback": 1,
+                                                    "rtt": 3.0, "delta": 1.5}))
+    printed = set(text.splitlines())
+    fixed = [line for line in block if line.strip() and not any(c.isdigit() for c in line)]
+    assert len(fixed) >= 5 and [line for line in fixed if line not in printed] == []
+    for label in ("action /turtle1/rotate_absolute: succeeded after", "path: the poses the surface received"):
+        assert any(line.startswith(label) for line in block) and any(line.startswith(label) for line in printed)

@@ -60,7 +60,7 @@ def test_final_summary_states_the_books_per_topic():
                     "/log received 3 lost on link 1 delivered 3")
 
 
-# -- publication time (issue 16: ttl runs from publication) ------------------------------
+# -- publication time (docs/seams.md section 4: ttl runs from publication) -----------------
 
 def test_publication_time_comes_from_the_source_timestamp():
     from uwgen.bridge.topics import publication_time

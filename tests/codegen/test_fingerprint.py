@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from uwgen.codegen.fingerprint import FINGERPRINT_BYTES, canonical, digest
-from uwgen.codegen.generator import plan_build, render_package, write_package
+from uwgen.codegen.generator import plan_build
+from uwgen.codegen.render import render_package, write_package
 
 BASE_MSGS = {
     "fp_msgs/msg/Inner.msg": "float64 a\nint32[<=4] b\n",
@@ -193,7 +194,7 @@ def test_same_fingerprints_in_processes_with_different_hash_seeds(tmp_path):
 def test_fingerprints_cover_the_codecs_the_entries_are_generated_from(tmp_path):
     # A tripwire for codec variants per entry (e.g. field encodings): the codec types a
     # fingerprint hashes are those the generated TopicCodec/ServiceCodec encode with.
-    from uwgen.codegen.emit import func_name
+    from uwgen.codegen.emit_common import func_name
     from uwgen.codegen.fingerprint import entry_codecs
     from uwgen.codegen.generator import plan_package
     from uwgen.codegen.ir import IRBuilder

@@ -9,8 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from uwgen.codegen.emit import NEST_CHUNK, Constants, Lowering
-from uwgen.codegen.generator import plan_build, render_package, write_package
+from uwgen.codegen.emit import Lowering
+from uwgen.codegen.emit_common import Constants
+from uwgen.codegen.emit_decode import NEST_CHUNK
+from uwgen.codegen.generator import plan_build
+from uwgen.codegen.render import render_package, write_package
 from uwgen.codegen.ir import IRBuilder
 from uwgen.codegen.shape import MAX_NESTING
 from uwgen.idl.loader import InterfaceLibrary

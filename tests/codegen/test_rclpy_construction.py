@@ -14,7 +14,7 @@ import logging
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 
-from uwgen.codegen.ir import ros_layout
+from uwgen.codegen.rosidl_layout import ros_layout
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.runtime.wire.codec import load_items
 from uwgen.runtime.wire.rosclasses import RosClasses, layout_problem

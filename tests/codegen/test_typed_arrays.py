@@ -17,7 +17,7 @@ from sensor_msgs.msg import BatteryState, ChannelFloat32, LaserScan
 from std_msgs.msg import Int16MultiArray
 
 from uwgen.codegen import generate
-from uwgen.runtime.wire import codec as rt
+from uwgen.runtime.wire import typed_arrays as rt
 from uwgen.runtime.wire.codec import DecodeError, pack_items
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"

@@ -3,6 +3,8 @@ never a traceback (OverflowError from 1e400 or a 400-digit number), never a run 
 not end (`uwgen emulate --nodes 100000000` built a hundred million nodes)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -78,3 +80,53 @@ def test_long_running_commands_refuse_hostile_numbers_before_starting(capsys, co
                 argv += ["-m", SAMPLES / "uwgen.yaml", "--side", "vehicle"]
             rc, out = cli(capsys, *argv)
             assert rc == 2 and f"argument {flag}: must be" in out, (argv, out)
+
+
+def test_demo_out_and_key_file_are_taken_from_the_callers_folder(tmp_path, monkeypatch):
+    # The demo's child processes run in the checkout: a relative --out handed to them as
+    # written made them write their records there, and a good run was reported as failed.
+    from uwgen.cli import build_parser
+    monkeypatch.chdir(tmp_path)
+    args = build_parser("demo").parse_args(["demo", "--out", "runs/one", "--key-file", "k/net.key"])
+    assert args.out == tmp_path / "runs" / "one" and args.key_file == tmp_path / "k" / "net.key"
+    args = build_parser("demo").parse_args(["demo", "--out", "~/runs"])
+    assert args.out == Path.home() / "runs"
+
+
+def test_ros_interfaces_of_a_missing_or_empty_folder_exits_2(capsys, tmp_path):
+    for folder, says in ((tmp_path / "nosuch_dir", "no such folder"), (tmp_path, "no interface package here")):
+        rc, out = cli(capsys, "ros-interfaces", folder)
+        assert rc == 2 and says in out, out
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["keygen", "a", "b"], "uwgen keygen: error: unrecognized arguments: b"),
+    (["rmw-config", "import", "t.conf", "--bogus", "-o", "x"], "uwgen rmw-config import: error: unrecognized arguments: --bogus"),
+    (["analyze", "--bogus"], "uwgen analyze: error: unrecognized arguments: --bogus"),
+])
+def test_an_unknown_argument_is_refused_with_the_commands_own_usage(capsys, argv, says):
+    rc, out = cli(capsys, *argv)
+    assert rc == 2 and says in out and f"usage: uwgen {argv[0]}" in out, out
+
+
+def test_rmw_config_import_takes_folders_after_its_options(capsys, tmp_path):
+    conf = tmp_path / "t.conf"
+    conf.write_text('{"topics": {"/pose": 3}}\n')
+    out = tmp_path / "m" / "uwgen.yaml"
+    rc, said = cli(capsys, "rmw-config", "import", conf, "--type", "/pose=turtlesim/msg/Pose", SAMPLES,
+                   "-o", out, "--default-side", "vehicle")
+    assert rc == 0 and out.is_file(), said
+    assert "type: turtlesim/msg/Pose" in out.read_text()
+
+
+def test_rmw_config_export_replaces_a_file_with_other_content_only_with_force(capsys, tmp_path):
+    manifest = SAMPLES / "rmw_desert" / "uwgen.yaml"
+    target = tmp_path / "ros_allowed_topics.conf"
+    target.write_text('{"topics": {"/mine": 9}}\n')
+    rc, said = cli(capsys, "rmw-config", "export", "-m", manifest, "-o", target, SAMPLES)
+    assert rc == 2 and "exists with other content; pass --force" in said, said
+    assert "/mine" in target.read_text()
+    rc, said = cli(capsys, "rmw-config", "export", "-m", manifest, "-o", target, SAMPLES, "--force")
+    assert rc == 0 and "/mine" not in target.read_text(), said
+    rc, said = cli(capsys, "rmw-config", "export", "-m", manifest, "-o", target, SAMPLES)
+    assert rc == 0 and "is up to date" in said, said         # the same table again: no --force needed

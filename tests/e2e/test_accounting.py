@@ -1,4 +1,4 @@
-"""Counters of a lossy end-to-end run add up exactly (issue 10, item 5).
+"""Counters of a lossy end-to-end run add up exactly (docs/link-robustness.md).
 
 Both bridges over the emulator at 20 % packet loss. On the publishing side:
 published = taken + dropped by the subscription, taken = sent + dropped by policy + queued;

@@ -63,7 +63,7 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     assert counters["s"]["packets_delivered"] > 10 and counters["v"]["packets_delivered"] > 10
     assert "emulated" not in res.stdout
     assert "the vehicle followed the commands" in res.stdout
-    # The secure link was on (issue 9): both bridges protected and verified, nothing dropped.
+    # The secure link was on (docs/security.md): both bridges protected and verified, nothing dropped.
     import json
     import re
     why = r"(?: \((?:[a-z_]+ \d+(?:, )?)+\))?"

@@ -1,4 +1,4 @@
-"""Issue 16 over both bridges, real rclpy graphs and the emulator (wire format 2): a reliable
+"""Reliable delivery (wire-format.md section 15) over both bridges, real rclpy graphs and the emulator (wire format 2): a reliable
 topic arrives complete and once through a lossy link, each side's ledger says exactly what the
 other never received, a command older than its max age is refused and counted, a copy of a
 request runs the server once."""

@@ -3,8 +3,8 @@
 The emulator serves one client per port, so the forger gets in as a third acoustic node
 (`forger`, sending to the vehicle): what it writes reaches the vehicle's DESERT node
 over the (emulated) water, exactly as a stranger's modem would. The links speak wire format
-2, one tag per packet (docs/wire-format.md section 12.2). The forger writes the frame of
-issue 9 in the clear (an envelope with [0, 4, Twist], x = 1007), packets sealed under another
+2, one tag per packet (docs/wire-format.md section 12.2). The forger writes a cmd_vel
+in the clear (an envelope with [0, 4, Twist], x = 1007), packets sealed under another
 key while claiming the surface's sender id, packets with random tags, and replays of packets
 the surface really sent. None reaches ROS; the real commands do, each once.
 """

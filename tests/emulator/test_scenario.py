@@ -94,5 +94,5 @@ def test_yaml_snr_section_is_checked(tmp_path):
 
 
 def test_missing_file_is_a_scenario_error(tmp_path):
-    with pytest.raises(ScenarioError, match="cannot read scenario"):
+    with pytest.raises(ScenarioError, match=r"scenario .*nope.yaml not found"):
         load_scenario(tmp_path / "nope.yaml")

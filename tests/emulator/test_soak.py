@@ -64,7 +64,7 @@ def test_every_flows_ledger_closes_sent_equals_delivered_plus_lost(soak):
         assert 0 <= row["lost_seen"] <= row["lost"]
         assert row["delivered"] == soak.received[f.name].count
     assert ledger["/vehicle/log"]["lost_seen"] > 0   # fragmented: the receiver sees losses
-    # The sending link does not report its own ledger yet (issue 16): the hook says so.
+    # On wire format 1 the sending link reports no ledger of its own: the hook says so.
     assert all(row["link"] is None for row in ledger.values())
 
 
@@ -178,7 +178,7 @@ def test_long_soak():
 
 
 def test_on_wire_format_2_the_sending_links_own_ledger_is_exactly_what_arrived():
-    """Issue 16: the sender learns from packet numbers what the peer received, so its ledger
+    """Wire format 2 (wire-format.md section 15.7): the sender learns from packet numbers what the peer received, so its ledger
     says exactly how many messages of each flow arrived and how many were lost on the link
     (checked by Soak.check against the flows' own counts, restarts and collisions included)."""
     s = Soak(seed=6, restart_every=240.0, wire_format=2, per=0.2)

@@ -1,6 +1,6 @@
 """The runtime's Link/DesertConnection against the emulated DESERT nodes, over real sockets.
 
-What issue 3 asks to be shown end to end:
+What the link over the emulator must show end to end:
 - payloads written to one node arrive at the other's client with the configured delay and
   loss, and the framing decoder recovers every intact frame (and nothing else);
 - killing and restarting DESERT loses only what was in flight; the client resumes by itself;

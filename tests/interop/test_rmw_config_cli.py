@@ -110,7 +110,7 @@ def test_import_of_a_bad_conf_exits_2_with_its_location(capsys, tmp_path):
     assert code == 2 and f"{conf}:3:3: not valid JSON" in err
     code, _, err = run(capsys, "import", tmp_path / "none.conf", "--default-side", "a",
                        "-o", tmp_path / "m.yaml")
-    assert code == 2 and "cannot read" in err
+    assert code == 2 and "none.conf not found" in err
 
 
 def test_beacons_lists_the_side_entities(capsys):

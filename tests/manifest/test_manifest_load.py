@@ -50,7 +50,7 @@ def test_demo_manifest_is_exactly_the_contract():
 
 
 def test_demo_manifest_protects_everything_that_commands_the_vehicle():
-    # Issue 9 in the showcase: the commands are encrypted, the telemetry the operator steers
+    # The secure link in the showcase: the commands are encrypted, the telemetry the operator steers
     # by is signed, the free-text log alone goes in the clear; the key is not in the manifest.
     m = load_manifest(SAMPLES / "uwgen.yaml", library())
     plan = m.security_plan()

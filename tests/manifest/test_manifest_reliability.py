@@ -1,4 +1,4 @@
-"""`reliability:` of a topic on the link (issue 16): best effort by default, reliable on
+"""`reliability:` of a topic on the link (wire-format.md section 15): best effort by default, reliable on
 request, never in profile rmw_desert (its nodes read no acknowledgements)."""
 from __future__ import annotations
 

@@ -116,7 +116,7 @@ def test_demo_vehicle_drops_a_strangers_cmd_vel_and_takes_the_surfaces(demo_guar
     from .packets import Side
     pkg, guards = demo_guards
     vehicle, surface = Side(guards["vehicle"], 2), Side(guards["surface"], 1)
-    # Issue 9's forgery: a plain packet with a cmd_vel, as anyone reaching the vehicle's port could write.
+    # The forgery the seal stops: a plain packet with a cmd_vel, as anyone reaching the vehicle's port could write.
     plain = env.Envelope(1, 0, (env.from_v1(cmd_vel(pkg, 1.5)),)).encode()
     assert vehicle.receive(plain) == []
     # One sealed under another key, claiming the surface's sender id.

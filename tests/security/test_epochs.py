@@ -1,4 +1,4 @@
-"""Nonce uniqueness and freshness with no state on disk (issue 17, items 1-2): every start of a
+"""Nonce uniqueness and freshness with no state on disk (docs/seams.md section 2): every start of a
 sender is a new epoch and so a new key; receivers take an epoch only from a fresh sync frame and
 refuse frames older than their entry's max age."""
 from __future__ import annotations

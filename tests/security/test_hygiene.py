@@ -1,4 +1,4 @@
-"""Hygiene (issue 17, item 5): one copy of a side at a time, writes that never follow a symlink
+"""Hygiene (docs/security.md): one copy of a side at a time, writes that never follow a symlink
 and whose every byte is checked, security modes in the schema fingerprint; and no state file
 left to be absurd, restored or shared."""
 from __future__ import annotations

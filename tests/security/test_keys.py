@@ -46,7 +46,7 @@ def test_a_key_readable_by_others_is_refused(tmp_path):
         read_key_file(path)
 
 
-@pytest.mark.parametrize("text,why", [("", "one line"), ("zz" * 32, "not hex"),
+@pytest.mark.parametrize("text,why", [("", "one line"), ("zz" * 32, "not a hex digit"),
                                       ("ab" * 16, "16 bytes")])
 def test_malformed_keys_are_refused(tmp_path, text, why):
     path = tmp_path / "bad.key"

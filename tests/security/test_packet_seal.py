@@ -1,4 +1,4 @@
-"""The per-packet seal of wire format 2 (issue 17 on the envelope): one tag per packet, what it
+"""The per-packet seal of wire format 2 (wire-format.md section 12.2): one tag per packet, what it
 protects, and what it costs."""
 from __future__ import annotations
 

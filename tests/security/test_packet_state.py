@@ -1,4 +1,4 @@
-"""Issue 17's cases on the per-packet seal of wire format 2: no state on disk decides a nonce,
+"""Security without state on disk, on the per-packet seal of wire format 2: no state on disk decides a nonce,
 a receiver without state takes nothing recorded, a starved message is sealed when it leaves,
 one packet cannot push the window away, absurd numbers and random bytes are counted drops."""
 from __future__ import annotations

@@ -91,7 +91,8 @@ def test_analyze_counts_the_security_overhead_in_every_protected_frame(tmp_path)
 
 @pytest.mark.parametrize("tag", [4, 6])
 def test_analyze_counts_the_manifests_tag_length(tmp_path, tag):
-    from uwgen.analyze import analyze, format_analysis
+    from uwgen.analyze import analyze
+    from uwgen.analyze_report import format_analysis
     from uwgen.idl.loader import InterfaceLibrary
     from uwgen.manifest.loader import load_manifest
     lib = InterfaceLibrary([], installed=True)

@@ -1,4 +1,4 @@
-"""What one frame can do is bounded (issue 17, item 4): a key holder's frame numbered far ahead
+"""What one frame can do is bounded (docs/seams.md section 2): a key holder's frame numbered far ahead
 (2^42) is refused as too_far and moves nothing, so the real sender is never locked out."""
 from __future__ import annotations
 

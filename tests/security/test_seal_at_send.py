@@ -1,4 +1,4 @@
-"""Seal at the moment of sending (issue 17, item 3): a message that waits behind newer ones is
+"""Seal at the moment of sending (docs/seams.md section 5): a message that waits behind newer ones is
 sealed when it leaves, so its number is never older than the frames sent before it."""
 from __future__ import annotations
 

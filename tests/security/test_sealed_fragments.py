@@ -1,8 +1,8 @@
 """Compact fragment messages (wire format 2, H 61) under the per-packet seal: a fragment carries
 part of a message whose id it does not name, so a network that encrypts any id must encrypt it.
 
-The per-packet seal (uwgen.security.packet_seal, issue 17) lands separately: until it is on
-this branch these tests are skipped; once it is, they hold the two pieces together."""
+The tests hold the per-packet seal (uwgen.security.packet_seal) and the fragment messages
+together."""
 from __future__ import annotations
 
 import pytest

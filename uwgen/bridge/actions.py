@@ -223,7 +223,7 @@ class ActionStandIns:
                 counters.result_acks += 1
             pending = table.complete(ident, handle)
             if pending is None:
-                counters.unknown += 1
+                self._no_goal(ident, handle)
                 return
             state = pending.token
             if not state.answer.done():   # the answer was lost; the result says it all
@@ -234,7 +234,7 @@ class ActionStandIns:
         pending = table.get(ident, handle)
         state = pending.token if pending is not None else None
         if state is None:
-            counters.unknown += 1
+            self._no_goal(ident, handle)
             if code == ACCEPTED:     # a goal given up here (accept timeout) runs there: stop it
                 self.w.send(ident, codec.encode_cancel(handle))
         elif code in (ACCEPTED, REJECTED) and not state.answer.done():
@@ -253,7 +253,16 @@ class ActionStandIns:
         elif code == ACCEPTED and state.answer.done() and state.next_query:
             pass                      # the goal still runs: the reply to our result request
         else:
-            counters.unknown += 1     # a repeated answer
+            counters.late_answers += 1     # a repeated answer: a copy crossed on the link
+
+    def _no_goal(self, ident: int, handle: int) -> None:
+        """An answer or result for no goal in flight: a late copy when the handle's goal has
+        finished lately here (answers and results are re-sent until acknowledged, so copies
+        cross on a lossy link: counted, not a drop), else unknown (a drop, warned)."""
+        if self.tables[ident].finished(ident, handle) is not None:
+            self.counters[ident].late_answers += 1
+        else:
+            self.counters[ident].unknown += 1
 
     def on_feedback(self, ident: int, payload: bytes) -> None:
         codec, counters = self.offered[ident], self.counters[ident]

@@ -185,6 +185,11 @@ class CallTable:
             stats.unknown += 1
         return None
 
+    def finished(self, service_id: int, seq: int) -> str | None:
+        """How the last call of this seq ended, while it is remembered (completed, timed out,
+        abandoned), or None: no call of this seq finished lately."""
+        return self._finished.get(service_id, {}).get(seq)
+
     def get(self, service_id: int, seq: int) -> PendingCall | None:
         """The outstanding call of this seq, left outstanding (e.g. to move its deadline)."""
         return self._pending.get(service_id, {}).get(seq)

@@ -67,7 +67,9 @@ class ActionCounters:
     cancel_timeouts: int = 0  # cancels with no answer within accept_timeout (refused locally)
     feedback: int = 0         # feedback messages published to local clients
     late_feedback: int = 0    # feedback for no goal in flight, e.g. sent just before the result
-    unknown: int = 0          # answers or results for no goal in flight (dropped)
+    unknown: int = 0          # answers or results for a handle with no goal lately (dropped)
+    late_answers: int = 0     # copies of answers or results for a goal already answered or
+                              # finished here: they crossed on the link (counted, not a drop)
     other_sides: int = 0      # payloads for another client side's goals (its handles; ignored)
     decode_errors: int = 0    # payloads of this action that did not decode
     loop_guard: int = 0       # goals not bridged: another uwgen bridge in this graph handles

@@ -30,7 +30,8 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", help="DESERT node host (default: the manifest's side entry)")
     parser.add_argument("--port", type=int, help="DESERT node TCP port (default: the manifest's)")
     parser.add_argument("--max-read-length", type=whole(1, 4096), metavar="BYTES",
-                        help="bytes per acoustic packet (DESERT's max_read_length; default: "
+                        help="bytes per acoustic packet (DESERT's max_read_length, at least "
+                             "what the network's packets need: 47 with security on; default: "
                              "the manifest's side entry)")
     parser.add_argument("--period", type=number(0.001, 3600), metavar="SECONDS",
                         help="seconds between packets (DESERT's period_; default: the "

@@ -181,7 +181,15 @@ class BridgePlan:
         opts = replace(d, host=d.host if host is None else host,
                        port=d.port if port is None else int(port), link=link,
                        **{k: v for k, v in extra.items() if v is not None})
-        return opts.check()
+        opts.check()
+        # The floor of this network's packets (envelope, reliability, seal, a fragment), also
+        # when --max-read-length overrides the manifest: below it the link cannot send at all.
+        from uwgen.linkfloor import check_option
+        problem = check_option(link.max_read_length, self.wire_format,
+                               getattr(self.security, "tag_bytes", None) if self.security else None)
+        if problem:
+            raise PlanError(problem)
+        return opts
 
     def entry_names(self) -> list[str]:
         """Every topic, service and action this side bridges, by name."""

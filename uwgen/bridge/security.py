@@ -22,30 +22,39 @@ from typing import Any
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.manifest.model import DEFAULT_TAG_BYTES
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.safefile import shown
 
 log = logging.getLogger("uwgen.security")
 
 
 def key_path(plan: BridgePlan, options: BridgeOptions) -> Path:
+    return _key_place(plan, options)[0]
+
+
+def _key_place(plan: BridgePlan, options: BridgeOptions) -> tuple[Path, str]:
+    """(the key file's path, how it was found from what was written) for messages."""
     sec = plan.security
     if options.key_file is not None:
-        return Path(options.key_file)
+        return Path(options.key_file), "given with --key-file"
+    written = f"the manifest's key_file {shown(sec.key_file)!r}"
     path = Path(sec.key_file).expanduser()
+    how = ["'~' expanded to the home folder"] if str(path) != str(sec.key_file) else []
     if not path.is_absolute():
-        if plan.manifest_path is not None:
-            path = plan.manifest_path.parent / path
-        elif plan.manifest_source:
-            path = Path(plan.manifest_source).parent / path
-    return path
+        base = (plan.manifest_path.parent if plan.manifest_path is not None else
+                Path(plan.manifest_source).parent if plan.manifest_source else None)
+        if base is not None:
+            path = base / path
+            how.append(f"taken relative to the manifest's folder {shown(base)}")
+        else:
+            how.append("taken relative to the current folder")
+    return path, written + (f" ({', '.join(how)})" if how else "")
 
 
 def _missing_key(plan: BridgePlan, options: BridgeOptions, path: Path) -> str:
     """What to do about a key file that is not there: get the network's key, never make a
     new one here (a bridge with another key can talk to nobody on the network)."""
-    where = ("given with --key-file" if options.key_file is not None else
-             f"the manifest's key_file {plan.security.key_file!r}"
-             + ("" if Path(plan.security.key_file).is_absolute() else " (relative to the manifest's folder)"))
-    return (f"key file {path} not found ({where}): copy the network's key file there from a "
+    where = _key_place(plan, options)[1]
+    return (f"key file {shown(path)} not found ({where}): copy the network's key file there from a "
             f"machine of this network, or give its place with --key-file. Every side must hold "
             f"the same key: a new one (uwgen keygen) is only for setting up a new network")
 
@@ -60,14 +69,14 @@ def check_security(plan: BridgePlan, options: BridgeOptions) -> None:
     """Fail early, before ROS starts, with a clear message (PlanError) if the key is unusable."""
     if plan.security is None:
         return
-    from uwgen.security.keys import SecurityError, read_key_file
+    from uwgen.security.keys import KeyFileMissing, SecurityError, read_key_file
     if plan.side not in plan.security.senders:
         raise PlanError(f"side {plan.side!r} has no sender_id in the manifest's security set-up")
     path = key_path(plan, options)
-    if not path.exists():
-        raise PlanError(_missing_key(plan, options, path))
     try:
         read_key_file(path)
+    except KeyFileMissing:
+        raise PlanError(_missing_key(plan, options, path)) from None
     except SecurityError as exc:
         raise PlanError(str(exc)) from None
 

@@ -25,7 +25,8 @@ def generate(out_dir: Path, package: str, names: Iterable[str] = (), folders: It
     installed interface. Types a profile can never carry are left out of bulk builds
     (see the plan's `skipped`). Raises DefinitionError, ManifestError or ProfileError.
     """
-    from uwgen.codegen.generator import plan_build, render_package, write_package
+    from uwgen.codegen.generator import plan_build
+    from uwgen.codegen.render import render_package, write_package
 
     plan = plan_build([Path(f) for f in folders], list(names), manifest, package, tuple(profiles),
                       installed, all_installed)

@@ -13,12 +13,15 @@ what cannot be written as one expression (floats, strings, loops over arrays).
 """
 from __future__ import annotations
 
-from uwgen.codegen.emit import (F32_MAX, Function, Lowering, field_access, func_name, index_max, not_read,
-                                not_sent, quantize_lines)
-from uwgen.codegen.ir import (
-    Bool, BoolArray, ByteScalar, CodecType, Enumerated, Filler, MessageArray, Node, Number,
-    NumberArray, Octets, Quantized, Text, TextArray, TimeOfDay, TimeSinceEpoch,
+from uwgen.codegen.emit import Lowering
+from uwgen.codegen.emit_common import (
+    F32_MAX, Function, field_access, func_name, index_max, not_read, not_sent, quantize_lines,
 )
+from uwgen.codegen.encodings import (
+    Bool, BoolArray, ByteScalar, Enumerated, Filler, MessageArray, Number, NumberArray, Octets,
+    Quantized, Text, TextArray, TimeOfDay, TimeSinceEpoch,
+)
+from uwgen.codegen.ir import CodecType, Node
 from uwgen.idl.model import ArrayKind
 from uwgen.runtime.wire.bits import count_width, text_width
 

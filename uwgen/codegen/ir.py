@@ -9,246 +9,31 @@ lowers these nodes to Python statements and the templates only lay them out.
 A codec tree mirrors the message: a `Node` per field; nested messages that are not in
 arrays are inlined (their fields are flattened in place on the wire); arrays of
 messages refer to the element type's own codec by name.
+
+The leaf encodings are in uwgen.codegen.encodings; how rclpy lays out a message (for
+decoders that fill its slots) is in uwgen.codegen.rosidl_layout.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import struct
-from fractions import Fraction
 from typing import Iterator
 
+from uwgen.codegen.encodings import (
+    STRUCT_CODES, Absent, Bool, BoolArray, ByteScalar, Encoding, Enumerated, Filler, MessageArray,
+    Number, NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
+    field_encoding, type_key,
+)
+from uwgen.codegen.rosidl_layout import ros_store
 from uwgen.codegen.shape import MAX_NESTING, NestingCheck
 from uwgen.idl.model import INTEGER_RANGES, OCTET_TYPES, ArrayKind, FieldType, MessageDef
-from uwgen.manifest.model import (
-    ENUM, MAX_COUNT, MAX_LENGTH, NATIVE, OMIT, PACKED, QUANTIZE, RMW_DESERT, STATIC, TIME_OF_DAY,
-    TIME_SINCE_EPOCH, FieldEncoding,
-)
-from uwgen.runtime.wire.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES, TYPED_TAGS, head_size
+from uwgen.manifest.model import MAX_COUNT, MAX_LENGTH, NATIVE, PACKED, RMW_DESERT, FieldEncoding
+from uwgen.runtime.wire.codec import RMW_MAX_ITEMS, RMW_MAX_TEXT_BYTES, head_size
+from uwgen.runtime.wire.typed_arrays import TYPED_TAGS
 from uwgen.runtime.wire.framing import MAX_PAYLOAD
-
-
-STRUCT_CODES = {
-    "int8": "b", "uint8": "B", "char": "B", "int16": "h", "uint16": "H",
-    "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q",
-    "float32": "f", "float64": "d",
-}
 
 
 class ProfileError(Exception):
     """A type that a profile can certainly not carry (refused at build time)."""
-
-
-# --- leaf encodings ------------------------------------------------------------------
-# Each says how one field (a scalar or a whole array) is written; `kind` selects the
-# lowering in uwgen.codegen.emit.
-
-@dataclass(frozen=True)
-class Number:
-    """An integer or float scalar. Consecutive numbers are packed through one struct."""
-    prim: str
-    code: str            # struct code; float64 narrowed to 'f' in rmw_desert
-    kind: str = "number"
-
-    @property
-    def is_float(self) -> bool:
-        return self.prim in ("float32", "float64")
-
-    @property
-    def range(self) -> tuple[int, int] | None:
-        return INTEGER_RANGES.get(self.prim)
-
-
-@dataclass(frozen=True)
-class Bool:
-    cbor_bool: bool      # True: F4/F5 (rmw_desert); False: unsigned 0/1 (native)
-    kind: str = "bool"
-
-
-@dataclass(frozen=True)
-class ByteScalar:
-    """A `byte` (octet) scalar: an unsigned item; rclpy holds it as 1-byte bytes."""
-    kind: str = "byte"
-
-
-@dataclass(frozen=True)
-class Text:
-    wide: bool                  # wstring: lone surrogates dropped
-    bound: int | None           # string<=N (characters)
-    max_bytes: int | None       # rmw_desert: the receiver overflows above 127 bytes
-    kind: str = "text"
-
-
-@dataclass(frozen=True)
-class Octets:
-    """A byte/char/uint8 array as one CBOR byte string (native profile)."""
-    array: ArrayKind
-    size: int | None
-    elem: str                   # byte, char or uint8: decides the rclpy container
-    kind: str = "octets"
-
-
-@dataclass(frozen=True)
-class NumberArray:
-    """An array of integers or floats: its items (after a count for sequences), or, where
-    `tag` is set (profile native, wire format section 4.1), one RFC 8746 typed array
-    (byte string tagged `tag`) whenever that is no larger than the items."""
-    prim: str
-    code: str
-    array: ArrayKind
-    size: int | None
-    elem_range: tuple[int, int] | None
-    tag: int | None = None
-    kind: str = "number_array"
-
-    @property
-    def width(self) -> int:
-        """Bytes of one element in a typed array."""
-        return struct.calcsize("<" + self.code)
-
-
-@dataclass(frozen=True)
-class BoolArray:
-    array: ArrayKind
-    size: int | None
-    cbor_bool: bool
-    kind: str = "bool_array"
-
-
-@dataclass(frozen=True)
-class TextArray:
-    array: ArrayKind
-    size: int | None
-    text: Text
-    fixed_count: bool           # rmw_desert writes a count even for fixed string arrays
-    kind: str = "text_array"
-
-
-@dataclass(frozen=True)
-class MessageArray:
-    array: ArrayKind
-    size: int | None
-    type_key: str               # CodecType.key of the element type
-    elem_min_items: int
-    elem_fixed_items: int | None
-    elem_min_bytes: int
-    kind: str = "message_array"
-
-
-@dataclass(frozen=True)
-class Absent:
-    """Not on the wire (rmw_desert drops byte fields); decoders leave the default."""
-    why: str
-    kind: str = "absent"
-
-
-@dataclass(frozen=True)
-class Filler:
-    """The single unsigned 0 that stands for a message with no fields."""
-    kind: str = "filler"
-
-
-# --- field encodings from the manifest (wire format section 8) -----------------------
-# Everything is precomputed here: the decoder's value is (a + n*b) / d with integers.
-
-@dataclass(frozen=True)
-class Quantized:
-    """A number on the grid min, min+step, ..., max, sent as the index n (0..nmax).
-    The value of index n is exactly (a + n*b) / d (min = a/d, step = b/d)."""
-    prim: str
-    a: int
-    b: int
-    d: int
-    nmax: int
-    clamp: bool = field(metadata={"schema": False})   # the sender's choice; the bytes mean the same
-    array: ArrayKind = ArrayKind.NONE    # cell_voltage[]: every element on the grid
-    size: int | None = None
-    kind: str = "quantized"
-
-    @property
-    def bits(self) -> int:
-        return self.nmax.bit_length()
-
-    @property
-    def is_float(self) -> bool:
-        return self.prim in ("float32", "float64")
-
-    @property
-    def fast(self) -> tuple[float, float, float] | None:
-        """(min, 1/step, tolerance) for the float estimate e = (v - min) * (1/step) of the
-        index, or None where floats cannot estimate it. |e - exact| < tolerance, so
-        int(e + 0.5) is the exact answer unless e + 0.5 is within tolerance of an integer;
-        encoders check that and fall back to the exact integer computation."""
-        if not self.is_float:
-            return None
-        tol = (abs(Fraction(self.a, self.b)) + self.nmax + 1) * Fraction(1, 2 ** 49) + Fraction(1, 2 ** 40)
-        if tol > Fraction(1, 64):
-            return None
-        return float(Fraction(self.a, self.d)), float(Fraction(self.d, self.b)), float(tol)
-
-    @property
-    def low(self) -> Fraction:
-        return Fraction(self.a, self.d)
-
-    @property
-    def high(self) -> Fraction:
-        return Fraction(self.a + self.nmax * self.b, self.d)
-
-
-@dataclass(frozen=True)
-class Enumerated:
-    """One of `values`, sent as its index."""
-    prim: str
-    values: tuple
-    array: ArrayKind = ArrayKind.NONE
-    size: int | None = None
-    kind: str = "enum"
-
-    @property
-    def bits(self) -> int:
-        return (len(self.values) - 1).bit_length()
-
-
-@dataclass(frozen=True)
-class Static:
-    """Not sent: the decoder fills `value` (a Python literal of the field's type)."""
-    value: object
-    octets: str | None = None    # 'byte' / 'uint8' arrays: how the value is held
-    kind: str = "static"
-
-
-@dataclass(frozen=True)
-class TimeOfDay:
-    """A builtin_interfaces/Time as the step index within its UTC day; the receiver puts
-    it back within +-12 h of its own clock."""
-    step_ns: int
-    count: int                   # indices per day: 86400 s / step
-    class_key: str
-    kind: str = "time_of_day"
-
-    @property
-    def bits(self) -> int:
-        return (self.count - 1).bit_length()
-
-
-@dataclass(frozen=True)
-class TimeSinceEpoch:
-    """A builtin_interfaces/Time as the step index after `epoch_ns` (0..nmax)."""
-    epoch_ns: int
-    step_ns: int
-    nmax: int
-    class_key: str
-    kind: str = "time_since_epoch"
-
-    @property
-    def bits(self) -> int:
-        return self.nmax.bit_length()
-
-
-Encoding = (Number | Bool | ByteScalar | Text | Octets | NumberArray | BoolArray | TextArray
-            | MessageArray | Absent | Filler | Quantized | Enumerated | Static | TimeOfDay
-            | TimeSinceEpoch)
-
-TIME_TYPE = "builtin_interfaces/msg/Time"
 
 
 @dataclass
@@ -335,10 +120,6 @@ def variant_name(letter: str, ident: int, fields: tuple) -> str:
     topic 4, 'q21' / 'r21' for the request / response of service 21; '' without."""
     return f"{letter}{ident}" if fields else ""
 
-
-def type_key(full_name: str) -> str:
-    pkg, _ns, name = full_name.split("/")
-    return f"{pkg}__{name}"
 
 
 # --- building ------------------------------------------------------------------------
@@ -505,95 +286,6 @@ class IRBuilder:
             fixed = None if enc.elem_fixed_items is None else enc.size * enc.elem_fixed_items
             return _Size(enc.size * enc.elem_min_items, fixed, enc.size * enc.elem_min_bytes)
         raise AssertionError(enc)
-
-
-# --- how rclpy holds a message (rosidl_generator_py's layout) --------------------------
-# Decoders that build rclpy messages fill their slots (`_x`) directly instead of calling
-# the constructor and property setters, which is most of rclpy's cost. They may only when
-# rclpy's class is laid out as assumed here; uwgen.runtime.wire.table.RosClasses checks each
-# class against its `ros_layout` the first time it is used and falls back to the
-# constructor when anything differs.
-
-ROSIDL_NAMES = {"bool": "boolean", "byte": "octet", "char": "uint8", "float32": "float", "float64": "double"}
-NUMPY_DTYPES = {"char": "uint8", "float32": "float32", "float64": "float64", "int8": "int8", "uint8": "uint8",
-                "int16": "int16", "uint16": "uint16", "int32": "int32", "uint32": "uint32", "int64": "int64",
-                "uint64": "uint64"}
-SCALAR_STORES = {"bool": "bool", "byte": "bytes", "string": "str", "wstring": "str"}
-
-
-def rosidl_type(ftype: FieldType) -> str:
-    """The field's type as rclpy's `_fields_and_field_types` spells it: 'double',
-    'sequence<float>', 'double[36]', 'string<22>', 'sequence<geometry_msgs/Point32, 3>'."""
-    base = ftype.base
-    if not ftype.is_primitive:
-        pkg, _ns, name = base.split("/")
-        base = f"{pkg}/{name}"
-    else:
-        base = ROSIDL_NAMES.get(base, base)
-        if ftype.string_bound is not None:
-            base += f"<{ftype.string_bound}>"
-    if ftype.array is ArrayKind.FIXED:
-        return f"{base}[{ftype.size}]"
-    if ftype.array is ArrayKind.BOUNDED:
-        return f"sequence<{base}, {ftype.size}>"
-    if ftype.array is ArrayKind.UNBOUNDED:
-        return f"sequence<{base}>"
-    return base
-
-
-def ros_store(ftype: FieldType) -> str:
-    """What rclpy keeps in the field's slot: 'float', 'int', 'bool', 'bytes', 'str',
-    'msg:<key>' (a nested message), 'list', 'ndarray:<dtype>' (fixed numeric arrays,
-    numpy) or 'array:<code>' (numeric sequences, array.array)."""
-    if not ftype.is_primitive:
-        return "list" if ftype.is_array else f"msg:{type_key(ftype.base)}"
-    if not ftype.is_array:
-        if ftype.base in SCALAR_STORES:
-            return SCALAR_STORES[ftype.base]
-        return "float" if ftype.base.startswith("float") else "int"
-    if ftype.base not in NUMPY_DTYPES:
-        return "list"          # bool, byte (1-byte bytes), string and wstring elements
-    if ftype.array is ArrayKind.FIXED:
-        return f"ndarray:{NUMPY_DTYPES[ftype.base]}"
-    return f"array:{STRUCT_CODES[ftype.base]}"
-
-
-def ros_layout(msg: MessageDef) -> tuple[tuple[str, str, str], ...]:
-    """(field name, rosidl type, store) of every field, in order: what rclpy's class of
-    `msg` must look like for decoders to fill its slots."""
-    return tuple((f.name, rosidl_type(f.type), ros_store(f.type)) for f in msg.fields)
-
-
-def field_encoding(fe: FieldEncoding, ftype: FieldType, array: ArrayKind = ArrayKind.NONE,
-                   size: int | None = None) -> Encoding:
-    """The IR node of a manifest field encoding on a field of type `ftype` (the element
-    type when `array` says the encoding applies to every element)."""
-    if fe.kind == OMIT:
-        return Absent("omitted by the manifest; the receiver keeps the default")
-    if fe.kind == STATIC:
-        octets = ftype.base if ftype.is_array and ftype.base in OCTET_TYPES else None
-        value = list(fe.value) if isinstance(fe.value, tuple) else fe.value
-        if ftype.base == "byte" and not ftype.is_array:
-            value = bytes((value,))
-        return Static(value, octets)
-    if fe.kind == QUANTIZE:
-        d = fe.min.denominator * fe.step.denominator // _gcd(fe.min.denominator, fe.step.denominator)
-        a, b = int(fe.min * d), int(fe.step * d)
-        return Quantized(ftype.base, a, b, d, fe.count - 1, fe.clamp, array, size)
-    if fe.kind == ENUM:
-        return Enumerated(ftype.base, tuple(fe.values), array, size)
-    step_ns = int(fe.step * 10 ** 9)
-    if fe.kind == TIME_OF_DAY:
-        return TimeOfDay(step_ns, fe.count, type_key(TIME_TYPE))
-    if fe.kind == TIME_SINCE_EPOCH:
-        return TimeSinceEpoch(fe.epoch * 10 ** 9, step_ns, fe.count - 1, type_key(TIME_TYPE))
-    raise AssertionError(fe.kind)
-
-
-def _gcd(x: int, y: int) -> int:
-    while y:
-        x, y = y, x % y
-    return x
 
 
 @dataclass(frozen=True)

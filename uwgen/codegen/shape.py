@@ -9,7 +9,7 @@
   levels deep, so the limit is far above any real interface, and far below what Python
   takes: the generator and the generated code recurse about once per level (Python's
   limit is 1000 frames) and the emitter keeps every generated expression well under the
-  parser's 200 nested parentheses (uwgen.codegen.emit.NEST_CHUNK).
+  parser's 200 nested parentheses (uwgen.codegen.emit_decode.NEST_CHUNK).
 
 Both checks are iterative, so even a pathological definition gets the located error,
 never a RecursionError.

@@ -26,6 +26,7 @@ from pathlib import Path
 # name in _runtime/ -> uwgen module it is a copy of. Keep in dependency order.
 CARRIED = {
     "codec": "uwgen.runtime.wire.codec",
+    "typed_arrays": "uwgen.runtime.wire.typed_arrays",
     "model": "uwgen.manifest.model",
     "framing": "uwgen.runtime.wire.framing",
     "bits": "uwgen.runtime.wire.bits",

@@ -27,8 +27,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from uwgen.analyze import DEFAULT_BITRATE, analyze, format_analysis, to_json
+    from uwgen.analyze import DEFAULT_BITRATE, analyze
+    from uwgen.analyze_report import format_analysis, to_json
     from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.linkfloor import check_read_lengths
     from uwgen.manifest.loader import load_manifest
 
     folders = list(args.folders)
@@ -46,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         lib = InterfaceLibrary(folders, installed=True)
         manifest = load_manifest(manifest_path, lib)
+        check_read_lengths(manifest)
         result = analyze(manifest, lib.get, bitrate)
     except (ManifestError, DefinitionError) as exc:
         print(f"uwgen analyze: {exc}", file=sys.stderr)

@@ -20,7 +20,7 @@ from types import ModuleType
 
 import yaml
 
-from uwgen import yamltext
+from uwgen import safefile, yamltext
 from uwgen.bridge.main import EXIT_USAGE, add_link_arguments
 from uwgen.bridge.plan import PlanError, import_package
 from uwgen.commands.options import add_manifest
@@ -49,9 +49,9 @@ def package_name(manifest: Path) -> str:
     package, and the package carries everything the bridge needs.
     """
     try:
-        data = yamltext.safe_load(manifest.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise PlanError(f"{manifest}: cannot read: {exc.strerror}") from None
+        data = yamltext.safe_load(yamltext.read(manifest, "manifest"))
+    except safefile.UnreadableFile as exc:
+        raise PlanError(exc.message) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{manifest}:{mark.line + 1}:{mark.column + 1}" if mark else str(manifest)

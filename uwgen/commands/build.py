@@ -12,7 +12,8 @@ from pathlib import Path
 
 from uwgen.buildinfo import make_record
 from uwgen.errors import ErrorList
-from uwgen.codegen.generator import plan_build, render_package, stale_files, write_package
+from uwgen.codegen.generator import plan_build
+from uwgen.codegen.render import render_package, stale_files, write_package
 from uwgen.codegen.ir import ProfileError
 from uwgen.codegen.vendor import VendorError
 from uwgen.commands.options import add_folders, add_manifest
@@ -125,12 +126,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"uwgen build: {exc}", file=sys.stderr)
         return EXIT_INPUT
     if args.ros and not args.check:
-        from uwgen.commands.ros_interfaces import ensure_folders
+        from uwgen.commands.ros_interfaces import InputError, ensure_folders
         from uwgen.typesupport import BuildError
         try:
             folders = list(dict.fromkeys(f for spec in specs for f in spec.folders))
             for env in ensure_folders(folders, quiet=True):
                 log.info("rclpy type support of %s: %s", env.package, env.prefix or "installed")
+        except InputError as exc:
+            print(f"uwgen build: {exc}", file=sys.stderr)
+            return EXIT_INPUT
         except BuildError as exc:
             print(f"uwgen build: {exc}", file=sys.stderr)
             return EXIT_STALE

@@ -28,28 +28,41 @@ import sys
 import time
 from pathlib import Path
 
-from uwgen.argtypes import number, whole
+from uwgen.argtypes import caller_path, number, whole
 from uwgen.commands.options import old_spelling
 from uwgen.emulator.physics import DEFAULT_PHY, PHYS, phy
 from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
 
 HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
 
-EXIT_FAILED = 1
+EXIT_FAILED = 1     # the run failed (a process crashed, the vehicle did not follow)
+EXIT_USAGE = 2      # bad input: an --out that cannot be written, an unusable key file
 FOLLOW_TOLERANCE = 0.5   # metres between the reported path and the commanded square
 
 log = logging.getLogger("uwgen.demo")
 
 
+EPILOG = """\
+ROS domains: the vehicle's processes run in ROS domain ROS_DOMAIN_ID (taken modulo 101; when
+it is unset, 1 + this process's id modulo 100), the surface's in the next one, ROS_DOMAIN_ID + 1,
+as on two computers; discovery stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST).
+Both domains should be free of other ROS processes for the run.
+Ports: the emulated DESERT nodes listen on 127.0.0.1, on two free TCP ports the system picks
+(printed at start; the manifest's 4000 and 4001 are not used), and each bridge connects to its
+node's; with --desert, the given HOST:PORTs instead. DDS uses the UDP ports of the two domains
+(7400 + 250 x domain id, and a few above)."""
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=None,
+    parser.epilog = EPILOG
+    parser.add_argument("--out", type=caller_path, default=None,
                         help="folder for logs, records, stats and the plot (default demo_output/ "
                              "in the checkout, or in uwgen's cache if the checkout is read-only)")
     parser.add_argument("--desert", type=desert_endpoints, default=None, metavar="HOST:PORT,HOST:PORT",
                         help="run against a running DESERT instead of the emulator: the surface "
                              "node's and the vehicle's application sockets (the bridges use the "
                              "manifest's link settings, 64 B every 0.2 s)")
-    parser.add_argument("--key-file", type=Path, default=None, metavar="PATH",
+    parser.add_argument("--key-file", type=caller_path, default=None, metavar="PATH",
                         help="the network key both bridges use (created when missing; default: "
                              "the manifest's msg_samples/keys/demo.key, or in uwgen's cache if "
                              "the checkout is read-only); nothing else is kept beside it (no "
@@ -156,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(f"uwgen demo: cannot write {out}: {exc.strerror}; give another folder with --out",
               file=sys.stderr)
-        return EXIT_FAILED
+        return EXIT_USAGE
     for old in out.glob("*.json*"):
         old.unlink()
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
@@ -180,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
     keys = contextlib.ExitStack()
     key = network_key(keys, out, say, args.key_file)
     if key is False:
-        return EXIT_FAILED
+        return EXIT_USAGE
     key_args = key.bridge_args() if key else []
 
     scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle"),

@@ -43,7 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="YAML scenario (msg_samples/scenarios/*.yaml); flags override it")
     add_manifest(parser, help="one node per side, named after it, with its port and link "
                               "settings; a scenario file then only adds physics (positions, "
-                              "waypoints, snr, tdma, seed, ...)")
+                              "waypoints, snr, tdma, seed, ...). Validated as `uwgen build -m` "
+                              "validates it (types from the interface packages beside it, or "
+                              "installed)")
     g = parser.add_argument_group("nodes (without a scenario file)")
     g.add_argument("--nodes", type=whole(1, MAX_NODES), default=None, metavar="N",
                    help="number of nodes, on a line, each sending to the next (default 2)")

@@ -13,6 +13,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from uwgen import safefile
+
 MANIFEST_NAME = "uwgen.yaml"   # the same as uwgen.manifest.loader.MANIFEST_NAME (not imported: no yaml here)
 MANIFEST_HELP = f"the manifest: a file, or a folder holding {MANIFEST_NAME}"
 
@@ -31,13 +33,22 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
 
 def manifest_path(text: str) -> Path:
-    """argparse type of -m: a folder stands for its uwgen.yaml."""
+    """argparse type of -m: a folder stands for its uwgen.yaml. A name that cannot lead to a
+    manifest (a symlink loop, a name too long, a device, a FIFO) is a usage error here,
+    before any command resolves or reads it; a missing file is left to the command."""
     path = Path(text)
-    if path.is_dir():
+    try:
+        is_dir = path.is_dir()
+    except (OSError, ValueError):
+        is_dir = False
+    if is_dir:
         candidate = path / MANIFEST_NAME
-        if not candidate.is_file():
+        if safefile.problem(candidate, "manifest") is None and not candidate.is_file():
             raise argparse.ArgumentTypeError(f"{path} is a folder without a {MANIFEST_NAME}")
-        return candidate
+        path = candidate
+    why = safefile.problem(path, "manifest")
+    if why is not None:
+        raise argparse.ArgumentTypeError(why)
     return path
 
 

@@ -36,6 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="write here instead of standard output")
     exp.add_argument("--include-native", action="store_true",
                      help="also list native-profile entries (rmw_desert nodes would misread them)")
+    exp.add_argument("--force", action="store_true",
+                     help="replace FILE if it exists with other content (as import needs it)")
 
     imp = sub.add_parser(
         "import", help="start a manifest (profile rmw_desert) from ros_allowed_topics.conf",
@@ -155,10 +157,31 @@ def _export(args) -> int:
         print(f"uwgen rmw-config: left out {note}", file=sys.stderr)
     if args.output is None:
         sys.stdout.write(result.text)
+    elif _unchanged(args.output, result.text, args.force):
+        print(f"{args.output} is up to date: {len(result.table)} names", file=sys.stderr)
     else:
         _write(args.output, result.text)
         print(f"wrote {args.output}: {len(result.table)} names", file=sys.stderr)
     return EXIT_OK
+
+
+def _unchanged(path: Path, text: str, force: bool) -> bool:
+    """True when `path` already holds `text`; RmwConfigError when it holds something else
+    and `force` is not given (a table another tool or a person wrote is not lost silently)."""
+    from uwgen import safefile
+    from uwgen.interop.rmw_config import CONF_LIMIT, RmwConfigError
+
+    if not os.path.lexists(path):
+        return False
+    try:
+        if safefile.read_text(path, "output", CONF_LIMIT) == text:
+            return True
+    except safefile.UnreadableFile as exc:
+        if not force:
+            raise RmwConfigError(f"{exc}; not replacing it") from None
+    if not force:
+        raise RmwConfigError(f"{path} exists with other content; pass --force to overwrite it")
+    return False
 
 
 def _pairs(values: list[str], option: str) -> dict[str, str]:

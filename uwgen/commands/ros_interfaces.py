@@ -22,8 +22,14 @@ HELP = "build rclpy type support for the interface packages in folders (cached),
 TAKES_COMMAND = True   # everything after `--` is the program to run
 
 ENV_KEYS = ("PYTHONPATH", "AMENT_PREFIX_PATH", "LD_LIBRARY_PATH")   # what --print-env prints
-EXIT_FAILED = 1
-EXIT_USAGE = 2
+from uwgen.typesupport import BuildError
+
+EXIT_FAILED = 1     # the type support build itself failed (the toolchain, not the input)
+EXIT_USAGE = 2      # bad input: no such folder, no package in it, a broken definition
+
+
+class InputError(BuildError):
+    """The folders given are not interface packages, or their definitions are broken."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -44,15 +50,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def ensure_folders(folders: list[Path], cache: Path | None = None, quiet: bool = True):
     """Build (or reuse) every package in `folders`; returns their InterfaceEnvs."""
-    from uwgen.typesupport import BuildError, ensure_interfaces, local_dependencies, package_dirs
+    from uwgen.typesupport import ensure_interfaces, local_dependencies, package_dirs
 
     envs = []
     for folder in folders:
         if not Path(folder).is_dir():
-            raise BuildError(f"{folder}: no such folder")
+            raise InputError(f"{folder}: no such folder")
         found = package_dirs(folder)
         if not found:
-            raise BuildError(f"{folder}: no interface package here (expected msg/, srv/ or action/ in it "
+            raise InputError(f"{folder}: no interface package here (expected msg/, srv/ or action/ in it "
                              "or in its sub-folders)")
         with_deps = list(dict.fromkeys([*found, *(d for p in found for d in local_dependencies(p))]))
         _check_definitions([d for d in with_deps if (d / "msg").is_dir() or (d / "srv").is_dir()])
@@ -66,8 +72,6 @@ def _check_definitions(package_dirs: list[Path]) -> None:
     from uwgen.errors import Collector
     from uwgen.idl.loader import InterfaceLibrary
     from uwgen.idl.model import DefinitionError
-    from uwgen.typesupport import BuildError
-
     errors = Collector()
     try:
         lib = InterfaceLibrary(package_dirs) if package_dirs else None
@@ -79,14 +83,15 @@ def _check_definitions(package_dirs: list[Path]) -> None:
     except DefinitionError as exc:
         errors.add(exc)
     if errors:
-        raise BuildError("\n".join(str(e) for e in errors.errors))
+        raise InputError("\n".join(str(e) for e in errors.errors))
 
 
 def run(args: argparse.Namespace) -> int:
-    from uwgen.typesupport import BuildError
-
     try:
         envs = ensure_folders(args.folders, args.cache)
+    except InputError as exc:
+        print(f"uwgen ros-interfaces: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     except BuildError as exc:
         print(f"uwgen ros-interfaces: {exc}", file=sys.stderr)
         return EXIT_FAILED

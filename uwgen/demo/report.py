@@ -12,7 +12,8 @@ Columns, per topic (from the publishing side to the other):
   policy     messages dropped by policy (superseded, overflow, expired, too large, encode
              errors, echo guard), by reason in the bridges' status (`accounting`)
   lost       messages put on the wire that the far bridge never received (packet loss);
-             (seen N): of those, N the far bridge knew were lost (fragmented messages)
+             (seen N): of those, N the link knows were lost (named by acknowledgements,
+             or fragmented messages that never completed), never more than lost
   delivered  messages the far application received
   latency    from publication to delivery (median and 95th percentile), matched per message
 So `taken = on link + policy + still queued`, and `on link = received by the far bridge + lost`
@@ -162,8 +163,11 @@ def _topic_row(name: str, direction: str, sender: dict, receiver: dict) -> Row:
         flow = ledger.across(acc, rx)
         row.on_link, row.lost, row.lost_seen = flow["sent"], flow["lost"], flow["lost_on_link"]
         exact = link.get("on_link")
-        if isinstance(exact, dict) and "lost_on_link" in exact:
-            row.lost_seen = int(exact["lost_on_link"])     # named by acks (wire-format 15.7)
+        if isinstance(exact, dict) and "lost_on_link" in exact and not link.get("fragments_sent"):
+            # Named by acks (wire-format 15.7), in copies: messages only where none went in
+            # fragments (then the receiver's count of incomplete messages above stands). Never
+            # more than were lost: a copy the acks name missing may still have arrived.
+            row.lost_seen = min(int(exact["lost_on_link"]), row.lost)
         row.imbalances = ledger.imbalances(acc) + ledger.imbalances(rx)
         return row
     row.taken = out.get("taken", 0)
@@ -311,8 +315,8 @@ COLUMNS = """\
   subscription lost before it took them (its ROS queue overflowed); on link: put on the wire;
   policy: dropped by the topic's link policy (superseded by a newer one, rate, ttl, overflow);
   lost (seen): put on the link, never received by the far bridge; (seen) of those, how many
-  the link knows were lost: on wire format 2 the copies the far side's acknowledgements name
-  missing (exact, wire-format 15.7), else fragments of a message that never completed"""
+  the link knows were lost: on wire format 2 those the far side's acknowledgements name
+  missing (wire-format 15.7), for a fragmented topic those of which some fragments arrived"""
 
 
 def format_report(report: Report) -> str:

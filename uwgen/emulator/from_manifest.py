@@ -1,7 +1,8 @@
 """An emulated network from a uwgen manifest: one DESERT node per side.
 
-`uwgen emulate -m uwgen.yaml [scenario.yaml]`: the manifest says which nodes exist (its
-sides, by name), their ports and their link settings (max_read_length, period); a
+`uwgen emulate -m uwgen.yaml [scenario.yaml]`: the manifest (validated as every command
+validates it) says which nodes exist (its sides, by name), their ports and their link
+settings (max_read_length, period); a
 scenario file may add the physics (positions, waypoints, SNR model, TDMA, seed, ...) but
 not contradict the manifest. Sides without a position in the scenario are placed on a
 line, `spacing` metres apart. With two sides each sends to the other; with more, each
@@ -12,23 +13,37 @@ from __future__ import annotations
 from pathlib import Path
 
 from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario, ScenarioError, load_scenario
+from uwgen.idl.model import DefinitionError
+from uwgen.manifest.nodes import ManifestError
 
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def load_checked(manifest: Path):
+    """The manifest, validated as `uwgen build` and `analyze` validate it (its types resolved
+    from the interface packages beside it and the installed ones, every entry and id checked,
+    each side's max_read_length above the network's floor): the emulator never runs a
+    network the bridges would refuse. ManifestError or DefinitionError, located."""
+    from uwgen.idl.loader import InterfaceLibrary
+    from uwgen.linkfloor import check_read_lengths
+    from uwgen.manifest.loader import load_manifest
+    from uwgen.typesupport import package_dirs
+
+    folder = Path(manifest).parent
+    lib = InterfaceLibrary([folder] if package_dirs(folder) else [], installed=True)
+    loaded = load_manifest(Path(manifest), lib)
+    check_read_lengths(loaded)
+    return loaded
 
 
 def scenario_from_manifest(manifest: Path, physics: Path | None = None,
                            spacing: float = 1000.0) -> Scenario:
     """The scenario of `manifest`'s sides, with the scenario file `physics` laid on top.
     Raises ScenarioError (a bad manifest's ManifestError text is kept, file:line:column)."""
-    from uwgen.manifest.loader import load_sides
-    from uwgen.manifest.nodes import ManifestError
-
     try:
-        _network, sides = load_sides(manifest)
-    except ManifestError as exc:
+        sides = load_checked(manifest).sides
+    except (ManifestError, DefinitionError) as exc:
         raise ScenarioError(str(exc)) from None
-    except OSError as exc:
-        raise ScenarioError(f"cannot read manifest: {exc.strerror or exc}", str(manifest)) from None
     if len(sides) < 2:
         raise ScenarioError(f"the manifest has {len(sides)} side: an emulated network needs "
                             "at least 2", str(manifest))

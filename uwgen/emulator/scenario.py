@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from uwgen import yamltext
+from uwgen import safefile, yamltext
 from uwgen.emulator.motion import PoseFeed, Position, Track, check_waypoints
 from uwgen.emulator.physics import SnrModel
 
@@ -284,9 +284,11 @@ def load_scenario(path: Path | str, base_nodes: list[NodeSpec] | None = None) ->
     or max_read_length (`uwgen emulate -m`)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(f"cannot read scenario: {exc.strerror or exc}", str(path)) from None
+        text = yamltext.read(path, "scenario")
+    except safefile.UnreadableFile as exc:
+        if exc.line:
+            raise ScenarioError(exc.reason, f"{path}:{exc.line}:{exc.column}") from None
+        raise ScenarioError(exc.message) from None
     doc = _Doc(path)
     try:
         root = yaml.compose(text, Loader=yamltext.Loader)

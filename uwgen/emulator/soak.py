@@ -31,7 +31,7 @@ frame is allowed (packet-aligned writes keep every frame inside one packet).
 Memory is the process's resident set (RSS, /proc/self/statm), sampled from the start of the
 run, so warm-up counts and a short run measures as much as a long one. The ledger closes
 per flow: sent = delivered + lost, with the link's own loss counts checked against it
-(`link_ledger`: exact once the link reports it, issue 16).
+(`link_ledger`: exact once the link reports it, wire-format.md section 15.7).
 """
 from __future__ import annotations
 
@@ -166,7 +166,7 @@ class Soak:
     down_time: float = 5.0             # seconds DESERT stays down
     flows: tuple = DEMO_FLOWS
     clock: ManualClock = field(default_factory=ManualClock)
-    wire_format: int = 1               # 2: envelopes, acks and the links' own ledger (issue 16)
+    wire_format: int = 1               # 2: envelopes, acks and the links' own ledger (wire-format 15.7)
 
     def __post_init__(self) -> None:
         self.rng = random.Random(f"{self.seed}/soak")
@@ -403,7 +403,7 @@ class Soak:
                                 f"{self.core.counters(side)['bytes_in']}")
         for name, row in self.ledger().items():
             # sent = delivered + lost: nothing arrives that was not sent, the receiver never
-            # counts more lost than did not arrive, and the sender's own ledger (issue 16),
+            # counts more lost than did not arrive, and the sender's own ledger (wire-format 15.7),
             # once there, says exactly what arrived and what did not.
             if row["lost"] < 0:
                 problems.append(f"{name}: delivered {row['delivered']} > sent {row['sent']}")

@@ -24,6 +24,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from uwgen import safefile
 from uwgen.idl import names
 from uwgen.idl.model import (
     ACTION_PARTS,
@@ -40,8 +41,21 @@ from uwgen.idl.model import (
     SourceRef,
 )
 from uwgen.idl.values import ValueProblem, parse_scalar, parse_value
+from uwgen.runtime.wire.fragment import MAX_COUNT
+from uwgen.runtime.wire.framing import MAX_PAYLOAD
 
 SEPARATOR = "---"
+# The largest size or bound a definition may give (docs/wire-format.md section 7, "The
+# largest message"): no message longer than MAX_COUNT fragments of a frame's MAX_PAYLOAD
+# bytes crosses the link; a string's character takes at least one byte of it, an array's
+# element at least one bit (a bool of the packed profile). Anything larger could never be
+# sent, and would only make the build write a module of that size.
+MAX_MESSAGE_BYTES = MAX_COUNT * MAX_PAYLOAD        # 255 fragments of 255 bytes: 65 025
+MAX_STRING_BOUND = MAX_MESSAGE_BYTES
+MAX_ARRAY_SIZE = 8 * MAX_MESSAGE_BYTES            # 520 200
+LIMIT_REASON = (f"no message over {MAX_MESSAGE_BYTES} bytes ({MAX_COUNT} fragments of {MAX_PAYLOAD}) "
+                "crosses the link")
+DEFINITION_LIMIT = 1024 ** 2   # the longest .msg/.srv/.action read (ROS's own are under 20 KiB)
 _ROS1_TYPES = {"time": "builtin_interfaces/Time", "duration": "builtin_interfaces/Duration"}
 
 
@@ -106,12 +120,21 @@ def parse_type(text: str, package: str, where: _Line, column0: int = 0) -> Field
     return FieldType(_message_type(base_text, package, where, column0), array, size)
 
 
+def _shown(text: str, keep: int = 40) -> str:
+    """A spelling as the file has it, cut short when long (a size of 5 000 digits)."""
+    return text if len(text) <= keep else f"{text[:keep]}... ({len(text)} characters)"
+
+
 def _positive_int(digits: str, what: str, text: str, where: _Line, column0: int) -> int:
+    limit = MAX_STRING_BOUND if what == "string bound" else MAX_ARRAY_SIZE
     if not digits.isascii() or not digits.isdigit():
-        raise where.error(column0, f"{what} in '{text}' must be a positive integer, got '{digits}'")
+        raise where.error(column0, f"{what} in '{_shown(text)}' must be a positive integer, got '{_shown(digits)}'")
+    if len(digits.lstrip("0")) > len(str(limit)) or int(digits) > limit:
+        raise where.error(column0, f"{what} in '{_shown(text)}' is {_shown(digits)}, more than uwgen's "
+                                   f"limit of {limit}: {LIMIT_REASON}")
     value = int(digits)
     if value <= 0:
-        raise where.error(column0, f"{what} in '{text}' must be > 0, got {value}")
+        raise where.error(column0, f"{what} in '{_shown(text)}' must be > 0, got {value}")
     return value
 
 
@@ -313,14 +336,12 @@ def _check_names(package: str, name: str, path: Path) -> None:
 
 
 def read_text(path: Path) -> str:
-    """The file's text as UTF-8; a decoding problem is a located DefinitionError."""
-    data = path.read_bytes()
+    """The file's text as UTF-8, read with uwgen.safefile (a regular file of at most
+    DEFINITION_LIMIT bytes); a problem is a located DefinitionError."""
     try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise DefinitionError(SourceRef(path, line, column), f"not valid UTF-8: {exc.reason}") from None
+        return safefile.read_text(path, "interface definition", DEFINITION_LIMIT)
+    except safefile.UnreadableFile as exc:
+        raise DefinitionError(SourceRef(path, exc.line or 1, exc.column or 1), exc.reason) from None
 
 
 def parse_file(path: Path | str, package: str | None = None):

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-from uwgen import yamltext
+from uwgen import safefile, yamltext
 from uwgen.idl import names as idl_names
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.idl.model import SourceRef
@@ -29,6 +29,7 @@ from uwgen.interop.hints import KNOWN_TYPES
 from uwgen.manifest.loader import validate_ros_name
 from uwgen.manifest.model import Manifest
 
+CONF_LIMIT = 1024 ** 2      # an rmw_desert configuration: a line per topic, never a megabyte
 RESERVED = {DISCOVERY_TOPIC: DISCOVERY_ID, DISCOVERY_REQUEST_TOPIC: DISCOVERY_REQUEST_ID}
 
 
@@ -147,11 +148,11 @@ def parse_conf(text: str, source: str = "<ros_allowed_topics.conf>") -> dict[str
 def read_conf(path: Path) -> dict[str, int]:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise RmwConfigError(f"not valid UTF-8: {exc.reason}", SourceRef(path, 1, 1)) from None
-    except OSError as exc:
-        raise RmwConfigError(f"cannot read: {exc.strerror or exc}", str(path)) from None
+        text = safefile.read_text(path, "rmw_desert configuration", CONF_LIMIT)
+    except safefile.UnreadableFile as exc:
+        if exc.line:
+            raise RmwConfigError(exc.reason, SourceRef(path, exc.line, exc.column)) from None
+        raise RmwConfigError(exc.message) from None
     return parse_conf(text, str(path))
 
 
@@ -235,9 +236,9 @@ def resolve_types(names: list[str], lib: InterfaceLibrary, explicit: dict[str, s
 def read_hints(path: Path) -> dict[str, str]:
     """A hints file: a YAML (or JSON) mapping of name to type."""
     try:
-        data = yamltext.safe_load(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise RmwConfigError(f"cannot read hints: {exc.strerror or exc}", str(path)) from None
+        data = yamltext.safe_load(yamltext.read(path, "hints file"))
+    except safefile.UnreadableFile as exc:
+        raise RmwConfigError(exc.message) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = SourceRef(Path(path), mark.line + 1, mark.column + 1) if mark else str(path)

@@ -208,7 +208,8 @@ class FieldsReader:
         return FieldEncoding(path, QUANTIZE, min=lo, max=hi, step=step, clamp=clamp, where=where)
 
     def decimal(self, node: yaml.Node, what: str) -> Fraction:
-        value = self.r.value(node)
+        value = self.r.value(node, what)
+        self.r.expected_number(node, value, what)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise self.r.error(node, f"{what} must be a finite number, got {self.r.describe(node)}")
         return exact(value)
@@ -232,7 +233,7 @@ class FieldsReader:
     def fits(self, node: yaml.Node, ftype: FieldType, what: str):
         """The value of scalar `node` as field type `ftype` holds it, or a located error."""
         r = self.r
-        value = r.value(node)
+        value = r.value(node, what)
         prim = ftype.base
         if not isinstance(node, yaml.ScalarNode):
             raise r.error(node, f"{what} must be a single value, got {r.describe(node)}")
@@ -246,6 +247,7 @@ class FieldsReader:
             if ftype.string_bound is not None and len(value) > ftype.string_bound:
                 raise r.error(node, f"{what} has {len(value)} characters, over the bound of {ftype}")
             return value
+        r.expected_number(node, value, what)     # a plain 0o17 where a number goes
         if prim in INTEGER_RANGES:
             lo, hi = INTEGER_RANGES[prim]
             if isinstance(value, bool) or not isinstance(value, int):

@@ -88,23 +88,6 @@ def load_manifest(path: Path, lib: InterfaceLibrary) -> Manifest:
     return _ManifestBuilder(Reader(path), lib).build(root)
 
 
-def load_sides(path: Path) -> tuple[str, dict[str, Side]]:
-    """The network name and the sides of the manifest at `path`, checked as load_manifest
-    checks them (file:line:column errors), without resolving any type: for tools that need
-    only the DESERT endpoints (`uwgen emulate -m`)."""
-    path = Path(path)
-    root = compose(path)
-    builder = _ManifestBuilder(Reader(path), None)  # type: ignore[arg-type] - no types read
-    r = builder.r
-    if root is None:
-        raise ManifestError(SourceRef(r.path, 1, 1), "empty manifest: expected a mapping with at least 'network' and 'sides'")
-    top = r.mapping(root, "the manifest", TOP_KEYS)
-    network = r.string(r.require(top, "network", root, "the manifest"), "network")
-    sides = read_sides(builder, r.require(top, "sides", root, "the manifest"))
-    builder.errors.raise_if_any(ManifestErrors)   # every broken side, each located
-    return network, sides
-
-
 def validate_ros_name(name: str) -> str | None:
     """Why `name` is not a fully qualified ROS 2 topic/service name, or None if it is one.
 
@@ -132,6 +115,22 @@ def validate_ros_name(name: str) -> str | None:
     return None
 
 
+class _Errors(Collector):
+    """The builder's collector: leaves out what only follows from a key already refused
+    (a field spec that "says nothing" once its misspelled key is skipped)."""
+
+    def __init__(self, reader: Reader):
+        super().__init__()
+        self.reader = reader
+
+    def add(self, error: Exception) -> None:
+        kept = [e for e in (getattr(error, "errors", None) or [error]) if not self.reader.consequence(e)]
+        if kept:
+            super().add(ManifestErrors(kept) if len(kept) > 1 else kept[0])
+        elif not self.errors:
+            super().add(error)      # never lose the only error there is
+
+
 class _ManifestBuilder:
     def __init__(self, reader: Reader, lib: InterfaceLibrary):
         self.r = reader
@@ -142,7 +141,8 @@ class _ManifestBuilder:
         self.senders: dict[str, int] = {}
         # Every independent mistake is reported in one pass (not one per run): each check
         # that can go wrong on its own runs under `attempt`/`checked` and lands here.
-        self.errors = Collector()
+        self.errors = _Errors(reader)
+        reader.collect = self.errors            # unknown and repeated keys too (Reader.mapping)
         self.declared: set[str] | None = None   # side names written (None: sides unreadable)
 
     @contextmanager
@@ -188,9 +188,12 @@ class _ManifestBuilder:
             profile = self.checked(NATIVE, r.choice, top["profile"][1], "profile", PROFILES)
 
         security = Security()
+        security_read = True
         if "security" in top:
             self.sec.block = top["security"][1]
+            before = errors.count
             security = self.checked(security, network_security, r, self.sec.block)
+            security_read = errors.count == before
             if isinstance(self.sec.block, yaml.MappingNode):
                 self.sec.mode_node = next((v for k, v in self.sec.block.value if k.value == "mode"),
                                           self.sec.block)
@@ -239,7 +242,6 @@ class _ManifestBuilder:
             none = isinstance(node, yaml.ScalarNode) and r.value(node) is None
             with errors.attempt(ManifestError):
                 schema_period = None if none else r.number(node, "schema_period (seconds; null for none)")
-        errors.raise_if_any(ManifestErrors)
 
         manifest = Manifest(
             network=network,
@@ -255,10 +257,18 @@ class _ManifestBuilder:
             schema_period=schema_period,
             security=security,
         )
-        manifest = self.sec.finish(manifest, root, self.senders)
+        # The checks of the whole manifest run on what could be read, also when some of it
+        # could not (so its mistakes come in the same pass); the security set-up's only when
+        # its block was read (else "no key named" would only echo that block's own error).
+        if security_read and self.declared is not None:
+            with errors.attempt(ManifestError):
+                manifest = self.sec.finish(manifest, root, self.senders)
         if manifest.uses_rmw_desert():
-            checks.check_rmw_reserved(r, self.ids, manifest, top)
-        checks.check_repair(r, manifest, self.repair_nodes)
+            with errors.attempt(ManifestError):
+                checks.check_rmw_reserved(r, self.ids, manifest, top)
+        with errors.attempt(ManifestError):
+            checks.check_repair(r, manifest, self.repair_nodes)
+        errors.raise_if_any(ManifestErrors)
         return manifest
 
     def network(self, top: dict, root: yaml.Node) -> str:

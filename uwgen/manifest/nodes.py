@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 from pathlib import Path
 
 import yaml
 from yaml.constructor import ConstructorError, SafeConstructor
 
-from uwgen import yamltext
+from uwgen import safefile, yamltext
 from uwgen.idl.model import SourceRef
 
 
@@ -22,6 +23,43 @@ from uwgen.idl.model import SourceRef
 LARGEST_INT = 2 ** 64 - 1
 MAX_NUMBER = 1e9
 MIN_POSITIVE = 1e-6
+
+
+# YAML 1.1 (PyYAML) and YAML 1.2 read these plain scalars differently, and neither reading is
+# what a person writing a manifest expects: `1:30` is 90 in base 60 (1.2: a string), `1_000`
+# is 1000 (1.2: a string), `017` is octal 15 (1.2: 17), `0b11` is 3 (1.2: a string), `+5` is
+# signed where no other number is, and `0o17`, octal in 1.2, is a string in 1.1. A number in
+# a manifest is plain decimal (or 0x hexadecimal, the same in both); these are refused where
+# they stand, with the number to write instead.
+_OCTAL_11 = re.compile(r"[-+]?0[0-7_]+")
+_OCTAL_12 = re.compile(r"[-+]?0o[0-7]+")
+
+
+def yaml11_surprise(text: str, value) -> str | None:
+    """Why the plain scalar `text`, read as `value`, must be written otherwise, or None."""
+    plain = _shorten(text)
+    number = str(value) if isinstance(value, int) else repr(value)
+    if isinstance(value, str):
+        if _OCTAL_12.fullmatch(text):
+            return (f"{plain} is octal in YAML 1.2 but text in YAML 1.1, which uwgen reads: "
+                    f"write {int(text.replace('0o', ''), 8)}")
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    if ":" in text:
+        return (f"{plain} is a base-60 number in YAML 1.1 ({number}) and text in YAML 1.2: "
+                f"write {number} (or quote it, for text)")
+    if "_" in text:
+        return (f"{plain} has '_', which YAML 1.1 drops and YAML 1.2 does not: write {number} "
+                "(or quote it, for text)")
+    if text.lower().lstrip("+-").startswith("0b"):
+        return f"{plain} is binary in YAML 1.1 only: write {number}"
+    if isinstance(value, int) and _OCTAL_11.fullmatch(text):
+        return (f"{plain} is octal in YAML 1.1 ({value}) and decimal in YAML 1.2 "
+                f"({int(text)}): write {value} or {int(text)} without the leading 0")
+    if text.startswith("+"):
+        return f"write {text[1:]} without the '+' sign"
+    return None
 
 
 def _shorten(text: str, keep: int = 24) -> str:
@@ -41,11 +79,11 @@ class ManifestError(Exception):
 def compose(path: Path) -> yaml.Node | None:
     """The YAML document of `path` as a node tree (None for an empty document)."""
     try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ManifestError(SourceRef(path, 1, 1), f"not valid UTF-8: {exc.reason}") from None
-    except OSError as exc:
-        raise ManifestError(None, f"{path}: cannot read manifest: {exc.strerror or exc}") from None
+        text = yamltext.read(path, "manifest")
+    except safefile.UnreadableFile as exc:
+        if exc.line:
+            raise ManifestError(SourceRef(path, exc.line, exc.column), exc.reason) from None
+        raise ManifestError(None, str(exc)) from None
     try:
         return yaml.compose(text, Loader=yamltext.Loader)
     except yaml.MarkedYAMLError as exc:
@@ -63,6 +101,24 @@ class Reader:
     def __init__(self, path: Path):
         self.path = path
         self._constructor = SafeConstructor()
+        # With a collector (the manifest builder's), an unknown, repeated or unreadable key
+        # is collected and skipped instead of ending the read: the rest of the mapping is
+        # still checked, so every mistake of a manifest comes in one pass.
+        self.collect = None
+        # (line, column) of the mappings a key was refused in: an error located at one of them
+        # afterwards ("says nothing", "missing the required key") is a consequence, not news.
+        self.damaged: set[tuple[int, int]] = set()
+
+    def _refuse(self, error: ManifestError, mapping: yaml.Node) -> None:
+        if self.collect is None:
+            raise error
+        self.damaged.add((mapping.start_mark.line + 1, mapping.start_mark.column + 1))
+        self.collect.add(error)
+
+    def consequence(self, error: Exception) -> bool:
+        """Whether `error` is located at a mapping whose own key was refused already."""
+        where = getattr(error, "where", None)
+        return where is not None and (where.line, where.column) in self.damaged
 
     def where(self, node: yaml.Node) -> SourceRef:
         mark = node.start_mark
@@ -79,13 +135,18 @@ class Reader:
             raise self.error(node, f"{what} must be a mapping, got {self.describe(node)}")
         entries: dict[str, tuple[yaml.Node, yaml.Node]] = {}
         for key_node, value_node in node.value:
-            key = self._key(key_node, what)
+            try:
+                key = self._key(key_node, what)
+            except ManifestError as error:
+                self._refuse(error, node)
+                continue
             if key in entries:
                 first = self.where(entries[key][0])
-                raise self.error(key_node, f"duplicate key '{key}' in {what} (first at line {first.line})")
-            if known and key not in known:
-                raise self.error(key_node, self.unknown_key_message(key, what, known))
-            entries[key] = (key_node, value_node)
+                self._refuse(self.error(key_node, f"duplicate key '{key}' in {what} (first at line {first.line})"), node)
+            elif known and key not in known:
+                self._refuse(self.error(key_node, self.unknown_key_message(key, what, known)), node)
+            else:
+                entries[key] = (key_node, value_node)
         return entries
 
     def open_mapping(self, node: yaml.Node, what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
@@ -94,9 +155,11 @@ class Reader:
 
     def check_keys(self, entries: dict[str, tuple[yaml.Node, yaml.Node]], what: str, known: tuple[str, ...]) -> None:
         """Refuse keys of an `open_mapping` that are not in `known`, in file order."""
-        for key, (key_node, _) in entries.items():
+        for key, (key_node, _) in list(entries.items()):
             if key not in known:
-                raise self.error(key_node, self.unknown_key_message(key, what, known))
+                self._refuse(self.error(key_node, self.unknown_key_message(key, what, known)),
+                             entries[key][1])   # no mapping node here: its value stands for it
+                del entries[key]
 
     def _key(self, key_node: yaml.Node, what: str) -> str:
         if not isinstance(key_node, yaml.ScalarNode):
@@ -127,8 +190,10 @@ class Reader:
 
     # -- scalars ---------------------------------------------------------------------
 
-    def value(self, node: yaml.Node):
-        """The Python value of a scalar node (YAML's own typing: 4 is int, 4.0 float, null None)."""
+    def value(self, node: yaml.Node, what: str | None = None):
+        """The Python value of a scalar node (YAML's own typing: 4 is int, 4.0 float, null None);
+        a number spelled so that YAML 1.1 and 1.2 disagree is an error (`yaml11_surprise`),
+        naming `what` when given."""
         if not isinstance(node, yaml.ScalarNode):
             return node
         try:
@@ -138,6 +203,10 @@ class Reader:
         if isinstance(value, int) and not isinstance(value, bool) and not -LARGEST_INT <= value <= LARGEST_INT:
             raise self.error(node, f"the integer {_shorten(node.value)} is out of range: no value in "
                                    f"a manifest is beyond 64 bits (±{LARGEST_INT})")
+        if node.style is None and not isinstance(value, str):
+            surprise = yaml11_surprise(node.value, value)
+            if surprise:
+                raise self.error(node, f"{what}: {surprise}" if what else surprise)
         return value
 
     def describe(self, node: yaml.Node) -> str:
@@ -157,8 +226,16 @@ class Reader:
             raise self.error(node, f"{what} must be a string, got {self.describe(node)}")
         return value
 
+    def expected_number(self, node: yaml.Node, value, what: str) -> None:
+        """A plain `0o17` where a number is expected: say why it is text, not only that it is."""
+        if isinstance(value, str) and isinstance(node, yaml.ScalarNode) and node.style is None:
+            surprise = yaml11_surprise(node.value, value)
+            if surprise:
+                raise self.error(node, f"{what}: {surprise}")
+
     def integer(self, node: yaml.Node, what: str, lo: int | None = None, hi: int | None = None) -> int:
-        value = self.value(node)
+        value = self.value(node, what)
+        self.expected_number(node, value, what)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.error(node, f"{what} must be an integer, got {self.describe(node)}")
         if (lo is not None and value < lo) or (hi is not None and value > hi):
@@ -176,7 +253,8 @@ class Reader:
     def number(self, node: yaml.Node, what: str, positive: bool = True) -> float:
         """A finite number within ±MAX_NUMBER; with `positive`, at least MIN_POSITIVE (rates,
         periods, timeouts and ttls: anything else overflows the timers it ends up in)."""
-        value = self.value(node)
+        value = self.value(node, what)
+        self.expected_number(node, value, what)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(node, f"{what} must be a number, got {self.describe(node)}")
         if not math.isfinite(value):
@@ -190,9 +268,9 @@ class Reader:
 
     def optional_number(self, node: yaml.Node, what: str) -> float | None:
         """A positive number, or null meaning 'no limit'."""
-        if isinstance(node, yaml.ScalarNode) and self.value(node) is None:
+        if isinstance(node, yaml.ScalarNode) and self.value(node, what) is None:
             return None
-        value = self.value(node)
+        value = self.value(node, what)
         if isinstance(value, (int, float)) and not isinstance(value, bool) and value <= 0:
             raise self.error(node, f"{what} must be > 0 (or null for no limit), got {value}")
         return self.number(node, what)

@@ -106,7 +106,7 @@ class SecurityCheck:
             raise r.error(where, "security is on for some topics, services or actions but no key is named: "
                           "add `security: {key_file: PATH}` (create the key with `uwgen keygen PATH`)")
         for side, node in self.side_nodes.items():
-            if side not in senders:
+            if side not in senders and side not in self.sender_nodes:   # not one that is wrong
                 raise r.error(node, f"side '{side}' needs a sender_id (0..{MAX_SENDER_ID}, one per "
                               "side) because security is on")
         return manifest

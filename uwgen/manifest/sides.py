@@ -13,6 +13,7 @@ from uwgen.manifest.security import sender_id
 
 SIDE_KEYS = ("host", "port", "link", "sender_id")
 LINK_KEYS = ("max_read_length", "period")
+DESERT_MAX_READ_LENGTH = 4096   # DESERT crashes above this; the floor depends on the network (uwgen.linkfloor)
 SIDE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 HOSTNAME_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
 
@@ -68,7 +69,8 @@ def read_link(r: Reader, node: yaml.Node, what: str) -> LinkConfig:
     max_read_length = base.max_read_length
     period = base.period
     if "max_read_length" in fields:
-        max_read_length = r.integer(fields["max_read_length"][1], f"max_read_length of {what}", 1, 4096)
+        max_read_length = r.integer(fields["max_read_length"][1], f"max_read_length of {what}", 1,
+                                    DESERT_MAX_READ_LENGTH)
     if "period" in fields:
         period = r.number(fields["period"][1], f"period of {what}")
     return LinkConfig(max_read_length, period)

@@ -1,4 +1,4 @@
-"""The secure link (issue 9, reworked by issue 17; docs/wire-format.md section 12).
+"""The secure link (docs/wire-format.md section 12, docs/security.md).
 
 A protected payload is the ordinary payload with its fields signed or encrypted by
 AES-CCM with an 8-byte tag (AES-CCM-16-64-128, as OSCORE, RFC 8613), under a working key

@@ -12,11 +12,13 @@ from __future__ import annotations
 import os
 import secrets
 import stat
+import string
 from pathlib import Path
 
 from cryptography.hazmat.primitives import hashes
 from cryptography.hazmat.primitives.kdf.hkdf import HKDF
 
+from uwgen.safefile import UnreadableFile, read_bytes, shown
 from uwgen.security.errors import SecurityError
 from uwgen.security.files import write_private
 
@@ -24,12 +26,13 @@ MASTER_KEY_BYTES = 32
 SENDER_KEY_BYTES = 16          # AES-128, as AES-CCM-16-64-128
 KEY_ID_BYTES = 8
 HKDF_SALT = b"uwgen secure link v1"
+KEY_FILE_LIMIT = 64 * 1024    # a key and its comments; anything longer is not a key file
 KEY_FILE_HEADER = ("# uwgen network master key: keep it secret, give every side of the network "
                    "a copy (owner-only permissions).\n")
 
 
 __all__ = ["SecurityError", "sender_key", "working_key", "new_epoch", "key_id", "new_master_key", "write_key_file",
-           "read_key_file"]
+           "read_key_file", "KeyFileMissing"]
 
 
 def _hkdf(master: bytes, info: bytes, length: int) -> bytes:
@@ -80,27 +83,52 @@ def write_key_file(path: Path, key: bytes | None = None, force: bool = False) ->
     return key
 
 
+class KeyFileMissing(SecurityError):
+    """There is no key file at the path (the bridge says where it looked and why)."""
+
+
+def _owner_only(path: Path):
+    def check(info: os.stat_result) -> None:
+        if info.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
+            raise SecurityError(f"key file {shown(path)} is accessible to others (mode "
+                                f"{stat.S_IMODE(info.st_mode):o}); make it owner-only: chmod 600 {shown(path)}")
+    return check
+
+
 def read_key_file(path: Path) -> bytes:
-    """The master key in `path`; SecurityError if missing, malformed or readable by others."""
+    """The master key in `path`; SecurityError if missing, malformed or readable by others.
+
+    The file is read with `uwgen.safefile` (a regular file only, at most KEY_FILE_LIMIT
+    bytes, its mode checked before any byte is read): a symlink to /dev/zero, a FIFO or a
+    loop is refused at once instead of read forever. An all-zero key is refused: it is the
+    placeholder of examples and tests, which anyone can guess, so a link sealed with it is
+    open to every stranger; a warning would let such a link run."""
     path = Path(path)
     try:
-        mode = path.stat().st_mode
-        text = path.read_text(encoding="ascii")
-    except FileNotFoundError:
-        raise SecurityError(f"key file {path} not found: create one with `uwgen keygen {path}` "
-                            "and copy it to every side") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SecurityError(f"cannot read key file {path}: {exc}") from None
-    if mode & (stat.S_IRWXG | stat.S_IRWXO):
-        raise SecurityError(f"key file {path} is accessible to others (mode {stat.S_IMODE(mode):o}); "
-                            f"make it owner-only: chmod 600 {path}")
-    lines = [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+        data = read_bytes(path, "key file", KEY_FILE_LIMIT, check=_owner_only(path))
+    except UnreadableFile as exc:
+        if exc.missing:
+            raise KeyFileMissing(f"{exc}: create one with `uwgen keygen {shown(path)}` and copy it "
+                                "to every side") from None
+        raise SecurityError(str(exc)) from None
+    expected = f"one line of {2 * MASTER_KEY_BYTES} hex digits ({MASTER_KEY_BYTES} bytes)"
+    lines = [(n, ln) for n, ln in enumerate(data.split(b"\n"), 1)
+             if ln.strip() and not ln.lstrip().startswith(b"#")]
     if len(lines) != 1:
-        raise SecurityError(f"key file {path} must hold one line of {2 * MASTER_KEY_BYTES} hex digits")
-    try:
-        key = bytes.fromhex(lines[0])
-    except ValueError:
-        raise SecurityError(f"key file {path}: the key is not hex digits") from None
-    if len(key) != MASTER_KEY_BYTES:
-        raise SecurityError(f"key file {path}: the key has {len(key)} bytes, expected {MASTER_KEY_BYTES}")
+        raise SecurityError(f"key file {shown(path)} must hold {expected} besides '#' comment lines, "
+                            f"found {len(lines)} such lines")
+    number, line = lines[0]
+    for column, byte in enumerate(line, 1):
+        if chr(byte) not in string.hexdigits and not chr(byte).isspace():
+            shown_byte = repr(chr(byte)) if 32 <= byte < 127 else f"the byte 0x{byte:02x}"
+            raise SecurityError(f"key file {shown(path)}:{number}:{column}: {shown_byte} is not a hex "
+                                f"digit (0-9, a-f); a key file holds {expected}")
+    digits = b"".join(line.split()).decode("ascii")
+    if len(digits) != 2 * MASTER_KEY_BYTES:
+        raise SecurityError(f"key file {shown(path)}:{number}: the key has {len(digits)} hex digits "
+                            f"({len(digits) / 2:g} bytes); a key is {expected}")
+    key = bytes.fromhex(digits)
+    if not any(key):
+        raise SecurityError(f"key file {shown(path)}:{number}: the key is all zeros, a placeholder anyone "
+                            f"can guess: refused. Make a real key with `uwgen keygen` and copy it to every side")
     return key

@@ -5,7 +5,7 @@ The window remembers the highest sequence number accepted (`high`) and which of 
 `high` is new, one inside the window is new unless its bit is set (reordering within the
 window is accepted, a duplicate is a replay), one below the window is too old.
 
-What one frame can do is bounded (issue 17, item 4): a number more than `max_jump` above
+What one frame can do is bounded (docs/seams.md section 2): a number more than `max_jump` above
 `high` is refused (TOO_FAR) and moves nothing, so a key holder who forges a frame numbered
 2^42 cannot push the window out of the real sender's reach.
 

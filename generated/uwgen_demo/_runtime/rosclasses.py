@@ -11,7 +11,7 @@ nested message even when one is passed (most of what decoding into rclpy costs).
 
 That is only correct while rosidl_generator_py lays classes out as uwgen assumes, so
 `RosClasses` checks every class against the layout the generator recorded for it
-(uwgen.codegen.ir.ros_layout) before saying yes (`C.fast_<key>`): the same slots, the
+(uwgen.codegen.rosidl_layout.ros_layout) before saying yes (`C.fast_<key>`): the same slots, the
 same field types, getters that read the slots, and a default instance holding in each
 slot the container the fast path stores (numpy arrays for fixed numeric arrays,
 array.array for numeric sequences, lists, ...). Anything else, and the decoders of that
@@ -155,7 +155,7 @@ _SCALARS = {"float": float, "int": int, "bool": bool, "bytes": bytes, "str": str
 
 def layout_problem(cls: type, layout: tuple, check_fields: bool) -> str:
     """What about rclpy class `cls` differs from `layout` ((name, rosidl type, store) per
-    field, uwgen.codegen.ir.ros_layout), or '' when decoders may fill its slots."""
+    field, uwgen.codegen.rosidl_layout.ros_layout), or '' when decoders may fill its slots."""
     names = [name for name, _t, _s in layout]
     slots = list(getattr(cls, "__slots__", ()))
     if slots != [f"_{n}" for n in names] + ["_check_fields"]:
@@ -182,7 +182,7 @@ def layout_problem(cls: type, layout: tuple, check_fields: bool) -> str:
 
 
 def holds(value, store: str) -> bool:
-    """Whether `value` is what a slot of kind `store` (ir.ros_store) holds."""
+    """Whether `value` is what a slot of kind `store` (rosidl_layout.ros_store) holds."""
     kind, _, arg = store.partition(":")
     if kind in _SCALARS:
         return type(value) is _SCALARS[kind]

@@ -24,7 +24,10 @@ from .._runtime.codec import (
     item_bool as _item_bool, item_bools as _item_bools, ints_in as _ints_in,
     numbers as _numbers, octets as _octets, only as _only, short as _short,
     struct_for as _struct_for, texts as _texts, under as _under, wstring as _wstring,
-    Tag as _Tag, number_array as _number_array, float32_array as _float32_array,
+    Tag as _Tag,
+)
+from .._runtime.typed_arrays import (
+    number_array as _number_array, float32_array as _float32_array,
     numeric_sequence as _numeric_sequence, typed_array as _typed_array,
 )
 from .._runtime.rosclasses import new_message as _new

@@ -1,7 +1,8 @@
 """Time on the link: the 3-byte time T of an envelope (and of a sync word), and whether it is fresh.
 
-Shared by the commands' `stale` check (issue 16) and security's freshness (issue 17): one
-mechanism for time (docs/seams.md section 4), so it lives in the runtime, below both.
+Shared by the commands' `stale` check (wire-format.md section 15.5) and security's freshness
+(section 12): one mechanism for time (docs/seams.md section 4), so it lives in the runtime,
+below both.
 
 A sender stamps each sync word with its wall clock when it seals the frame, as the envelope's
 T part (docs/seams.md section 1) will: a 24-bit count of 1/32 s since the UNIX epoch, mod 2^24

@@ -1,6 +1,6 @@
 """Reliable delivery wired into a wire format 2 link (docs/wire-format.md section 15).
 
-`Reliability(...).hooks()` is the `PacketHooks` of issue 16 (docs/seams.md section 5); the
+`Reliability(...).hooks()` is reliability's `PacketHooks` (docs/seams.md section 5); the
 bridge joins it with the seal's (`packets.join_hooks`) and passes it to `Link(hooks=)`. It
 drives the pure engine `uwgen.runtime.delivery.reliable.ReliableLink`:
 

@@ -7,7 +7,7 @@ packet), and tells the hooks which messages went in which packet number. `Unpack
 opens one received frame's envelope and returns its messages as wire format 1 payloads, for the
 link's fragment, security and dispatch layers, which are unchanged.
 
-The seams of issues 16 and 17 (docs/seams.md section 5) are the `PacketHooks`:
+The seams of reliability and the seal (docs/seams.md section 5) are the `PacketHooks`:
 
 - `parts(now)` -> dict of extra `Envelope` fields (`time`, `ack`, `control`, `sync`) for the
   packet being built; `overhead` is the most bytes they and the seal add to a packet;
@@ -23,7 +23,7 @@ The seams of issues 16 and 17 (docs/seams.md section 5) are the `PacketHooks`:
   sender's full packet number (not reduced mod 4096);
 - `received(envelope, now)` for every envelope accepted, before its messages are delivered.
 
-Reliability (issue 16) also uses (docs/seams.md section 5, "Session 5"):
+Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"):
 
 - `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`;
 - `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
@@ -64,7 +64,8 @@ PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "message
 
 @dataclass
 class PacketHooks:
-    """What reliability (issue 16) and the per-packet seal (issue 17) plug into; all optional."""
+    """What reliability (wire-format.md section 15) and the per-packet seal (section 12.2) plug
+    into; all optional."""
 
     parts: Callable[[float], dict] | None = None
     seal: Callable[[env.Envelope], bytes] | None = None
