@@ -9,7 +9,8 @@ import pytest
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.wire.fragment import Fragmenter, Reassembler
+from uwgen.runtime.wire.fragment import Fragmenter
+from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer, Unpacker
 from uwgen.runtime.stats import Counters
 from uwgen.security.guard import GuardConfig

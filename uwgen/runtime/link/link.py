@@ -34,7 +34,8 @@ from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.link.connection import Backoff, DesertConnection
 from uwgen.runtime.wire.envelope import EnvelopeError, add_packed_head, from_v1, strip_packed_head
-from uwgen.runtime.wire.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
+from uwgen.runtime.wire.fragment import MAX_COUNT, Fragmenter, fragment_payload_for, is_fragment
+from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.wire.framing import LONG, MAX_FRAME, MAX_PAYLOAD, SHORT
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker,
