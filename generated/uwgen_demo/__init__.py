@@ -126,7 +126,7 @@ MANIFEST = ManifestInfo(
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "d972544d9f3dd97a",
+    "manifest": "bb82154753f1349f",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
