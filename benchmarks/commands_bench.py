@@ -28,6 +28,8 @@ share of all bytes the two sides wrote.
 from __future__ import annotations
 
 import argparse
+import itertools
+import os
 import random
 import sys
 import tempfile
@@ -71,16 +73,36 @@ actions:
      result_timeout: 30, max_goals: 2, feedback: false}
 """
 COMMAND_IDS = (9, 20)
+# How the two sides share the channel (docs/emulator.md, MACs), at the bench's 1000 m:
+# TDMA's guard covers a packet and the range (0.11 + 0.67 s).
+MACS = {
+    "none": "{mode: none}",
+    "tdma": "{mode: tdma, frame: 3.0, guard: 0.8, slots: [surface, vehicle], "
+            "max_packet_per_slot: 1000, queue_size: 10, bitrate: 4800, range: 1000}",
+    "turns": "{mode: turns, leader: surface, packets: {surface: 4, vehicle: 2}, bitrate: 4800, "
+             "range: 1000}",
+    # a longer surface turn: its command stream (5/s, priority 10) leaves room for the rest
+    "turns8": "{mode: turns, leader: surface, packets: {surface: 8, vehicle: 2}, bitrate: 4800, "
+              "range: 1000}",
+}
+SENDERS = {"surface": 1, "vehicle": 2}
 
 
-def build_package():
+def mac_config(mode: str):
+    from uwgen.manifest.mac import mac_from_text
+    return mac_from_text(MACS[mode], list(SENDERS))
+
+
+def build_package(mac: str = "none"):
     from uwgen.cli import main as uwgen_main
     root = Path(tempfile.mkdtemp(prefix="uwgen_cmdbench_"))
-    (root / "uwgen.yaml").write_text(MANIFEST)
+    name = f"uwgen_cmdbench_{mac}"
+    (root / "uwgen.yaml").write_text(MANIFEST.replace("package: uwgen_cmdbench", f"package: {name}")
+                                     + f"mac: {MACS[mac]}\n")
     if uwgen_main(["--quiet", "build", "-m", str(root / "uwgen.yaml"),
-                   "-o", str(root / "generated" / "uwgen_cmdbench")]) != 0:
+                   "-o", str(root / "generated" / name)]) != 0:
         sys.exit("uwgen build of the benchmark manifest failed")
-    return import_package("uwgen_cmdbench", root / "generated")
+    return import_package(name, root / "generated")
 
 
 def fibonacci(n: int) -> list[int]:
@@ -93,7 +115,10 @@ def fibonacci(n: int) -> list[int]:
 class Side:
     """One ROS domain with its executor thread."""
 
-    domains = iter(range(150, 230))
+    # two domains of the caller's (ROS_DOMAIN_ID and the next), reused run after run: a run's
+    # contexts are shut down before the next starts
+    _base = int(os.environ.get("ROS_DOMAIN_ID", "150"))
+    domains = itertools.cycle((_base, _base + 1))
 
     def __init__(self, name: str):
         self.context = Context()
@@ -146,10 +171,18 @@ class Overhead:
             bridge.action_servers._resend_results = lambda ident, now: None   # no result copies
 
 
-def run(package, per: float, seed: int, calls: int, goals: int, retries: bool) -> dict:
-    scen = Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle"),
-                           NodeSpec("vehicle", position=(1000.0, 0.0, 0.0), dest="surface")],
+def scenario(per: float, seed: int, mac: str) -> Scenario:
+    """The bench's link (64 B every 0.2 s, 4800 bit/s, 1000 m) under DESERT's MAC for `mac`."""
+    from uwgen.emulator.from_manifest import with_mac
+    scen = Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle", slot=0),
+                           NodeSpec("vehicle", position=(1000.0, 0.0, 0.0), dest="surface", slot=1)],
                     period=0.2, max_read_length=64, bitrate=4800.0, per=per, seed=seed)
+    return with_mac(scen, mac_config(mac))
+
+
+def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
+        mac: str = "none") -> dict:
+    scen = scenario(per, seed, mac)
     executed = {"calls": [], "goals": []}
     with run_emulator(scen) as emu:
         surface, vehicle = Side("surface"), Side("vehicle")
@@ -224,6 +257,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool) -
             time.sleep(1.0)
             written = sum(b.link.stats()["connection"]["bytes_sent"] for b in bridges.values())
             extra = sum(o.bytes for o in overhead.values())
+            collisions = sum(c["lost_collision"] for c in emu.all_counters().values())
         finally:
             surface.close()
             vehicle.close()
@@ -235,7 +269,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool) -
     capacity = 2 * elapsed / 0.2 * (64 + OVERHEAD)
     return {"calls": f"{ok_calls}/{calls}", "goals": f"{ok_goals}/{goals}", "dup": dup,
             "share": extra / written if written else 0.0, "capacity": extra / capacity,
-            "time": elapsed}
+            "time": elapsed, "collisions": collisions}
 
 
 # The demo's topic mix (msg_samples/uwgen.yaml) plus the measured mission topic (id 8):
@@ -257,11 +291,14 @@ class _Wall:
         return 1.7e9 + self.clock.now()
 
 
-def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0) -> dict:
+def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
+              mac: str = "none") -> dict:
     """One simulated run of the topic mix; the mission topic reliable or best effort."""
-    scen = Scenario(nodes=[NodeSpec("surface", position=(0.0, 0.0, 0.0), dest="vehicle"),
-                           NodeSpec("vehicle", position=(1000.0, 0.0, 0.0), dest="surface")],
-                    period=0.2, max_read_length=64, bitrate=4800.0, per=per, seed=seed)
+    from uwgen.manifest.model import LinkConfig
+    from uwgen.runtime.link.mac import mac_for
+    scen = scenario(per, seed, mac)
+    config = mac_config(mac)
+    macs = {side: mac_for(config, side, SENDERS, LinkConfig(64, 0.2)) for side in SENDERS}
     clock = ManualClock()
     mission = LinkPolicy(queue="fifo", depth=20, ttl=30.0, priority=3, reliable=reliable)
     rel: dict[str, Reliability] = {}
@@ -271,7 +308,9 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0) -> 
         r = rel[side] = Reliability(1 if side == "surface" else 2, period=0.2,
                                     reliable={MISSION: 30.0} if reliable else {},
                                     max_ages={i: p.ttl for _, i, _, _, p in TOPIC_MIX} | {MISSION: 30.0},
-                                    wall=_Wall(clock), name=side, max_read_length=64)
+                                    wall=_Wall(clock), name=side, max_read_length=64,
+                                    other_overhead=macs[side].overhead,
+                                    turn_gap=macs[side].turn_gap())
         hooks = r.hooks()
         resend = hooks.resend
 
@@ -283,7 +322,8 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0) -> 
         hooks.resend = counted
         return hooks
     sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,
-                    clock=clock, step=0.025)
+                    clock=clock, step=0.025,
+                    link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})
     for side, link in sim.links.items():
         take = link.connection.outbox.take
 
@@ -323,28 +363,79 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0) -> 
     lat = sorted(got[k] - sent_at[k] for k in got)
     written = sum(link.connection.outbox.stats.bytes_sent for link in sim.links.values())
     row = rel["surface"].ledger().get(MISSION, {})
+    collisions = sum(sim.core.counters(n)["lost_collision"] for n in SENDERS)
     return {"ratio": len(got) / len(sent_at), "p50": _pct(lat, 0.5), "p95": _pct(lat, 0.95),
+            "rtt": rel["surface"].engine.rtt.srtt or float("nan"), "collisions": collisions,
             "dup": dup, "ack_share": repair["ack"] / written,
             "resent_share": repair["resent"] / written,
             "lost_on_link": row.get("lost_on_link", 0), "expired": row.get("expired", 0)}
+
+
+def ledger_run(mac: str, seconds: float = 300.0, per: float = 0.0, seed: int = 5) -> dict:
+    """A saturated one-way link (the surface floods a best-effort fifo topic, the vehicle
+    sends only its acknowledgements) on simulated time: what the surface's ledger says was
+    lost on the link beside what the emulator lost."""
+    from uwgen.manifest.model import LinkConfig
+    from uwgen.runtime.link.mac import mac_for
+    scen = scenario(per, seed, mac)
+    config = mac_config(mac)
+    macs = {side: mac_for(config, side, SENDERS, LinkConfig(64, 0.2)) for side in SENDERS}
+    clock = ManualClock()
+    rel: dict[str, Reliability] = {}
+
+    def hooks_for(side: str):
+        rel[side] = Reliability(SENDERS[side], period=0.2, reliable={}, max_ages={}, wall=_Wall(clock),
+                                name=side, max_read_length=64, other_overhead=macs[side].overhead,
+                                turn_gap=macs[side].turn_gap())
+        return rel[side].hooks()
+    sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2, clock=clock,
+                    step=0.025, link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})
+    sim.links["surface"].add_channel(MISSION, LinkPolicy(queue="fifo", depth=50, ttl=30.0))
+    k = 0
+    t = 0.0
+    while t < seconds:                                  # 40 B every 0.05 s: 4x what it carries
+        sim.at(t, lambda k=k: sim.links["surface"].offer(MISSION, bytes((0, MISSION)) + bytes(38)))
+        k += 1
+        t += 0.05
+    sim.run(seconds + 30.0)
+    row = rel["surface"].ledger().get(MISSION, {})
+    got = sum(1 for _, p in sim.received["vehicle"] if p[1] == MISSION)
+    sent = row.get("sent", 0)
+    counters = {n: sim.core.counters(n) for n in SENDERS}
+    return {"sent": sent, "delivered": got, "ledger_lost": row.get("lost_on_link", 0),
+            "real_lost": sent - got, "ledger_delivered": row.get("delivered", 0),
+            "collisions": sum(c["lost_collision"] for c in counters.values()),
+            "ack_only_lost": counters["surface"]["lost_collision"] + counters["surface"]["lost_per"]}
+
+
+def ledger_table(macs: list[str]) -> None:
+    print("| mac | messages sent | delivered (vehicle) | really lost | ledger: delivered | "
+          "ledger: lost on link | packets lost to collisions |")
+    print("|---|---|---|---|---|---|---|")
+    for mac in macs:
+        r = ledger_run(mac)
+        print(f"| {mac} | {r['sent']} | {r['delivered']} | {r['real_lost']} | {r['ledger_delivered']} | "
+              f"{r['ledger_lost']} | {r['collisions']} |", flush=True)
 
 
 def _pct(values: list[float], q: float) -> float:
     return values[min(len(values) - 1, int(q * len(values)))] if values else float("nan")
 
 
-def topic_table(rates: list[float], seed: int) -> None:
-    print("| PER | mission topic | delivered | latency p50 / p95 (s) | duplicates | "
-          "lost on link (copies) | acks / bytes written | re-sends / bytes written | "
-          "acks + re-sends |")
-    print("|---|---|---|---|---|---|---|---|---|")
+def topic_table(rates: list[float], seed: int, macs: list[str] = ("none",)) -> None:
+    print("| PER | mac | mission topic | delivered | latency p50 / p95 (s) | measured round trip (s) "
+          "| p95 / round trip | duplicates | lost on link (copies) | collisions | acks / bytes "
+          "written | re-sends / bytes written | acks + re-sends |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for per in rates:
-        for reliable in (False, True):
-            r = topic_run(per, seed, reliable)
-            print(f"| {per:.0%} | {'reliable' if reliable else 'best effort'} | {r['ratio']:.1%} | "
-                  f"{r['p50']:.2f} / {r['p95']:.2f} | {r['dup']} | {r['lost_on_link']} | "
-                  f"{r['ack_share']:.1%} | {r['resent_share']:.1%} | "
-                  f"{r['ack_share'] + r['resent_share']:.1%} |", flush=True)
+        for mac in macs:
+            for reliable in (False, True):
+                r = topic_run(per, seed, reliable, mac=mac)
+                print(f"| {per:.0%} | {mac} | {'reliable' if reliable else 'best effort'} | "
+                      f"{r['ratio']:.1%} | {r['p50']:.2f} / {r['p95']:.2f} | {r['rtt']:.2f} | "
+                      f"{r['p95'] / r['rtt']:.1f} | {r['dup']} | {r['lost_on_link']} | "
+                      f"{r['collisions']} | {r['ack_share']:.1%} | {r['resent_share']:.1%} | "
+                      f"{r['ack_share'] + r['resent_share']:.1%} |", flush=True)
 
 
 def main() -> int:
@@ -357,22 +448,35 @@ def main() -> int:
     ap.add_argument("--no-topics", action="store_true", help="skip the reliable-topic table")
     ap.add_argument("--no-reference", action="store_true",
                     help="commands: run this build only, not the reference without retries")
+    ap.add_argument("--ledger", action="store_true",
+                    help="only the saturated one-way ledger table (simulated), per --mac")
+    ap.add_argument("--mac", default="none",
+                    help="comma-separated MACs to run (none, tdma, turns; see MACS); the first "
+                         "row of each rate is the reference")
     args = ap.parse_args()
+    macs = args.mac.split(",")
+    unknown = [m for m in macs if m not in MACS]
+    if unknown:
+        ap.error(f"--mac: unknown {', '.join(unknown)} (known: {', '.join(MACS)})")
+    if args.ledger:
+        ledger_table(macs)
+        return 0
     if not args.no_topics:
-        topic_table([float(p) for p in args.per.split(",")], args.seed)
+        topic_table([float(p) for p in args.per.split(",")], args.seed, macs)
         print()
     if args.topics_only:
         return 0
-    package = build_package()
-    print("| PER | mode | calls ok | goals ok (real result) | duplicate runs | "
-          "retry+ack bytes / bytes written | / link capacity | s |")
-    print("|---|---|---|---|---|---|---|---|")
+    packages = {mac: build_package(mac) for mac in macs}
+    print("| PER | mac | mode | calls ok | goals ok (real result) | duplicate runs | "
+          "retry+ack bytes / bytes written | / link capacity | collisions | s |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for per in (float(p) for p in args.per.split(",")):
-        for retries in (True,) if args.no_reference else (True, False):
-            r = run(package, per, args.seed, args.calls, args.goals, retries)
-            print(f"| {per:.0%} | {'retries' if retries else 'reference'} | {r['calls']} | "
-                  f"{r['goals']} | {r['dup']} | {r['share']:.1%} | {r['capacity']:.1%} | "
-                  f"{r['time']:.0f} |", flush=True)
+        for mac in macs:
+            for retries in (True,) if args.no_reference else (True, False):
+                r = run(packages[mac], per, args.seed, args.calls, args.goals, retries, mac)
+                print(f"| {per:.0%} | {mac} | {'retries' if retries else 'reference'} | "
+                      f"{r['calls']} | {r['goals']} | {r['dup']} | {r['share']:.1%} | "
+                      f"{r['capacity']:.1%} | {r['collisions']} | {r['time']:.0f} |", flush=True)
     return 0
 
 

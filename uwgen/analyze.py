@@ -89,9 +89,10 @@ class Analysis:
     wire_format: int = 2
     control: list[SideControl] = field(default_factory=list)   # discovery, schema announcements
     tag_bytes: int | None = None     # the per-packet tag of a secured wire format 2 link
+    mac_notes: list[str] = field(default_factory=list)   # uwgen.mac_budget.mac_warnings
 
     def warnings(self) -> list[str]:
-        out = []
+        out = list(self.mac_notes)
         for b in self.budgets:
             if b.typical > b.capacity:
                 out.append(f"side {b.side}: configured traffic needs {b.typical:.1f} B/s (typical sizes) but its "
@@ -122,6 +123,9 @@ def capacity(max_read_length: int, period: float, bitrate: float) -> tuple[float
     by_period = max_read_length / period
     by_bitrate = bitrate / 8 * max_read_length / (max_read_length + DESERT_PACKET_OVERHEAD)
     return (by_period, "period") if by_period <= by_bitrate else (by_bitrate, "bit rate")
+
+
+from uwgen.mac_budget import capacity_under_mac, mac_warnings  # noqa: E402
 
 
 def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Analysis:
@@ -161,7 +165,8 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     budgets = []
     schema = _schema_rate(manifest)
     for side in manifest.sides.values():
-        cap, limit = capacity(side.link.max_read_length, side.link.period, bitrate)
+        cap, limit = capacity_under_mac(manifest, side,
+                                        *capacity(side.link.max_read_length, side.link.period, bitrate))
         typical, worst, unlimited = schema, schema, []
         for e in entries:
             if e.sender not in (side.name, "*") or (e.sender == "*" and _server_of(manifest, e) == side.name):
@@ -177,7 +182,7 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     sealed = (seal.typical, seal.max) if manifest.protected() else (0, 0)
     control = control_costs(manifest, bitrate, wire, sealed)
     return Analysis(manifest.network, bitrate, entries, budgets, wire, control,
-                    tag if manifest.protected() and wire == 2 else None)
+                    tag if manifest.protected() and wire == 2 else None, mac_warnings(manifest))
 
 
 def _schema_rate(manifest: Manifest) -> float:

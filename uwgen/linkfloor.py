@@ -22,19 +22,21 @@ from uwgen.manifest.loader import ManifestErrors
 from uwgen.manifest.nodes import ManifestError
 from uwgen.manifest.sides import DESERT_MAX_READ_LENGTH
 from uwgen.runtime.delivery.reliability import OVERHEAD as RELIABILITY_OVERHEAD
+from uwgen.runtime.link.mac import TurnMac
 from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD
 from uwgen.runtime.wire.fragment import MIN_COMPACT_PAYLOAD
 from uwgen.runtime.wire.framing import SHORT_OVERHEAD as FRAME_OVERHEAD
 from uwgen.security.packet_seal import max_overhead
 
 
-def min_read_length(wire_format: int, tag_bytes: int | None) -> int:
+def min_read_length(wire_format: int, tag_bytes: int | None, mac_bytes: int = 0) -> int:
     """The least bytes per packet a link of `wire_format` can send a message with;
-    `tag_bytes`: the seal's tag length when the link is secured, else None."""
+    `tag_bytes`: the seal's tag length when the link is secured, else None; `mac_bytes`: what
+    the MAC's C items add (mode turns: uwgen.runtime.link.mac.TurnMac.overhead)."""
     if wire_format != 2:
         return 1
     seal = max_overhead(tag_bytes) if tag_bytes is not None else 0
-    return FRAME_OVERHEAD + ENVELOPE_HEAD + RELIABILITY_OVERHEAD + seal + MIN_COMPACT_PAYLOAD
+    return FRAME_OVERHEAD + ENVELOPE_HEAD + RELIABILITY_OVERHEAD + seal + mac_bytes + MIN_COMPACT_PAYLOAD
 
 
 def why_floor(wire_format: int, tag_bytes: int | None) -> str:
@@ -51,7 +53,9 @@ def link_floor(manifest: Manifest) -> tuple[int, str]:
     """(the least max_read_length of every side of `manifest`, why)."""
     wire = 1 if manifest.uses_rmw_desert() else 2      # as BridgePlan.wire_format
     tag = manifest.security.tag_bytes if manifest.protected() else None
-    return min_read_length(wire, tag), why_floor(wire, tag)
+    mac = TurnMac.overhead if manifest.mac.mode == "turns" else 0
+    why = why_floor(wire, tag) + (f", and {mac} for the MAC's turn items" if mac and wire == 2 else "")
+    return min_read_length(wire, tag, mac), why
 
 
 def check_read_lengths(manifest: Manifest) -> None:
@@ -68,9 +72,10 @@ def check_read_lengths(manifest: Manifest) -> None:
     errors.raise_if_any(ManifestErrors)
 
 
-def check_option(max_read_length: int, wire_format: int, tag_bytes: int | None) -> str | None:
+def check_option(max_read_length: int, wire_format: int, tag_bytes: int | None,
+                 mac_bytes: int = 0) -> str | None:
     """Why a --max-read-length given on a command line cannot work, or None."""
-    floor = min_read_length(wire_format, tag_bytes)
+    floor = min_read_length(wire_format, tag_bytes, mac_bytes)
     if not floor <= max_read_length <= DESERT_MAX_READ_LENGTH:
         return (f"max_read_length {max_read_length} must be {floor}..{DESERT_MAX_READ_LENGTH} on this "
                 f"network ({why_floor(wire_format, tag_bytes)}; DESERT crashes above "

@@ -141,7 +141,7 @@ def test_broken_definitions_are_located_before_any_cmake_runs(tmp_path, capsys, 
     (tmp_path / "bad_msgs" / "msg").mkdir(parents=True)
     (tmp_path / "bad_msgs" / "msg" / "A.msg").write_text("int32 x\nint33 y\n")
     (tmp_path / "bad_msgs" / "msg" / "B.msg").write_text("string[ z\n")
-    assert uwgen_main(["ros-interfaces", str(tmp_path)]) == 1
+    assert uwgen_main(["ros-interfaces", str(tmp_path)]) == 2    # broken definitions: an input error
     err = capsys.readouterr().err
     assert "A.msg:2:" in err and "B.msg:1:" in err
     assert not (tmp_path / "cache").exists()     # nothing was built

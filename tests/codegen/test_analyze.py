@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -16,6 +17,7 @@ from uwgen.analyze import air_time, analyze
 from uwgen.codegen import generate
 from uwgen.idl.loader import InterfaceLibrary
 from uwgen.manifest.loader import load_manifest
+from uwgen.manifest.model import MacConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLES = ROOT / "msg_samples"
@@ -90,7 +92,10 @@ def test_field_bits_are_listed_per_field(demo):
 
 
 def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
-    _manifest, a = demo
+    manifest, _ = demo
+    # the link alone (mac none); under the demo's turns, see the test below
+    lib = InterfaceLibrary([SAMPLES], installed=True)
+    a = analyze(replace(manifest, mac=MacConfig()), lib.get, 4800.0)
     surface = next(b for b in a.budgets if b.side == "surface")
     # 5 cmd_vel messages of 6 bytes per second, each alone in a packet (+ 4 frame, + 3 P and
     # W: 13), each packet 8 bytes more sealed (the tag, wire format section 12.2), plus the
@@ -106,8 +111,39 @@ def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     assert not any("cannot fit" in w for w in a.warnings())
 
 
+def test_the_budget_under_turns_is_each_sides_turn_per_round(demo):
+    manifest, a = demo
+    assert manifest.mac.mode == "turns"
+    surface, vehicle = (next(b for b in a.budgets if b.side == s) for s in ("surface", "vehicle"))
+    assert surface.limited_by == vehicle.limited_by == "turns"
+    # one round: the surface's 2 and the vehicle's 1 packet, 1.05 periods apart, and the
+    # vehicle's turn round trip (twice: a period tick, 68 bytes at 4800 bit/s, 300 m, listen)
+    cycle = 3 * 0.21 + 2 * (0.2 + 68 * 8 / 4800 + 0.2 + 0.05)
+    assert surface.capacity == pytest.approx(2 * 64 / cycle)
+    assert vehicle.capacity == pytest.approx(64 / cycle)
+    assert any("limited by its turns" in w for w in a.warnings())
+
+
+def test_mac_warnings_name_the_guard_and_the_deadline_that_cannot_fit(tmp_path):
+    lib = InterfaceLibrary([SAMPLES], installed=True)
+    (tmp_path / "uwgen.yaml").write_text(TIGHT.replace("  vehicle: {port: 4001}\n", """  vehicle: {port: 4001}
+mac: {mode: tdma, frame: 4.0, guard: 0.1, range: 1500}
+services:
+  - {name: /enable, id: 20, type: std_srvs/srv/SetBool, server: vehicle, timeout: 2}
+"""))
+    a = analyze(load_manifest(tmp_path / "uwgen.yaml", lib), lib.get, 4800.0)
+    warnings = "\n".join(a.warnings())
+    assert "guard 0.1 s is shorter than a 64-byte packet's air time plus the 1500 m range" in warnings
+    assert "service /enable: its timeout 2 s cannot fit one round trip under mac tdma" in warnings
+
+
+# TIGHT's link at the floor of an unsecured wire format 2 network (uwgen.linkfloor: 24 bytes),
+# still 8 bytes a second: the command line refuses 8, below that floor
+TIGHT_AT_FLOOR = TIGHT.replace("max_read_length: 8, period: 1.0", "max_read_length: 24, period: 3.0")
+
+
 def test_traffic_that_cannot_fit_is_a_clear_warning_and_strict_fails(tmp_path):
-    (tmp_path / "uwgen.yaml").write_text(TIGHT)
+    (tmp_path / "uwgen.yaml").write_text(TIGHT_AT_FLOOR)
     res = run_cli("-m", tmp_path / "uwgen.yaml", "--strict")
     assert res.returncode == 1, res.stderr
     assert "WARNING: side surface: configured traffic needs 310.0 B/s" in res.stdout   # 5/s x 62-byte packets
@@ -115,7 +151,7 @@ def test_traffic_that_cannot_fit_is_a_clear_warning_and_strict_fails(tmp_path):
 
 
 def test_json_output_for_tools(tmp_path):
-    (tmp_path / "uwgen.yaml").write_text(TIGHT)
+    (tmp_path / "uwgen.yaml").write_text(TIGHT_AT_FLOOR)
     res = run_cli("-m", tmp_path / "uwgen.yaml", "--json", "--bitrate", "200")
     data = json.loads(res.stdout)
     assert data["bitrate"] == 200.0

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from .helpers import SAMPLES, cli
+from .helpers import SAMPLES, cli, examples
 
 HOSTILE = ["0", "-1", "1e400", "-1e400", "nan", "inf", "-inf", "1e-300", "9" * 400, "-" + "9" * 400,
            "1e9", "100000000", "0x10", "", " ", "1_000", "½", "abc"]
@@ -52,7 +52,7 @@ def test_analyze_refuses_an_infinite_bitrate(capsys):
     assert rc == 2 and "argument --bitrate: must be a number in 1..1e+09, got 1e400" in out, out
 
 
-@settings(max_examples=120, deadline=20_000,
+@settings(max_examples=examples(120), deadline=20_000,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(data=st.data())
 def test_any_number_flag_value_gives_a_usage_error_or_a_run_that_ends(capsys, data):

@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 
 from uwgen.security.keys import MASTER_KEY_BYTES, SecurityError, read_key_file
 
-from .helpers import bounded
+from .helpers import bounded, examples
 
-FUZZ = settings(max_examples=200, deadline=10_000,
+FUZZ = settings(max_examples=examples(200), deadline=10_000,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 HEX = "0123456789abcdefABCDEF"
 
@@ -161,3 +161,29 @@ def test_a_missing_relative_key_names_the_folder_it_was_taken_from(tmp_path):
     plan, options = _plan("keys/net.key", tmp_path / "uwgen.yaml"), SimpleNamespace(key_file=None)
     says = _missing_key(plan, options, key_path(plan, options))
     assert f"(taken relative to the manifest's folder {tmp_path})" in says, says
+
+
+BRIDGE = """
+import sys
+from uwgen.cli import main
+manifest = sys.argv[1]
+for key in sys.argv[2:]:
+    rc = main(["bridge", "-m", manifest, "--side", "vehicle", "--port", "9", "--key-file", key])
+    print(rc, flush=True)
+"""
+
+
+def test_the_bridge_refuses_every_special_key_file_with_exit_2_at_once(tmp_path):
+    # Before: a symlink to /dev/zero or a FIFO as --key-file hung the bridge (deaf to Ctrl-C).
+    from .helpers import SAMPLES
+    os.symlink("/dev/zero", tmp_path / "zero.key")
+    os.mkfifo(tmp_path / "fifo.key", 0o600)
+    os.symlink(tmp_path / "loop.key", tmp_path / "loop.key")
+    keys = [tmp_path / "zero.key", tmp_path / "fifo.key", tmp_path / "loop.key", "/dev/urandom",
+            tmp_path / ("k" * 5000), tmp_path]
+    res = bounded(BRIDGE, seconds=60, argv=[str(SAMPLES / "uwgen.yaml"), *map(str, keys)])
+    assert res.stdout.split() == ["2"] * len(keys), res.stdout + res.stderr[-3000:]
+    assert "Traceback" not in res.stderr
+    for says in ("(a symlink to /dev/zero) is a character device", "is a FIFO (named pipe)", "is a symlink loop",
+                 "/dev/urandom is a character device", "has a name too long for this system", "is a folder"):
+        assert says in res.stderr, (says, res.stderr[-3000:])

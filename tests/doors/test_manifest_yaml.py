@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from uwgen.errors import ErrorList
 from uwgen.manifest.loader import ManifestError, load_manifest
 
-from .helpers import SAMPLES, bounded, cli
+from .helpers import SAMPLES, bounded, cli, examples
 
 DEMO = (SAMPLES / "uwgen.yaml").read_text()
 HUGE = "9" * 400
@@ -146,7 +146,7 @@ def warm(tmp_path_factory, lib):
     return lib
 
 
-@settings(max_examples=100, deadline=10_000,
+@settings(max_examples=examples(100), deadline=10_000,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(text=mutated_demo())
 def test_any_mutated_manifest_loads_or_fails_with_a_located_error(tmp_path, capsys, warm, text):

@@ -1,6 +1,6 @@
 """max_read_length has a floor: what one packet of the network must hold (frame, envelope,
 reliability parts, the seal on a secured link, and the smallest fragment). Below it the
-bridge ended in a ValueError traceback (every value below the floor, 44 with security on); build,
+bridge ended in a ValueError traceback (every value below 47 with security on); build,
 analyze and emulate now refuse it at the side that says it, and the bridge with exit 2."""
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import re
 import pytest
 
 from uwgen.linkfloor import min_read_length
+from uwgen.runtime.link.mac import TurnMac
 from uwgen.runtime.delivery.reliability import OVERHEAD as RELIABILITY
 from uwgen.runtime.link.packets import envelope_room
 from uwgen.runtime.wire.fragment import MIN_COMPACT_PAYLOAD
@@ -35,6 +36,10 @@ def test_a_wire_format_1_link_works_from_one_byte_up():
     assert min_read_length(1, 8) == 1 == min_read_length(1, None)
 
 
+# The demo network's floor: sealed with 8-byte tags (47), and its turns' C items (3 more).
+DEMO_FLOOR = min_read_length(2, 8, TurnMac.overhead)
+
+
 def demo_with(tmp_path, max_read_length: int):
     path = tmp_path / "uwgen.yaml"
     path.write_text(DEMO.replace(SURFACE_LINK, SURFACE_LINK.replace("64", str(max_read_length)), 1))
@@ -43,30 +48,30 @@ def demo_with(tmp_path, max_read_length: int):
     return path, line - 2          # located at the side's entry (its `port:` line)
 
 
-@pytest.mark.parametrize("value", [1, 32, 43])
+@pytest.mark.parametrize("value", [1, 32, DEMO_FLOOR - 1])
 def test_build_analyze_and_emulate_refuse_a_max_read_length_below_the_floor_at_the_side(tmp_path, capsys, value):
     path, line = demo_with(tmp_path, value)
     for argv in (["build", "-m", path, "-o", tmp_path / "out", SAMPLES], ["analyze", "-m", path, SAMPLES],
                  ["emulate", "-m", path, "--duration", "0.05"]):
         rc, out = cli(capsys, *argv)
         assert rc == 2 and re.search(rf"{re.escape(str(path))}:{line}:\d+: max_read_length {value} of side "
-                                     rf"'surface' is too small for this network: at least 44 \(", out), (argv, out)
+                                     rf"'surface' is too small for this network: at least {DEMO_FLOOR} \(", out), (argv, out)
         assert "Traceback" not in out
 
 
 def test_the_floor_itself_builds(tmp_path, capsys):
-    path, _ = demo_with(tmp_path, 44)
+    path, _ = demo_with(tmp_path, DEMO_FLOOR)
     rc, out = cli(capsys, "build", "-m", path, "-o", tmp_path / "out", SAMPLES)
     assert rc == 0, out
 
 
-@pytest.mark.parametrize("value", ["1", "32", "43"])
+@pytest.mark.parametrize("value", ["1", "32", str(DEMO_FLOOR - 1)])
 def test_the_bridge_refuses_a_max_read_length_below_the_floor_with_exit_2(tmp_path, capsys, value):
     key = tmp_path / "net.key"
     write_key_file(key)
     rc, out = cli(capsys, "bridge", "-m", SAMPLES / "uwgen.yaml", "--side", "vehicle", "--port", "9",
                   "--key-file", key, "--max-read-length", value)
-    assert rc == 2 and f"max_read_length {value} must be 44..4096 on this network" in out, out
+    assert rc == 2 and f"max_read_length {value} must be {DEMO_FLOOR}..4096 on this network" in out, out
     assert "the seal's 23 (its tag of 8)" in out and "Traceback" not in out
 
 

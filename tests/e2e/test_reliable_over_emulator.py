@@ -89,3 +89,44 @@ def test_a_command_older_than_its_max_age_is_refused_and_a_copy_runs_once(tmp_pa
                  what="the request served, its copy recognised")
         time.sleep(0.5)
         assert calls == [False]
+
+
+def test_a_restarted_unsealed_sender_loses_nothing_and_a_clean_stop_closes_the_peers_ledger(
+        tmp_path_factory):
+    """Every wire-format-2 link carries the sender's epoch (K): a surface bridge started again
+    numbers its packets from 0 and is not taken for repeats; its clean stop sends the last
+    acknowledgements, so the vehicle's ledger has nothing left in flight."""
+    pkg = package(tmp_path_factory)
+    with network(pkg) as net:
+        missions, chatter = [], []
+        net.vehicle.node("sim").create_subscription(String, "/mission", missions.append, 50)
+        net.surface.node("op").create_subscription(String, "/chatter", chatter.append, 50)
+        mission_pub = net.surface.node("op_pub").create_publisher(String, "/mission", 50)
+        chatter_pub = net.vehicle.node("sim_pub").create_publisher(String, "/chatter", 50)
+        wait_for(lambda: net.connected() and mission_pub.get_subscription_count()
+                 and chatter_pub.get_subscription_count(), what="bridges up")
+        for i in range(10):
+            mission_pub.publish(String(data=f"before {i}"))
+            chatter_pub.publish(String(data=f"chatter {i}"))
+            time.sleep(0.05)
+        wait_for(lambda: len(missions) >= 10 and len(chatter) >= 10, timeout=30.0,
+                 what="both ways delivered")
+        old, vb = net.bridges["surface"], net.bridges["vehicle"]
+        net.surface.executor.remove_node(old)
+        net.surface.nodes.remove(old)
+        old.close()                                        # SIGINT/SIGTERM end here too
+        wait_for(lambda: on_link(vb, "/chatter").get("in_flight", 1) == 0, timeout=5.0,
+                 what="the vehicle's chatter ledger closed by the last acknowledgements")
+        assert on_link(vb, "/chatter")["delivered"] == 10
+        new = net.start_bridge("surface")
+        wait_for(lambda: net.connected("surface") and mission_pub.get_subscription_count(),
+                 what="the new surface bridge up")
+        for i in range(10):
+            mission_pub.publish(String(data=f"after {i}"))
+            time.sleep(0.05)
+        wait_for(lambda: len(missions) >= 20, timeout=30.0, what="the new start's missions")
+        assert sorted(m.data for m in missions) == sorted(
+            [f"before {i}" for i in range(10)] + [f"after {i}" for i in range(10)])
+        assert vb.link.stats()["reliability"]["restarts_seen"] == 1
+        wait_for(lambda: on_link(new, "/mission").get("delivered") == 10, timeout=10.0,
+                 what="the new start's ledger: all delivered")

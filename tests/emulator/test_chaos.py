@@ -54,8 +54,10 @@ def test_bad_crash_settings_are_refused(every, down):
 
 
 def test_the_cli_refuses_a_bad_crash_interval(capsys):
-    assert main(["emulate", "--ports", "0", "0", "--crash-every", "0"]) == 2
-    assert "--crash-every must be > 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exited:
+        main(["emulate", "--ports", "0", "0", "--crash-every", "0"])
+    assert exited.value.code == 2
+    assert "--crash-every: must be a number in more than 0" in capsys.readouterr().err
 
 
 def test_the_cli_runs_with_crashes_and_reports_them(capsys):

@@ -109,6 +109,10 @@ def test_reference_manifest_documents_every_key():
     assert used["defaults"] <= set(DEFAULTS_KEYS)
     from uwgen.manifest.security import SECURITY_KEYS
     assert set(root["security"]) == set(SECURITY_KEYS)
+    from uwgen.manifest.mac import MAC_KEYS
+    text = (SAMPLES / "manifest-reference.yaml").read_text()
+    for key in MAC_KEYS:        # turns' keys are set, tdma's documented in comments
+        assert f"{key}:" in text
     text = (SAMPLES / "manifest-reference.yaml").read_text()
     for key in DEFAULTS_KEYS:   # documented (in comments) even where not all are set
         assert f"{key}:" in text or f"{key}," in text

@@ -57,18 +57,31 @@ def test_mistakes_are_located(tmp_path, old, new, where, message):
 
 
 def test_rmw_desert_entries_cannot_be_protected(tmp_path):
-    text = HEAD.replace("security: off}", "profile: rmw_desert}")
+    # Without the native service: a native command beside an rmw_desert entry is an error of
+    # its own (the mix takes wire format 2 away from it), reported in the same pass.
+    topics_only = HEAD.split("        services:")[0]
+    text = topics_only.replace("security: off}", "profile: rmw_desert}")
     err = error_of(tmp_path, text)
     assert "topic /raw" in err.message and "rmw_desert" in err.message and "security: off" in err.message
     assert err.where.line == 2              # inherited from the network's mode: points there
-    text = HEAD.replace("security: off}", "profile: rmw_desert, security: sign}")
+    text = topics_only.replace("security: off}", "profile: rmw_desert, security: sign}")
     err = error_of(tmp_path, text)
     assert err.where.line == 9 and "cannot be signed or encrypted" in err.message
 
 
 def test_rmw_desert_entries_with_security_off_are_fine(tmp_path):
-    m = load_text(tmp_path, HEAD.replace("security: off}", "profile: rmw_desert, security: off}"))
+    m = load_text(tmp_path, HEAD.replace("security: off}", "profile: rmw_desert, security: off}")
+                  .replace("server: vehicle}", "server: vehicle, profile: rmw_desert, security: off}"))
     assert m.topics[2].profile == "rmw_desert" and m.topics[2].security == "off"
+
+
+def test_a_native_command_beside_an_rmw_desert_entry_is_refused_where_it_is(tmp_path):
+    """An rmw_desert entry keeps the whole link on wire format 1 (no packet time, seal per
+    packet or delivery once): a native service there could run late or twice."""
+    err = error_of(tmp_path, HEAD.replace("security: off}", "profile: rmw_desert, security: off}"))
+    assert (err.where.line, err.where.column) == (11, 5)
+    assert "service /enable is a command in profile native" in err.message
+    assert "/raw (line 9) is in profile rmw_desert" in err.message and "run twice" in err.message
 
 
 def test_sender_ids_may_be_left_out_while_security_is_off(tmp_path):

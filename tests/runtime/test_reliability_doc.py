@@ -7,6 +7,7 @@ from pathlib import Path
 from uwgen.runtime.wire import envelope
 from uwgen.runtime.delivery.freshness import stamp
 from uwgen.runtime.wire.heads import Heads
+from uwgen.runtime.delivery.clock_offset import ClockOffsets, Offset
 from uwgen.runtime.delivery.staleness import Staleness
 
 DOC = (Path(__file__).resolve().parents[2] / "docs" / "wire-format.md").read_text()
@@ -52,13 +53,32 @@ def test_the_worked_packet_carries_t_a_and_the_reliable_message():
     assert env.encode() == written
 
 
-def test_the_freshness_example_refuses_and_reports_as_written():
+def test_the_freshness_example_refuses_as_written():
     text = section("### 15.5")
     assert "(age item `18 28`)" in text and "10.8 s old" in text
     wall = 1_700_000_000.0
     judge = Staleness()
-    v = judge.judge(2, stamp(wall - 0.8), 10.0, 2.0, wall)
-    assert v.stale and abs(v.age - 10.8) < 1 / 32 and v.offset is None
-    behind = judge.judge(2, stamp(wall - 60.8), 10.0, 2.0, wall)
-    assert behind.stale and behind.offset is not None and abs(behind.offset - 60.8) < 1 / 32
-    assert not judge.judge(2, stamp(wall - 60.8), 0.0, 2.0, wall).stale
+    measured = Offset(0.0, 0.0, 0.0, 1)
+    v = judge.judge(stamp(wall - 0.8), 10.0, 2.0, wall, measured)
+    assert v.refused == "stale" and abs(v.age - 10.8) < 1 / 32
+    assert judge.judge(stamp(wall - 0.8), 10.0, 2.0, wall).refused == "stale"   # 10.8 > 2 + 5
+
+
+def test_the_clock_offset_example_is_what_the_exchange_computes():
+    text = section("### 15.5")
+    t1, t4 = 1_700_000_000.0, 1_700_000_003.1
+    t = int(re.search(r"T = `([0-9A-F ]+)`", text).group(1).replace(" ", ""), 16)
+    assert t == stamp(1_699_999_999.2) and "(1 699 999 999.1875)" in text
+    offsets = ClockOffsets()
+    offsets.built(0x123, t1)
+    got = offsets.reported(2, 0x123, 5, t, t4)
+    figures = re.search(r"Offset = (-?[\d.]+) s,\s+delay ([\d.]+) s, error ([\d.]+) s", text)
+    assert (round(got.offset, 2), round(got.delay, 3), round(got.error, 2)) == \
+        tuple(float(x) for x in figures.groups())
+    judge, sent = Staleness(), stamp(1_700_000_000.0)
+    taken = judge.judge(sent, 0.5, 5.0, 1_700_000_004.0, got)
+    assert taken.refused is None and round(taken.transit, 2) == 0.95 and round(taken.age, 1) == 2.5
+    held = judge.judge(sent, 0.5, 5.0, 1_700_000_048.0, got)
+    assert held.refused == "stale" and round(held.age, 1) == 46.5
+    assert judge.judge(sent, 0.5, 5.0, 1_700_000_048.0).refused == "unexplained_delay"
+    assert "46.5 s old, refused `stale`" in text and "refused `unexplained_delay`" in text

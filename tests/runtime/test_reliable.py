@@ -154,3 +154,15 @@ def test_an_ack_naming_a_packet_never_sent_is_counted_not_believed():
     s.acked(encode_reports([Report(SURFACE, 9)]), 1.0)
     s.acked(b"\x10\x00", 1.0)
     assert s.bad_acks == 2 and s.entry(20).delivered == 0
+
+
+def test_command_timer_never_fires_before_the_answer_could_come_back():
+    from uwgen.runtime.delivery.reliable import command_rtt
+    plain = command_rtt(10.0, 0.2)
+    assert plain.rto == 2.5                           # a quarter, without a MAC's figures
+    far = command_rtt(10.0, 0.2, round_trip=4.9)      # 3.5 km: 2 x 2.33 s and two packets
+    assert far.rto == 4.9
+    far.sample(0.1)
+    assert far.rto >= 4.9                             # never below the least round trip
+    turns = command_rtt(10.0, 0.2, round_trip=0.5, turn_gap=3.0)
+    assert turns.rto == 3.2                           # a period and the turn gap

@@ -98,3 +98,18 @@ def test_final_summary_names_the_security_counts():
     line = _summary({"security": {"protected": 4, "verified": 7, "dropped": 25}})
     assert line == "security: protected 4 verified 7 dropped 25"
     assert "security" not in _summary({"security": None})
+
+
+def test_the_seals_max_age_of_a_service_or_action_is_its_own_deadline(tmp_path):
+    """A call held past its timeout is refused by the seal as well, not after the 120 s
+    default (docs/seams.md section 8)."""
+    assert main(["keygen", str(tmp_path / "net.key")]) == 0
+    pkg = package(tmp_path)
+    pkg.MANIFEST.security.modes.update({20: "sign", 30: "sign"})
+    pkg.SERVICES = {20: SimpleNamespace(id=20, name="/enable", server="vehicle", timeout=12.0,
+                                        policy=SimpleNamespace(ttl=None), fingerprint=b"")}
+    pkg.ACTIONS = {30: SimpleNamespace(id=30, name="/dive", server="vehicle", accept_timeout=9.0,
+                                       policy=SimpleNamespace(ttl=None), fingerprint=b"")}
+    plan = BridgePlan.from_package(pkg, "vehicle")
+    guard = guard_for(plan, plan.options())
+    assert guard.config.max_ages[20] == 12.0 and guard.config.max_ages[30] == 9.0

@@ -54,3 +54,44 @@ def test_a_bad_tag_changes_nothing():
     r, new_epochs = receiver()
     assert r.admit(packet(3, sync=True), 120.0, lambda aead, n: None) == "bad_tag"
     assert new_epochs == [] and r.peer(1).current is None
+
+
+def only(*numbers_by_epoch):
+    """A tag check that passes exactly the given (epoch, number) pairs: the real sender's and
+    a key holder's frames, each valid only at its own number."""
+    allowed = set(numbers_by_epoch)
+
+    def verify(aead, number):
+        return ("packet", aead[2], number) if (aead[2], number) in allowed else None
+    return verify
+
+
+def sync_of(epoch: bytes, number: int) -> Numbering:
+    return Numbering(1, number % 4096, 12, number, Sync(epoch, stamp(WALL0)))
+
+
+def test_a_key_holders_jump_inside_the_bound_does_not_lock_the_real_sender_out():
+    r, _ = receiver()
+    jump = 5001 + 60_000
+    tags = only(*[(EPOCH, n) for n in range(5000, 5010)], (EPOCH, jump))
+    assert r.admit(packet(5000, sync=True), 120.0, tags) == ("packet", EPOCH, 5000)
+    assert r.admit(packet(5001), 120.0, tags) == ("packet", EPOCH, 5001)
+    assert r.admit(sync_of(EPOCH, jump), 120.0, tags) == ("packet", EPOCH, jump)   # verified
+    # the real sender goes on from where it was: taken under the window before the jump
+    assert r.admit(packet(5002), 120.0, tags) == ("packet", EPOCH, 5002)
+    assert r.admit(packet(5002), 120.0, tags) == "replay"
+    assert r.admit(sync_of(EPOCH, 5003), 120.0, tags) == ("packet", EPOCH, 5003)
+    assert r.admit(packet(5004), 120.0, tags) == ("packet", EPOCH, 5004)
+
+
+def test_two_fresh_epochs_of_a_key_holder_do_not_push_the_real_epoch_out_for_good():
+    r, _ = receiver()
+    e2, e3 = bytes([9] * 6), bytes([8] * 6)
+    tags = only(*[(EPOCH, n) for n in range(10, 20)], (e2, 0), (e3, 0))
+    assert r.admit(sync_of(EPOCH, 10), 120.0, tags) == ("packet", EPOCH, 10)
+    assert r.admit(sync_of(e2, 0), 120.0, tags) == ("packet", e2, 0)
+    assert r.admit(sync_of(e3, 0), 120.0, tags) == ("packet", e3, 0)   # the real one let go
+    assert r.admit(packet(11), 120.0, tags) == "bad_tag"              # until its next sync frame
+    assert r.admit(sync_of(EPOCH, 12), 120.0, tags) == ("packet", EPOCH, 12)   # taken back
+    assert r.admit(packet(13), 120.0, tags) == ("packet", EPOCH, 13)
+    assert r.admit(sync_of(EPOCH, 10), 120.0, tags) == "replay"       # under its old window

@@ -35,8 +35,9 @@ LONG_CLASSES = {
     "uwgen/emulator/soak.py:Soak",
     "uwgen/emulator/server.py:Emulator",
     "uwgen/idl/loader.py:InterfaceLibrary",
-    "uwgen/bridge/actions.py:ActionStandIns",
     "uwgen/bridge/action_servers.py:ActionServers",
+    "uwgen/bridge/node.py:BridgeNode",
+    "uwgen/runtime/delivery/reliability.py:Reliability",
 }
 
 

@@ -19,6 +19,7 @@ goals gets them reported aborted after SERVER_GONE_GRACE.
 """
 from __future__ import annotations
 
+import random
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +29,7 @@ from rclpy.task import Future
 from uwgen.bridge.action_results import ResultBook
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
+from uwgen.bridge.orphans import OrphanWatch, goal_uuid
 from uwgen.bridge.plan import FEEDBACK_KEY_BASE
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
@@ -59,6 +61,10 @@ class ActionServers:
         self.goals: dict[int, dict[int, Served]] = {}      # id -> handle -> goal
         self._gone_since: dict[int, float] = {}
         self.results: dict[int, ResultBook] = {}           # id -> results kept and re-sent
+        self.own_uuids: set[bytes] = set()                 # goals this start sent
+        self.watches: dict[int, OrphanWatch] = {}          # id -> its status topic reader
+        self._rng = random.SystemRandom()
+        self._deferred: set[tuple[int, int]] = set()       # result requests answered later
         for codec in codecs:
             counters[codec.id] = ActionCounters()
             cls = wiring.ros_class(codec, "action")
@@ -69,7 +75,12 @@ class ActionServers:
             wiring.loops.watch_server(codec.name, action=True)
             self.goals[codec.id] = {}
             self.results[codec.id] = ResultBook(
-                codec.accept_timeout, command_rtt(codec.accept_timeout, wiring.options.link.period))
+                codec.accept_timeout, command_rtt(codec.accept_timeout, wiring.options.link.period,
+                                                  wiring.round_trip, wiring.turn_gap))
+            self.watches[codec.id] = OrphanWatch(
+                wiring.node, codec.name, codec.id,
+                lambda handle, uuid, info, i=codec.id: self._adopt(i, handle, uuid, info),
+                self.own_uuids, wiring.clock.now(), callback_group=wiring.main_group)
 
     def register(self, dispatcher: Dispatcher) -> None:
         for ident in self.served:
@@ -139,9 +150,13 @@ class ActionServers:
             counters.waited += 1     # sent once the server is discovered (see _send_waiting)
 
     def _send_goal(self, ident: int, handle: int, entry: Served) -> None:
+        from unique_identifier_msgs.msg import UUID
         client = self.served[ident][1]
+        uuid = goal_uuid(ident, handle, self._rng)      # names the handle (orphans.py)
+        self.own_uuids.add(uuid)
         entry.sent = client.send_goal_async(
-            entry.goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb))
+            entry.goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb),
+            goal_uuid=UUID(uuid=list(uuid)))
         entry.deadline = self.w.clock.now() + self.served[ident][0].accept_timeout
         entry.goal = None
         entry.sent.add_done_callback(lambda f: self._answered(ident, handle, f))
@@ -172,12 +187,49 @@ class ActionServers:
             counters.results_resent += 1
             self._offer(ident, recent, "result")
             return
-        # Neither running nor finished here (e.g. this bridge restarted): the goal is lost.
+        # Neither running nor finished here: never arrived (a goal older than its
+        # accept_timeout is refused on arrival, so it never will), or this bridge restarted
+        # and did not find it. Answered 0: no such goal here; not before the local server's
+        # goal list was read (a goal about to be adopted is not "lost").
+        if not self.watches[ident].knows_enough(self.w.clock.now()):
+            self._deferred.add((ident, handle))           # answered once it knows (expire)
+            return
         codec = self.served[ident][0]
-        self.w.throttle.report(f"alost{ident}", f"{codec.name}: the client side asks for the "
-                                                f"result of goal {handle}, unknown here: aborted")
-        self._offer(ident, codec.encode_result(handle, ABORTED, codec.ros_class().Result()), "result")
-        counters.lost_goals += 1                          # counted once the aborted result is queued
+        self.w.throttle.report(f"alost{ident}", f"{codec.name}: the client side asks about "
+                                                f"goal {handle}, unknown here: answered 'no such "
+                                                "goal'", expected=True)
+        self._answer(ident, handle, REJECTED)
+        counters.lost_goals += 1
+
+    def _adopt(self, ident: int, handle: int, uuid: bytes, info: Any) -> None:
+        """A goal a previous start of this bridge sent the local server, still running: adopt
+        it (its result goes to the client side under its handle), or cancel it when its
+        handle is busy with a newer goal (orphans.py)."""
+        from rclpy.action.client import ClientGoalHandle
+        from unique_identifier_msgs.msg import UUID
+        codec, client = self.served[ident]
+        response = codec.ros_class().Impl.SendGoalService.Response(accepted=True, stamp=info.stamp)
+        goal_handle = ClientGoalHandle(client, UUID(uuid=list(uuid)), response)
+        self.own_uuids.add(uuid)
+        if handle in self.goals[ident]:
+            self.counters[ident].orphans_cancelled += 1
+            self.w.log.warning(f"{codec.name}: a goal (handle {handle}) that a previous start of "
+                               "this bridge left on the local server is cancelled: its handle "
+                               "carries a newer goal")
+            client._cancel_goal_async(goal_handle)
+            return
+        now = self.w.clock.now()
+        sent: Future = Future()
+        sent.set_result(goal_handle)
+        self.goals[ident][handle] = Served(sent, now + codec.result_timeout, arrived=now,
+                                           goal_handle=goal_handle)
+        self.counters[ident].orphans_adopted += 1
+        self.w.log.warning(f"{codec.name}: adopted goal {handle}, which a previous start of this "
+                           "bridge left running on the local server: its result goes to the "
+                           f"client side, and it is cancelled if not done within "
+                           f"{codec.result_timeout:g} s")
+        goal_handle.get_result_async().add_done_callback(
+            lambda f: self._finished(ident, handle, goal_handle, f))
 
     def _resend_results(self, ident: int, now: float) -> None:
         """Results not acknowledged within the RTO go again, until the book gives them up."""
@@ -281,6 +333,12 @@ class ActionServers:
 
     def expire(self) -> None:
         now, say = self.w.clock.now(), self.w.throttle.report
+        for ident, handle in list(self._deferred):
+            if self.watches[ident].knows_enough(now):
+                self._deferred.discard((ident, handle))
+                if handle not in self.goals[ident]:
+                    self.counters[ident].result_queries -= 1   # counted when it came
+                    self._result_status(ident, handle, False)
         for ident, goals in self.goals.items():
             codec, client = self.served[ident]
             counters = self.counters[ident]

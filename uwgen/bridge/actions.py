@@ -17,10 +17,17 @@ result asks for it (`[2, id, 24 + handle, 1]`) every accept_timeout.
 
 Losses: a goal with no answer is sent again (same handle and bytes) every retransmission
 timeout (reliable.command_rtt: measured from this action's goal/answer round trips, at
-most a quarter of `accept_timeout`); no answer at all rejects the goal (or refuses the cancel) and
-sends a cancel, in case only the answer was lost; no result within `result_timeout` aborts
-the goal locally and sends a cancel for it. Every such case is logged and counted in
-~/status under `actions`.
+most a quarter of `accept_timeout`). A goal with no answer within `accept_timeout` may be
+running there (only the answers lost), so it is never rejected then: the client side asks
+the server side about it (a result request) until `result_timeout` from the call, and
+accepts it when the server side says it runs or sends its result, or rejects it when the
+server side knows no such goal (a goal is refused there once older than its accept_timeout,
+so one unknown then never runs). With no word at all by `result_timeout` it is rejected
+locally and a cancel is sent (counted `unknown_outcomes`: the one case where it may have
+run). A cancel with no answer is refused locally; no result within `result_timeout` aborts
+the goal locally and sends a cancel for it; an accepted goal the server side no longer
+knows (its bridge restarted without finding it) is aborted (`goals_lost_there`). Every such
+case is logged and counted in ~/status under `actions`.
 """
 from __future__ import annotations
 
@@ -31,6 +38,7 @@ from typing import Any
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.task import Future
 
+from uwgen.bridge.action_answers import GoalAnswers
 from uwgen.bridge.calls import CallTable, CallTableFull
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
@@ -38,9 +46,7 @@ from uwgen.bridge.wiring import Wiring
 from uwgen.manifest.model import ACTION_HANDLES
 from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 from uwgen.runtime.delivery.reliable import RttEstimator, command_rtt
-from uwgen.runtime.wire.table import (ABORTED, ACCEPTED, CANCELED, CANCELING, REJECTED, RESULTS,
-                                 SUCCEEDED)
-
+from uwgen.runtime.wire.table import ACCEPTED, CANCELED, CANCELING, SUCCEEDED
 
 
 @dataclass
@@ -61,9 +67,13 @@ class GoalState:
     next_send: float = 0.0                        # when to send it again while unanswered
     next_query: float = 0.0                       # accepted, no result: when to ask for it
     sent_at: float = 0.0                          # when the goal first left
+    asking: bool = False                          # unanswered past accept_timeout: asking
 
 
-class ActionStandIns:
+class ActionStandIns(GoalAnswers):
+    """The local ActionServers that stand in for the remote ones: their rclpy callbacks carry
+    each goal and cancel over the link (what comes back: action_answers.GoalAnswers)."""
+
     def __init__(self, wiring: Wiring, codecs: list[Any], counters: dict[int, ActionCounters],
                  rng: random.Random | None = None, handles: dict[int, tuple[int, int]] | None = None):
         self.w = wiring
@@ -88,7 +98,8 @@ class ActionStandIns:
             table.set_seq_range(codec.id, first, last)
             self.handles[codec.id] = range(first, last + 1)
             self.tables[codec.id] = table
-            self.rtt[codec.id] = command_rtt(codec.accept_timeout, wiring.options.link.period)
+            self.rtt[codec.id] = command_rtt(codec.accept_timeout, wiring.options.link.period,
+                                             wiring.round_trip, wiring.turn_gap)
             self.offered[codec.id] = codec
             self._offer(codec, cls)
             wiring.loops.watch_standin(codec.name, action=True,
@@ -203,137 +214,6 @@ class ActionStandIns:
             answer = await state.cancel
             return CancelResponse.ACCEPT if answer == CANCELING else CancelResponse.REJECT
         return on_cancel
-
-    # -- the link (executor thread) --------------------------------------------------------
-
-    def on_response(self, ident: int, payload: bytes) -> None:
-        codec, counters, table = self.offered[ident], self.counters[ident], self.tables[ident]
-        try:
-            handle, code, result = codec.decode_response(payload)
-        except ValueError as exc:
-            counters.decode_errors += 1
-            self.w.say_once(f"dact{ident}", f"{codec.name}: response dropped, does not decode: {exc}")
-            return
-        if handle not in self.handles[ident]:
-            counters.other_sides += 1       # an answer or result for another client side
-            return
-        if code in RESULTS:
-            # Acknowledged whatever became of it: a copy means our last ack was lost.
-            if self.w.send(ident, codec.encode_result_status(handle, received=True)):
-                counters.result_acks += 1
-            pending = table.complete(ident, handle)
-            if pending is None:
-                self._no_goal(ident, handle)
-                return
-            state = pending.token
-            if not state.answer.done():   # the answer was lost; the result says it all
-                counters.accepted += 1
-                state.answer.set_result(ACCEPTED)
-            state.result.set_result((code, result))
-            return
-        pending = table.get(ident, handle)
-        state = pending.token if pending is not None else None
-        if state is None:
-            self._no_goal(ident, handle)
-            if code == ACCEPTED:     # a goal given up here (accept timeout) runs there: stop it
-                self.w.send(ident, codec.encode_cancel(handle))
-        elif code in (ACCEPTED, REJECTED) and not state.answer.done():
-            if state.sends == 1:             # Karn: only an unambiguous round trip
-                self.rtt[ident].sample(self.w.clock.now() - state.sent_at)
-            if code == ACCEPTED:
-                counters.accepted += 1
-                pending.deadline = self.w.clock.now() + codec.result_timeout
-                state.next_query = self.w.clock.now() + codec.accept_timeout
-            else:
-                counters.rejected += 1
-                table.complete(ident, handle)
-            state.answer.set_result(code)
-        elif code not in (ACCEPTED, REJECTED) and state.cancel is not None and not state.cancel.done():
-            state.cancel.set_result(code)
-        elif code == ACCEPTED and state.answer.done() and state.next_query:
-            pass                      # the goal still runs: the reply to our result request
-        else:
-            counters.late_answers += 1     # a repeated answer: a copy crossed on the link
-
-    def _no_goal(self, ident: int, handle: int) -> None:
-        """An answer or result for no goal in flight: a late copy when the handle's goal has
-        finished lately here (answers and results are re-sent until acknowledged, so copies
-        cross on a lossy link: counted, not a drop), else unknown (a drop, warned)."""
-        if self.tables[ident].finished(ident, handle) is not None:
-            self.counters[ident].late_answers += 1
-        else:
-            self.counters[ident].unknown += 1
-
-    def on_feedback(self, ident: int, payload: bytes) -> None:
-        codec, counters = self.offered[ident], self.counters[ident]
-        try:
-            handle, feedback = codec.decode_feedback(payload)
-        except ValueError as exc:
-            counters.decode_errors += 1
-            self.w.say_once(f"dfb{ident}", f"{codec.name}: feedback dropped, does not decode: {exc}")
-            return
-        if handle not in self.handles[ident]:
-            counters.other_sides += 1
-            return
-        pending = self.tables[ident].get(ident, handle)
-        if pending is None:
-            counters.late_feedback += 1   # latest-only feedback may trail its goal's result
-            return
-        state = pending.token
-        if state.goal_handle is None:
-            state.early_feedback = feedback
-            return
-        try:
-            state.goal_handle.publish_feedback(feedback)
-        except Exception as exc:   # a codec/rclpy class mismatch: counted, never raised
-            counters.decode_errors += 1
-            self.w.say_once(f"pfb{ident}", f"{codec.name}: cannot publish feedback: {exc!r}")
-            return
-        counters.feedback += 1
-
-    # -- timers ----------------------------------------------------------------------------
-
-    def expire(self) -> None:
-        now, say = self.w.clock.now(), self.w.throttle.report   # a dead link times out many
-        for ident, table in self.tables.items():
-            codec, counters = self.offered[ident], self.counters[ident]
-            for pending in table.expire():
-                state = pending.token
-                if not state.answer.done():
-                    counters.accept_timeouts += 1
-                    say(f"aaccept{ident}", f"{codec.name}: goal {state.handle} got no answer within "
-                                           f"{codec.accept_timeout:g} s: rejected (a cancel is sent, in "
-                                           "case only the answer was lost)", expected=True)
-                    self.w.send(ident, codec.encode_cancel(state.handle))
-                    state.answer.set_result(REJECTED)
-                    continue
-                counters.result_timeouts += 1
-                say(f"aresult{ident}", f"{codec.name}: goal {state.handle} got no result within "
-                                       f"{codec.result_timeout:g} s: aborted (a cancel is sent)", expected=True)
-                self.w.send(ident, codec.encode_cancel(state.handle))
-                state.result.set_result((ABORTED, codec.ros_class().Result()))
-            for pending in table.pending(ident):
-                state = pending.token
-                if state.answer.done() and not state.result.done() and state.next_query <= now:
-                    # Accepted, no result yet: ask (the server side re-sends it, says the
-                    # goal still runs, or reports it aborted when it does not know it).
-                    state.next_query = now + codec.accept_timeout
-                    counters.result_queries += 1
-                    self.w.send(ident, codec.encode_result_status(state.handle, received=False))
-                if not state.answer.done() and state.next_send <= now:
-                    rtt = self.rtt[ident]
-                    rtt.backoff()
-                    state.sends += 1
-                    state.next_send = now + rtt.rto
-                    counters.goal_resends += 1
-                    self.w.send(ident, state.payload)
-        for state in list(self._states.values()):
-            if state.cancel is not None and not state.cancel.done() and state.cancel_deadline <= now:
-                codec = self.offered[state.ident]
-                self.counters[codec.id].cancel_timeouts += 1
-                say(f"acancel{codec.id}", f"{codec.name}: cancel of goal {state.handle} got no "
-                                          "answer: refused")
-                state.cancel.set_result(None)
 
     def goal_stats(self, ident: int) -> dict:
         table = self.tables.get(ident)

@@ -35,6 +35,11 @@ class ServiceCounters:
     responses: int = 0        # responses returned to local callers
     timeouts: int = 0         # calls that got no response before the manifest timeout
     request_resends: int = 0  # requests sent again (same seq) after an RTO without response
+    # what became of timed-out calls (outcomes.py): asked about after the timeout
+    outcome_queries: int = 0  # outcome queries sent
+    ran_after_timeout: int = 0  # timed out here, but ran there (its response came late)
+    not_run: int = 0          # timed out here, and never ran there
+    outcome_unknown: int = 0  # timed out here; the server side could not say
     decode_errors: int = 0    # responses (or requests) that did not decode
     # serving side
     requests: int = 0         # requests that came over the link
@@ -48,6 +53,7 @@ class ServiceCounters:
     server_errors: int = 0    # the real service's call failed
     replies: int = 0          # responses offered back to the link
     repeated_replies: int = 0  # responses sent again for a copy of an answered request
+    outcome_answers: int = 0  # outcome queries answered (the response again, or 'did not run')
     reply_refused: int = 0    # responses the link refused
 
 
@@ -58,7 +64,11 @@ class ActionCounters:
     refused: int = 0          # goals rejected here: too many in flight, encode error, link refused
     accepted: int = 0         # goals the server side accepted
     rejected: int = 0         # goals the server side rejected
-    accept_timeouts: int = 0  # goals with no answer within accept_timeout (rejected locally)
+    accept_timeouts: int = 0  # goals with no answer within accept_timeout (then asked about)
+    unknown_outcomes: int = 0  # goals the server side never answered about within
+                              # result_timeout (rejected locally, a cancel sent: may have run)
+    goals_lost_there: int = 0  # accepted goals the server side no longer knows (its bridge
+                              # restarted and did not find them): aborted locally
     results: int = 0          # results delivered to local clients
     result_timeouts: int = 0  # goals with no result within result_timeout (aborted locally)
     goal_resends: int = 0     # goals sent again because no answer had come (same handle)
@@ -90,7 +100,9 @@ class ActionCounters:
     results_unacked: int = 0  # results never acknowledged within 2 accept_timeouts (given up)
     result_queries: int = 0   # requests for a result not (yet) received: sent by the client
                               # side, received by the server side
-    lost_goals: int = 0       # asked for a goal unknown here (e.g. after a restart): aborted
+    lost_goals: int = 0       # asked about a goal unknown here: answered "no such goal"
+    orphans_adopted: int = 0  # goals a previous start of this bridge left running: adopted
+    orphans_cancelled: int = 0  # such goals whose handle was busy again: cancelled
     feedback_sent: int = 0    # feedback offered to the link (latest-only: may be superseded)
     encode_errors: int = 0    # feedback or results that could not be encoded
     reply_refused: int = 0    # answers, results or feedback the link refused

@@ -47,6 +47,10 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--key-file", type=Path, metavar="PATH",
                         help="network key of the secure link (default: the manifest's security "
                              "key_file)")
+    parser.add_argument("--mac", metavar="YAML",
+                        help="how the sides share the channel, overriding the manifest's mac: "
+                             "section, in its syntax: e.g. '{mode: tdma, frame: 1.0, guard: "
+                             "0.35, max_packet_per_slot: 4}' (every side must be given the same)")
     parser.add_argument("--security-state", type=Path, metavar="PATH",
                         help="lock file held while this side runs, so a second copy is refused "
                              "(default: <key file>.<network>.<side>.lock; no state is kept in it)")
@@ -73,6 +77,8 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         return EXIT_USAGE
     try:
         plan = BridgePlan.from_package(package, side, getattr(args, "manifest", None))
+        if getattr(args, "mac", None):
+            plan = with_mac(plan, args.mac)
         options = options_from_args(plan, args)
         check_security(plan, options)
     except PlanError as exc:
@@ -85,6 +91,18 @@ def run(package: ModuleType, side: str, args: argparse.Namespace,
         return _run(package, side, plan, options, ros_args, link_factory, stop)
     finally:
         restore_signals(previous)
+
+
+def with_mac(plan: BridgePlan, text: str) -> BridgePlan:
+    """`plan` under the MAC given by --mac (PlanError when it does not read)."""
+    from dataclasses import replace
+
+    from uwgen.manifest.mac import mac_from_text
+    from uwgen.manifest.nodes import ManifestError
+    try:
+        return replace(plan, mac=mac_from_text(text, list(plan.side_ids)))
+    except ManifestError as exc:
+        raise PlanError(f"--mac: {exc.message if exc.where is None else exc}") from None
 
 
 def catch_stop_signals() -> tuple[threading.Event, dict]:

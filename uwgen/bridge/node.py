@@ -4,7 +4,8 @@ The node only wires parts to rclpy and the link; each part reads on its own:
 
 - `topics.TopicBridge`: subscriptions that send, publishers of what arrives, echo guard;
 - `services.StandIns` / `services.Servers`: bridged service calls, both sides;
-- `actions.ActionStandIns` / `action_servers.ActionServers`: bridged actions, both sides;
+- `actions.ActionStandIns` (what comes back: `action_answers.GoalAnswers`) /
+  `action_servers.ActionServers`: bridged actions, both sides;
 - `discovery.RmwDiscovery`: rmw_desert beacons, when an entry is in profile rmw_desert;
 - `status.StatusReporter`: ~/status, the stats file, drop log lines;
 - `dispatch.Dispatcher`: each received payload's header read once, routed by (kind, id).
@@ -19,6 +20,8 @@ from __future__ import annotations
 
 import json
 import random
+import threading
+import time
 from dataclasses import asdict
 from typing import Any, Callable
 
@@ -40,6 +43,7 @@ from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
 from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.link.mac import mac_for
 from uwgen.runtime.link.packets import join_hooks
 
 __all__ = ["BridgeNode", "BRIDGE_NODE_PREFIX", "default_link_factory", "node_name_for",
@@ -56,6 +60,39 @@ LinkFactory = Callable[..., Any]
 def default_link_factory(**kwargs: Any) -> Any:
     from uwgen.runtime.link.link import Link  # imported late: owned by the runtime
     return Link(**kwargs)
+
+
+def mac_round_trip(plan: BridgePlan, link: Any) -> float | None:
+    """The least a request and its answer can take under the plan's MAC: across the range
+    and on the air both ways, and a slot under TDMA (None: mode none, where the commands'
+    timers keep their default)."""
+    from uwgen.manifest.mac import air_time
+    mac = plan.mac
+    if mac is None or mac.mode == "none":
+        return None
+    least = 2 * (mac.delay + air_time(link.max_read_length, mac.bitrate))
+    return least + (mac.slot if mac.mode == "tdma" else 0.0)
+
+
+def deadline_problems(plan: BridgePlan, link: Any) -> list[str]:
+    """Deadlines of this side's calls and goals that cannot fit one round trip under the MAC
+    (uwgen.manifest.mac.round_trip): said at start, as `uwgen analyze` says them."""
+    from uwgen.manifest.mac import round_trip
+    from uwgen.manifest.model import MacConfig
+    mac = plan.mac or MacConfig()
+    rt = round_trip(mac, link.period, link.max_read_length, list(plan.side_ids))
+    out = []
+    for entry, key in ((s, "timeout") for s in plan.called_services):
+        limit = getattr(entry, key, None)
+        if limit is not None and limit < rt:
+            out.append(f"service {entry.name}: its timeout {limit:g} s cannot fit one round trip "
+                       f"under mac {mac.mode} (about {rt:.1f} s): its calls will time out")
+    for entry in plan.offered_actions:
+        limit = getattr(entry, "accept_timeout", None)
+        if limit is not None and limit < rt:
+            out.append(f"action {entry.name}: its accept_timeout {limit:g} s cannot fit one round "
+                       f"trip under mac {mac.mode} (about {rt:.1f} s): its goals will be rejected")
+    return out
 
 
 def node_name_for(plan: BridgePlan) -> str:
@@ -75,9 +112,15 @@ class BridgeNode(Node):
         self.options = self._declare_parameters(options or plan.defaults)
         self._closed = False
         main_group = MutuallyExclusiveCallbackGroup()
+        # When this side may write (docs/seams.md section 7): its turn, its slot's share; the
+        # commands' retransmission timers start from its round trip and turn gap.
+        link_cfg = self.options.link
+        self.mac = mac_for(plan.mac, plan.side, plan.side_ids, link_cfg, plan.wire_format)
         self.wiring = w = Wiring(node=self, send=self._send, clock=clock, options=self.options,
                                  log=self.get_logger(), main_group=main_group,
-                                 service_group=ReentrantCallbackGroup())
+                                 service_group=ReentrantCallbackGroup(),
+                                 round_trip=mac_round_trip(plan, link_cfg),
+                                 turn_gap=self.mac.turn_gap())
         self._log = w.log
         self.counters = BridgeCounters()
         self.unavailable = w.unavailable                 # entry name -> why it is not bridged
@@ -96,14 +139,16 @@ class BridgeNode(Node):
 
         self._wake = self.create_guard_condition(self._drain_inbox, callback_group=main_group)
         self.inbox = Inbox(self._wake.trigger)
-        link_cfg = self.options.link
         self.guard = guard_for(plan, self.options, clock)   # None unless the manifest protects ids
         security_kw, seal_hooks = link_security(self.guard)
         # Acks, re-sends of reliable topics, delivery once, stale commands (wire format 2 only;
         # docs/seams.md section 5), joined with the per-packet seal's hooks (one tag per packet)
         # when the link is secured.
+        if self.mac.mode != "none":
+            security_kw["mac"] = self.mac
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
-            seal_hooks.overhead if seal_hooks is not None else 0))
+            seal_hooks.overhead if seal_hooks is not None else 0) + self.mac.overhead,
+            turn_gap=self.mac.turn_gap())
         reliability_hooks = self.reliability.hooks() if self.reliability is not None else None
         if reliability_hooks is not None or seal_hooks is not None:
             security_kw["hooks"] = join_hooks(reliability_hooks, seal_hooks)
@@ -118,6 +163,8 @@ class BridgeNode(Node):
             self.rmw_discovery = RmwDiscovery(w, plan, self.link, flush_timeout)
             self.create_timer(LINK_TICK, self.rmw_discovery.check_link, callback_group=main_group)
         self.schema = attach_schema(plan, self.link, clock, link_cfg, logger_say(self._log))
+        for problem in deadline_problems(plan, link_cfg):
+            self._log.warning(problem)
         if self.schema is not None:   # SchemaGuard: fingerprints announced, mismatches refused
             self.create_timer(SCHEMA_TICK, self.schema.tick, callback_group=main_group)
 
@@ -260,6 +307,7 @@ class BridgeNode(Node):
         self._closed = True
         if self.rmw_discovery is not None:
             self.rmw_discovery.stop()      # disconnect beacons, while the link still runs
+        self._farewell()
         try:
             self.link.stop()
         except Exception as exc:
@@ -279,6 +327,27 @@ class BridgeNode(Node):
             except Exception as exc:  # rclpy after its context was shut down
                 self._log.debug(f"destroy_node after shutdown: {exc}")
         return status
+
+    def _farewell(self) -> None:
+        """The last acknowledgements before the link closes (SIGINT/SIGTERM, close()): one
+        packet reporting every peer's packets, so their ledgers close; bounded by 2 periods
+        plus a second (wall clock: shutdown ends whatever an injected clock does)."""
+        rel = self.reliability
+        try:
+            if rel is None or not self.link.stats().get("connected") or not rel.farewell():
+                return
+        except Exception:
+            return
+        period = self.options.link.period
+        deadline = time.monotonic() + 2 * period + 1.0
+        waiter = threading.Event()
+        wake = getattr(getattr(self.link, "connection", None), "wake", None)
+        if wake is not None:
+            wake()
+        while rel.farewell_pending and time.monotonic() < deadline:
+            waiter.wait(0.01)
+        if not rel.farewell_pending:
+            waiter.wait(period)           # DESERT reads the last write before the socket closes
 
     def _flush_discovery(self) -> bool:
         """Wait (bounded) until the disconnect beacons have left; see RmwDiscovery.flush."""

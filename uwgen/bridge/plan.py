@@ -85,6 +85,8 @@ class BridgePlan:
     manifest_source: str = ""     # the manifest as the build named it (relative to where it ran)
     manifest_path: Path | None = None   # where that manifest is now (relative key files are from its folder)
     sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
+    side_ids: dict[str, int] = field(default_factory=dict)   # every side's sender id (W)
+    mac: Any = None               # manifest.model.MacConfig (None: mode none)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str,
@@ -121,6 +123,8 @@ class BridgePlan:
             manifest_source=getattr(manifest, "source", "") or "",
             manifest_path=Path(manifest_path).resolve() if manifest_path is not None else _own_manifest(package),
             sender_id=_sender_id(manifest, side),
+            side_ids={s: _sender_id(manifest, s) for s in sides},
+            mac=getattr(manifest, "mac", None),
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
@@ -186,7 +190,8 @@ class BridgePlan:
         # when --max-read-length overrides the manifest: below it the link cannot send at all.
         from uwgen.linkfloor import check_option
         problem = check_option(link.max_read_length, self.wire_format,
-                               getattr(self.security, "tag_bytes", None) if self.security else None)
+                               getattr(self.security, "tag_bytes", None) if self.security else None,
+                               mac_bytes(self.mac))
         if problem:
             raise PlanError(problem)
         return opts
@@ -205,6 +210,12 @@ class BridgePlan:
                 + (f"; offers actions {names(self.offered_actions)}; serves actions "
                    f"{names(self.served_actions)}" if self.offered_actions or self.served_actions
                    else ""))
+
+
+def mac_bytes(mac: Any) -> int:
+    """What the MAC's C items add to a packet (mode turns), for the floor of max_read_length."""
+    from uwgen.runtime.link.mac import TurnMac
+    return TurnMac.overhead if getattr(mac, "mode", "none") == "turns" else 0
 
 
 def _sender_id(manifest: Any, side: str) -> int:

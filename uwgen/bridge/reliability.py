@@ -16,6 +16,7 @@ from typing import Any, Callable
 from uwgen.bridge.plan import BridgePlan
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import WALL_CLOCK, Clock
+from uwgen.runtime.delivery.epoch import new_epoch
 from uwgen.runtime.delivery.reliability import Reliability
 
 
@@ -47,16 +48,21 @@ class _Wall:
 
 def reliability_for(plan: BridgePlan, link: LinkConfig,
                     wall: Clock | Callable[[], float] = WALL_CLOCK, *,
-                    other_overhead: int = 0) -> Reliability | None:
+                    other_overhead: int = 0, turn_gap: float = 0.0) -> Reliability | None:
     """The link's reliability of this side (None on wire format 1). `wall`: the wall clock
     T is stamped with and checked against (a Clock, or a function giving seconds);
-    `other_overhead`: what the hooks joined with it (the per-packet seal) add to a packet."""
+    `other_overhead`: what the hooks joined with it (the per-packet seal, the MAC) add to a
+    packet; `turn_gap`: the MAC's longest wait for the peer's turn (uwgen.runtime.link.mac)."""
     if plan.wire_format != 2:
         return None
     clock = wall if hasattr(wall, "now") else _Wall(wall)
     return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
-                       max_read_length=link.max_read_length, other_overhead=other_overhead)
+                       max_read_length=link.max_read_length, other_overhead=other_overhead,
+                       turn_gap=turn_gap,
+                       peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},
+                       # K on an unsealed link is this side's; a sealed link's is the seal's
+                       epoch_source=new_epoch if plan.security is None else None)
 
 
 def link_ledger(link_stats: Any) -> dict[int, dict]:

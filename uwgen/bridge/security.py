@@ -11,7 +11,8 @@ from the folder of the manifest the bridge was given, else of the one next to th
 package's project, else as the build named it). The guard keeps no state on disk (a fresh
 epoch per start); it holds a lock, `--security-state` if given, else
 `<key file>.<network>.<side>.lock` next to the key, so a second copy of the same side on this
-machine is refused at start. An entry's ttl is its max age on the secure link.
+machine is refused at start. An entry's max age on the secure link is its ttl, or for a
+service its timeout and for an action its accept_timeout (`reliability.max_ages`).
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
+from uwgen.bridge.reliability import max_ages
 from uwgen.manifest.model import DEFAULT_TAG_BYTES
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.safefile import shown
@@ -95,8 +97,9 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
     try:
         master = read_key_file(path)
         entries = {e.id: e for e in (*plan.topics, *plan.services)}
-        ttls = {e.id: e.policy.ttl for e in (*plan.topics, *plan.services, *plan.offered_actions, *plan.served_actions)
-                if getattr(getattr(e, "policy", None), "ttl", None)}
+        # a topic's ttl; a service's ttl, else its timeout; an action's ttl, else its
+        # accept_timeout: the same max ages as the link's staleness (docs/seams.md section 8)
+        ttls = max_ages(plan)
         config = GuardConfig(
             network=plan.network, sender=sec.senders[plan.side],
             peers={sid: side for side, sid in sec.senders.items() if side != plan.side},

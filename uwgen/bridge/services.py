@@ -36,6 +36,7 @@ from rclpy.task import Future
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
 from uwgen.bridge.counters import ServiceCounters
 from uwgen.bridge.dispatch import Dispatcher
+from uwgen.bridge.outcomes import ASKS, Asking, Handled, bare, query
 from uwgen.bridge.plan import TIMEOUT_REPLY_DEFAULT, is_rmw_desert
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE
@@ -58,9 +59,10 @@ class Outgoing:
     sends: int = 1
 
 
-def service_rtt(codec: Any, period: float) -> RttEstimator:
+def service_rtt(codec: Any, period: float, round_trip: float | None = None,
+                turn_gap: float = 0.0) -> RttEstimator:
     """The retransmission timer of one service's requests (reliable.command_rtt)."""
-    return command_rtt(codec.timeout, period)
+    return command_rtt(codec.timeout, period, round_trip, turn_gap)
 
 
 class StandIns:
@@ -76,6 +78,7 @@ class StandIns:
         self.outgoing: dict[tuple[int, int], Outgoing] = {}   # (id, seq) -> request in flight
         self.rtt: dict[int, RttEstimator] = {}
         self.services: dict[int, Any] = {}   # id -> the stand-in service (absent: withdrawn)
+        self.asking: dict[tuple[int, int], Asking] = {}   # timed-out calls asked about
         for codec in codecs:
             counters[codec.id] = ServiceCounters()
             cls = wiring.ros_class(codec, "srv")
@@ -88,7 +91,8 @@ class StandIns:
             if is_rmw_desert(codec):
                 self.calls.set_seq_range(codec.id, *RMW_DESERT_SEQ_RANGE)
             else:   # an rmw_desert server would run a copy again: never re-sent to one
-                self.rtt[codec.id] = service_rtt(codec, wiring.options.link.period)
+                self.rtt[codec.id] = service_rtt(codec, wiring.options.link.period,
+                                                 wiring.round_trip, wiring.turn_gap)
 
     def _offer(self, codec: Any, cls: Any) -> None:
         srv = self.w.node.create_service(cls, codec.name, self._standin(codec),
@@ -154,6 +158,13 @@ class StandIns:
 
     def complete(self, ident: int, payload: bytes) -> None:
         codec = self.called[ident]
+        head = bare(payload)
+        if head is not None and head[0] == 3 and (ident, head[2]) in self.asking:
+            asked = self.asking.pop((ident, head[2]))
+            self.counters[ident].not_run += 1
+            self.w.log.info(f"{codec.name}: call seq {head[2]} (no response within "
+                            f"{codec.timeout:g} s) did not run on the server side, and never will")
+            return
         try:
             seq, resp = codec.decode_response(payload)
         except ValueError as exc:
@@ -162,6 +173,13 @@ class StandIns:
                             f"{codec.name}: response dropped, does not decode: {exc}")
             return
         pending = self.calls.complete(ident, seq)
+        asked = self.asking.pop((ident, seq), None)
+        if pending is None and asked is not None:
+            self.counters[ident].ran_after_timeout += 1
+            self.w.log.warning(f"{codec.name}: call seq {seq} got no response within "
+                               f"{codec.timeout:g} s, but it RAN on the server side (its response "
+                               f"came {self.w.clock.now() - asked.called:.1f} s after the call; "
+                               "counted ran_after_timeout)")
         outgoing = self.outgoing.pop((ident, seq), None)
         if pending is not None and outgoing is not None and outgoing.sends == 1:
             self.rtt[ident].sample(self.w.clock.now() - outgoing.first_sent)   # Karn
@@ -179,9 +197,12 @@ class StandIns:
             outgoing.next_send = now + rtt.rto
             self.counters[ident].request_resends += 1
             self.w.send(ident, outgoing.payload)          # same seq: served once there
+        self._ask(now)
         for pending in self.calls.expire():
             self.outgoing.pop((pending.service_id, pending.seq), None)
             codec = self.called[pending.service_id]
+            if pending.service_id in self.rtt:       # never toward an rmw_desert server
+                self.asking[(pending.service_id, pending.seq)] = Asking(pending.started, now)
             self.counters[pending.service_id].timeouts += 1
             self.w.throttle.report(f"timeout{pending.service_id}",
                                    f"{codec.name}: call seq {pending.seq} got no response within "
@@ -190,6 +211,25 @@ class StandIns:
                                       else " (no response is sent to the caller)"), expected=True)
             if not pending.token.done():
                 pending.token.set_result(None)
+
+
+    def _ask(self, now: float) -> None:
+        """Ask about timed-out calls (outcomes.py) until the server side says, ASKS times."""
+        for (ident, seq), asked in list(self.asking.items()):
+            if asked.next_ask > now:
+                continue
+            codec = self.called[ident]
+            if asked.asks >= ASKS:
+                del self.asking[(ident, seq)]
+                self.counters[ident].outcome_unknown += 1
+                self.w.throttle.report(f"unknownoutcome{ident}", f"{codec.name}: call seq {seq} "
+                                       "timed out and the server side did not say whether it ran "
+                                       "(counted outcome_unknown)", expected=True)
+                continue
+            asked.asks += 1
+            asked.next_ask = now + self.rtt[ident].rto
+            self.counters[ident].outcome_queries += 1
+            self.w.send(ident, query(2, ident, seq))
 
 
 class Servers:
@@ -205,6 +245,7 @@ class Servers:
         self.waiting: dict[int, dict[int, tuple[Any, float]]] = {}
         # id -> seq -> (response payload, when): answered requests, for copies of them
         self.replied: dict[int, OrderedDict[int, tuple[bytes, float]]] = {}
+        self.handled = Handled()      # seqs handed to the local server (outcome queries)
         for codec in codecs:
             counters[codec.id] = ServiceCounters()
             cls = wiring.ros_class(codec, "srv")
@@ -225,6 +266,10 @@ class Servers:
     def serve(self, ident: int, payload: bytes) -> None:
         codec, client = self.served[ident]
         counters = self.counters[ident]
+        head = bare(payload)
+        if head is not None and head[0] == 2 and not is_rmw_desert(codec):
+            self._outcome(ident, head[2])
+            return
         try:
             seq, request = codec.decode_request(payload)
         except ValueError as exc:
@@ -238,13 +283,18 @@ class Servers:
         if seq in self.serving[ident] or seq in self.waiting[ident]:
             counters.duplicate_requests += 1
             return
-        replied = self.replied[ident].get(seq)
-        if replied is not None and self.w.clock.now() - replied[1] < codec.timeout:
-            counters.duplicate_requests += 1          # a copy: its response was lost
-            counters.repeated_replies += 1
-            self.w.send(ident, replied[0])
-            return
         now = self.w.clock.now()
+        handled = self.handled.when(ident, seq)
+        if handled is not None and now - handled < 2 * codec.timeout:
+            # A copy (its response was lost): never run again. A copy is never older than
+            # the call's timeout (the link refuses it, wire-format 15.5); twice that covers
+            # a far restart's new calls reusing the seq (a random start in 2^16).
+            counters.duplicate_requests += 1
+            replied = self.replied[ident].get(seq)
+            if replied is not None:
+                counters.repeated_replies += 1
+                self.w.send(ident, replied[0])
+            return
         if not client.service_is_ready():
             if len(self.waiting[ident]) >= WAITING_LIMIT:
                 counters.no_server += 1
@@ -257,7 +307,21 @@ class Servers:
             return
         self._call(ident, seq, request, now + codec.timeout)
 
+    def _outcome(self, ident: int, seq: int) -> None:
+        """An outcome query: the response again, 'did not run' (`[3, id, seq]`), or nothing
+        (running still, or ran without a response to give)."""
+        replied = self.replied[ident].get(seq)
+        if replied is not None:
+            reply = replied[0]
+        elif seq in self.serving[ident] or seq in self.waiting[ident] or (ident, seq) in self.handled:
+            return
+        else:
+            reply = query(3, ident, seq)
+        if self.w.send(ident, reply):
+            self.counters[ident].outcome_answers += 1
+
     def _call(self, ident: int, seq: int, request: Any, deadline: float) -> None:
+        self.handled.add(ident, seq, self.w.clock.now())
         future = self.served[ident][1].call_async(request)
         self.serving[ident][seq] = (future, deadline)
         future.add_done_callback(lambda f: self._reply(ident, seq, f))

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from uwgen.argtypes import number
+from uwgen import safefile
 from uwgen.commands.options import add_folders, add_manifest
 from uwgen.idl.model import DefinitionError
 from uwgen.manifest.loader import MANIFEST_NAME, ManifestError
@@ -36,11 +37,16 @@ def run(args: argparse.Namespace) -> int:
     folders = list(args.folders)
     manifest_path = args.manifest or ((folders[0] / MANIFEST_NAME) if folders else Path(MANIFEST_NAME))
     parent = manifest_path.parent
+    why = safefile.problem(manifest_path, "manifest")
+    if why is not None:          # a name too long, a loop, a device: said as it is
+        print(f"uwgen analyze: {why}", file=sys.stderr)
+        return EXIT_INPUT
+    if not manifest_path.is_file():
+        print(f"uwgen analyze: no manifest at {safefile.shown(manifest_path)} (give one with -m)",
+              file=sys.stderr)
+        return EXIT_INPUT
     if not folders and (any(parent.glob("*/msg/*.msg")) or any(parent.glob("*/srv/*.srv"))):
         folders = [parent]   # interfaces next to the manifest, as `uwgen build` keeps them
-    if not manifest_path.is_file():
-        print(f"uwgen analyze: no manifest at {manifest_path} (give one with -m)", file=sys.stderr)
-        return EXIT_INPUT
     bitrate = args.bitrate if args.bitrate is not None else DEFAULT_BITRATE
     if not bitrate > 0:
         print(f"uwgen analyze: --bitrate must be > 0, got {bitrate:g}", file=sys.stderr)

@@ -30,6 +30,8 @@ from pathlib import Path
 
 from uwgen.argtypes import caller_path, number, whole
 from uwgen.commands.options import old_spelling
+from uwgen.emulator.from_manifest import with_mac
+from uwgen.manifest.model import MacConfig
 from uwgen.emulator.physics import DEFAULT_PHY, PHYS, phy
 from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
 
@@ -77,6 +79,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"{DEFAULT_PHY}: DESERT's stock two-node scenario, delivery ends "
                              "near 3.8 km; see `uwgen emulate --help`)")
     parser.add_argument("--seed", type=whole(0, 2 ** 64 - 1), default=1, help="emulator random seed")
+    parser.add_argument("--mac", choices=("manifest", "turns", "tdma", "none"), default="manifest",
+                        help="how the two sides share the channel (docs/emulator.md, MACs): the "
+                             "demo manifest's mac: section (default: turns, the surface grants "
+                             "the vehicle its turn over stock CSMA-ALOHA), turns, tdma (DESERT's "
+                             "UW/TDMA: --frame, --guard, --max-packet-per-slot) or none (stock "
+                             "CSMA-ALOHA, packets of the two sides collide)")
+    parser.add_argument("--bridge-mac", dest="bridge_mac", choices=("same", "none"), default="same",
+                        help="for comparison: none makes the bridges write as if DESERT ran "
+                             "CSMA-ALOHA whatever --mac says (a bridge unaware of the MAC); "
+                             "default same")
+    parser.add_argument("--frame", type=number(0.01, 3600), default=1.0, metavar="S",
+                        help="with --mac tdma: frame_duration (default 1.0, 2 slots)")
+    parser.add_argument("--guard", type=number(0, 3600), default=0.25, metavar="S",
+                        help="with --mac tdma: guard_time (default 0.25, as DESERT's samples)")
+    parser.add_argument("--max-packet-per-slot", dest="max_packet_per_slot", type=whole(1, 100000),
+                        default=1000, metavar="N",
+                        help="with --mac tdma: max_packet_per_slot (default 1000, as DESERT's "
+                             "ROV sample)")
     parser.add_argument("--square-size", dest="square_size", type=number(0, 1e3, above=True), default=4.0,
                         metavar="M", help="length of a side of the square the operator drives, in metres")
     # --side is a manifest side everywhere else; it was this command's square size.
@@ -97,6 +117,52 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="with --drive-away: seconds the drive takes (default 75, time-lapse)")
     away.add_argument("--wind", type=number(0, 100), default=0.0, metavar="M_S",
                       help="with --drive-away: wind speed of the SNR model (default 0)")
+
+
+def demo_mac(args: argparse.Namespace):
+    """The MAC both bridges and the emulator use: the demo manifest's, or the one --mac names
+    (ValueError when the manifest's does not read)."""
+    from dataclasses import replace
+
+    from uwgen.manifest.mac import mac_of_file
+    from uwgen.manifest.nodes import ManifestError
+    try:
+        base = mac_of_file(DEMO_MANIFEST)
+    except ManifestError as exc:
+        raise ValueError(str(exc)) from None
+    slots = ("surface", "vehicle")
+    if args.mac == "manifest":
+        return base
+    if args.mac == "tdma":
+        return MacConfig(mode="tdma", bitrate=base.bitrate, range=args.distance, frame=args.frame,
+                         guard=args.guard, slots=slots, max_packet_per_slot=args.max_packet_per_slot,
+                         queue_size=10)
+    if args.mac == "turns":
+        return base if base.mode == "turns" else MacConfig(mode="turns", bitrate=base.bitrate,
+                                                           range=args.distance, leader="surface")
+    return replace(MacConfig(), bitrate=base.bitrate)
+
+
+def mac_text(mac) -> str:
+    """`mac` as the bridges' --mac takes it (the manifest's syntax, every key spelled out)."""
+    keys = {"mode": mac.mode, "bitrate": mac.bitrate, "range": mac.range}
+    if mac.mode == "tdma":
+        keys.update(frame=mac.frame, guard=mac.guard, slots="[" + ", ".join(mac.slots) + "]",
+                    max_packet_per_slot=mac.max_packet_per_slot, queue_size=mac.queue_size)
+    if mac.mode == "turns":
+        keys["leader"] = mac.leader
+        if mac.packets:
+            keys["packets"] = "{" + ", ".join(f"{s}: {n}" for s, n in mac.packets) + "}"
+    return "{" + ", ".join(f"{k}: {v}" for k, v in keys.items()) + "}"
+
+
+def describe_mac(mac) -> str:
+    if mac.mode == "tdma":
+        return (f"UW/TDMA (frame {mac.frame:g} s, 2 slots, guard {mac.guard:g} s, "
+                f"max_packet_per_slot {mac.max_packet_per_slot}, queue_size {mac.queue_size})")
+    if mac.mode == "turns":
+        return f"turns led by {mac.leader} over CSMA-ALOHA"
+    return "CSMA-ALOHA (no turns: the sides collide)"
 
 
 def desert_endpoints(text: str) -> dict[str, tuple[str, int]]:
@@ -196,10 +262,20 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     key_args = key.bridge_args() if key else []
 
-    scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle"),
-                           NodeSpec("vehicle", port=0, position=(args.distance, 0.0, 0.0), dest="surface")],
+    try:
+        mac = demo_mac(args)
+    except ValueError as exc:
+        print(f"uwgen demo: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    scen = Scenario(nodes=[NodeSpec("surface", port=0, position=(0.0, 0.0, 0.0), dest="vehicle",
+                                    slot=0),
+                           NodeSpec("vehicle", port=0, position=(args.distance, 0.0, 0.0), dest="surface",
+                                    slot=1)],
                     period=0.2, max_read_length=64, bitrate=4800.0, per=args.per, seed=args.seed,
                     snr=phy(args.phy))
+    scen = with_mac(scen, mac)
+    bridge_mac = mac if args.bridge_mac == "same" else MacConfig(bitrate=mac.bitrate)
+    key_args = [*key_args, "--mac", mac_text(bridge_mac)]
     vdom, sdom = domains()
     py = sys.executable
     procs: list[Proc] = []
@@ -214,7 +290,8 @@ def run(args: argparse.Namespace) -> int:
             say(f"  emulated DESERT nodes: surface on 127.0.0.1:{ports['surface']}, vehicle on "
                 f"127.0.0.1:{ports['vehicle']}, {args.distance:g} m apart, "
                 f"{scen.max_read_length} B every {scen.period:g} s at {scen.bitrate:g} bit/s, "
-                f"PHY {args.phy}, packet error rate {args.per:g} plus collisions")
+                f"PHY {args.phy}, packet error rate {args.per:g} plus collisions, "
+                f"{describe_mac(mac)}")
         say(f"  ROS domains: vehicle {vdom}, surface {sdom}; logs and records in {out}")
         venv = _env(vdom, [str(GENERATED)], iface)
         senv = _env(sdom, [str(GENERATED)], iface)
@@ -249,7 +326,7 @@ def run(args: argparse.Namespace) -> int:
     title = (f"uwgen demo: DESERT at {_endpoint(endpoints['surface'])} and {_endpoint(endpoints['vehicle'])}"
              if args.desert else
              f"uwgen demo: {args.distance:g} m acoustic link, {scen.max_read_length} B / "
-             f"{scen.period:g} s, PHY {args.phy}, PER {args.per:g}")
+             f"{scen.period:g} s, PHY {args.phy}, PER {args.per:g}, mac {mac.mode}")
     plot = plot_paths(report, out / "demo-path.png", title)
     if args.docs:
         plot_paths(report, ROOT / "docs" / "demo-path.png", title)

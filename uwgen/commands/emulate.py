@@ -31,7 +31,8 @@ log = logging.getLogger("uwgen.emulator")
 
 COUNTER_COLUMNS = ("bytes_in", "packets_queued", "packets_sent", "packets_delivered",
                    "lost_per", "lost_snr", "lost_collision", "lost_no_client",
-                   "queue_bytes", "max_queue_bytes", "dropped_restart", "clients")
+                   "queue_bytes", "max_queue_bytes", "dropped_restart", "clients",
+                   "max_mac_queue", "dropped_queue_full")
 
 
 # More nodes than any acoustic network has: the emulator runs one socket server per node.
@@ -81,7 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run_g = parser.add_argument_group("running")
     run_g.add_argument("--duration", type=number(0, 1e9), default=None, metavar="S",
                        help="stop after S seconds (default: until Ctrl-C / SIGTERM)")
-    run_g.add_argument("--crash-every", type=float, default=None, metavar="S",
+    run_g.add_argument("--crash-every", type=number(0, 1e9, above=True), default=None, metavar="S",
                        help="make DESERT crash at random, on average every S seconds (every "
                             "client disconnected, queues lost), as real DESERT does under load")
     run_g.add_argument("--crash-down", type=number(0, 1e9), default=1.0, metavar="S",

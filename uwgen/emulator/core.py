@@ -8,33 +8,25 @@ PDR sweep drive it with explicit times, so timing, loss and collision statistics
 exact, deterministic (seeded) and fast.
 
 What one node does (after DESERT's UW/APPLICATION in TCP mode, UW/CSMA_ALOHA or UW/TDMA,
-and UW/PHYSICAL):
-- bytes from its client are cut into packets of at most max_read_length bytes and queued;
-  the queue is unbounded, as in DESERT;
-- every `period` seconds (ticks on a fixed grid from the node's start) one queued packet
-  goes down to the MAC;
-- CSMA-ALOHA: the MAC's only carrier sense is the PHY's lock (DESERT's Phy2MacStartRx: a
-  packet the receiver acquired). It waits while it sends or is locked on a packet, listens
-  for `listen_time` (+ jitter) and transmits when the listen ends, unless it is locked on a
-  packet by then: then it listens again once that reception ends. A packet that began
-  arriving while the node was sending is never acquired, so the MAC does not hear it;
-  TDMA: it transmits only inside its own slot, and only if the packet ends before the
-  guard time;
-- a packet is on the air for (bytes + header) * 8 / bitrate seconds and reaches every other
-  node after distance / sound speed, the distance (and the SNR) taken when it is sent:
-  nodes may move along waypoints or be placed live by `set_position` (uwgen.emulator.motion);
-- a receiver locks onto the first packet it can acquire; a packet that arrives while it is
-  transmitting or already locked is lost, and a transmission starting during a reception
-  kills that reception (half duplex); the locked packet is lost if the interference of
-  overlapping packets makes it draw bit errors ("collision"): the interference is each
-  overlapping packet's power weighted by the fraction of the reception it overlaps
-  (DESERT's MEANPOWER model), and the bit errors are BPSK's at that SINR;
-- with an SNR model, a packet whose faded SNR is under the acquisition threshold, or that
-  draws BPSK bit errors, is lost ("snr"); then the fixed packet error rate applies ("per");
-- a packet's destination is one node or every other node (`dest: "*"`, broadcast, as
-  DESERT's IP broadcast address): each addressee receives, or loses, its own copy;
-- an intact packet for this node is written to its client, or dropped ("no_client") when
-  none is connected.
+and UW/PHYSICAL; docs/emulator.md, "What a node does", says each rule in full):
+- bytes from its client are cut into packets of at most max_read_length bytes and queued
+  (unbounded, as in DESERT); every `period` (a fixed grid from the node's start) one goes
+  down to the MAC;
+- CSMA-ALOHA: the only carrier sense is the PHY's lock (DESERT's Phy2MacStartRx); it waits
+  while sending or locked, listens `listen_time` (+ jitter), sends when the listen ends
+  unless locked by then (then it listens again after that reception);
+  TDMA: as DESERT's UW/TDMA (uwgen.emulator.tdma): a packet starts anywhere in the node's
+  ON window (slot - guard) and may end past it, at most max_packet_per_slot per window, and
+  a full MAC queue (queue_size) drops the new packet, counted;
+- a packet is on the air (bytes + header) * 8 / bitrate seconds and reaches every other node
+  after distance / sound speed, taken when it is sent (nodes may move: uwgen.emulator.motion);
+- a receiver locks onto the first packet it can acquire; one arriving while it sends or is
+  locked is lost, and sending kills a reception (half duplex); the locked packet is lost
+  ("collision") if the MEANPOWER interference of overlapping packets makes it draw BPSK bit
+  errors; with an SNR model a packet under the acquisition threshold or with bit errors is
+  lost ("snr"); then the fixed packet error rate applies ("per");
+- a packet is for one node or, `dest: "*"`, every other (each its own copy); an intact one
+  is written to the node's client, or dropped ("no_client") when none is connected.
 """
 from __future__ import annotations
 
@@ -46,8 +38,9 @@ import random
 from collections import deque
 from dataclasses import dataclass, field
 
+from uwgen.emulator import tdma
 from uwgen.emulator.motion import Geometry
-from uwgen.emulator.physics import bpsk_per
+from uwgen.emulator.physics import locked_outcome
 from uwgen.emulator.scenario import BROADCAST, NodeSpec, Scenario
 from uwgen.runtime.stats import Counters
 
@@ -65,6 +58,7 @@ NODE_COUNTERS = (
     "packets_delivered",   # packets written to this node's client
     "bytes_delivered",
     "dropped_restart",     # this node's packets queued or in flight at a restart
+    "dropped_queue_full",  # TDMA: refused by a full MAC queue (queue_size_, the new one dropped)
     "clients",             # client connections served
     *(f"lost_{cause}" for cause in LOSS_CAUSES),   # packets addressed to this node and lost
 )
@@ -131,6 +125,10 @@ class _Node:
     rx: list = field(default_factory=list)      # arrivals in progress
     locked: _Arrival | None = None              # the reception the PHY is synchronised on
     client: bool = False
+    slot_frame: int = -(2 ** 62)                # TDMA: the ON window the node last sent in...
+    slot_sent: int = 0                          # ...and how many packets it started there
+    slot_frame_next: int = 0
+    max_mac_queue: int = 0
     counters: Counters = field(default_factory=lambda: Counters(NODE_COUNTERS))
 
 
@@ -246,7 +244,8 @@ class EmulatorCore:
     def counters(self, node: str) -> dict[str, int]:
         n = self._node(node)
         return {**n.counters.as_dict(), "queue_bytes": n.queue_bytes,
-                "max_queue_bytes": n.max_queue_bytes, "client_connected": int(n.client)}
+                "max_queue_bytes": n.max_queue_bytes, "max_mac_queue": n.max_mac_queue,
+                "client_connected": int(n.client)}
 
     def all_counters(self) -> dict[str, dict[str, int]]:
         return {name: self.counters(name) for name in self._order}
@@ -303,7 +302,13 @@ class EmulatorCore:
         n.tick_pending = False
         if not n.app_queue:
             return
-        n.mac_queue.append(n.app_queue.popleft())
+        pkt = n.app_queue.popleft()
+        if self.scenario.tdma is not None and tdma.queue_full(self.scenario.tdma, len(n.mac_queue)):
+            n.queue_bytes -= len(pkt.data)          # DESERT's UW/TDMA drops the new packet
+            n.counters.inc("dropped_queue_full")
+        else:
+            n.mac_queue.append(pkt)
+            n.max_mac_queue = max(n.max_mac_queue, len(n.mac_queue))
         self._mac_try(n, t)
         if n.app_queue:
             self._schedule_tick(n, t)
@@ -314,7 +319,8 @@ class EmulatorCore:
             return
         s = self.scenario
         if s.tdma is not None:
-            start = self._slot_start(n, t, s.tx_time(len(n.mac_queue[0].data)))
+            start, n.slot_frame_next = tdma.next_start(
+                s.tdma, s.tdma_slots(), s.slot_of(n.name), n.origin, t, n.slot_frame, n.slot_sent)
             if start > t:
                 n.mac_state = _WAITING
                 self._push(start, _MAC, n)
@@ -350,25 +356,14 @@ class EmulatorCore:
             until = max(until, n.locked.end)
         return until
 
-    def _slot_start(self, n: _Node, t: float, duration: float) -> float:
-        """Earliest time >= t at which a `duration`-second packet fits in n's TDMA slot."""
-        tdma = self.scenario.tdma
-        assert tdma is not None
-        slot_len = tdma.frame / self.scenario.tdma_slots()
-        offset = self.scenario.slot_of(n.name) * slot_len
-        frame_index = math.floor((t - n.origin) / tdma.frame)
-        for k in (frame_index, frame_index + 1, frame_index + 2):
-            open_at = n.origin + k * tdma.frame + offset
-            close_at = open_at + slot_len - tdma.guard
-            start = max(t, open_at)
-            if start + duration <= close_at + 1e-12:
-                return start
-        raise AssertionError("scenario validation guarantees a packet fits its slot")
-
     def _tx_start(self, n: _Node, t: float) -> None:
         s = self.scenario
         pkt = n.mac_queue.popleft()
         n.queue_bytes -= len(pkt.data)
+        if s.tdma is not None:                   # one more packet in this ON window
+            if n.slot_frame_next != n.slot_frame:
+                n.slot_frame, n.slot_sent = n.slot_frame_next, 0
+            n.slot_sent += 1
         pkt.sent_at = t
         duration = s.tx_time(len(pkt.data))
         n.mac_state = _SENDING
@@ -455,23 +450,6 @@ class EmulatorCore:
         return snr.threshold_db if snr is not None else -math.inf
 
     def _decide(self, arr: _Arrival) -> str | None:
-        """Outcome of a packet the receiver stayed locked on to its end."""
-        snr = self.scenario.snr
-        if snr is None:
-            return "collision" if arr.interference > 0 else None
-        nbits = (len(arr.packet.data) + self.scenario.header_bytes) * 8
-        u = self._bit_error_rng.random() if snr.bpsk_errors else 1.0
-        snr_lin = 10 ** (arr.snr_db / 10)
-        if snr.bpsk_errors and u < bpsk_per(snr_lin, nbits):
-            return "snr"
-        if arr.interference > 0:
-            # DESERT draws the bit errors of noise plus interference with the same number;
-            # without bit errors, a SINR under the threshold is a collision.
-            signal = snr_lin * self._noise
-            sinr = signal / (self._noise + arr.interference)
-            if snr.bpsk_errors:
-                if u < bpsk_per(sinr, nbits):
-                    return "collision"
-            elif 10 * math.log10(sinr) < snr.threshold_db:
-                return "collision"
-        return None
+        """Outcome of a packet the receiver stayed locked on to its end (physics.locked_outcome)."""
+        return locked_outcome(self.scenario.snr, (len(arr.packet.data) + self.scenario.header_bytes) * 8,
+                              arr.snr_db, arr.interference, self._noise, self._bit_error_rng)

@@ -153,3 +153,28 @@ def phy(name: str) -> SnrModel | None:
         return PHYS[name]
     except KeyError:
         raise KeyError(f"no PHY named {name!r} (known: {', '.join(PHYS)})") from None
+
+
+def locked_outcome(snr, nbits: int, snr_db: float, interference: float, noise: float,
+                   rng) -> str | None:
+    """Outcome of a packet a receiver stayed locked on to its end (the emulator core's): None
+    (received), "snr" (bit errors of the noise) or "collision" (of noise plus the MEANPOWER
+    interference of the packets that overlapped it). `snr`: the scenario's SnrModel (None:
+    any overlap is a collision); `noise`: the noise power, linear; `rng`: the bit-error draws."""
+    if snr is None:
+        return "collision" if interference > 0 else None
+    u = rng.random() if snr.bpsk_errors else 1.0
+    snr_lin = 10 ** (snr_db / 10)
+    if snr.bpsk_errors and u < bpsk_per(snr_lin, nbits):
+        return "snr"
+    if interference > 0:
+        # DESERT draws the bit errors of noise plus interference with the same number;
+        # without bit errors, a SINR under the threshold is a collision.
+        signal = snr_lin * noise
+        sinr = signal / (noise + interference)
+        if snr.bpsk_errors:
+            if u < bpsk_per(sinr, nbits):
+                return "collision"
+        elif 10 * math.log10(sinr) < snr.threshold_db:
+            return "collision"
+    return None

@@ -413,7 +413,8 @@ class Soak:
             link = row["link"]
             if link is not None and link["sent"] != (link["delivered"] + link["lost_on_link"]
                                                      + link.get("in_flight", 0)
-                                                     + link.get("unacknowledged", 0)):
+                                                     + link.get("unacknowledged", 0)
+                                                     + link.get("unknown", 0)):
                 problems.append(f"{name}: the link's ledger does not close: {link}")
             flow = next(f for f in self.flows if f.name == name)
             whole = max(flow.sizes) <= self.sides[flow.src].link.fragmenter.max_payload

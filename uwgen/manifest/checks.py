@@ -75,3 +75,25 @@ def check_rmw_reserved(r: Reader, ids: dict[int, IdUse], manifest: Manifest, top
         raise r.error(top["fragment_id"][1], f"fragment_id {manifest.fragment_id} is reserved for rmw_desert's {reserved[manifest.fragment_id]} {reason}")
     if manifest.schema_id in reserved:
         raise r.error(top["schema_id"][1], f"schema_id {manifest.schema_id} is reserved for rmw_desert's {reserved[manifest.schema_id]} {reason}")
+
+
+def check_mixed_commands(manifest: Manifest) -> None:
+    """A manifest with an rmw_desert entry makes the whole link speak wire format 1 (rmw_desert
+    nodes read nothing else, and they hear every packet of the network): no packet time, no
+    per-packet seal, no delivery once. A service or action of another profile would then lose
+    its age bound and its protection against repeats, so the mix is refused for commands (docs/
+    seams.md section 8): a held or repeated call could run late or twice."""
+    user = next(t for t in (*manifest.topics, *manifest.services) if t.profile == RMW_DESERT)
+    for entry in (*manifest.services, *manifest.actions):
+        if getattr(entry, "profile", None) == RMW_DESERT:
+            continue
+        kind = "service" if entry in manifest.services else "action"
+        raise ManifestError(entry.where, (
+            f"{kind} {entry.name} is a command in profile {getattr(entry, 'profile', 'native')}, "
+            f"but {user.name} (line {user.where.line if user.where else '?'}) is in profile "
+            f"rmw_desert, so the whole link speaks wire format 1: no packet time (a held call "
+            f"could run after its timeout), no per-packet seal and no delivery once (a repeated "
+            f"one could run twice). Put the rmw_desert entries in a network of their own, or "
+            + ("give this service profile rmw_desert (its rmw_desert semantics, stated in "
+               "docs/wire-format.md)" if kind == "service" else
+               "carry this action on a network without rmw_desert entries (actions are native only)")))

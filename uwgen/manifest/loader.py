@@ -32,6 +32,7 @@ from uwgen.manifest.model import (
     LinkPolicy,
     Manifest,
     Qos,
+    MacConfig,
     Security,
     Service,
     Side,
@@ -39,6 +40,7 @@ from uwgen.manifest.model import (
 )
 from uwgen.manifest.nodes import ManifestError, Reader, compose
 from uwgen.manifest.policy import POLICY_KEYS, QOS_KEYS, read_policy, read_qos  # noqa: F401 (QOS_KEYS re-exported)
+from uwgen.manifest.mac import check_turns_wire, read_mac
 from uwgen.manifest.security import SecurityCheck, network_security
 from uwgen.manifest.sides import LINK_KEYS, SIDE_KEYS, SIDE_NAME, read_sides  # noqa: F401 (re-exported)
 from uwgen.manifest.typeref import resolve_type
@@ -48,7 +50,7 @@ __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "
 MANIFEST_NAME = "uwgen.yaml"
 
 TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id", "schema_period",
-            "defaults", "topics", "services", "actions", "security")
+            "defaults", "topics", "services", "actions", "security", "mac")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
 TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security",
               "reliability")
@@ -201,6 +203,9 @@ class _ManifestBuilder:
                                           if k.value == "tag_bytes"), self.sec.block)
 
         sides = self.checked({}, read_sides, self, r.require(top, "sides", root, "the manifest"))
+        mac = MacConfig()
+        if "mac" in top and sides:
+            mac = self.checked(mac, read_mac, r, top["mac"][1], sides)
 
         # Policy keys from `defaults` stay nodes (merged per key into each topic, errors
         # located); validated here even if no topic uses them. Their qos is read once.
@@ -256,7 +261,11 @@ class _ManifestBuilder:
             schema_id=schema_id,
             schema_period=schema_period,
             security=security,
+            mac=mac,
         )
+        if "mac" in top:
+            with errors.attempt(ManifestError):
+                check_turns_wire(r, top["mac"][1], mac, manifest.uses_rmw_desert())
         # The checks of the whole manifest run on what could be read, also when some of it
         # could not (so its mistakes come in the same pass); the security set-up's only when
         # its block was read (else "no key named" would only echo that block's own error).
@@ -266,6 +275,8 @@ class _ManifestBuilder:
         if manifest.uses_rmw_desert():
             with errors.attempt(ManifestError):
                 checks.check_rmw_reserved(r, self.ids, manifest, top)
+            with errors.attempt(ManifestError):
+                checks.check_mixed_commands(manifest)
         with errors.attempt(ManifestError):
             checks.check_repair(r, manifest, self.repair_nodes)
         errors.raise_if_any(ManifestErrors)

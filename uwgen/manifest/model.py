@@ -70,6 +70,55 @@ class LinkConfig:
         return self.max_read_length / self.period
 
 
+MAC_MODES = ("none", "tdma", "turns")   # how the sides share the channel (docs/emulator.md, MACs)
+DEFAULT_TURN_PACKETS = 4                 # packets a turn grant allows when the manifest names none
+SOUND_SPEED = 1500.0                     # m/s: what `range` becomes in seconds
+
+
+@dataclass(frozen=True)
+class MacConfig:
+    """The manifest's `mac:` section: how the sides share the one acoustic channel.
+
+    - `none`: every side writes when its period allows; DESERT's MAC (stock CSMA-ALOHA) sorts
+      it out, and packets of two sides may collide;
+    - `tdma`: DESERT runs UW/TDMA in fair mode: a `frame` of one slot per side in `slots`
+      order, each ON for slot - `guard`, at most `max_packet_per_slot` packets in a slot and
+      `queue_size` packets in DESERT's MAC queue. The bridge writes no more than its slot
+      drains per frame;
+    - `turns`: DESERT keeps its stock MAC; the `leader` side grants the turn to one side at a
+      time in a C item, that side answers after hearing it and ends its turn with another
+      (docs/wire-format.md section 16). `packets`: how many packets a turn allows, per side.
+    `bitrate` (bit/s) and `range` (m, the farthest two sides are apart) size air times and
+    the first timers until round trips are measured.
+    """
+
+    mode: str = "none"
+    bitrate: float = 4800.0
+    range: float = 1000.0
+    frame: float = 1.0
+    guard: float = 0.05
+    slots: tuple[str, ...] = ()                     # tdma: sides in slot order
+    max_packet_per_slot: int = 1
+    queue_size: int = 10
+    leader: str = ""                                # turns
+    packets: tuple[tuple[str, int], ...] = ()       # turns: (side, packets per turn)
+
+    @property
+    def slot(self) -> float:
+        return self.frame / max(1, len(self.slots))
+
+    def slot_of(self, side: str) -> int:
+        return self.slots.index(side)
+
+    def turn_packets(self, side: str) -> int:
+        return dict(self.packets).get(side, DEFAULT_TURN_PACKETS)
+
+    @property
+    def delay(self) -> float:
+        """Seconds a packet travels across `range`."""
+        return self.range / SOUND_SPEED
+
+
 @dataclass(frozen=True)
 class Side:
     name: str
@@ -229,6 +278,7 @@ class Manifest:
     schema_id: int | None = None                 # reserved id for schema announcements (wire format 10)
     schema_period: float | None = SCHEMA_PERIOD_DEFAULT  # seconds between announcements; None: connect/request only
     security: Security = field(default_factory=Security)
+    mac: MacConfig = field(default_factory=MacConfig)
 
     def entry(self, id: int) -> Topic | Service | Action | None:
         for item in (*self.topics, *self.services, *self.actions):

@@ -6,6 +6,8 @@ C's L bytes are items of one byte each: bits 7-4 the code, bits 3-0 a sender id.
   your next packets". Sent by a receiver that dropped a packet of s as `unsynced`, in a packet
   that is itself a sync packet (so s can take it even if it does not know the asker's epoch).
 
+Codes 2 (turn grant, followed by one byte: the packets granted) and 3 (end of turn) are the
+link's MAC's (uwgen.runtime.link.mac, docs/wire-format.md section 16): the seal skips them.
 Other codes are reserved: a receiver counts them (`unknown_control`) and ignores them. C is
 under the packet's tag, so only a key holder can ask, and only once per packet number.
 """
@@ -14,6 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 SYNC_REQUEST = 1
+MAC_CODES = (2, 3)       # the link MAC's items (turn grant, end of turn)
+TURN_GRANT = 2           # its item is two bytes: 2S, then the packets granted
 MAX_SENDER = 15
 
 
@@ -34,8 +38,13 @@ def sync_request(sender: int) -> bytes:
 
 
 def items(control: bytes) -> list[Item]:
-    """The items of a C part's bytes (every byte is one: total, never fails)."""
-    return [Item(b >> 4, b & 0x0F) for b in control]
+    """The items of a C part's bytes (one byte each, a turn grant's count byte skipped:
+    total, never fails)."""
+    out, i = [], 0
+    while i < len(control):
+        out.append(Item(control[i] >> 4, control[i] & 0x0F))
+        i += 2 if control[i] >> 4 == TURN_GRANT else 1
+    return out
 
 
 class SyncRequests:

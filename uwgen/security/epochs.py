@@ -8,14 +8,16 @@ a second copy of the side, a renumbered id, all pick another epoch and so anothe
 
 A receiver keeps, per sender, the last `KEEP` epochs it accepted, each with its working key
 and its replay window; a frame without a sync word is tried under the most recent first. It
-also remembers the ids of the last `RETIRED` epochs it let go, and never takes one of them
-again: otherwise a recorded sync frame of an epoch pushed out of its memory would be a new
-epoch again, and delivered twice.
+also keeps the last `RETIRED` epochs it let go, with their windows: a sync frame of one is
+taken back under its old window (so nothing seen before is taken again: a recorded sync frame
+of an epoch pushed out is a replay, never a new epoch), so two fresh epochs sent by a key
+holder cannot push the real sender's epoch out for good (docs/security.md, "What a key holder
+can do to availability").
 Pure classes: the random source and the key derivation are passed in.
 """
 from __future__ import annotations
 
-from collections import deque
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -56,6 +58,7 @@ class PeerEpoch:
     epoch: bytes
     aead: Any
     window: ReplayWindow
+    shadow: ReplayWindow | None = None   # the window before a jump (receiver.py)
 
 
 class PeerEpochs:
@@ -64,11 +67,13 @@ class PeerEpochs:
     def __init__(self, keep: int = KEEP, retired: int = RETIRED):
         self.keep = keep
         self._epochs: list[PeerEpoch] = []
-        self._retired: deque[bytes] = deque(maxlen=retired)
+        self._retired: OrderedDict[bytes, PeerEpoch] = OrderedDict()
+        self._retire_limit = retired
 
-    def retired(self, epoch: bytes) -> bool:
-        """Whether `epoch` was accepted once and let go since: never taken again."""
-        return epoch in self._retired
+    def retired(self, epoch: bytes) -> PeerEpoch | None:
+        """The epoch as it was let go (its window too), when it was accepted once and let go
+        since: taken back only under that window."""
+        return self._retired.get(epoch)
 
     def get(self, epoch: bytes) -> PeerEpoch | None:
         return next((e for e in self._epochs if e.epoch == epoch), None)
@@ -80,10 +85,13 @@ class PeerEpochs:
         """`entry` accepted a frame: it becomes the most recent (the oldest beyond `keep` go)."""
         if entry in self._epochs:
             self._epochs.remove(entry)
+        self._retired.pop(entry.epoch, None)
         self._epochs.insert(0, entry)
         for old in self._epochs[self.keep:]:
-            self._retired.append(old.epoch)
+            self._retired[old.epoch] = old
         del self._epochs[self.keep:]
+        while len(self._retired) > self._retire_limit:
+            self._retired.popitem(last=False)
 
     @property
     def current(self) -> PeerEpoch | None:

@@ -119,7 +119,7 @@ def read_key_file(path: Path) -> bytes:
                             f"found {len(lines)} such lines")
     number, line = lines[0]
     for column, byte in enumerate(line, 1):
-        if chr(byte) not in string.hexdigits and not chr(byte).isspace():
+        if chr(byte) not in string.hexdigits and not bytes([byte]).isspace():   # ASCII spaces only
             shown_byte = repr(chr(byte)) if 32 <= byte < 127 else f"the byte 0x{byte:02x}"
             raise SecurityError(f"key file {shown(path)}:{number}:{column}: {shown_byte} is not a hex "
                                 f"digit (0-9, a-f); a key file holds {expected}")

@@ -87,6 +87,7 @@ class PacketSeal(SideSeal):
         self._current: tuple[int, bytes, object] | None = None    # (seq, epoch, aead) being built
         self.requests = control.SyncRequests(ASK_GAP)
         self._told_length: set[int] = set()     # peers whose other tag length was logged
+        self._told_time: set[int] = set()       # peers whose refused time T was logged
 
     def hooks(self) -> PacketHooks:
         return PacketHooks(parts=self.parts, seal=self.seal, open=self.open,
@@ -188,6 +189,7 @@ class PacketSeal(SideSeal):
             return drop("malformed", None, e.sender)
         max_age = self._max_age(e.messages)
         if e.sync is None and e.time is not None and not self.freshness.fresh(e.time, self.wall.now(), max_age):
+            self._tell_time(e)
             return drop("stale", None, e.sender)
         numbering = Numbering(e.sender, e.number, NUMBER_BITS,
                               None if e.sync is None else (e.sync.high << NUMBER_BITS) | e.number,
@@ -195,6 +197,8 @@ class PacketSeal(SideSeal):
         got = self.receiver.admit(numbering, max_age, lambda aead, seq: packetwire.open_envelope(
             aead, e, seq, self._encrypts, self._fingerprint))
         if isinstance(got, str):
+            if got == "stale" and e.sync is not None:
+                self._tell_time(e)
             if got == "unsynced":
                 self.requests.want(e.sender, self.clock.now())
             if got == "bad_tag" and e.sync is not None and self._other_length(data, e.sender):
@@ -205,6 +209,20 @@ class PacketSeal(SideSeal):
         if got.control:
             self._control(got)
         return got
+
+    def _tell_time(self, e: env.Envelope) -> None:
+        """A packet refused for its time T: say by how much, once per sender (a clock set
+        wrong shows as every packet off by the same figure; a held packet as one late one)."""
+        if e.sender in self._told_time:
+            return
+        self._told_time.add(e.sender)
+        apparent = self.freshness.age(e.time, self.wall.now())
+        log.error("[%s] sender %d (%s): a packet stamped %.1f s %s our clock was refused "
+                  "(counted stale). If every packet of that sender is refused so, its clock and "
+                  "ours disagree by about that much, beyond the %.0f s tolerance: set both from "
+                  "GPS or NTP; if only some are, packets are being held back or replayed",
+                  self.name, e.sender, self.config.peers.get(e.sender, "?"), abs(apparent),
+                  "behind" if apparent > 0 else "ahead of", self.freshness.tolerance)
 
     def _other_length(self, data: bytes, sender: int) -> bool:
         """Whether sync packet `data` verifies at another tag length (logged once per peer)."""
@@ -224,6 +242,8 @@ class PacketSeal(SideSeal):
     def _control(self, e: env.Envelope) -> None:
         now = self.clock.now()
         for item in control.items(e.control):
+            if item.code in control.MAC_CODES:
+                continue                     # the link's MAC reads them (hooks.received)
             if item.code != control.SYNC_REQUEST:
                 log_count(log, logging.WARNING, self.counters.inc("unknown_control"),
                           "[%s] sender %d's packet has a control item of code %d this build does "

@@ -9,12 +9,18 @@ protects (or None). It returns that, or the drop reason:
 
 - a sync frame must be fresh (`stale`); an epoch never heard is taken only from a sync frame
   sealed after this side started (`before_start`: a replay, or a frame still on its way when
-  this side started; it cannot tell which), numbered below `EPOCH_NUMBERS` (`too_far`), and
-  not one this side let go (`too_old`); every number below that frame's counts as seen;
+  this side started; it cannot tell which) and numbered below `EPOCH_NUMBERS` (`too_far`);
+  every number below that frame's counts as seen. An epoch this side let go (pushed out by
+  newer ones) is taken back from a sync frame under the window it had (a replay stays one);
 - a frame without a sync word needs a known epoch (`unsynced`) and is tried under the most
   recent first, its number reconstructed from its low bits;
 - the tag (`bad_tag`), then the epoch's replay window (`replay`, `too_old`, `too_far`) and the
   overtaken age (`stale`: a frame numbered below one that arrived more than `max_age` ago).
+- a verified frame that moves the window more than `SHADOW_JUMP` forward (only a key holder
+  sends one, or a sender after that many lost) leaves the window it moved from as the epoch's
+  *shadow*: frames that verify only there (the real sender, still counting from where it was)
+  are taken under it, with the same replay rules, moving it at most `SHADOW_JUMP` at a time, so
+  such a jump cannot lock the real sender out (docs/security.md).
 
 Pure: clocks, the key derivation and the tag check are passed in.
 """
@@ -28,7 +34,9 @@ from uwgen.runtime.clock import Clock
 from uwgen.security.epochs import EPOCH_NUMBERS, PeerEpoch, PeerEpochs
 from uwgen.runtime.delivery.freshness import Freshness
 from uwgen.security.wire import Sync
-from uwgen.security.window import NEW, WINDOW, ReplayWindow
+from uwgen.security.window import NEW, TOO_OLD, WINDOW, ReplayWindow
+
+SHADOW_JUMP = 2048        # a forward move beyond what 12 low bits reach keeps the old window
 
 
 @dataclass(frozen=True)
@@ -63,9 +71,9 @@ class Receiver:
             if not self.freshness.fresh(n.sync.time, wall, max_age):
                 return "stale"
             entry, seq = peer.get(n.sync.epoch), n.full
+            if entry is None:
+                entry = peer.retired(n.sync.epoch)   # let go: back under its old window
             if entry is None:                # a new epoch: taken only from a fresh sync frame
-                if peer.retired(n.sync.epoch):
-                    return "too_old"         # an epoch this side let go
                 if self.freshness.before(n.sync.time, wall, self.started):
                     return "before_start"    # sealed before this side started
                 if seq >= EPOCH_NUMBERS:     # no sender gets that far in one epoch
@@ -80,19 +88,39 @@ class Receiver:
                 seq = entry.window.reconstruct(n.partial, n.bits)
                 if (got := verify(entry.aead, seq)) is not None:
                     break
+            else:                            # then where each was before a jump
+                for entry in peer.recent():
+                    if entry.shadow is not None:
+                        seq = entry.shadow.reconstruct(n.partial, n.bits)
+                        if (got := verify(entry.aead, seq)) is not None:
+                            return self._take(peer, entry, entry.shadow, seq, max_age, got, True)
         if got is None:
             return "bad_tag"
-        now = self.clock.now()
         if entry.window is None:             # first frame of this epoch: nothing before it
             entry.window = ReplayWindow.from_floor(seq, self._window)
             self.on_new_epoch(n.sender)
-        else:
-            verdict = entry.window.check(seq)
-            if verdict != NEW:
-                return verdict
-            overtaken = entry.window.overtaken_for(seq, now)
-            if overtaken is not None and overtaken > max_age:
-                return "stale"
-        entry.window.accept(seq, now)
+            entry.window.accept(seq, self.clock.now())
+            peer.touch(entry)
+            return got
+        window, shadowed = entry.window, False
+        if entry.shadow is not None and window.check(seq) == TOO_OLD:
+            window, shadowed = entry.shadow, True      # a sync frame of the real sender
+        return self._take(peer, entry, window, seq, max_age, got, shadowed)
+
+    def _take(self, peer: PeerEpochs, entry: PeerEpoch, window: ReplayWindow, seq: int,
+              max_age: float, got: Any, shadowed: bool) -> Any:
+        """The replay and overtaken checks in `window` (the epoch's, or its shadow), then take."""
+        now = self.clock.now()
+        verdict = window.check(seq)
+        if verdict == NEW and shadowed and seq - window.high > SHADOW_JUMP:
+            verdict = "too_far"                # the shadow never jumps
+        if verdict != NEW:
+            return verdict
+        overtaken = window.overtaken_for(seq, now)
+        if overtaken is not None and overtaken > max_age:
+            return "stale"
+        if not shadowed and entry.shadow is None and seq - window.high > SHADOW_JUMP:
+            entry.shadow = ReplayWindow(window.size, window.high, window.bits, window.max_jump)
+        window.accept(seq, now)
         peer.touch(entry)
         return got

@@ -206,6 +206,7 @@ class ManifestInfo:
     schema_period: float | None = None  # seconds between periodic announcements (None: none)
     schema_digest: bytes = b""         # fingerprint of the whole manifest (wire format section 10)
     security: Any = None        # manifest.model.SecurityPlan when anything is protected
+    mac: Any = None             # manifest.model.MacConfig; None: mode none (uwgen.runtime.link.mac)
 
 
 # What follows an action's goal handle in a response (kind 3), wire format 13. Answers to a

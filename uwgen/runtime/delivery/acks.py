@@ -29,6 +29,7 @@ class AckPolicy:
         self._last_report: dict[int, float] = {}
         self._news: dict[int, float] = {}       # peer -> first packet since our last report
         self._idle: dict[int, int] = {}         # peer -> reports sent alone since its news
+        self.final = False                      # a last report on every peer is due (closing)
 
     def heard(self, peer: int, with_messages: bool, now: float) -> None:
         """A packet of `peer` arrived; an ack-only one asks for nothing (no ping-pong)."""
@@ -53,7 +54,7 @@ class AckPolicy:
             # to have arrived (then the peer's ledger has them)
             unsettled = peer in self._news or low is None or low < r.largest
             news = unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval
-            if not (waited or news):
+            if not (waited or news or self.final):
                 continue
             if low is None:
                 low = min(r.got, default=r.largest)
@@ -75,6 +76,8 @@ class AckPolicy:
     def due(self, epochs: dict[int, bytes], now: float) -> bool:
         """Whether `a_part(epochs, now)` would name some peer (without its side effects):
         what the packer leaves room for, asked before a packet's messages are picked."""
+        if self.final and self.engine.receipts:
+            return True
         for peer in {p for p, _ in self.engine.receipts}:
             r = self.engine._current(peer)
             if r is None or r.largest is None:
@@ -86,6 +89,11 @@ class AckPolicy:
             if unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval:
                 return True
         return False
+
+    def rename_epoch(self, peer: int, old: bytes, new: bytes) -> None:
+        """The peer's stand-in epoch `old` is `new` (learnt from K): the same start."""
+        if (peer, old) in self._confirmed:
+            self._confirmed[(peer, new)] = self._confirmed.pop((peer, old))
 
     def carried(self) -> list[Sent]:
         """The reports of the packet just built, as pseudo-messages for the engine's `sent`."""
@@ -105,7 +113,7 @@ class AckPolicy:
         reliable message, or has had news unreported for 2 `ack_interval`, or (at most
         IDLE_REPEATS times, 2 `ack_interval` apart) numbers of it no confirmed report named
         (this side sends nothing: the peer's ledger closes all the same)."""
-        return any(self.engine.ack_only_due(peer, now) for peer, _ in self.engine.receipts) \
+        return self.final or any(self.engine.ack_only_due(peer, now) for peer, _ in self.engine.receipts) \
             or any(now - t >= 2 * self.ack_interval for t in self._news.values()) \
             or any(now >= t for t in self._idle_times())
 

@@ -18,7 +18,13 @@ drives the pure engine `uwgen.runtime.delivery.reliable.ReliableLink`:
   carrying a message with a max age.
 
 The per-entry ledger (`ledger()`, in the link's stats as `ledger`) is exact from packet
-numbers: sent = delivered + lost_on_link + in_flight + unacknowledged, per channel key.
+numbers: sent = delivered + lost_on_link + in_flight + unacknowledged + unknown, per channel
+key (`unknown`: sent before the peer restarted, reported missing by its new start).
+
+Epochs (docs/seams.md section 8): every wire-format-2 link carries the sender's per-start epoch
+in K. A sealed link's K is the seal's; on an unsealed one (`epoch_source` given) this side
+numbers its packets and gives K (`uwgen.runtime.delivery.epoch`). A receiver keys a sender's
+packets and reliable messages by (sender, epoch): a new epoch is a restart, never repeats.
 Everything is called on the link's thread except `stats()`; a lock keeps them apart.
 """
 from __future__ import annotations
@@ -26,29 +32,36 @@ from __future__ import annotations
 import logging
 import threading
 from collections import deque
+from collections.abc import Callable
 from dataclasses import asdict
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
 from uwgen.runtime.wire.framing import MAX_FRAME
-from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.wire.framing import MAX_PAYLOAD
+from uwgen.runtime.wire.framing import SHORT_OVERHEAD as FRAME_OVERHEAD   # wire format 3 links
 from uwgen.runtime.delivery.freshness import stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.packets import PacketHooks, message_measure
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
-from uwgen.runtime.delivery.reliable import (RECEIVED_WINDOW, REPORT_KEY, ReliableLink, RttEstimator,
-                                    Sent, unwrap)
-from uwgen.runtime.delivery.staleness import Staleness
+from uwgen.runtime.delivery.reliable import (DELAY_UNIT, RECEIVED_WINDOW, REPORT_KEY, AckError,
+                                             ReliableLink, RttEstimator, Sent, decode_reports,
+                                             unwrap)
+from uwgen.runtime.delivery.clock_offset import ClockOffsets
+from uwgen.runtime.delivery.epoch import SendEpoch
+from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, Staleness
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.reliability")
 
-COUNTERS = ("stale", "clock_offset", "bad_heads", "bad_acks", "untimed", "restarts_seen",
+COUNTERS = ("stale", "clock_offset", "unexplained_delay", "offset_samples", "bad_heads", "bad_acks", "untimed", "restarts_seen",
             "duplicate_packets")
 DEFAULT_DEADLINE = 120.0          # seconds: a reliable entry without a ttl
 FORGET_AFTER = 2048               # packets: older ones cannot be named unambiguously (12 bits)
 # T, and an A part of one report (acks.A_ROOM): the most the hooks add to a packet.
 OVERHEAD = env.TIME_LEN + A_ROOM
+TIMED_REPORTS = 4                 # first packets with an A part that carry T (per peer epoch),
+TIMED_REPORT_EVERY = 30.0         # then one every this many seconds: the peer's clock offset
 
 
 def wire_id(key: int) -> int:
@@ -63,12 +76,19 @@ class Reliability:
                  max_ages: dict[int, float], wall: Clock = WALL_CLOCK,
                  ack_delay: float | None = None, ack_interval: float | None = None,
                  name: str = "link", max_read_length: int = MAX_FRAME,
-                 other_overhead: int = 0):
+                 other_overhead: int = 0, peer_names: dict[int, str] | None = None,
+                 epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0):
         self.sender, self.name, self.wall = sender, name, wall
+        # this side's epoch and numbers on an unsealed link (None: the seal gives K)
+        self.send_epoch = SendEpoch(epoch_source) if epoch_source is not None else None
+        self._sync = False                            # the packet being built carries K
+        self._building = 0                            # its number
+        self.peer_names = dict(peer_names or {})
         # what a packet may hold besides P, W and the messages: the frame's payload minus what
         # the other joined hooks (the seal) may add; the A part takes what is left (acks.A_ROOM
         # at least, kept free by `overhead`)
-        self._part_room = min(max_read_length, MAX_FRAME) - FRAME_OVERHEAD - env.HEAD - other_overhead
+        self._part_room = (min(max_read_length, MAX_PAYLOAD + FRAME_OVERHEAD) - FRAME_OVERHEAD
+                           - env.HEAD - other_overhead)
         self._room = 0
         self.deadlines = {k: (DEFAULT_DEADLINE if t is None else t) for k, t in reliable.items()}
         self.max_ages = dict(max_ages)
@@ -76,10 +96,16 @@ class Reliability:
                            aged=frozenset(max_ages))
         self.ack_delay = ack_delay if ack_delay is not None else max(1.0, 4 * period)
         self.ack_interval = ack_interval if ack_interval is not None else max(2.0, 8 * period)
-        first = max(2.0, 8 * period)
-        self.engine = ReliableLink(sender, RttEstimator(first, period, 60.0, period),
+        # The retransmission timer's first value and floor are the MAC's (docs/seams.md
+        # section 6): a reply may wait `turn_gap` for the peer's turn, besides a period.
+        first = max(2.0, 8 * period) + turn_gap
+        self.engine = ReliableLink(sender, RttEstimator(first, period + turn_gap, 60.0, period),
                                    ack_delay=self.ack_delay)
         self.staleness = Staleness()
+        self.offsets = ClockOffsets()
+        self._timed_reports = 0                       # packets with A and T since a peer's start
+        self._last_timed_report = -float("inf")
+        self._want_time = False
         self.counters = Counters(COUNTERS)
         self.stale_by_id: dict[int, int] = {}
         self._lock = threading.Lock()
@@ -92,22 +118,39 @@ class Reliability:
         self._restarts: dict[int, int] = {}
         self._rx: tuple[int, bytes, int | None] | None = None
         self._offset_told: set[int] = set()
+        self.first_offset_at: dict[int, float] = {}   # peer -> when its offset was first measured
 
     def hooks(self) -> PacketHooks:
+        # Unsealed: this side numbers the packets (K names its epoch). K is not in `overhead`
+        # (which sizes fragments): it rides when the packet has room for it (`carrying`).
+        numbering = {} if self.send_epoch is None else {"number": self.number}
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
                            overhead=OVERHEAD, next_overhead=self.next_overhead,
                            part_room=self.part_room, carrying=self.carrying, resend=self.resend,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
-                           head_room=self.head_room, admit=self.admit, stats=self.stats)
+                           head_room=self.head_room, admit=self.admit, stats=self.stats,
+                           **numbering)
+
+    def number(self) -> int:
+        with self._lock:
+            self._building = self.send_epoch.number()
+            return self._building
 
     # -- sending ------------------------------------------------------------------------
 
     def next_overhead(self, now: float) -> int:
-        """Room the next packet keeps for an A part: one report's (acks.A_ROOM) when one is
-        due, else none (docs/seams.md section 9: nothing is reserved by constant). T is
-        counted per message instead (`part_room`)."""
+        """Room the next packet keeps for the parts due on it (docs/seams.md section 9: nothing
+        is reserved by constant): one report's (acks.A_ROOM) when a report is due, with T when
+        it goes with one; K and T when the epoch is due. T for a message with a max age is
+        counted per message (`part_room`)."""
         with self._lock:
-            return A_ROOM if self.acks.due(self._epochs, now) else 0
+            ack = self.acks.due(self._epochs, now)
+            timed = ack and (self._timed_reports < TIMED_REPORTS
+                             or now - self._last_timed_report >= TIMED_REPORT_EVERY)
+            extra = (A_ROOM if ack else 0) + (env.TIME_LEN if timed else 0)
+            if self.send_epoch is not None and self.send_epoch.due(now):
+                extra += env.SYNC_LEN + (0 if timed else env.TIME_LEN)
+            return extra
 
     def part_room(self, key: int) -> int:
         """Bytes a message of channel `key` brings into its packet's parts: T (3) for an
@@ -126,17 +169,32 @@ class Reliability:
 
     def carrying(self, picked: list[tuple[int, bytes]], now: float) -> None:
         self._timed = any(wire_id(key) in self.max_ages for key, _ in picked)
+        # T also goes with the A part on the first packets and then now and then, so the
+        # peer measures our clock's offset (clock_offset.py)
+        self._want_time = self._timed or (
+            self._timed_reports < TIMED_REPORTS or now - self._last_timed_report >= TIMED_REPORT_EVERY)
         used = sum(message_measure(p) for _, p in picked) - (1 if picked else 0)
-        self._room = self._part_room - used - (env.TIME_LEN if self._timed else 0)
+        # K when due and the packet has room for it besides T and the A part's share (a
+        # packet filled by a full-size fragment carries it on a later one)
+        self._sync = (self.send_epoch is not None and self.send_epoch.due(now)
+                      and self._part_room - used - env.TIME_LEN - env.SYNC_LEN >= A_ROOM)
+        self._room = (self._part_room - used - (env.TIME_LEN if self._want_time or self._sync else 0)
+                      - (env.SYNC_LEN if self._sync else 0))
 
     def parts(self, now: float) -> dict:
         with self._lock:
             out: dict = {}
-            if self._timed:
-                out["time"] = stamp(self.wall.now())
             ack = self.acks.a_part(self._epochs, now, self._room)
             if ack:
                 out["ack"] = ack
+                self.acks.final = False              # the last word has left (farewell)
+            if self._sync:
+                out["sync"] = self.send_epoch.part(self._building, now)
+            if self._timed or self._sync or (ack and self._want_time):
+                out["time"] = stamp(self.wall.now())
+                if ack:
+                    self._timed_reports += 1
+                    self._last_timed_report = now
             return out
 
     def sent(self, number: int, picked: list[tuple[int, bytes]], now: float) -> None:
@@ -149,6 +207,7 @@ class Reliability:
             self._resending.clear()
             messages += self.acks.carried()      # its reports: confirmed once it is acked
             self.engine.sent(number, messages, now)
+            self.offsets.built(number, self.wall.now())
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
 
@@ -169,9 +228,21 @@ class Reliability:
         with self._lock:
             return self.acks.alone(now)
 
+    def farewell(self) -> bool:
+        """Closing: the next packet reports every peer's packets, so their ledgers close (a
+        clean stop leaves nothing `in_flight` there). False when there is nothing to report."""
+        with self._lock:
+            self.acks.final = any(r.largest is not None for r in self.engine.receipts.values())
+            return self.acks.final
+
+    @property
+    def farewell_pending(self) -> bool:
+        with self._lock:
+            return self.acks.final
+
     def next_time(self, now: float) -> float | None:
         with self._lock:
-            if self._queue:
+            if self._queue or self.acks.final:
                 return now
             times = [t for t in [self.engine.next_timeout()] if t is not None]
             times += self.acks.next_times()
@@ -188,31 +259,100 @@ class Reliability:
                 self.counters.inc("duplicate_packets")
             self.acks.heard(peer, bool(envelope.messages), now)
             if envelope.ack is not None:
+                self._sample_offset(peer, envelope, now)
                 before = self.engine.bad_acks
                 self.engine.acked(envelope.ack, now)
+                if self.send_epoch is not None and self.engine.largest_acked is not None:
+                    self.send_epoch.acked = True
                 self.acks.confirm()
                 if self.engine.bad_acks > before:
                     log_count(log, logging.WARNING, self.counters.inc("bad_acks"),
-                              "[%s] ignored an acknowledgement from sender %d that is malformed "
-                              "or names packets never sent: %s", self.name, peer,
+                              "[%s] ignored an acknowledgement from %s that is malformed "
+                              "or names packets never sent: %s", self.name, self._who(peer),
                               envelope.ack.hex(" "))
             self._rx = (peer, epoch, envelope.time)
 
+    def _who(self, peer: int) -> str:
+        """`sender 1 (surface)`: the peer's sender id (W) and, when known, its side."""
+        name = self.peer_names.get(peer)
+        return f"sender {peer}" + (f" ({name})" if name else "")
+
+    def _sample_offset(self, peer: int, envelope: env.Envelope, now: float) -> None:
+        """The peer's report on our packets, with its packet's T: one NTP exchange."""
+        if envelope.time is None or self.engine.largest_sent is None:
+            return
+        try:
+            reports = decode_reports(envelope.ack)
+        except AckError:
+            return
+        for r in reports:
+            if r.peer != self.sender:
+                continue
+            number = unwrap(r.largest, self.engine.largest_sent)
+            got = self.offsets.reported(peer, number, int(round(r.delay / DELAY_UNIT)),
+                                        envelope.time, self.wall.now())
+            if got is not None:
+                self.counters.inc("offset_samples")
+                self.first_offset_at.setdefault(peer, now)
+                self._tell_offset(peer, got)
+
+    def _tell_offset(self, peer: int, got) -> None:
+        """One log line when a peer's offset is first measured beyond the tolerance (and
+        again when it comes back within it)."""
+        beyond = abs(got.offset) > self.staleness.tolerance
+        back = abs(got.offset) + got.error <= self.staleness.tolerance   # no flapping at the edge
+        if beyond and peer not in self._offset_told:
+            self._offset_told.add(peer)
+            log.error("[%s] %s's clock is %.1f s %s ours (+-%.2f s, measured from an "
+                      "exchange), more than the %.0f s tolerance: its commands are refused "
+                      "(counted clock_offset) until the clocks agree. Set both clocks from GPS "
+                      "or NTP", self.name, self._who(peer), abs(got.offset),
+                      "ahead of" if got.offset > 0 else "behind", got.error,
+                      self.staleness.tolerance)
+        elif back and peer in self._offset_told:
+            self._offset_told.discard(peer)
+            log.warning("[%s] %s's clock is now %.1f s from ours (+-%.2f s): within the "
+                        "%.0f s tolerance, its commands are taken again", self.name, self._who(peer),
+                        got.offset, got.error, self.staleness.tolerance)
+
     def _epoch(self, envelope: env.Envelope) -> bytes:
-        """The sender's epoch: K's when the packet has one (the seal's); otherwise the last
-        known, or a new one when its number fell behind the window (it restarted)."""
+        """The sender's epoch: K's when the packet has one; otherwise the last known, or a
+        stand-in when none is known yet, or a new stand-in when its number fell behind the
+        window (a restarted sender whose packets with K were all lost)."""
         peer = envelope.sender
+        known = self._epochs.get(peer)
         if envelope.sync is not None:
-            self._epochs[peer] = envelope.sync.epoch
-            return envelope.sync.epoch
-        epoch = self._epochs.get(peer, b"")
+            epoch = envelope.sync.epoch
+            if known is not None and known != epoch:
+                if len(known) != env.EPOCH_LEN:      # a stand-in: the same start, now named
+                    self.engine.rename_epoch(peer, known, epoch)
+                    self.acks.rename_epoch(peer, known, epoch)
+                else:
+                    self._restarted(peer)
+            self._epochs[peer] = epoch
+            return epoch
+        epoch = known if known is not None else b""
         r = self.engine.receipts.get((peer, epoch))
         if r is not None and r.largest is not None and \
                 unwrap(envelope.number, r.largest) < r.largest - RECEIVED_WINDOW:
+            self._restarted(peer)
             self._restarts[peer] = self._restarts.get(peer, 0) + 1
-            self.counters.inc("restarts_seen")
-            epoch = self._epochs[peer] = b"restart %d" % self._restarts[peer]
+            epoch = b"restart %d" % self._restarts[peer]
+        self._epochs[peer] = epoch
         return epoch
+
+    def _restarted(self, peer: int) -> None:
+        """`peer` started again: its clock is measured again, it learns our epoch at once (K
+        on our next packets), and what it did not get of ours so far is `unknown`."""
+        self.counters.inc("restarts_seen")
+        log.info("[%s] %s started again (a new epoch): its packets and reliable messages are "
+                 "counted afresh; what it had not acknowledged of ours is counted unknown and "
+                 "reliable messages are sent again", self.name, self._who(peer))
+        self.offsets.forget(peer)
+        self._timed_reports = 0
+        if self.send_epoch is not None:
+            self.send_epoch.peer_restarted()
+        self.engine.peer_restarted()
 
     def admit(self, payload: bytes, now: float) -> bytes | None:
         with self._lock:
@@ -234,29 +374,45 @@ class Reliability:
     def _stale(self, ident: int, peer: int, time24: int | None, age: float) -> bool:
         if time24 is None:
             self.counters.inc("untimed")
-        verdict = self.staleness.judge(peer, time24, age, self.max_ages[ident], self.wall.now())
-        if verdict.offset is not None:
-            self.counters.inc("clock_offset")
-            if peer not in self._offset_told:
-                self._offset_told.add(peer)
-                log.error("[%s] sender %d's clock is about %.1f s %s ours, more than the "
-                          "%.0f s tolerance: commands' ages on the link cannot be judged, so "
-                          "they are judged by the time they waited before sending only. Set both "
-                          "clocks from GPS or NTP (counted clock_offset)", self.name, peer,
-                          abs(verdict.offset), "behind" if verdict.offset > 0 else "ahead of",
-                          self.staleness.tolerance)
-        if verdict.stale:
-            self.stale_by_id[ident] = self.stale_by_id.get(ident, 0) + 1
-            log_count(log, logging.WARNING, self.counters.inc("stale"),
-                      "[%s] refused a message of id %d from sender %d: %.1f s old, its max age "
-                      "is %.1f s (counted stale)", self.name, ident, peer, verdict.age,
-                      self.max_ages[ident])
-        return verdict.stale
+        max_age = self.max_ages[ident]
+        verdict = self.staleness.judge(time24, age, max_age, self.wall.now(), self.offsets.of(peer))
+        if verdict.refused is None:
+            return False
+        self.stale_by_id[ident] = self.stale_by_id.get(ident, 0) + 1
+        n = self.counters.inc(verdict.refused)
+        o = verdict.offset
+        if verdict.refused == CLOCK_OFFSET:
+            log_count(log, logging.WARNING, n,
+                      "[%s] refused a message of id %d from %s: that sender's clock is "
+                      "%.1f s %s ours (+-%.2f s), beyond the %.0f s tolerance. Set both clocks "
+                      "from GPS or NTP (counted clock_offset)", self.name, ident, self._who(peer),
+                      abs(o.offset), "ahead of" if o.offset > 0 else "behind", o.error,
+                      self.staleness.tolerance)
+        elif verdict.refused == UNEXPLAINED:
+            log_count(log, logging.WARNING, n,
+                      "[%s] refused a message of id %d from %s: its packet's time says "
+                      "it took %.1f s on the way, outside [-%.0f, %.0f] s, and that sender's "
+                      "clock offset is not measured yet, so a delay cannot be told from an "
+                      "offset (age item %.1f s, max age %.1f s; counted unexplained_delay)",
+                      self.name, ident, self._who(peer), verdict.transit, self.staleness.tolerance,
+                      self.staleness.tolerance + self.staleness.max_transit, age, max_age)
+        else:
+            how = ("transit %.1f s, clock offset %+.2f +-%.2f s measured" % (
+                       verdict.transit, o.offset, o.error) if o is not None else
+                   "transit %.1f s, clock offset not measured yet (tolerance %.0f s)" % (
+                       verdict.transit or 0.0, self.staleness.tolerance)
+                   if verdict.transit is not None else "no packet time")
+            log_count(log, logging.WARNING, n,
+                      "[%s] refused a message of id %d from %s: %.1f s old (age item "
+                      "%.1f s, %s), its max age is %.1f s (counted stale)", self.name, ident,
+                      self._who(peer), verdict.age, age, how, max_age)
+        return True
 
     # -- reporting ---------------------------------------------------------------------------
 
     def ledger(self) -> dict[int, dict[str, int]]:
-        """Per channel key: sent = delivered + lost_on_link + in_flight + unacknowledged (copies),
+        """Per channel key: sent = delivered + lost_on_link + in_flight + unacknowledged + unknown
+        (copies),
         with resent and expired (reliable entries) and duplicates received."""
         with self._lock:
             flying = self.engine.in_flight()
@@ -276,4 +432,5 @@ class Reliability:
                     "reliability": {**self.counters.as_dict(), "rto": rtt.rto, "srtt": rtt.srtt,
                                     "rtt_samples": rtt.samples,
                                     "spurious_resends": self.engine.spurious,
-                                    "clock_offsets": dict(self.staleness.offsets)}}
+                                    "clock_offsets": {p: o.as_dict() for p, o in
+                                                      self.offsets.peers().items()}}}

@@ -101,14 +101,20 @@ def unwrap(number: int, near: int) -> int:
 
 # -- round trip --------------------------------------------------------------------------
 
-def command_rtt(timeout: float, period: float) -> RttEstimator:
+def command_rtt(timeout: float, period: float, round_trip: float | None = None,
+                turn_gap: float = 0.0) -> RttEstimator:
     """The retransmission timer of one command (service call, goal, result) whose deadline
-    is `timeout` after it first left: a quarter of it until the link is measured, and never
-    more, so at least four copies fit before the deadline (a 20 % loss each way fails four
-    request/response rounds with probability 0.36^4 = 1.7 %, six with 0.2 %); never less
-    than the link's `period` (no packet leaves faster)."""
-    quarter = max(timeout / 4, period)
-    return RttEstimator(quarter, period, quarter, period)
+    is `timeout` after it first left. Without a MAC's figures: a quarter of it until the link
+    is measured, and never more, so at least four copies fit before the deadline (a 20 % loss
+    each way fails four request/response rounds with probability 0.36^4 = 1.7 %, six with
+    0.2 %). Its first value and floor are the MAC's (docs/seams.md section 7): never less than
+    the link's `period` plus `turn_gap` (a reply may wait that long for the peer's turn), nor
+    than `round_trip`, the least a request and its answer can take under the MAC (both ways
+    across the range, and a slot under TDMA): a copy never leaves before its answer could
+    have come back, however short the deadline."""
+    floor = max(period + turn_gap, round_trip or 0.0)
+    quarter = max(timeout / 4, floor)
+    return RttEstimator(quarter, floor, quarter, period)
 
 
 class RttEstimator:
@@ -158,6 +164,8 @@ class EntryLedger:
     resent: int = 0                 # reliable messages handed back by due()
     expired: int = 0                # reliable messages lost with their deadline passed
     unacknowledged: int = 0         # copies in packets no ack named before they were forgotten
+    unknown: int = 0                # copies sent before the peer restarted that its new start
+                                    # reports missing: its old start may have had them
 
 
 @dataclass
@@ -166,6 +174,7 @@ class _Packet:
     at: float
     messages: list[Sent]
     timed_out: bool = False
+    fate_unknown: bool = False      # sent before the peer's restart was seen
 
 
 @dataclass
@@ -259,11 +268,21 @@ class ReliableLink:
         if packet.timed_out:
             self.spurious += 1
 
+    def peer_restarted(self) -> None:
+        """The peer started again (a new epoch): what it did not get of the packets sent so
+        far may have reached its previous start, so those are counted `unknown`, not lost
+        (their reliable messages are still sent again: the new start has no memory of them)."""
+        for packet in self.outstanding.values():
+            packet.fate_unknown = True
+
     def _lost(self, packet: _Packet, now: float) -> None:
         for m in packet.messages:
             if m.key == REPORT_KEY:
                 continue
-            self.entry(m.key).lost_on_link += 1
+            if packet.fate_unknown:
+                self.entry(m.key).unknown += 1
+            else:
+                self.entry(m.key).lost_on_link += 1
             if not packet.timed_out:
                 self._again(m, now)
 
@@ -380,6 +399,15 @@ class ReliableLink:
         `ack_delay`: the link should send a packet with only the A part."""
         r = self._current(peer)
         return r is not None and r.eliciting_since is not None and now - r.eliciting_since >= self.ack_delay
+
+    def rename_epoch(self, peer: int, old: bytes, new: bytes) -> None:
+        """What was kept of `peer` under a stand-in epoch (`old`: not known yet) is its epoch
+        `new`, learnt from K: the same start, not a restart."""
+        r = self.receipts.pop((peer, old), None)
+        if r is not None:
+            self.receipts[(peer, new)] = r
+        for (p, e, key) in [k for k in self._delivered if k[0] == peer and k[1] == old]:
+            self._delivered[(p, new, key)] = self._delivered.pop((p, e, key))
 
     def _current(self, peer: int) -> PeerReceipts | None:
         for (p, _epoch), r in self.receipts.items():

@@ -8,7 +8,8 @@ MSG_NOSIGNAL and every socket error is a disconnect, not an exception out of the
 connection is reported and counted as connected, and written to, only once it has proved itself
 (uwgen.runtime.link.probation); a proven one that never receives anything draws one warning.
 
-Writes are paced (uwgen.runtime.link.pacing): one write of at most `max_read_length` bytes per `period`,
+Writes wait for the link's MAC too (uwgen.runtime.link.mac: a turn, a slot's share), and are
+paced (uwgen.runtime.link.pacing): one write of at most `max_read_length` bytes per `period`,
 filled by *pulling* payloads from `source` only when a write is allowed, so what waits, waits in the
 scheduler's queues where policy can act, and DESERT's unbounded queue holds about one period of data.
 A frame cut by a disconnect is abandoned and counted (never re-sent: the remote's decoder resyncs,
@@ -30,6 +31,7 @@ from collections.abc import Callable
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.wire.framing import LONG, FrameError, Framing
+from uwgen.runtime.link.mac import Mac
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN, MIN_FRAME, Outbox, Pacer
 from uwgen.runtime.link.probation import Event, Probation, reconnect_cap
 from uwgen.runtime.stats import Counters, log_count
@@ -101,7 +103,7 @@ class DesertConnection:
                  bitrate: float | None = None, probation: float = 0.3,
                  unserved_after: float | None = None,
                  source_fit: Callable[[float, int], bytes | None] | None = None,
-                 one_frame: bool = False, framing: Framing = LONG,
+                 one_frame: bool = False, mac: Mac | None = None, framing: Framing = LONG,
                  check: Callable[[bytes], bool] | None = None):
         self.host, self.port, self.config, self.name = host, port, config, name
         self.clock = clock
@@ -116,6 +118,7 @@ class DesertConnection:
         self.connect_timeout, self.write_timeout, self.stable_after = connect_timeout, write_timeout, stable_after
 
         self.pacer = Pacer.for_link(config, pace_margin, bitrate)
+        self.mac = mac or Mac()       # when this side may write besides the pacer (its turn)
         self.outbox = Outbox(self.pacer, one_frame=one_frame)
         self.framing = framing        # the long frame of section 2, or the short one (wire 3)
         self.decoder = framing.new_decoder(check)
@@ -237,7 +240,8 @@ class DesertConnection:
         sock = self._sock
         assert sock is not None
         now = self.clock.now()
-        batch = self.outbox.take(now, self._pull, self._fit) if self.proof.proven else b""
+        batch = (self.outbox.take(now, self._pull, self._fit)
+                 if self.proof.proven and self.mac.next_write_at(now) <= now else b"")
         if batch:
             try:
                 sock.sendall(batch, socket.MSG_NOSIGNAL)
@@ -245,6 +249,7 @@ class DesertConnection:
                 self.outbox.abandon()
                 raise
             self.outbox.sent(now)
+            self.mac.wrote(now, len(batch))
             self.proof.wrote()
             self._maybe_more = self.outbox.pending or len(batch) > self.pacer.max_bytes - MIN_FRAME
         readable, _, _ = select.select([sock, self._wake_r], [], [], self._wait_time(self.clock.now()))
@@ -277,7 +282,7 @@ class DesertConnection:
 
     def _wait_time(self, now: float) -> float:
         deadline = now + HOUSEKEEPING
-        write_at = self.pacer.next_write_at
+        write_at = max(self.pacer.next_write_at, self.mac.next_write_at(now))
         if self.outbox.pending:
             deadline = min(deadline, write_at)
         elif self._next_ready is not None:

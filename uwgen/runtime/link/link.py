@@ -38,8 +38,10 @@ from uwgen.runtime.wire.fragment import MAX_COUNT, Fragmenter, fragment_payload_
 from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.wire.framing import LONG, MAX_FRAME, MAX_PAYLOAD, SHORT
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.link.mac import Mac
 from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker,
-                                        envelope_check, envelope_room, message_measure)
+                                        envelope_check, envelope_room, join_hooks,
+                                        message_measure)
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.probation import reconnect_cap
 from uwgen.runtime.link.scheduler import LinkScheduler
@@ -70,13 +72,18 @@ class Link:
                  wire_format: int = 1,
                  sender_id: int = 0,
                  packed_ids: frozenset[int] | set[int] = frozenset(),
-                 hooks: PacketHooks | None = None):
+                 hooks: PacketHooks | None = None,
+                 mac: Mac | None = None):
         if wire_format not in WIRE_FORMATS:
             raise ValueError(f"[{name}] wire format must be one of {WIRE_FORMATS}, got {wire_format}")
         self.config = config or LinkConfig()
         self.wire_format = wire_format
         self.packed_ids = frozenset(packed_ids) if wire_format == 2 else frozenset()
-        self.hooks = hooks or PacketHooks()
+        self.mac = mac or Mac()
+        own_hooks = hooks or PacketHooks()
+        mac_hooks = self.mac.hooks() if wire_format == 2 else None
+        self.hooks = join_hooks(own_hooks, mac_hooks) if mac_hooks is not None else own_hooks
+        self.mac.backlog = lambda now: self._backlog(now, own_hooks)
         self.name = name
         self.clock = clock
         self.fragment_id = fragment_id
@@ -132,7 +139,7 @@ class Link:
             stall_timeout=stall_timeout,
             next_ready=self._next_ready if v2 else self.scheduler.next_ready_time,
             on_tick=self._tick, pace_margin=pace_margin,
-            bitrate=bitrate, source_fit=None if v2 else self._source_fit)
+            bitrate=bitrate, source_fit=None if v2 else self._source_fit, mac=self.mac)
 
     # -- contract API --------------------------------------------------------------------------
 
@@ -207,6 +214,7 @@ class Link:
             "wire_format": self.wire_format,
             "packets": self.packet_counters.as_dict() if self.wire_format == 2 else None,
             "security": self.guard.stats() if self.guard is not None else None,
+            "mac": self.mac.stats(),
             **(self.hooks.stats() if self.wire_format == 2 and self.hooks.stats is not None else {}),
         }
 
@@ -227,6 +235,15 @@ class Link:
                              self.hooks.next_time(now) if self.hooks.next_time else None)
                  if t is not None]
         return min(times) if times else None
+
+    def _backlog(self, now: float, hooks: PacketHooks) -> bool:
+        """Whether another packet wants to leave by the time the pacer allows the next write
+        (the MAC keeps the turn for it: a stream offered at the link's pace fills the turn)."""
+        pacer = self.connection.pacer
+        horizon = now + pacer.period * (1.0 + pacer.margin)
+        times = [self.scheduler.next_ready_time(now),
+                 hooks.next_time(now) if hooks.next_time is not None else None]
+        return any(t is not None and t <= horizon for t in times)
 
     def _source(self, now: float) -> bytes | None:
         picked = self.scheduler.next_payload(now)

@@ -89,7 +89,8 @@ class PacketHooks:
 def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     """One `PacketHooks` from several (reliability's and the seal's, docs/seams.md section 5).
 
-    `parts` are merged in order. T (`time`) may come from both (each stamps its own wall clock
+    `parts` are merged in order; C (`control`) items of several hooks are joined (the seal's
+    sync request, the MAC's grants and ends). T (`time`) may come from both (each stamps its own wall clock
     as the packet is built, so they may differ by a tick): the first one given is kept. Any other
     part two hooks give must have the same value, otherwise building the packet fails with
     EnvelopeError.
@@ -114,6 +115,9 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
         for make in makers:
             for name, value in make(now).items():
                 if name == "time" and name in out:
+                    continue
+                if name == "control" and name in out:
+                    out[name] = out[name] + value     # C items of the seal and of the MAC
                     continue
                 if name in out and out[name] != value:
                     raise env.EnvelopeError(f"two hooks give the envelope's {name} part "

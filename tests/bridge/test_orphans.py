@@ -1,0 +1,60 @@
+"""No orphaned goals (uwgen.bridge.orphans): the server-side bridge dies mid-goal without a
+word (as SIGKILL leaves it), a new one starts, finds the goal on the local action server's
+status topic and adopts it; the caller gets the goal's real outcome."""
+from __future__ import annotations
+
+import random
+import time
+
+import pytest
+from action_msgs.msg import GoalStatus
+from rclpy.action import ActionClient
+from test_msgs.action import Fibonacci
+
+from uwgen.bridge.orphans import goal_uuid, handle_of
+
+from .fakes import fake_package, wait_for
+from .harness import start_bridge
+from .test_actions import counted, fib_codec, fib_server, pair, send_goal  # noqa: F401
+
+
+def test_a_goal_uuid_names_its_action_and_handle_and_nothing_else_is_ours():
+    uuid = goal_uuid(9, 7, random.Random(1))
+    assert len(uuid) == 16 and uuid[:5] == b"uwg\x09\x07"
+    assert handle_of(uuid, 9) == 7 and handle_of(uuid, 10) is None
+    assert handle_of(bytes(16), 9) is None
+
+
+def kill(side, bridge) -> None:
+    """The bridge's process is gone: its ROS entities vanish, nothing is said on the link."""
+    bridge._closed = True                     # teardown must not close it cleanly either
+    bridge.link.mute = True
+    side.executor.remove_node(bridge)
+    side.nodes.remove(bridge)
+    bridge.destroy_node()
+
+
+@pytest.mark.parametrize("down", [0.0, 1.0], ids=["restarted at once", "restarted later"])
+def test_a_goal_left_by_a_killed_server_side_bridge_is_adopted_and_its_result_reaches_the_caller(
+        pair, fib_codec, down):  # noqa: F811
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    fib_server(vehicle.node("real"), results, delay=2.0)
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    goal_handle = send_goal(client, 5)
+    assert goal_handle.accepted
+    kill(vehicle, bridges["vehicle"])
+    time.sleep(down)
+    pkg = fake_package([])
+    pkg.ACTIONS = {9: fib_codec}
+    again = start_bridge(vehicle, pkg, links.factory)
+    future = goal_handle.get_result_async()
+    wait_for(future.done, timeout=10.0, what="the goal's result")
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+    assert list(future.result().result.sequence) == [0, 1]
+    assert results == [5]                                  # run once, watched to the end
+    assert counted(again)["orphans_adopted"] == 1
+    assert counted(bridges["surface"])["goals_lost_there"] == 0

@@ -1,0 +1,176 @@
+"""The link's MAC (uwgen.runtime.link.mac): turns, TDMA's share of a slot, and C items,
+with explicit times (sans-IO)."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from uwgen.manifest.model import LinkConfig, MacConfig
+from uwgen.runtime.link.mac import (TURN_END, TURN_GRANT, Mac, MacItem, TdmaMac, TurnMac,
+                                    decode_items, encode_items, mac_for, tdma_capacity)
+from uwgen.security import control
+
+LINK = LinkConfig(max_read_length=64, period=0.2)
+TURNS = MacConfig(mode="turns", range=300, leader="surface", packets=(("surface", 3), ("vehicle", 2)))
+SENDERS = {"surface": 1, "vehicle": 2}
+
+
+def pair():
+    return (TurnMac(TURNS, "surface", SENDERS, LINK), TurnMac(TURNS, "vehicle", SENDERS, LINK))
+
+
+def write(mac: TurnMac, now: float) -> bytes:
+    """One packet built and written at `now` (what the packer and the connection do)."""
+    assert mac.next_write_at(now) <= now
+    c = mac.parts(now)
+    mac.wrote(now, 20)
+    return c
+
+
+def test_turn_items_have_the_documented_bytes():
+    # docs/wire-format.md section 16: a grant to sender 2 for 3 packets, sender 2's end.
+    assert encode_items([MacItem(TURN_GRANT, 2, 3)]).hex(" ") == "22 03"
+    assert encode_items([MacItem(TURN_END, 2)]).hex(" ") == "32"
+    # A C part with the seal's sync request for sender 1 first, then the grant.
+    c = control.sync_request(1) + encode_items([MacItem(TURN_GRANT, 2, 3)])
+    assert c.hex(" ") == "11 22 03"
+    assert decode_items(c) == [MacItem(TURN_GRANT, 2, 3)]
+    assert [(i.code, i.sender) for i in control.items(c)] == [(1, 1), (2, 2)]
+
+
+def test_a_cut_grant_and_unknown_codes_are_skipped():
+    assert decode_items(bytes([0x22])) == []
+    assert decode_items(bytes([0x5F, 0x32])) == [MacItem(TURN_END, 2)]
+
+
+def test_mode_none_always_allows():
+    mac = mac_for(MacConfig(), "surface", SENDERS, LINK)
+    assert type(mac) is Mac and mac.next_write_at(0.0) == -math.inf and mac.hooks() is None
+
+
+def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
+    lead, follower = pair()
+    lead.carries = True                              # its packets carry messages
+    assert write(lead, 0.0) == b"" and write(lead, 0.21) == b""
+    grant = write(lead, 0.42)                        # the third packet carries the grant
+    assert grant == bytes([0x22, 2])
+    assert lead.next_write_at(0.5) > 0.5              # waiting for the vehicle's turn
+    assert follower.next_write_at(0.5) == math.inf    # nothing heard yet: silent
+    follower.heard(1, grant, 0.7)
+    follower.backlog = lambda now: False
+    assert follower.must_send(0.7)                    # even with nothing to say: the end
+    end = write(follower, 0.7)
+    assert end == bytes([0x32])
+    assert follower.next_write_at(0.8) == math.inf
+    lead.heard(2, end, 1.1)
+    assert lead.next_write_at(1.1) == -math.inf
+    assert lead.counts["ends_heard"] == 1 and lead.counts["missed"] == 0
+    assert lead.rtt[2].samples == 1 and lead.rtt[2].srtt == pytest.approx(1.1 - 0.42)
+
+
+def test_the_leader_ends_its_turn_at_its_first_packet_without_messages():
+    lead, _ = pair()
+    lead.carries = True
+    assert write(lead, 0.0) == b""
+    lead.carries = False                             # nothing more: the grant goes alone
+    assert write(lead, 0.21) == bytes([0x22, 2])
+
+
+def test_a_follower_writes_at_most_the_packets_granted():
+    _, follower = pair()
+    follower.backlog = lambda now: True
+    follower.heard(1, bytes([0x22, 2]), 0.0)
+    assert write(follower, 0.0) == b""
+    assert write(follower, 0.21) == bytes([0x32])
+    assert follower.next_write_at(0.3) == math.inf
+
+
+def test_a_lost_grant_or_end_is_counted_and_the_leader_takes_the_turn_back():
+    lead, _ = pair()
+    lead.backlog = lambda now: False
+    write(lead, 0.0)                                 # grant-only packet
+    deadline = lead.next_write_at(0.1)
+    assert 0.1 < deadline < 10
+    assert lead.next_write_at(deadline) == -math.inf  # recovered within the round
+    assert lead.counts["missed"] == 1
+    assert write(lead, deadline) == bytes([0x22, 2])  # and grants again
+
+
+def test_a_follower_that_starts_late_answers_the_next_grant_naming_it():
+    lead, _ = pair()
+    late = TurnMac(TURNS, "vehicle", SENDERS, LINK)
+    late.heard(1, bytes([0x22, 2]), 5.0)
+    assert late.next_write_at(5.0) == -math.inf and late.counts["grants_heard"] == 1
+
+
+def test_a_follower_ignores_grants_from_others_and_for_others():
+    three = MacConfig(mode="turns", leader="surface")
+    senders = {"surface": 1, "auv1": 2, "auv2": 3}
+    auv1 = TurnMac(three, "auv1", senders, LINK)
+    auv1.heard(3, bytes([0x22, 4]), 0.0)             # not the leader
+    assert auv1.next_write_at(0.0) == math.inf
+    auv1.heard(1, bytes([0x23, 4]), 0.0)             # the leader, for auv2
+    assert auv1.next_write_at(0.0) == math.inf and auv1.counts["not_mine"] == 1
+
+
+def test_the_leader_grants_each_follower_in_turn():
+    three = MacConfig(mode="turns", leader="surface", packets=(("surface", 1),))
+    senders = {"surface": 1, "auv1": 2, "auv2": 3}
+    lead = TurnMac(three, "surface", senders, LINK)
+    grants = []
+    t = 0.0
+    for _ in range(3):
+        c = write(lead, t)
+        grants.append(c[0] & 0x0F)
+        lead.heard(c[0] & 0x0F, bytes([0x30 | (c[0] & 0x0F)]), t + 1.0)
+        t += 1.0
+    assert grants == [2, 3, 2]
+
+
+def test_a_follower_drops_a_turn_it_could_not_use_in_time():
+    _, follower = pair()
+    follower.heard(1, bytes([0x22, 2]), 0.0)
+    assert follower.next_write_at(10.0) == math.inf and follower.counts["dropped_turns"] == 1
+
+
+def test_turn_gap_and_overhead_are_what_delivery_and_the_packer_need():
+    lead, follower = pair()
+    assert lead.overhead == 3
+    assert follower.turn_gap() == pytest.approx(lead.turn_gap())
+    assert lead.turn_gap() > 5 * 0.2
+
+
+def test_tdma_writes_at_most_a_slots_capacity_per_frame():
+    # frame 1 s, 2 slots, guard 0.35: ON 0.15 s; a 64-byte packet takes 0.113 s, and DESERT
+    # starts packets anywhere in ON: 2 a frame.
+    config = MacConfig(mode="tdma", frame=1.0, guard=0.35, slots=("surface", "vehicle"),
+                       max_packet_per_slot=1000)
+    assert tdma_capacity(config, LINK) == 2
+    mac = TdmaMac(config, "surface", LINK)
+    assert mac.next_write_at(0.0) == -math.inf
+    mac.wrote(0.0, 64)
+    mac.wrote(0.21, 64)
+    assert mac.next_write_at(0.3) == pytest.approx(1.05)
+    assert mac.next_write_at(1.05) == -math.inf       # the first write left the window
+    mac.wrote(1.05, 64)
+    assert mac.next_write_at(1.1) == pytest.approx(1.26)
+    assert mac.turn_gap() == 1.0
+
+
+@pytest.mark.parametrize("kw, capacity", [
+    ({"max_packet_per_slot": 1}, 1),              # DESERT's default
+    ({"guard": 0.05, "max_packet_per_slot": 1000}, 4),   # ON 0.45 s: 4 starts of 0.113 s
+    ({"guard": 0.05, "max_packet_per_slot": 1000, "queue_size": 3}, 3),
+])
+def test_tdma_capacity_follows_desert_settings(kw, capacity):
+    config = MacConfig(mode="tdma", frame=1.0, slots=("a", "b"), **kw)
+    assert tdma_capacity(config, LINK) == capacity
+
+
+def test_an_end_lost_after_the_answer_costs_two_intervals_not_a_timeout():
+    lead, _ = pair()
+    write(lead, 0.0)                                 # grants sender 2 two packets
+    assert lead.next_write_at(0.1) > 0.8 + 3 * lead.interval   # the first timer is longer
+    lead.heard(2, b"", 0.8)                          # its first packet; the one with the end is lost
+    assert lead.next_write_at(0.9) == pytest.approx(0.8 + 3 * lead.interval)

@@ -1,0 +1,69 @@
+"""No orphaned goals: a server-side bridge that starts again finds the goals its predecessor
+started on the local action server, and adopts them (docs/wire-format.md section 13,
+"Restarts").
+
+Every goal the server side sends its local action server has a UUID that says so and names
+the link's handle: `75 77 67` ("uwg"), the action id, the handle, then 11 random bytes.
+The local action server lists its goals on its status topic (`<action>/_action/status`,
+transient local: a subscriber that comes late still gets the last list). A bridge that
+starts reads it; every goal with our mark for one of its actions, still accepted,
+executing or canceling, that this start did not send, was started by a predecessor that
+died without finishing it (SIGKILL, a crash): it is **adopted** (a goal handle for it is
+made from its UUID, its result is asked for and pushed to the client side under its handle,
+and `result_timeout` is supervised as for any goal), or **cancelled** when its handle is
+busy with a newer goal. Until the status topic has been heard (at most `STATUS_GRACE`
+seconds after start), the server side does not tell the client side that it knows no such
+goal, so a client asking meanwhile is not told "lost" for a goal about to be adopted.
+"""
+from __future__ import annotations
+
+import random
+from collections.abc import Callable
+from typing import Any
+
+MARK = b"uwg"
+STATUS_GRACE = 3.0          # seconds after start before "no such goal" is said without the list
+ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
+
+
+def goal_uuid(ident: int, handle: int, rng: random.Random) -> bytes:
+    """The 16-byte UUID of a goal the server side sends for (action id, handle)."""
+    return MARK + bytes([ident & 0xFF, handle & 0xFF]) + bytes(rng.getrandbits(8) for _ in range(11))
+
+
+def handle_of(uuid: bytes, ident: int) -> int | None:
+    """The handle a UUID of ours names for action `ident` (None: not ours, or another id)."""
+    uuid = bytes(uuid)
+    if len(uuid) != 16 or not uuid.startswith(MARK) or uuid[3] != ident & 0xFF:
+        return None
+    return uuid[4]
+
+
+class OrphanWatch:
+    """Reads one action's status topic and hands over the goals of a predecessor."""
+
+    def __init__(self, node: Any, action_name: str, ident: int,
+                 adopt: Callable[[int, bytes, Any], None], own: set[bytes], started: float,
+                 callback_group: Any = None):
+        from action_msgs.msg import GoalStatusArray
+        from rclpy.qos import qos_profile_action_status_default
+        self.ident, self.adopt, self.own, self.started = ident, adopt, own, started
+        self.heard = False
+        self.seen: set[bytes] = set()
+        self.sub = node.create_subscription(GoalStatusArray, f"{action_name}/_action/status",
+                                            self._status, qos_profile_action_status_default,
+                                            callback_group=callback_group)
+
+    def knows_enough(self, now: float) -> bool:
+        """Whether "no such goal" may be said: the list was heard, or the grace is over."""
+        return self.heard or now - self.started >= STATUS_GRACE
+
+    def _status(self, msg: Any) -> None:
+        self.heard = True
+        for status in msg.status_list:
+            uuid = bytes(status.goal_info.goal_id.uuid)
+            handle = handle_of(uuid, self.ident)
+            if handle is None or uuid in self.own or uuid in self.seen or status.status not in ACTIVE:
+                continue
+            self.seen.add(uuid)
+            self.adopt(handle, uuid, status.goal_info)

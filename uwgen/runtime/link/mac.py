@@ -1,0 +1,358 @@
+"""When this side may write: the link's MAC (docs/seams.md section 7; docs/emulator.md, MACs).
+
+Sans-IO: every call carries `now` (the link's clock). The connection writes when both its
+`Pacer` (DESERT's one packet per period) and the `Mac` allow it: `next_write_at(now)`
+(-inf: now, inf: not until something is heard), then `wrote(now, nbytes)` for each write.
+The packer asks `hooks()` for the C items of each packet (`control`), for an empty packet
+that must leave (`ack_only`: a grant or an end of turn) and tells it every admitted
+envelope (`received` -> `heard`). `turn_gap()` is the longest a reply waits for the peer's
+turn: delivery's retransmission timer starts no lower than a round trip plus it.
+
+- `Mac` (mode `none`): always allows; DESERT's own MAC decides (stock CSMA-ALOHA: packets of
+  two sides may collide).
+- `TdmaMac`: DESERT runs UW/TDMA. The bridge cannot see DESERT's slot boundaries (no clock is
+  shared with DESERT), so it writes at most the packets one slot drains in any one frame:
+  DESERT's queues then never hold more than a slot's worth, whatever the slot sizes, and a
+  message waits at most about a frame in them (queueing is bounded, never read as an offset).
+- `TurnMac` (mode `turns`): the leader grants the turn to one side at a time (C item 2, to
+  whom and how many packets); that side writes after hearing the grant, at most that many
+  packets, the last carrying C item 3 (end of turn); the leader takes the turn back when it
+  hears the end, or when its timer (from measured turn round trips) runs out: the miss is
+  counted and the next side is granted, so a lost grant or answer costs one timeout and a
+  side that starts late or restarts answers the next grant naming it. Needs no change inside
+  DESERT and no clock agreement: every timer starts from an event this side saw.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from uwgen.manifest.model import LinkConfig, MacConfig
+from uwgen.runtime.link.packets import PacketHooks
+from uwgen.runtime.link.pacing import DEFAULT_MARGIN, PACKET_HEADER
+
+TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255)
+TURN_END = 3            # C item `3S`: sender S ends its turn
+INF = math.inf
+LISTEN = 0.05           # s: DESERT's CSMA-ALOHA listen before a packet starts (10-20 ms measured, docs/emulator.md)
+
+
+@dataclass(frozen=True)
+class MacItem:
+    code: int
+    sender: int
+    count: int = 0      # TURN_GRANT: packets granted
+
+
+def encode_items(items: list[MacItem]) -> bytes:
+    out = bytearray()
+    for it in items:
+        if not 0 <= it.sender <= 15:
+            raise ValueError(f"MAC item for sender {it.sender}: a sender id fits 4 bits")
+        out.append((it.code << 4) | it.sender)
+        if it.code == TURN_GRANT:
+            if not 1 <= it.count <= 255:
+                raise ValueError(f"a turn grant is for 1..255 packets, got {it.count}")
+            out.append(it.count)
+    return bytes(out)
+
+
+def decode_items(control: bytes) -> list[MacItem]:
+    """The MAC's items among a C part's bytes (others skipped; total, never fails: a grant
+    cut short by the part's end is ignored)."""
+    out, i = [], 0
+    while i < len(control):
+        code, sender = control[i] >> 4, control[i] & 0x0F
+        if code == TURN_GRANT:
+            if i + 1 < len(control) and control[i + 1]:
+                out.append(MacItem(code, sender, control[i + 1]))
+            i += 2
+            continue
+        if code == TURN_END:
+            out.append(MacItem(code, sender))
+        i += 1
+    return out
+
+
+def air_time(nbytes: int, bitrate: float) -> float:
+    return (nbytes + PACKET_HEADER) * 8 / bitrate
+
+
+class Mac:
+    """Mode `none`: DESERT's MAC decides; this side writes whenever its pacer allows."""
+
+    mode = "none"
+    overhead = 0                         # most bytes the MAC adds to a packet (C part included)
+
+    def __init__(self):
+        self.backlog: Callable[[float], bool] = lambda now: False   # set by the Link
+        self.carries = False             # the packet being built carries messages
+
+    def next_write_at(self, now: float) -> float:
+        return -INF
+
+    def wrote(self, now: float, nbytes: int) -> None:
+        pass
+
+    def heard(self, sender: int, control: bytes, now: float) -> None:
+        pass
+
+    def parts(self, now: float) -> bytes:
+        return b""
+
+    def must_send(self, now: float) -> bool:
+        return False
+
+    def next_time(self, now: float) -> float | None:
+        return None
+
+    def turn_gap(self) -> float:
+        return 0.0
+
+    def stats(self) -> dict:
+        return {"mode": self.mode}
+
+    def hooks(self) -> PacketHooks | None:
+        if self.mode != "turns":
+            return None             # nothing to add to packets: the connection asks it directly
+        return PacketHooks(parts=self._part, received=self._received, overhead=self.overhead,
+                           ack_only=self.must_send, next_time=self.next_time,
+                           carrying=self._carrying)
+
+    def _carrying(self, picked: list, now: float) -> None:
+        self.carries = bool(picked)
+
+    def _part(self, now: float) -> dict:
+        control = self.parts(now)
+        return {"control": control} if control else {}
+
+    def _received(self, envelope, now: float) -> None:
+        self.heard(envelope.sender, envelope.control or b"", now)
+
+
+class TdmaMac(Mac):
+    """DESERT's UW/TDMA underneath: at most `capacity` writes in any one frame (module doc)."""
+
+    mode = "tdma"
+
+    def __init__(self, config: MacConfig, side: str, link: LinkConfig,
+                 margin: float = DEFAULT_MARGIN):
+        super().__init__()
+        self.config = config
+        self.capacity = tdma_capacity(config, link)
+        self.window = config.frame * (1.0 + margin)
+        self._writes: deque[float] = deque()
+        self.deferred = 0
+
+    def next_write_at(self, now: float) -> float:
+        while self._writes and self._writes[0] + self.window <= now:
+            self._writes.popleft()
+        if len(self._writes) < self.capacity:
+            return -INF
+        return self._writes[0] + self.window
+
+    def wrote(self, now: float, nbytes: int) -> None:
+        self._writes.append(now)
+
+    def turn_gap(self) -> float:
+        return self.config.frame
+
+    def stats(self) -> dict:
+        return {"mode": self.mode, "capacity_per_frame": self.capacity, "frame": self.config.frame}
+
+
+def tdma_capacity(config: MacConfig, link: LinkConfig) -> int:
+    """Packets one slot drains per frame: DESERT starts a packet anywhere in the ON window
+    (slot - guard) while `max_packet_per_slot` allows, one after the other, and uwApplication
+    feeds its MAC one packet per `period`; at least one."""
+    on = config.slot - config.guard
+    by_window = math.floor(on / air_time(link.max_read_length, config.bitrate)) + 1
+    by_period = max(1, math.floor(config.frame / link.period))
+    return max(1, min(config.max_packet_per_slot, by_window, by_period, config.queue_size))
+
+
+class _RoundTrip:
+    """Smoothed round trip of a turn (RFC 6298's rule), from a first guess."""
+
+    def __init__(self, first: float):
+        self.srtt, self.rttvar, self.samples = first, first / 2, 0
+
+    def sample(self, rtt: float) -> None:
+        if self.samples == 0:
+            self.srtt, self.rttvar = rtt, rtt / 2
+        else:
+            self.rttvar = 0.75 * self.rttvar + 0.25 * abs(self.srtt - rtt)
+            self.srtt = 0.875 * self.srtt + 0.125 * rtt
+        self.samples += 1
+
+    def timeout(self, floor: float) -> float:
+        return self.srtt + max(4 * self.rttvar, floor)
+
+
+class TurnMac(Mac):
+    """Mode `turns` (module doc). `senders`: side name -> sender id, for every side."""
+
+    mode = "turns"
+    overhead = 3        # the C part's length byte and a grant (2 bytes) or an end (1 byte)
+
+    def __init__(self, config: MacConfig, side: str, senders: dict[str, int], link: LinkConfig,
+                 margin: float = DEFAULT_MARGIN):
+        super().__init__()
+        self.config = config
+        self.me = senders[side]
+        self.leader_id = senders[config.leader]
+        self.leading = side == config.leader
+        self.my_packets = config.turn_packets(side)
+        self.interval = max(link.period * (1 + margin), air_time(link.max_read_length, config.bitrate))
+        self.followers = [(senders[s], config.turn_packets(s)) for s in senders if s != config.leader]
+        # A turn's round trip besides its packets: the grant's and the end's trips across the
+        # range, DESERT's period tick and its MAC's listen on both sides.
+        first = 2 * (config.delay + link.period + LISTEN + air_time(link.max_read_length, config.bitrate))
+        self.rtt = {sid: _RoundTrip(first) for sid, _ in self.followers}
+        self._next = 0                    # index of the follower granted next
+        self._holding = self.leading      # leader: its own turn; follower: a turn granted
+        self._granted = self.my_packets if self.leading else 0
+        self._sent = 0
+        self._closing: MacItem | None = None    # the item the packet being built ends with
+        self._waiting: tuple[int, int, float, float] | None = None   # (sender, n, at, deadline)
+        self._heard_in_wait = 0
+        self._turn_until = INF            # follower: a turn not used by then is dropped
+        self.counts = {k: 0 for k in ("turns", "grants_sent", "grants_heard", "ends_heard",
+                                      "missed", "recovered", "dropped_turns", "not_mine")}
+
+    # -- when ----------------------------------------------------------------------------
+
+    def next_write_at(self, now: float) -> float:
+        self._expire(now)
+        if self._holding:
+            return -INF
+        if self._waiting is not None:
+            return self._waiting[3]
+        return INF
+
+    def must_send(self, now: float) -> bool:
+        self._expire(now)
+        return self._holding
+
+    def next_time(self, now: float) -> float | None:
+        self._expire(now)
+        if self._holding:
+            return now
+        return self._waiting[3] if self._waiting is not None else None
+
+    def _expire(self, now: float) -> None:
+        if self._waiting is not None and now >= self._waiting[3]:
+            self.counts["missed"] += 1          # the grant or the end was lost: take it back
+            self._waiting = None
+            self._own_turn()
+        if not self.leading and self._holding and now >= self._turn_until:
+            self.counts["dropped_turns"] += 1   # too late to use it: the leader has moved on
+            self._holding = False
+
+    def _own_turn(self) -> None:
+        self._holding, self._granted, self._sent = True, self.my_packets, 0
+
+    # -- what each packet carries ---------------------------------------------------------
+
+    def parts(self, now: float) -> bytes:
+        if not self._holding:
+            return b""
+        self._sent += 1
+        # The leader keeps its turn while its packets carry messages (a command stream
+        # offered at the link's pace fills it); a follower while more is queued.
+        more = self.carries if self.leading else self.backlog(now)
+        if self._sent < self._granted and more:
+            self._closing = None
+            return b""
+        if self.leading:
+            if not self.followers:
+                self._closing = None
+                return b""
+            sid, n = self.followers[self._next % len(self.followers)]
+            self._closing = MacItem(TURN_GRANT, sid, n)
+        else:
+            self._closing = MacItem(TURN_END, self.me)
+        return encode_items([self._closing])
+
+    def wrote(self, now: float, nbytes: int) -> None:
+        closing, self._closing = self._closing, None
+        if closing is None:
+            return
+        self._holding = False
+        if closing.code == TURN_GRANT:
+            self.counts["grants_sent"] += 1
+            self._next += 1
+            deadline = (now + self.rtt[closing.sender].timeout(2 * self.interval)
+                        + closing.count * self.interval)
+            self._waiting = (closing.sender, closing.count, now, deadline)
+            self._heard_in_wait = 0
+        else:
+            self.counts["turns"] += 1
+
+    def heard(self, sender: int, control: bytes, now: float) -> None:
+        items = decode_items(control) if control else []
+        if self.leading:
+            if self._waiting is None or sender != self._waiting[0]:
+                return
+            self._heard_in_wait += 1
+            who, n, at, deadline = self._waiting
+            # It is answering: its end comes within its remaining packets plus a margin,
+            # whatever the first timer said: later (a late answer is never talked over) or
+            # sooner (a lost end costs two packet intervals, not a whole timeout).
+            rest = max(0, n - self._heard_in_wait) + 2
+            self._waiting = (who, n, at, now + rest * self.interval)
+            if any(i.code == TURN_END and i.sender == sender for i in items):
+                who, _n, at, _ = self._waiting
+                self.counts["ends_heard"] += 1
+                self.rtt[who].sample(max(0.0, now - at - (self._heard_in_wait - 1) * self.interval))
+                self._waiting = None
+                self._own_turn()
+            return
+        if sender != self.leader_id:
+            return
+        for item in items:
+            if item.code != TURN_GRANT:
+                continue
+            if item.sender != self.me:
+                self.counts["not_mine"] += 1
+                self._holding = False
+                continue
+            self.counts["grants_heard"] += 1
+            if self._holding:
+                self.counts["recovered"] += 1
+            self._holding, self._granted, self._sent = True, item.count, 0
+            # the leader waits a round trip plus these packets: a turn not used by then is gone
+            self._turn_until = now + (item.count + 1) * self.interval + self.config.delay
+
+    # -- for delivery and status ----------------------------------------------------------
+
+    def cycle(self) -> float:
+        """Seconds of one round of turns: the leader's and every follower's (measured turn
+        round trips on the leader, the first guess on a follower)."""
+        total = self.config.turn_packets(self.config.leader) * self.interval
+        for sid, n in self.followers:
+            total += n * self.interval + self.rtt[sid].srtt
+        return total
+
+    def turn_gap(self) -> float:
+        return self.cycle()
+
+    def stats(self) -> dict:
+        out = {"mode": self.mode, "leader": self.leading, **self.counts}
+        if self.leading:
+            out["turn_rtt"] = {sid: round(r.srtt, 3) for sid, r in self.rtt.items()}
+        return out
+
+
+def mac_for(config: MacConfig | None, side: str, senders: dict[str, int],
+            link: LinkConfig, wire_format: int = 2) -> Mac:
+    """The Mac of `side` under the manifest's `mac:` section (None: mode none)."""
+    if config is None or config.mode == "none":
+        return Mac()
+    if config.mode == "tdma":
+        return TdmaMac(config, side, link)
+    if wire_format != 2:
+        raise ValueError("mac mode turns needs wire format 2 (its grants are C items)")
+    return TurnMac(config, side, senders, link)
