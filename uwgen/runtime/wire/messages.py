@@ -16,11 +16,11 @@ length share one head, `62 | H' | n | [b] | body 1 .. body n` (H = 0x62, with L 
 their header without L (1 to 3 bytes), n their count (3..255), b the length of each body (only
 when L: not the last block of the envelope; otherwise the bodies share what remains). A run
 costs 3 bytes (4 with b) for all its messages where each message alone costs its H and a length
-byte: packed Twists of 4 bytes go 4 + 3/n bytes each instead of 6. The encoder groups: messages
-are written in blocks, one per (kind, id, body length), in the order each first appears (a
-fragment is its own block); a block of 3 or more is a run (255 at most: a longer one is cut),
-smaller ones are single messages. Order is kept within an entry, which is all a receiver relies
-on (fragments of a transfer, numbers of a reliable entry). Every envelope has one encoding: the
+byte: packed Twists of 4 bytes go 4 + 3/n bytes each instead of 6. The encoder groups: consecutive
+messages of one entry (kind and id) whose bodies have one length form a block, placed where its
+first message appears (a fragment is its own block); a block of 3 or more is a run (255 at most:
+a longer one is cut), smaller ones are single messages. Each entry's order is kept, which is all
+a receiver relies on (a FIFO topic, fragments of a transfer, numbers of a reliable entry). Every envelope has one encoding: the
 decoder refuses bytes that the encoder would have grouped otherwise.
 """
 from __future__ import annotations
@@ -93,16 +93,22 @@ def is_fragment_message(m: Message, fragment_id: int | None) -> bool:
 
 
 def blocks(messages: tuple[Message, ...] | list[Message]) -> list[list[Message]]:
-    """The envelope's blocks, in the encoder's order: one per (kind, id, body length) in the
-    order each first appears, runs cut at RUN_MAX; a fragment is its own block."""
-    groups: dict[object, list[Message]] = {}
-    for i, m in enumerate(messages):
-        key = ("f", i) if m.kind == FRAGMENT else (m.kind, m.id, len(m.body))
-        groups.setdefault(key, []).append(m)
+    """The envelope's blocks, in the encoder's order: consecutive messages of one entry (kind
+    and id) with bodies of one length form a block, placed where its first message appears
+    among the blocks (a message of another length starts the entry's next block; runs are
+    cut at RUN_MAX); a fragment is its own block. Each entry's order is kept."""
     out: list[list[Message]] = []
-    for group in groups.values():
-        for start in range(0, len(group), RUN_MAX):
-            out.append(group[start:start + RUN_MAX])
+    current: dict[tuple[int, int], list[Message]] = {}
+    for m in messages:
+        if m.kind == FRAGMENT:
+            out.append([m])
+            continue
+        entry = (m.kind, m.id)
+        block = current.get(entry)
+        if block is None or len(block[0].body) != len(m.body) or len(block) >= RUN_MAX:
+            block = current[entry] = []
+            out.append(block)
+        block.append(m)
     return out
 
 
