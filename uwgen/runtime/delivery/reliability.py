@@ -147,10 +147,10 @@ class Reliability:
             ack = self.acks.due(self._epochs, now)
             timed = ack and (self._timed_reports < TIMED_REPORTS
                              or now - self._last_timed_report >= TIMED_REPORT_EVERY)
-            extra = (A_ROOM if ack else 0) + (env.TIME_LEN if timed else 0)
             if self.send_epoch is not None and self.send_epoch.due(now):
-                extra += env.SYNC_LEN + (0 if timed else env.TIME_LEN)
-            return extra
+                # K goes only with room for T and an A part's share besides (`carrying`)
+                return env.SYNC_LEN + env.TIME_LEN + A_ROOM
+            return (A_ROOM if ack else 0) + (env.TIME_LEN if timed else 0)
 
     def part_room(self, key: int) -> int:
         """Bytes a message of channel `key` brings into its packet's parts: T (3) for an
@@ -173,7 +173,8 @@ class Reliability:
         # peer measures our clock's offset (clock_offset.py)
         self._want_time = self._timed or (
             self._timed_reports < TIMED_REPORTS or now - self._last_timed_report >= TIMED_REPORT_EVERY)
-        used = sum(message_measure(p) for _, p in picked) - (1 if picked else 0)
+        # what the messages take as the envelope encodes them (runs share a head)
+        used = len(env.encode_messages([env.from_v1(p) for _, p in picked]))
         # K when due and the packet has room for it besides T and the A part's share (a
         # packet filled by a full-size fragment carries it on a later one)
         self._sync = (self.send_epoch is not None and self.send_epoch.due(now)

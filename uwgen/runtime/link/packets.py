@@ -12,7 +12,8 @@ The seams of reliability and the seal (docs/seams.md section 5) are the `PacketH
 - `parts(now)` -> dict of extra `Envelope` fields (`time`, `ack`, `control`, `sync`) for the
   packet being built; `overhead` is the most bytes they and the seal add to a packet;
   `next_overhead(now)`, when given, the bytes they will add to the next packet (at most
-  `overhead`; asked before its messages are picked, so a packet without a sync part holds more);
+  `overhead` but for a part that goes only now and then, as K; asked before its messages are
+  picked, so a packet without a sync part holds more);
 - `number()` -> the full number of the packet being built, asked once per packet after its
   messages are picked (the seal numbers packets: its session's number, docs/seams.md section 2);
   without it the packer counts from 0;
@@ -242,7 +243,7 @@ class Packer:
         room = self.room
         charged = 0               # bytes of parts the picked messages bring (part_room)
         if h.next_overhead is not None:
-            room = envelope_room(self.max_read_length, min(h.next_overhead(now), h.overhead))
+            room = envelope_room(self.max_read_length, h.next_overhead(now))
         budget = room
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         # A message that brings a part (T) fits only with that part: the scheduler counts
