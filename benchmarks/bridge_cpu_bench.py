@@ -2,7 +2,7 @@
 """Bridge CPU benchmark: a bridge against a bare rclpy node on the same topic, same run.
 
     .venv/bin/python benchmarks/bridge_cpu_bench.py [--seconds 8] [--rates 1000 5000]
-        [--baseline /work/main/.venv/bin/python]
+        [--baseline /work/main/.venv/bin/python] [--record [--repeat 3]]
 
 Runs the emulator, a surface and a vehicle bridge (`uwgen bridge`, each in its own process
 and ROS domain) and, in the surface domain, two bare rclpy nodes that subscribe to the same
@@ -19,7 +19,12 @@ newest, uwgen.bridge.polling); /alert is fifo, taken on executor wake-ups. (The 
 conditions, "Guard conditions not supported", and the bridge wakes its executor with one.)
 With --baseline PYTHON, the surface bridge of another uwgen checkout (that interpreter's,
 e.g. main's venv, with a package built by its own `uwgen build`) is measured too, in turns
-with this one's against the same bare nodes: same-run ratios of before and after.
+with this one's against the same bare nodes: same-run ratios of before and after. With --record, this checkout's bridge is measured a
+second time in turn with `--record` (every packet, every message taken and its status into an
+MCAP file, uwgen.bridge.recorder): the `record +%` column is its extra CPU per message over the
+unrecorded run just before it, `rec KiB` the file it wrote; with --repeat N each rate's
+pair of runs is repeated N times and the median of the pairs' ratios is printed under the
+table (a shared machine's load moves single runs by more than recording costs).
 """
 from __future__ import annotations
 
@@ -137,10 +142,13 @@ def publish_at(pub, rate: float, seconds: float) -> int:
     return sent
 
 
-def measure(python, package_dir, rate, seconds, bares, twist_pub, alert_pub, latencies, domain, manifest):
-    """Start the surface bridge of `python`'s uwgen, publish at `rate`, and return its row."""
+def measure(python, package_dir, rate, seconds, bares, twist_pub, alert_pub, latencies, domain, manifest,
+            record=None):
+    """Start the surface bridge of `python`'s uwgen, publish at `rate`, and return its row
+    (`record`: the bridge records to this MCAP file)."""
     bridge = tether.popen([python, "-m", "uwgen.cli", "--quiet", "bridge", "-m", str(manifest),
-                           "--side", "surface", "--status-period", "0", "--package-dir", str(package_dir)],
+                           "--side", "surface", "--status-period", "0", "--package-dir", str(package_dir),
+                           *(["--record", str(record)] if record else [])],
                           env=ros_env(domain), cwd=manifest.parent)
     try:
         time.sleep(4.0)                                  # discovery, link up
@@ -175,9 +183,15 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=8.0)
     parser.add_argument("--rates", type=float, nargs="+", default=[1000.0, 5000.0])
     parser.add_argument("--baseline", metavar="PYTHON", help="also measure the bridge of this interpreter's uwgen")
+    parser.add_argument("--domain", type=int, default=None, metavar="N",
+                        help="ROS domains N and N+1 (default: 40 + pid %% 150)")
+    parser.add_argument("--record", action="store_true",
+                        help="also measure this checkout's bridge recording to an MCAP file")
+    parser.add_argument("--repeat", type=int, default=1, metavar="N",
+                        help="measure each rate N times (default 1)")
     args = parser.parse_args()
 
-    base = 40 + os.getpid() % 150
+    base = 40 + os.getpid() % 150 if args.domain is None else args.domain
     d_surface, d_vehicle = base, base + 1
     procs: list[subprocess.Popen] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -207,11 +221,18 @@ def main() -> int:
         vehicle_side.node.create_subscription(
             Header, "/alert", lambda h: latencies.append(time.time() - h.stamp.sec - h.stamp.nanosec * 1e-9), 10)
         rows = []
+        sizes: dict[float, float] = {}
         try:
-            for rate in args.rates:
+            for rate in [r for r in args.rates for _ in range(args.repeat)]:
                 for label, python in pythons.items():
                     rows.append((label, rate, *measure(python, root / label, rate, args.seconds, bares,
                                                        twist_pub, alert_pub, latencies, d_surface, manifest)))
+                if args.record:
+                    rec = root / f"record-{rate:.0f}.mcap"
+                    rows.append(("record", rate, *measure(sys.executable, root / "this", rate, args.seconds,
+                                                          bares, twist_pub, alert_pub, latencies, d_surface,
+                                                          manifest, record=rec)))
+                    sizes[rate] = sum(f.stat().st_size for f in root.glob(f"record-{rate:.0f}*.mcap")) / 1024
         finally:
             for p in reversed(procs):
                 if p.poll() is None:
@@ -223,14 +244,31 @@ def main() -> int:
             surface_side.close()
             vehicle_side.close()
 
+    extra = f"{'record +%':>10}{'rec KiB':>8}" if args.record else ""
     print(f"{'bridge':<9}{'rate/s':>7}{'msgs':>7}{'bridge us/msg':>14}{'bare us/msg':>12}{'bare events':>12}"
-          f"{'ratio':>7}{'msg/s at 1 core':>16}{'RSS MiB':>8}{'alert p50 s':>12}{'p95 s':>7}{'n':>4}")
+          f"{'ratio':>7}{'msg/s at 1 core':>16}{'RSS MiB':>8}{'alert p50 s':>12}{'p95 s':>7}{'n':>4}{extra}")
+    plain, extra_cpu, extra_ratio = None, {}, {}
     for label, rate, sent, ub, us, ue, ratio, core, rss, p50, p95, n in rows:
+        more = ""
+        if label == "this":
+            plain = (ub, ratio)
+        if label == "record":
+            extra_cpu.setdefault(rate, []).append((ub / plain[0] - 1) * 100)
+            extra_ratio.setdefault(rate, []).append((ratio / plain[1] - 1) * 100)
+            more = f"{extra_cpu[rate][-1]:>+10.1f}{sizes.get(rate, 0):>8.0f}"
         print(f"{label:<9}{rate:>7.0f}{sent:>7}{ub:>14.1f}{us:>12.1f}{ue:>12.1f}{ratio:>7.2f}{core:>16.0f}{rss:>8.1f}"
-              f"{p50:>12.2f}{p95:>7.2f}{n:>4}")
+              f"{p50:>12.2f}{p95:>7.2f}{n:>4}{more}")
     print("ratio: bridge CPU per message / CPU per message of the bare SingleThreadedExecutor node over the "
           "same seconds; msg/s at 1 core: messages per CPU second of the bridge (extrapolated); alert: "
-          "latency of the priority-100 topic published twice a second meanwhile")
+          "latency of the priority-100 topic published twice a second meanwhile"
+          + ("; record +%: the recording bridge's CPU per message over the same rate's plain run "
+             "(`this` just before), rec KiB: what it wrote" if args.record else ""))
+    for rate, extra in extra_cpu.items():
+        by_ratio = extra_ratio[rate]
+        print(f"recording at {rate:.0f} msg/s: {statistics.median(extra):+.1f} % bridge CPU per message "
+              f"(median of {len(extra)} pairs: {', '.join(f'{x:+.1f}' for x in extra)}); "
+              f"{statistics.median(by_ratio):+.1f} % in the bridge's ratio to the bare node over the "
+              f"same seconds ({', '.join(f'{x:+.1f}' for x in by_ratio)})")
     return 0
 
 

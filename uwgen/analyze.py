@@ -18,7 +18,7 @@ from uwgen.analyze_sizes import Size, Sizer, describe
 from uwgen.codegen.encodings import Filler
 from uwgen.codegen.fingerprint import wire_format_of
 from uwgen.codegen.ir import IRBuilder, variant_name
-from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest
+from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest, takes_part
 from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.security.packet_seal import max_overhead
@@ -170,6 +170,8 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
         typical, worst, unlimited = schema, schema, []
         for e in entries:
             if e.sender not in (side.name, "*") or (e.sender == "*" and _server_of(manifest, e) == side.name):
+                continue
+            if not takes_part(manifest.entry(e.id), side.name):   # another fleet vehicle's entry
                 continue
             if e.rate is None:
                 unlimited.append(f"{e.kind} {e.name}")

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from uwgen.manifest.model import RMW_DESERT, Manifest
+from uwgen.manifest.model import RMW_DESERT, Manifest, takes_part
 from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
 from uwgen.runtime.wire.framing import MAX_PAYLOAD, OVERHEAD as FRAME_OVERHEAD
 from uwgen.runtime.link.packets import envelope_room
@@ -94,10 +94,11 @@ def control_costs(manifest: Manifest, bitrate: float, wire: int,
     out = []
     rmw = manifest.uses_rmw_desert()
     schema_id = getattr(manifest, "schema_id", None)
-    ids = sorted({e.id for e in (*manifest.topics, *manifest.services,
-                                 *getattr(manifest, "actions", ()))})
+    entries = (*manifest.topics, *manifest.services, *getattr(manifest, "actions", ()))
     for side in manifest.sides.values():
         mrl = side.link.max_read_length
+        # A fleet vehicle announces its own entries only (bridge.schema.attach_schema).
+        ids = sorted({e.id for e in entries if takes_part(e, side.name)})
         sc = SideControl(side.name, mrl)
         if rmw:
             from uwgen.interop.beacons import encode_beacon, encode_discovery_request

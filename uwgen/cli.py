@@ -19,6 +19,7 @@ COMMANDS = {
     "emulate": "uwgen.commands.emulate",
     "bridge": "uwgen.commands.bridge",
     "demo": "uwgen.commands.demo",
+    "log": "uwgen.commands.log",
     "ros-interfaces": "uwgen.commands.ros_interfaces",
     "rmw-config": "uwgen.commands.rmw_config",
     "keygen": "uwgen.commands.keygen",

@@ -25,7 +25,6 @@ Commands: `uwgen ros-interfaces DIR` (build, or run a command with them), `uwgen
 from __future__ import annotations
 
 import ctypes
-import fcntl
 import hashlib
 import importlib
 import logging
@@ -37,6 +36,8 @@ import sysconfig
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+
+from uwgen.buildsteps import locked, run_steps
 
 log = logging.getLogger("uwgen.typesupport")
 
@@ -253,7 +254,7 @@ def ensure_interfaces(folder: Path, cache: Path | None = None, quiet: bool = Tru
     work = build_dir(package, build_digest(folder), cache)
     env = InterfaceEnv(package, work / "install")
     if not ((work / "stamp").is_file() and env.site.is_dir()):
-        with _locked(work.parent):   # another uwgen may be building the same thing
+        with _locked(work.parent, f"building the type support of {package}"):   # maybe another uwgen
             if not ((work / "stamp").is_file() and env.site.is_dir()):
                 _build(folder, package, files, work, quiet,
                        [d.prefix for d in deps if d.prefix is not None])
@@ -264,19 +265,16 @@ def ensure_interfaces(folder: Path, cache: Path | None = None, quiet: bool = Tru
 
 
 @contextmanager
-def _locked(folder: Path):
+def _locked(folder: Path, doing: str):
+    """The cache's lock (uwgen.buildsteps.locked: a wait on it says whose it is)."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fh = (folder / ".lock").open("a")
+        (folder / ".lock").open("a").close()
     except OSError as exc:
         raise BuildError(f"cannot write the interface cache {folder}: {exc.strerror} "
                          f"(set {CACHE_ENV} to a writable folder)") from None
-    with fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
+    with locked(folder, doing, say=log.info):
+        yield
 
 
 def _built_here(package: str, cache: Path | None) -> bool:
@@ -381,19 +379,18 @@ def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: boo
     log.info("building rclpy type support of %s with rosidl into %s (about 2 min on 2 "
              "cores, once per version of its files)", package, work)
     steps = [
-        ["cmake", str(src), f"-DCMAKE_PREFIX_PATH={';'.join(prefixes)}",
+        ("configure (cmake)", ["cmake", str(src), f"-DCMAKE_PREFIX_PATH={';'.join(prefixes)}",
          f"-DCMAKE_INSTALL_PREFIX={install}", f"-DPython3_EXECUTABLE={sys.executable}",
-         f"-DPython3_INCLUDE_DIR={sysconfig.get_paths()['include']}", "-DBUILD_TESTING=OFF"],
-        ["make", f"-j{os.cpu_count() or 2}"],
-        ["make", "install"],
+         f"-DPython3_INCLUDE_DIR={sysconfig.get_paths()['include']}", "-DBUILD_TESTING=OFF"]),
+        ("compile (make)", ["make", f"-j{os.cpu_count() or 2}"]),
+        ("install", ["make", "install"]),
     ]
     logfile = work / "build.log"
-    with logfile.open("w") as out:
-        for cmd in steps:
-            res = subprocess.run(cmd, cwd=build, env=env, stdout=out, stderr=subprocess.STDOUT)
-            if res.returncode != 0:
-                raise BuildError(f"`{' '.join(cmd[:2])}` failed building {package} "
-                                 f"(exit {res.returncode}); see {logfile}")
+    failed = run_steps(steps, build, env, logfile, f"type support of {package}", say=log.info)
+    if failed is not None:
+        code, cmd = failed
+        raise BuildError(f"`{' '.join(cmd[:2])}` failed building {package} "
+                         f"(exit {code}); see {logfile}")
     (work / "stamp").write_text(f"{package} from {folder}\n")
 
 
@@ -403,7 +400,7 @@ def prune(package_dir: Path, cache: Path | None = None) -> list[Path]:
     keep = build_dir(package, build_digest(package_dir), cache)
     gone = []
     root = interfaces_cache(cache)
-    with _locked(root):
+    with _locked(root, f"removing old builds of {package}"):
         for old in sorted(root.glob(f"{package}-*")):
             if old != keep and old.is_dir() and old.name[len(package) + 1:].isalnum():
                 shutil.rmtree(old, ignore_errors=True)

@@ -351,3 +351,43 @@ def test_the_run_shown_in_the_docs_has_the_lines_the_report_prints(tmp_path):
     assert len(fixed) >= 5 and [line for line in fixed if line not in printed] == []
     for label in ("action /turtle1/rotate_absolute: succeeded after", "path: the poses the surface received"):
         assert any(line.startswith(label) for line in block) and any(line.startswith(label) for line in printed)
+
+
+# -- the fleet demo (uwgen demo --vehicles N) ------------------------------------------------
+
+def fleet_args(**kw):
+    import argparse
+    base = dict(vehicles=3, distance=300.0, per=0.05, seed=1, phy="none", mac="manifest")
+    return argparse.Namespace(**{**base, **kw})
+
+
+def test_the_fleet_demo_shares_the_channel_by_the_manifests_tdma_one_slot_per_side():
+    from uwgen.demo.fleet import fleet_mac, scenario
+    mac = fleet_mac(fleet_args())
+    assert mac.mode == "tdma" and mac.slots == ("surface", "auv1", "auv2", "auv3")
+    # the guard covers a packet's air time and the 300 m delay: no two slots' packets overlap
+    assert mac.guard >= (64 + 4) * 8 / mac.bitrate + 300 / 1500
+    scen, names, _ = scenario(fleet_args(vehicles=2))
+    assert names == ["auv1", "auv2"] and scen.tdma.slots == 4
+    assert [n.dest for n in scen.nodes] == ["*", "surface", "surface"]
+    far = [math.dist(n.position, (0, 0, 0)) for n in scen.nodes[1:]]
+    assert far == pytest.approx([300.0, 300.0])
+
+
+def test_the_fleet_demo_can_take_turns_instead():
+    from uwgen.demo.fleet import fleet_mac
+    mac = fleet_mac(fleet_args(mac="turns"))
+    assert (mac.mode, mac.leader, mac.range) == ("turns", "surface", 300.0)
+
+
+def test_a_fleet_vehicle_that_did_not_follow_is_named_with_why():
+    from uwgen.demo.fleet import vehicle_problems
+    from uwgen.demo.report import Report, Row, ServiceRow
+    cmd, pose = Row("/auv2/turtle1/cmd_vel", "surface → vehicle"), Row("/auv2/turtle1/pose", "vehicle → surface")
+    cmd.delivered, pose.delivered = 40, 0
+    pen = ServiceRow("/auv2/vehicle/set_pen")
+    pen.calls, pen.ok = 2, 0
+    report = Report([cmd, pose], [pen], [], [], [], None, 0.9, None, {}, [{"status": "succeeded"}])
+    assert vehicle_problems(report) == [
+        "no pose reached the surface", "every call of /auv2/vehicle/set_pen failed",
+        "the reported path is not within 0.5 m of the square"]

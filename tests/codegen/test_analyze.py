@@ -273,3 +273,25 @@ def test_rmw_desert_beacons_are_listed_with_their_packets_echo_and_a_note():
     assert "beacon publisher /turtle1/cmd_vel" in res.stdout and "note: side surface" in res.stdout
     data = json.loads(run_cli("-m", SAMPLES / "rmw_desert" / "uwgen.yaml", SAMPLES, "--json").stdout)
     assert data["control"][0]["items"][1]["packets"] == 2
+
+
+# -- fleets: one budget row per vehicle ----------------------------------------------------
+
+def test_a_fleet_gets_a_budget_per_vehicle_and_the_surface_pays_for_every_vehicles_commands():
+    lib = InterfaceLibrary([SAMPLES], installed=True)
+    manifest = load_manifest(SAMPLES / "fleet" / "uwgen.yaml", lib)
+    a = analyze(manifest, lib.get, 4800.0)
+    rows = {b.side: b for b in a.budgets}
+    assert list(rows) == ["surface", "auv1", "auv2", "auv3"]
+    one = {e.name: e for e in a.entries}
+    cmd = sum(one[f"/auv{n}/turtle1/cmd_vel"].rate * one[f"/auv{n}/turtle1/cmd_vel"].configured.frame.typical
+              for n in (1, 2, 3))
+    pose = one["/auv1/turtle1/pose"]
+    # the surface sends three vehicles' commands; a vehicle sends its own pose, never another's
+    assert rows["surface"].typical > cmd > 0
+    assert pose.rate * pose.configured.frame.typical < rows["auv1"].typical < cmd
+    assert rows["auv1"].typical == pytest.approx(rows["auv2"].typical)
+    # each vehicle announces its own 5 ids, the surface all 15
+    control = {c.side: c for c in a.control}
+    announced = lambda side: sum(i.payload for i in control[side].items if i.what.startswith("schema"))  # noqa: E731
+    assert announced("surface") > 2 * announced("auv1")

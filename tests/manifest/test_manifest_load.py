@@ -81,7 +81,9 @@ def test_demo_key_is_git_ignored_never_committed():
 
 def test_reference_manifest_loads():
     m = load_manifest(SAMPLES / "manifest-reference.yaml", library())
-    assert m.network == "reference" and len(m.topics) == 2 and len(m.services) == 1
+    assert m.network == "reference" and len(m.services) == 1
+    assert [t.name for t in m.topics if not t.peers] == ["/turtle1/cmd_vel", "/vehicle/log"]
+    assert [t.name for t in m.topics if t.peers] == ["/auv1/odometry", "/auv2/odometry"]
 
 
 def test_reference_manifest_documents_every_key():

@@ -10,7 +10,7 @@ from uwgen.security.guard import SYNC_EVERY
 from uwgen.security.packet_seal import MAX_OVERHEAD, PacketSeal
 
 from .helpers import KEY, WALL0, config, log_line, request, twist
-from .packets import Side, surface, vehicle
+from .packets import FRAGMENT_ID, Side, surface, vehicle
 
 
 def plain_size(*payloads: bytes) -> int:
@@ -143,3 +143,31 @@ def test_a_flood_of_forged_packets_is_counted_and_logged_once(caplog):
     lines = [r for r in caplog.records if "dropped a packet" in r.getMessage()]
     assert len(lines) == 1 and "sender 1" in lines[0].getMessage()
     assert v.receive(genuine) == [twist(1.0)]
+
+
+def test_the_surface_keeps_replay_state_per_vehicle_across_three_vehicles():
+    # Three vehicles seal with the same packet numbers; the surface admits each, and a replay
+    # is refused for the vehicle whose packet it repeats, never for the others.
+    from uwgen.security.guard import GuardConfig
+    from .helpers import FINGERPRINTS, MODES
+    ids = {"surface": 1, "auv1": 2, "auv2": 3, "auv3": 4}
+
+    def side(name):
+        peers = {i: n for n, i in ids.items() if n != name}
+        cfg = GuardConfig("demo", ids[name], peers, dict(MODES), dict(FINGERPRINTS))
+        seal = PacketSeal.for_key(KEY, cfg, None, clock=ManualClock(), wall=ManualClock(WALL0),
+                                  name=name, fragment_id=FRAGMENT_ID)
+        return Side(seal, ids[name])
+
+    surface_side = side("surface")
+    vehicles = [side(n) for n in ("auv1", "auv2", "auv3")]
+    sent = {n: [s.send(twist(float(10 * k + i))) for i in range(3)]
+            for k, (n, s) in enumerate(zip(("auv1", "auv2", "auv3"), vehicles))}
+    for i in range(3):
+        for k, n in enumerate(("auv1", "auv2", "auv3")):
+            assert surface_side.receive(sent[n][i]) == [twist(float(10 * k + i))]
+    assert surface_side.receive(sent["auv2"][1]) == []          # a replay of auv2's packet
+    assert surface_side.receive(vehicles[2].send(twist(99.0))) == [twist(99.0)]   # auv3 goes on
+    assert surface_side.receive(vehicles[0].send(twist(98.0))) == [twist(98.0)]   # so does auv1
+    stats = surface_side.stats()
+    assert stats["verified"] == 11 and sum(v for k, v in stats.items() if "replay" in k) == 1

@@ -64,7 +64,9 @@ class GoalState:
     early_feedback: Any = None                    # feedback that came before the goal handle
     payload: bytes = b""                          # the goal as sent (sent again unchanged)
     sends: int = 1
-    next_send: float = 0.0                        # when to send it again while unanswered
+    next_send: float = float("inf")               # when to send it again while unanswered (none
+                                                  # until it is first sent: the expiry timer
+                                                  # may run while the goal is being encoded)
     next_query: float = 0.0                       # accepted, no result: when to ask for it
     sent_at: float = 0.0                          # when the goal first left
     asking: bool = False                          # unanswered past accept_timeout: asking

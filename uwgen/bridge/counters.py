@@ -117,6 +117,7 @@ class BridgeCounters:
     bad_header: int = 0        # not a CBOR header this bridge can read
     bad_kind: int = 0          # a kind that does not fit the id (topic id with kind 2, ...)
     inbox_overflow: int = 0    # payloads dropped because the executor fell behind
+    overheard: int = 0         # payloads for another fleet vehicle's entry: heard, not ours (no drop)
 
 
 DROP_FIELDS = {
@@ -128,7 +129,7 @@ DROP_FIELDS = {
                "decode_errors", "duplicate_goals", "no_server", "server_timeouts", "server_gone",
                "server_errors", "encode_errors", "reply_refused", "loop_guard", "results_unacked",
                "lost_goals"),
-    "bridge": tuple(f.name for f in fields(BridgeCounters)),
+    "bridge": tuple(f.name for f in fields(BridgeCounters) if f.name != "overheard"),
     # "superseded" is what a `latest` queue is for (a newer message replaced an older one):
     # it is counted in ~/status and said once, not warned about every report.
     "link": tuple(r for r in DROP_REASONS if r != "superseded"),

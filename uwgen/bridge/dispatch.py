@@ -7,7 +7,9 @@ payload that fits no route is never dropped silently; it is counted in BridgeCou
 - `wrong_direction`: the (kind, id) is one this side sends (e.g. the topic it publishes
   came back from the link);
 - `bad_kind`: the id is bridged here but not with this kind (a topic id with kind 2);
-- `unknown_id`: no entry of this side has the id (or it is not bridged here).
+- `unknown_id`: no entry of this side has the id (or it is not bridged here);
+- `overheard` (not a drop): the id is another fleet vehicle's entry (`overhears`), heard on
+  the shared channel.
 """
 from __future__ import annotations
 
@@ -26,6 +28,7 @@ class Dispatcher:
         self._sent: set[tuple[int, int]] = set()
         self._known: set[int] = set()
         self._screens: list[Callable[[int], bool]] = []
+        self._overheard: set[int] = set()
 
     def route(self, kind: int, ident: int, handler: Handler) -> None:
         """Payloads of (kind, ident) go to handler(ident, payload)."""
@@ -39,6 +42,10 @@ class Dispatcher:
         """This side sends (kind, ident): receiving it is a wrong direction, not unknown."""
         self._sent.add((kind, ident))
         self._known.add(ident)
+
+    def overhears(self, ident: int) -> None:
+        """`ident` is another side's entry (a fleet peer's): counted `overheard`, not unknown."""
+        self._overheard.add(ident)
 
     def screen(self, admit: Callable[[int], bool]) -> None:
         """Payloads of an id for which admit(id) is False are dropped before routing;
@@ -61,5 +68,7 @@ class Dispatcher:
             self.counters.wrong_direction += 1
         elif key[1] in self._known:
             self.counters.bad_kind += 1
+        elif key[1] in self._overheard:
+            self.counters.overheard += 1
         else:
             self.counters.unknown_id += 1

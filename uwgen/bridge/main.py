@@ -47,6 +47,16 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--key-file", type=Path, metavar="PATH",
                         help="network key of the secure link (default: the manifest's security "
                              "key_file)")
+    parser.add_argument("--diagnostics-period", type=number(0, 3600), default=1.0, metavar="SECONDS",
+                        help="seconds between /diagnostics messages (default 1; 0: none)")
+    record = parser.add_argument_group("recording (docs/operators.md)")
+    record.add_argument("--record", type=Path, metavar="PATH.mcap",
+                        help="record every packet, the messages taken and published and the "
+                             "status to this MCAP file (Foxglove, `uwgen log`)")
+    record.add_argument("--record-max-mb", type=number(0.01, 1e6), default=64.0, metavar="MB",
+                        help="start a new file (PATH.1.mcap, ...) when one passes this size (default 64)")
+    record.add_argument("--record-keep", type=whole(0, 100000), default=8, metavar="N",
+                        help="keep only the newest N recording files (default 8; 0: all)")
     parser.add_argument("--mac", metavar="YAML",
                         help="how the sides share the channel, overriding the manifest's mac: "
                              "section, in its syntax: e.g. '{mode: tdma, frame: 1.0, guard: "
@@ -61,7 +71,11 @@ def options_from_args(plan: BridgePlan, args: argparse.Namespace):
                         period=args.period, status_period=args.status_period,
                         timeout_reply=args.timeout_reply, stats_file=args.stats_file,
                         key_file=getattr(args, "key_file", None),
-                        security_state=getattr(args, "security_state", None))
+                        security_state=getattr(args, "security_state", None),
+                        record=getattr(args, "record", None),
+                        record_max_bytes=int(getattr(args, "record_max_mb", 64.0) * 1024 * 1024),
+                        record_keep=getattr(args, "record_keep", None),
+                        diagnostics_period=getattr(args, "diagnostics_period", None))
 
 
 def run(package: ModuleType, side: str, args: argparse.Namespace,

@@ -8,6 +8,8 @@ The node only wires parts to rclpy and the link; each part reads on its own:
   `action_servers.ActionServers`: bridged actions, both sides;
 - `discovery.RmwDiscovery`: rmw_desert beacons, when an entry is in profile rmw_desert;
 - `status.StatusReporter`: ~/status, the stats file, drop log lines;
+- `diagnostics.Watching`: /diagnostics (OK/WARN/ERROR per bridge and entry) and, with
+  --record, the recording (`recorder.BridgeRecorder`: packets, messages, status in MCAP);
 - `dispatch.Dispatcher`: each received payload's header read once, routed by (kind, id).
 
 Threads. Everything here runs on the executor's thread except `_on_link_payload`, which
@@ -32,10 +34,13 @@ from uwgen.bridge import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
+from uwgen.bridge.diagnostics import Watching
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.inbox import Inbox
+from uwgen.bridge.medium import link_mac, mac_round_trip, warn_deadlines
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
+from uwgen.bridge.recorder import recorder_for
 from uwgen.bridge.reliability import link_ledger, reliability_for
 from uwgen.bridge.security import guard_for, link_security
 from uwgen.bridge.services import Servers, StandIns, service_status
@@ -62,39 +67,6 @@ def default_link_factory(**kwargs: Any) -> Any:
     return Link(**kwargs)
 
 
-def mac_round_trip(plan: BridgePlan, link: Any) -> float | None:
-    """The least a request and its answer can take under the plan's MAC: across the range
-    and on the air both ways, and a slot under TDMA (None: mode none, where the commands'
-    timers keep their default)."""
-    from uwgen.manifest.mac import air_time
-    mac = plan.mac
-    if mac is None or mac.mode == "none":
-        return None
-    least = 2 * (mac.delay + air_time(link.max_read_length, mac.bitrate))
-    return least + (mac.slot if mac.mode == "tdma" else 0.0)
-
-
-def deadline_problems(plan: BridgePlan, link: Any) -> list[str]:
-    """Deadlines of this side's calls and goals that cannot fit one round trip under the MAC
-    (uwgen.manifest.mac.round_trip): said at start, as `uwgen analyze` says them."""
-    from uwgen.manifest.mac import round_trip
-    from uwgen.manifest.model import MacConfig
-    mac = plan.mac or MacConfig()
-    rt = round_trip(mac, link.period, link.max_read_length, list(plan.side_ids))
-    out = []
-    for entry, key in ((s, "timeout") for s in plan.called_services):
-        limit = getattr(entry, key, None)
-        if limit is not None and limit < rt:
-            out.append(f"service {entry.name}: its timeout {limit:g} s cannot fit one round trip "
-                       f"under mac {mac.mode} (about {rt:.1f} s): its calls will time out")
-    for entry in plan.offered_actions:
-        limit = getattr(entry, "accept_timeout", None)
-        if limit is not None and limit < rt:
-            out.append(f"action {entry.name}: its accept_timeout {limit:g} s cannot fit one round "
-                       f"trip under mac {mac.mode} (about {rt:.1f} s): its goals will be rejected")
-    return out
-
-
 def node_name_for(plan: BridgePlan) -> str:
     return f"{BRIDGE_NODE_PREFIX}{plan.network}_{plan.side}".replace("-", "_")
 
@@ -112,16 +84,15 @@ class BridgeNode(Node):
         self.options = self._declare_parameters(options or plan.defaults)
         self._closed = False
         main_group = MutuallyExclusiveCallbackGroup()
-        # When this side may write (docs/seams.md section 7): its turn, its slot's share; the
-        # commands' retransmission timers start from its round trip and turn gap.
         link_cfg = self.options.link
-        self.mac = mac_for(plan.mac, plan.side, plan.side_ids, link_cfg, plan.wire_format)
+        self.mac = mac_for(plan.mac, plan.side, plan.side_ids, link_cfg, plan.wire_format)  # medium.py
         self.wiring = w = Wiring(node=self, send=self._send, clock=clock, options=self.options,
                                  log=self.get_logger(), main_group=main_group,
                                  service_group=ReentrantCallbackGroup(),
                                  round_trip=mac_round_trip(plan, link_cfg),
                                  turn_gap=self.mac.turn_gap())
         self._log = w.log
+        w.recorder = recorder_for(plan, self.options, w.wall)   # None without --record
         self.counters = BridgeCounters()
         self.unavailable = w.unavailable                 # entry name -> why it is not bridged
         self.service_counters: dict = {}
@@ -134,6 +105,8 @@ class BridgeNode(Node):
         self.action_servers = ActionServers(w, plan.served_actions, self.action_counters)
         names = plan.entry_names()
         if names and all(name in self.unavailable for name in names):
+            if w.recorder is not None:
+                w.recorder.close()
             raise PlanError(f"nothing to bridge on side {plan.side}: rclpy has no type support "
                             f"here for any of its entries ({', '.join(names)})")
 
@@ -144,8 +117,7 @@ class BridgeNode(Node):
         # Acks, re-sends of reliable topics, delivery once, stale commands (wire format 2 only;
         # docs/seams.md section 5), joined with the per-packet seal's hooks (one tag per packet)
         # when the link is secured.
-        if self.mac.mode != "none":
-            security_kw["mac"] = self.mac
+        security_kw.update(link_mac(self.mac))
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
             seal_hooks.overhead if seal_hooks is not None else 0) + self.mac.overhead,
             turn_gap=self.mac.turn_gap())
@@ -163,8 +135,7 @@ class BridgeNode(Node):
             self.rmw_discovery = RmwDiscovery(w, plan, self.link, flush_timeout)
             self.create_timer(LINK_TICK, self.rmw_discovery.check_link, callback_group=main_group)
         self.schema = attach_schema(plan, self.link, clock, link_cfg, logger_say(self._log))
-        for problem in deadline_problems(plan, link_cfg):
-            self._log.warning(problem)
+        warn_deadlines(self._log, plan, link_cfg)
         if self.schema is not None:   # SchemaGuard: fingerprints announced, mismatches refused
             self.create_timer(SCHEMA_TICK, self.schema.tick, callback_group=main_group)
 
@@ -173,8 +144,11 @@ class BridgeNode(Node):
                      self.action_servers, self.rmw_discovery, self.schema):
             if part is not None:
                 part.register(self.dispatcher)
+        for entry in plan.overheard:
+            self.dispatcher.overhears(entry.id)
 
         self.reporter = StatusReporter(w, plan.network, plan.side)
+        self.watching = Watching(self, w, plan, self.status)   # /diagnostics, the recording
         self.create_timer(EXPIRY_TICK, self._expire, callback_group=main_group)
         self.create_timer(GRAPH_TICK, self._check_graph, callback_group=main_group)
         if self.options.status_period > 0:
@@ -211,8 +185,7 @@ class BridgeNode(Node):
                                  max_read_length=get("max_read_length"), period=get("period"),
                                  status_period=float(get("status_period")),
                                  timeout_reply=get("service_timeout_reply"),
-                                 stats_file=opts.stats_file, key_file=opts.key_file,
-                                 security_state=opts.security_state)
+                                 **opts.unparameterised())
 
     # -- the parts' state, under the names the node has always had ------------------------
 
@@ -296,7 +269,7 @@ class BridgeNode(Node):
         return self.rmw_discovery.status() if self.rmw_discovery is not None else None
 
     def publish_status(self) -> dict:
-        return self.reporter.publish(self.status())
+        return self.watching.record(self.reporter.publish(self.status()))
 
     # -- shutdown --------------------------------------------------------------------------
 
@@ -318,6 +291,7 @@ class BridgeNode(Node):
         status = self.status()
         self.reporter.write(json.dumps(status, sort_keys=True, default=str))
         self.reporter.final_report(status)     # drops and errors not yet in a log line
+        self.watching.close(status)
         self.wiring.throttle.flush()
         if self.context.ok():
             self.destroy_node()   # raises only on a bug: let it be seen

@@ -10,6 +10,12 @@ serving side calls the real service, every other side offers a stand-in service.
 Actions likewise: the server side calls the real action server through an action client,
 every other side offers a stand-in action server.
 
+An entry that names its peers (a fleet vehicle's own entries, uwgen.manifest.fleet) is
+bridged by those sides only: vehicle 2 neither offers vehicle 1's services nor publishes
+its telemetry. The others' entries stay known (`overheard`): their packets are heard on
+the shared channel, their ids are in the seal's authenticated data and in schema
+announcements, and what arrives for them is counted `overheard`, not `unknown_id`.
+
 The generated package is duck-typed (see notes/contracts.md): `MANIFEST` with `network`,
 `sides` and `fragment_id`; `TOPICS`, `SERVICES` and `ACTIONS` (packages generated before
 actions have none) mapping id to codec objects.
@@ -23,7 +29,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from uwgen.manifest.model import NATIVE, PACKED, RMW_DESERT, LinkConfig, LinkPolicy, handle_range  # RMW_DESERT: discovery, seqs 1..999
+from uwgen.manifest.model import (NATIVE, PACKED, RMW_DESERT, LinkConfig, LinkPolicy,  # RMW_DESERT: discovery, seqs 1..999
+                                  handle_range, takes_part)
 
 # What a stand-in service does when its bridged call gets no response in time.
 TIMEOUT_REPLY_NONE = "none"        # send no response: the client's own timeout detects it
@@ -48,6 +55,15 @@ class BridgeOptions:
     stats_file: Path | None = None  # also write the status JSON here (periodically and at exit)
     key_file: Path | None = None    # network key (default: the manifest's security key_file)
     security_state: Path | None = None  # the side's lock file (default: next to the key file)
+    record: Path | None = None      # MCAP recording of this side (uwgen.bridge.recorder)
+    record_max_bytes: int = 64 * 1024 * 1024   # a recording file this big is rotated
+    record_keep: int = 8            # newest recording files kept (0: all)
+    diagnostics_period: float = 1.0  # seconds between /diagnostics messages (0: none)
+
+    def unparameterised(self) -> dict:
+        """The options no ROS parameter overrides (the node passes them through as they are)."""
+        return {k: getattr(self, k) for k in ("stats_file", "key_file", "security_state", "record",
+                                              "record_max_bytes", "record_keep", "diagnostics_period")}
 
     def check(self) -> "BridgeOptions":
         if not 0 < self.port < 65536:
@@ -62,6 +78,8 @@ class BridgeOptions:
                             f"{', '.join(TIMEOUT_REPLIES)}")
         if self.status_period < 0:
             raise PlanError("status period must be >= 0")
+        if self.diagnostics_period < 0:
+            raise PlanError("diagnostics period must be >= 0")
         return self
 
 
@@ -87,6 +105,10 @@ class BridgePlan:
     sender_id: int = 0            # W of wire format 2: the security sender id, else the side's index
     side_ids: dict[str, int] = field(default_factory=dict)   # every side's sender id (W)
     mac: Any = None               # manifest.model.MacConfig (None: mode none)
+    # Codecs of the entries other sides bridge (fleet peers): topics, services, actions.
+    overheard_topics: list[Any] = field(default_factory=list)
+    overheard_services: list[Any] = field(default_factory=list)
+    overheard_actions: list[Any] = field(default_factory=list)
 
     @classmethod
     def from_package(cls, package: ModuleType | Any, side: str,
@@ -100,9 +122,9 @@ class BridgePlan:
             raise PlanError(f"side {side!r} is not in manifest network {manifest.network!r} "
                             f"(sides: {', '.join(sorted(sides)) or 'none'})")
         entry = sides[side]
-        topics = sorted(package.TOPICS.values(), key=lambda t: t.id)
-        services = sorted(package.SERVICES.values(), key=lambda s: s.id)
-        actions = sorted(getattr(package, "ACTIONS", {}).values(), key=lambda a: a.id)
+        every = [sorted(group.values(), key=lambda e: e.id)
+                 for group in (package.TOPICS, package.SERVICES, getattr(package, "ACTIONS", {}))]
+        topics, services, actions = ([e for e in group if takes_part(e, side)] for group in every)
         return cls(
             network=manifest.network,
             side=side,
@@ -114,7 +136,7 @@ class BridgePlan:
             defaults=BridgeOptions(host=entry.host, port=entry.port, link=entry.link),
             offered_actions=[a for a in actions if a.server != side],
             served_actions=[a for a in actions if a.server == side],
-            action_handles={a.id: handle_range(list(sides), side, a.server)
+            action_handles={a.id: handle_range(list(getattr(a, "peers", ()) or sides), side, a.server)
                             for a in actions if a.server != side},
             schema_id=getattr(manifest, "schema_id", None),
             schema_period=getattr(manifest, "schema_period", None),
@@ -125,6 +147,9 @@ class BridgePlan:
             sender_id=_sender_id(manifest, side),
             side_ids={s: _sender_id(manifest, s) for s in sides},
             mac=getattr(manifest, "mac", None),
+            overheard_topics=[t for t in every[0] if not takes_part(t, side)],
+            overheard_services=[s for s in every[1] if not takes_part(s, side)],
+            overheard_actions=[a for a in every[2] if not takes_part(a, side)],
         )
 
     def channels(self) -> list[tuple[int, LinkPolicy, str, bool]]:
@@ -140,6 +165,12 @@ class BridgePlan:
         chans += [(FEEDBACK_KEY_BASE + a.id, a.feedback_policy, f"{a.name} feedback", False)
                   for a in self.served_actions if a.feedback_policy is not None]
         return sorted(chans, key=lambda c: c[0])
+
+    @property
+    def overheard(self) -> list[Any]:
+        """Every entry this side hears but does not bridge, by id."""
+        return sorted((*self.overheard_topics, *self.overheard_services, *self.overheard_actions),
+                      key=lambda e: e.id)
 
     @property
     def topics(self) -> list[Any]:

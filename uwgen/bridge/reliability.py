@@ -39,6 +39,20 @@ def max_ages(plan: BridgePlan) -> dict[int, float]:
     return ages
 
 
+def destinations(plan: BridgePlan, senders: dict[str, int]) -> dict[int, frozenset[int]] | None:
+    """Wire id -> the sender ids of the peers this side's messages of it are for, when
+    some entry names its peers (a fleet: each vehicle's entries are between it and the
+    surface); None otherwise (every packet is for every other side). An entry of the whole
+    network is for every side this side shares a fleet entry with."""
+    entries = [e for e in (*plan.topics, *plan.services, *plan.offered_actions, *plan.served_actions)]
+    if not any(getattr(e, "peers", ()) for e in entries):
+        return None
+    me = plan.side
+    ids = lambda sides: frozenset(senders[s] for s in sides if s != me and s in senders)  # noqa: E731
+    shared = ids({p for e in entries for p in getattr(e, "peers", ())})
+    return {e.id: ids(e.peers) if getattr(e, "peers", ()) else shared for e in entries}
+
+
 class _Wall:
     """A Clock reading a `() -> seconds` function (the bridge's wall time, injectable)."""
 
@@ -59,7 +73,7 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
     return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
                        max_read_length=link.max_read_length, other_overhead=other_overhead,
-                       turn_gap=turn_gap,
+                       turn_gap=turn_gap, destinations=destinations(plan, plan.side_ids),
                        peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},
                        # K on an unsealed link is this side's; a sealed link's is the seal's
                        epoch_source=new_epoch if plan.security is None else None)

@@ -353,6 +353,10 @@ def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
     actions = (*getattr(plan, "offered_actions", ()), *getattr(plan, "served_actions", ()))
     ours = {e.id: (e.name, getattr(e, "fingerprint", b""))
             for e in (*plan.topics, *plan.services, *actions)}
+    # Entries of other fleet vehicles: known (their announcements are checked, not reported
+    # as unknown), never announced by this side.
+    known = {**{e.id: (e.name, getattr(e, "fingerprint", b"")) for e in getattr(plan, "overheard", ())},
+             **ours}
     channels = plan.channels()
 
     def link_stats() -> dict:
@@ -370,7 +374,7 @@ def attach_schema(plan: Any, link: Any, clock: Clock, link_config: LinkConfig,
         entry = chans.get(schema_id, chans.get(str(schema_id), {}))
         return int(entry.get("queued", 0)) if isinstance(entry, dict) else 0
 
-    guard = SchemaGuard(schema_id, ours, list(ours),
+    guard = SchemaGuard(schema_id, known, list(ours),
                         lambda payload: link.offer(schema_id, payload), clock=clock,
                         period=getattr(plan, "schema_period", None),
                         max_payload=whole_payload(link, schema_id, link_config),

@@ -96,7 +96,11 @@ def guard_for(plan: BridgePlan, options: BridgeOptions, clock: Clock = SYSTEM_CL
     path = key_path(plan, options)
     try:
         master = read_key_file(path)
-        entries = {e.id: e for e in (*plan.topics, *plan.services)}
+        # Every topic and service of the network, the fleet's others included: a packet of the
+        # shared channel may carry other vehicles' ids, all in its authenticated data.
+        entries = {e.id: e for e in (*plan.topics, *plan.services,
+                                     *getattr(plan, "overheard_topics", ()),
+                                     *getattr(plan, "overheard_services", ()))}
         # a topic's ttl; a service's ttl, else its timeout; an action's ttl, else its
         # accept_timeout: the same max ages as the link's staleness (docs/seams.md section 8)
         ttls = max_ages(plan)

@@ -117,6 +117,16 @@ class StandIns:
         log = self.w.log
 
         async def call(request: Any, response: Any) -> Any:
+            """One local call, timed for the recording when there is one."""
+            recorder = self.w.recorder
+            if recorder is None:
+                return await call_once(request, response)
+            start, answered = self.w.wall(), counters.responses
+            result = await call_once(request, response)
+            recorder.call(codec.name, start, self.w.wall(), counters.responses > answered)
+            return result
+
+        async def call_once(request: Any, response: Any) -> Any:
             counters.local_calls += 1
             if self.w.loops.blocked(codec.name):
                 counters.loop_guard += 1

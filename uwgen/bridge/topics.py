@@ -45,6 +45,12 @@ def publication_time(info: Any, now: float, wall: float) -> float | None:
     return now - age
 
 
+def source_time(info: Any) -> float | None:
+    """The publisher's source timestamp of a taken message, in seconds since the epoch."""
+    stamp = info.get("source_timestamp") if isinstance(info, dict) else None
+    return stamp / 1e9 if isinstance(stamp, int) and stamp > 0 else None
+
+
 def is_latest(codec: Any) -> bool:
     """Whether the link keeps only the newest message of this topic."""
     return getattr(codec.policy, "queue", "latest") == "latest"
@@ -67,11 +73,14 @@ class TopicBridge:
         self.poller = LatestPoller(wiring.node, wiring.main_group, self._send_newest, self.counters,
                                    wiring.say_once)
         node = wiring.node
+        rec = wiring.recorder
         for codec in outgoing:
             self.counters[codec.id] = TopicCounters()
             cls = wiring.ros_class(codec)
             if cls is None:
                 continue
+            if rec is not None:
+                rec.topic(codec.name, cls)
             self.outgoing[codec.id] = codec
             qos = qos_profile(ledger.subscription_qos(codec))
             events = self.sub_losses.callbacks(codec.id, codec.name)
@@ -87,6 +96,8 @@ class TopicBridge:
             cls = wiring.ros_class(codec)
             if cls is None:
                 continue
+            if rec is not None:
+                rec.topic(codec.name, cls)
             self.incoming[codec.id] = (codec, node.create_publisher(cls, codec.name,
                                                                     qos_profile(codec.qos)))
 
@@ -143,6 +154,8 @@ class TopicBridge:
             self.w.say_once(f"enc{codec.id}{type(exc).__name__}",
                             f"{codec.name}: message not sent, cannot encode: {exc}")
             return
+        if self.w.recorder is not None:
+            self.w.recorder.message(codec.name, msg, payload, source_time(info))
         if self.w.send(codec.id, payload, published=published):
             counters.offered += 1
         else:
@@ -195,6 +208,8 @@ class TopicBridge:
             self.w.say_once(f"pub{ident}", f"{codec.name}: cannot publish decoded message: {exc}")
             return
         counters.published += 1
+        if self.w.recorder is not None:
+            self.w.recorder.message(codec.name, msg, payload, listeners=pub.get_subscription_count())
 
     # -- status ------------------------------------------------------------------------
 

@@ -42,6 +42,7 @@ class Wiring:
     service_group: Any             # reentrant group: stand-in calls await futures
     unavailable: dict[str, str] = field(default_factory=dict)  # entry name -> why not bridged
     wall: Callable[[], float] = time.time   # the system clock ROS stamps messages with
+    recorder: Any = None           # uwgen.bridge.recorder.BridgeRecorder with --record
     round_trip: float | None = None  # what the MAC expects a request and its answer to take
     turn_gap: float = 0.0            # the MAC's longest wait for the peer's turn (runtime.link.mac)
     said: set[str] = field(default_factory=set)

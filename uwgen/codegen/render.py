@@ -73,7 +73,8 @@ def _manifest_view(plan: PackagePlan):
                         policy=repr(t.policy), qos=repr(t.qos), profile=t.profile,
                         key=type_key(t.type.full_name),
                         codec=_codec_ref(t.type_name, t.profile, variant_name("t", t.id, t.fields)),
-                        fingerprint=plan.fingerprints[("topic", t.id)].hex())
+                        fingerprint=plan.fingerprints[("topic", t.id)].hex(),
+                        peers=repr(t.peers) if t.peers else "")
                    for t in sorted(manifest.topics, key=lambda t: t.id)],
         "services": [dict(id=s.id, name=s.name, type_name=s.type_name, server=s.server,
                           timeout=s.timeout, policy=repr(s.policy), profile=s.profile,
@@ -84,13 +85,15 @@ def _manifest_view(plan: PackagePlan):
                           response=_codec_ref(s.type_name + "_Response", s.profile,
                                               variant_name("r", s.id, s.response_fields)),
                           ros_module=f"{s.type.package}.srv", ros_name=s.type.name,
-                          fingerprint=plan.fingerprints[("service", s.id)].hex())
+                          fingerprint=plan.fingerprints[("service", s.id)].hex(),
+                          peers=repr(s.peers) if s.peers else "")
                      for s in sorted(manifest.services, key=lambda s: s.id)],
         "actions": [dict(id=a.id, name=a.name, type_name=a.type_name, server=a.server,
                          accept_timeout=a.accept_timeout, result_timeout=a.result_timeout,
                          max_goals=a.max_goals, policy=repr(a.policy), feedback=repr(a.feedback),
                          profile=a.profile, ros_module=f"{a.type.package}.action",
-                         ros_name=a.type.name, fingerprint=plan.fingerprints[("action", a.id)].hex())
+                         ros_name=a.type.name, fingerprint=plan.fingerprints[("action", a.id)].hex(),
+                         peers=repr(a.peers) if a.peers else "")
                     for a in sorted(manifest.actions, key=lambda a: a.id)],
     }
 

@@ -13,7 +13,7 @@ per topic and service and a plot of the commanded and reported path are produced
 The link is secured as the manifest says (docs/security.md): both bridges get the network
 key with --key-file; the demo creates it when missing (uwgen.demo.keys).
 Everything is written to --out (default demo_output/); --docs also writes the plot to
-docs/demo-path.png. See docs/demo.md.
+docs/demo-path.png (and the recordings' plots to docs/demo-link.png). See docs/demo.md.
 """
 from __future__ import annotations
 
@@ -69,8 +69,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "the manifest's msg_samples/keys/demo.key, or in uwgen's cache if "
                              "the checkout is read-only); nothing else is kept beside it (no "
                              "state file: every start picks a new random epoch)")
+    parser.add_argument("--no-record", action="store_true",
+                        help="do not record the bridges (by default each writes bridge_<side>.mcap "
+                             "in --out, summarised by `uwgen log` into link.png)")
     parser.add_argument("--docs", action="store_true",
-                        help="also write the plot to docs/demo-path.png")
+                        help="also write the plots to docs/demo-path.png and docs/demo-link.png")
     parser.add_argument("--distance", type=number(1, 1e5), default=300.0, help="metres between the nodes")
     parser.add_argument("--per", type=number(0, 1), default=0.05,
                         help="packet error rate on top of collisions (default 0.05)")
@@ -102,6 +105,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     # --side is a manifest side everywhere else; it was this command's square size.
     old_spelling(parser, "--side", "--square-size", "square_size", "demo", type=number(0, 1e3, above=True))
     parser.add_argument("--laps", type=whole(1, 100), default=1, help="laps of the square")
+    parser.add_argument("--vehicles", type=whole(1, 3), default=1, metavar="N",
+                        help="vehicles to drive, each on its own square behind its own bridge "
+                             "and DESERT node over one channel (default 1; 2 or 3: the fleet of "
+                             "msg_samples/fleet/uwgen.yaml, uwgen.demo.fleet)")
     parser.add_argument("--timeout", type=number(1, 1e6), default=180.0,
                         help="give up if the operator has not finished after this many seconds")
     parser.add_argument("--quiet", dest="quiet_command", action="store_true",
@@ -217,7 +224,30 @@ def _endpoint(hp: tuple[str, int]) -> str:
     return f"{hp[0]}:{hp[1]}"
 
 
+def _link_plot(out: Path, title: str, docs: bool) -> None:
+    """The bridges' recordings: where they are, and their plots (uwgen log); with `docs`,
+    also docs/demo-link.png."""
+    from uwgen.fieldkit.plots import plot_summary
+    from uwgen.fieldkit.reader import RecordingError, read_recordings
+    from uwgen.fieldkit.summary import summarise
+    files = sorted(out.glob("bridge_*.mcap"))
+    try:
+        summary = summarise(read_recordings(files))
+    except RecordingError as exc:
+        print(f"uwgen demo: the bridges' recordings are not readable: {exc}", file=sys.stderr)
+        return
+    plot = plot_summary(summary, out / "link.png", title)
+    if docs:
+        plot_summary(summary, ROOT / "docs" / "demo-link.png", title)
+    print(f"recordings: {', '.join(f.name for f in files)} (`uwgen log {' '.join(str(f) for f in files)}` "
+          f"prints this table from them); link plot: {plot}")
+
+
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "vehicles", 1) > 1 and (args.drive_away or args.desert):
+        print("uwgen demo: --vehicles runs on the emulator only (no --desert, no --drive-away)",
+              file=sys.stderr)
+        return 2
     if getattr(args, "drive_away", False):
         args.out = args.out or default_out()
         args.quiet = args.quiet or getattr(args, "quiet_command", False)
@@ -236,8 +266,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"uwgen demo: cannot write {out}: {exc.strerror}; give another folder with --out",
               file=sys.stderr)
         return EXIT_USAGE
-    for old in out.glob("*.json*"):
+    for old in (*out.glob("*.json*"), *out.glob("bridge_*.mcap")):
         old.unlink()
+    if getattr(args, "vehicles", 1) > 1:
+        from uwgen.demo import fleet
+        return fleet.run(args, say, quiet, out, mac_text)
     if not (GENERATED / PACKAGE / "bridge_surface.py").exists():
         print(f"uwgen demo: {GENERATED / PACKAGE} has no bridge modules: run `uwgen build`", file=sys.stderr)
         return EXIT_FAILED
@@ -300,7 +333,8 @@ def run(args: argparse.Namespace) -> int:
                 procs.append(Proc(f"bridge_{side}", [
                     py, "-m", f"{PACKAGE}.bridge_{side}", "--host", endpoints[side][0],
                     "--port", str(ports[side]),
-                    "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5", *key_args],
+                    "--stats-file", str(out / f"bridge_{side}.json"), "--status-period", "5", *key_args,
+                    *([] if args.no_record else ["--record", str(out / f"bridge_{side}.mcap")])],
                     env, out, not quiet))
             procs.append(Proc("vehicle", [py, "-m", "uwgen.demo.vehicle", "--record",
                                           str(out / "vehicle.jsonl")], venv, out, not quiet))
@@ -331,7 +365,10 @@ def run(args: argparse.Namespace) -> int:
     if args.docs:
         plot_paths(report, ROOT / "docs" / "demo-path.png", title)
         print("plot: docs/demo-path.png")
-    print(f"plot: {plot}\nrun took {elapsed:.0f} s; logs in {out}")
+    print(f"plot: {plot}")
+    if not args.no_record:
+        _link_plot(out, title, args.docs)
+    print(f"run took {elapsed:.0f} s; logs in {out}")
     if crashed:
         print(f"uwgen demo: processes ended badly: {crashed} (see their logs)", file=sys.stderr)
         return EXIT_FAILED

@@ -10,6 +10,10 @@ alone drift, because every lost command shifts a turn. Each command carries its
 sequence number in `linear.z` for the latency report. It exits when the script is done.
 
     python -m uwgen.demo.operator [--record FILE] [--side 3.0] [--speed 0.5] [--turn 0.6]
+                                  [--namespace /auv1] [--start 8,2]
+
+In a fleet (`uwgen demo --vehicles 3`) one operator drives each vehicle: `--namespace` puts
+every name under the vehicle's namespace and `--start` moves its square.
 """
 from __future__ import annotations
 
@@ -38,6 +42,11 @@ def square_waypoints(start: tuple[float, float], side: float, laps: int = 1) -> 
     return [c for _ in range(laps) for c in corners]
 
 
+def _point(text: str) -> tuple[float, float]:
+    x, _, y = text.partition(",")
+    return float(x), float(y)
+
+
 def _wrap(a: float) -> float:
     return math.atan2(math.sin(a), math.cos(a))
 
@@ -57,10 +66,15 @@ class Pilot:
     """
 
     def __init__(self, waypoints: list[tuple[float, float]], speed: float = 0.4,
-                 turn: float = 0.6, lag: float = 1.0, reach: float = 0.15, rate: float = RATE):
+                 turn: float = 0.6, lag: float = 1.0, reach: float = 0.15, rate: float = RATE,
+                 share: float = 1.0):
         self.waypoints = list(waypoints)
         self.speed, self.turn, self.lag, self.reach = speed, turn, lag, reach
         self.dt = 1.0 / rate
+        # the share of the time a command sent acts on the vehicle: 1 when commands arrive
+        # more often than the vehicle's command timeout; less when a MAC delivers them in
+        # bursts (a TDMA frame apart) and the vehicle stops in between
+        self.share = share
         self.index = 0
         self.pose: tuple[float, float, float, float] | None = None   # x, y, theta, t received
         self.sent: list[tuple[float, float, float]] = []              # (t, lin, ang)
@@ -80,9 +94,9 @@ class Pilot:
         self.sent = [c for c in self.sent if c[0] > t - 3 * self.lag]
         for ts, lin, ang in self.sent:
             if ts > since:
-                th += ang * self.dt
-                x += lin * math.cos(th) * self.dt
-                y += lin * math.sin(th) * self.dt
+                th += ang * self.dt * self.share
+                x += lin * math.cos(th) * self.dt * self.share
+                y += lin * math.sin(th) * self.dt * self.share
         return x, y, th
 
     def command(self, t: float) -> tuple[float, float] | None:
@@ -121,6 +135,16 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds after which the square is abandoned")
     parser.add_argument("--service-wait", type=float, default=30.0,
                         help="seconds to wait for the bridged services to appear")
+    parser.add_argument("--namespace", default="", help="the vehicle's namespace (a fleet's, e.g. /auv1)")
+    parser.add_argument("--start", type=_point, default=START[:2], metavar="X,Y",
+                        help=f"where the square starts (default {START[0]:g},{START[1]:g})")
+    parser.add_argument("--call-timeout", type=float, default=CALL_TIMEOUT,
+                        help="seconds to wait for each bridged call (the manifest's timeout + margin)")
+    parser.add_argument("--lag", type=float, default=1.0,
+                        help="seconds the pilot expects a pose and a command to take over the link")
+    parser.add_argument("--share", type=float, default=1.0,
+                        help="the share of the time a command acts on the vehicle (less than 1 when "
+                             "commands arrive further apart than the vehicle's command timeout)")
     args, ros_args = parser.parse_known_args(argv)
 
     import rclpy
@@ -138,12 +162,13 @@ def main(argv: list[str] | None = None) -> int:
     interrupt_on_signals(init_ros(["operator", *ros_args]))   # uwgen.demo.shutdown
     node = rclpy.create_node("operator")
     log = node.get_logger()
-    waypoints = square_waypoints(START[:2], args.side, args.laps)
-    pilot = Pilot(waypoints, speed=args.speed, turn=args.turn)
-    cmd_pub = node.create_publisher(Twist, "/turtle1/cmd_vel", 10)
-    pen = node.create_client(SetPen, "/vehicle/set_pen")
-    teleport = node.create_client(TeleportAbsolute, "/turtle1/teleport_absolute")
-    rotate = ActionClient(node, RotateAbsolute, "/turtle1/rotate_absolute")
+    ns = args.namespace.rstrip("/")
+    waypoints = square_waypoints(args.start, args.side, args.laps)
+    pilot = Pilot(waypoints, speed=args.speed, turn=args.turn, lag=args.lag, share=args.share)
+    cmd_pub = node.create_publisher(Twist, f"{ns}/turtle1/cmd_vel", 10)
+    pen = node.create_client(SetPen, f"{ns}/vehicle/set_pen")
+    teleport = node.create_client(TeleportAbsolute, f"{ns}/turtle1/teleport_absolute")
+    rotate = ActionClient(node, RotateAbsolute, f"{ns}/turtle1/rotate_absolute")
     seen = {"pose": 0, "battery": 0, "log": 0}
 
     def on_pose(p: Pose) -> None:
@@ -165,9 +190,9 @@ def main(argv: list[str] | None = None) -> int:
         record("log_rx", seq=seq, size=len(s.data))
         log.info(f"vehicle says ({len(s.data)} B): {s.data[:100]}{'...' if len(s.data) > 100 else ''}")
 
-    node.create_subscription(Pose, "/turtle1/pose", on_pose, 10)
-    node.create_subscription(BatteryState, "/vehicle/battery", on_battery, 10)
-    node.create_subscription(String, "/vehicle/log", on_log, 10)
+    node.create_subscription(Pose, f"{ns}/turtle1/pose", on_pose, 10)
+    node.create_subscription(BatteryState, f"{ns}/vehicle/battery", on_battery, 10)
+    node.create_subscription(String, f"{ns}/vehicle/log", on_log, 10)
 
     def spin_for(seconds: float) -> None:
         end = time.monotonic() + seconds
@@ -184,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     def call_once(client, request, what: str, last: bool) -> bool:
         t0 = time.time()
         future = client.call_async(request)
-        deadline = time.monotonic() + CALL_TIMEOUT
+        deadline = time.monotonic() + args.call_timeout
         while not future.done() and time.monotonic() < deadline:
             rclpy.spin_once(node, timeout_sec=0.05)
         rtt = time.time() - t0
@@ -195,10 +220,10 @@ def main(argv: list[str] | None = None) -> int:
         if ok:
             log.info(f"{what}: done in {rtt:.2f} s")
         elif last:   # every try lost: the demo counts this call as failed
-            log.error(f"{what}: no response within {CALL_TIMEOUT:.0f} s, the last of "
+            log.error(f"{what}: no response within {args.call_timeout:.0f} s, the last of "
                       f"{CALL_TRIES} tries: the call failed")
         else:        # a request or its response lost on the link: expected now and then
-            log.warning(f"{what}: no response within {CALL_TIMEOUT:.0f} s (lost on the link); "
+            log.warning(f"{what}: no response within {args.call_timeout:.0f} s (lost on the link); "
                         "trying again")
         return ok
 
@@ -210,12 +235,12 @@ def main(argv: list[str] | None = None) -> int:
 
     def mission(theta: float) -> None:
         """Send the mission action's goal and wait for its result, recording both."""
-        name = "/turtle1/rotate_absolute"
+        name = f"{ns}/turtle1/rotate_absolute"
         feedback: list[float] = []
         t0 = time.time()
         sent = rotate.send_goal_async(RotateAbsolute.Goal(theta=theta),
                                       feedback_callback=lambda m: feedback.append(m.feedback.remaining))
-        if not spin_until(sent.done, GOAL_WAIT) or not sent.result().accepted:
+        if not spin_until(sent.done, max(GOAL_WAIT, args.call_timeout)) or not sent.result().accepted:
             # The goal or its answer lost on the link (the bridge resends the goal and then
             # gives up), or the vehicle refused it: reported, not a failure of the demo.
             why = "rejected by the vehicle" if sent.done() else "no answer (lost on the link)"
@@ -250,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
             spin_for(0.1)
         spin_for(2.0)  # let the bridges connect and the first poses arrive
         call(pen, SetPen.Request(r=255, g=120, b=0, width=3, off=0), "set_pen (orange, on)")
-        x0, y0, th0 = START
+        (x0, y0), th0 = args.start, START[2]
         call(teleport, TeleportAbsolute.Request(x=x0, y=y0, theta=th0),
              f"teleport_absolute to ({x0}, {y0})")
         record("start", x=x0, y=y0, theta=th0, waypoints=waypoints)

@@ -32,6 +32,7 @@ MISSION_LINE_AT = 4.0    # s after start: the long log line (> 255 bytes: fragme
 ROTATE_SPEED = 0.6       # rad/s at most while turning to a heading (the action)
 ROTATE_TOLERANCE = 0.02  # rad: a heading this close is reached
 ROTATE_STEP = 0.1        # s between rotation commands (and feedback)
+LISTEN_WAIT = 10.0       # s at most to wait for the bridge's subscriptions before publishing
 
 
 class VehicleSim:
@@ -69,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m uwgen.demo.vehicle", description=__doc__.split("\n")[0])
     parser.add_argument("--record", type=Path, help="write events as JSON lines here")
     parser.add_argument("--log-every", type=float, default=15.0, help="seconds between status log lines")
+    parser.add_argument("--namespace", default="", help="the vehicle's namespace (a fleet's, e.g. /auv1)")
     args, ros_args = parser.parse_known_args(argv)
 
     import rclpy
@@ -85,14 +87,15 @@ def main(argv: list[str] | None = None) -> int:
     record = Recorder(args.record)
     stop = init_ros(["vehicle", *ros_args])   # a signal only stops the spinning (uwgen.demo.shutdown)
     node = rclpy.create_node("vehicle_sim")
+    ns = args.namespace.rstrip("/")
     log = node.get_logger()
     sim = VehicleSim()
     start = time.monotonic()
     state = {"log_seq": 0, "battery": 1.0, "pen": None, "mission_sent": False, "last_log": start}
 
-    pose_pub = node.create_publisher(Pose, "/turtle1/pose", 10)
-    battery_pub = node.create_publisher(BatteryState, "/vehicle/battery", 10)
-    log_pub = node.create_publisher(String, "/vehicle/log", 10)
+    pose_pub = node.create_publisher(Pose, f"{ns}/turtle1/pose", 10)
+    battery_pub = node.create_publisher(BatteryState, f"{ns}/vehicle/battery", 10)
+    log_pub = node.create_publisher(String, f"{ns}/vehicle/log", 10)
 
     def say(text: str) -> None:
         state["log_seq"] += 1
@@ -186,11 +189,18 @@ def main(argv: list[str] | None = None) -> int:
         record("battery", stamp=b.header.stamp.sec + b.header.stamp.nanosec * 1e-9,
                pct=b.percentage)
 
-    node.create_subscription(Twist, "/turtle1/cmd_vel", on_cmd, 10)
-    node.create_service(TeleportAbsolute, "/turtle1/teleport_absolute", on_teleport)
-    node.create_service(SetPen, "/vehicle/set_pen", on_set_pen)
-    ActionServer(node, RotateAbsolute, "/turtle1/rotate_absolute", rotate,
+    node.create_subscription(Twist, f"{ns}/turtle1/cmd_vel", on_cmd, 10)
+    node.create_service(TeleportAbsolute, f"{ns}/turtle1/teleport_absolute", on_teleport)
+    node.create_service(SetPen, f"{ns}/vehicle/set_pen", on_set_pen)
+    ActionServer(node, RotateAbsolute, f"{ns}/turtle1/rotate_absolute", rotate,
                  cancel_callback=lambda goal_handle: CancelResponse.ACCEPT)
+    # Publish once the bridge listens (bounded): what is published before its subscription
+    # matched reaches nobody, and the report's counts would start with a gap.
+    deadline = time.monotonic() + LISTEN_WAIT
+    while (min(p.get_subscription_count() for p in (pose_pub, battery_pub, log_pub)) == 0
+           and time.monotonic() < deadline and not stop.is_set()):
+        rclpy.spin_once(node, timeout_sec=0.05)
+    start = state["last_log"] = time.monotonic()
     node.create_timer(STEP, step)
     node.create_timer(POSE_PERIOD, publish_pose)
     node.create_timer(BATTERY_PERIOD, publish_battery)

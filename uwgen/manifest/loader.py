@@ -22,6 +22,7 @@ from uwgen.manifest import checks
 from uwgen.manifest.actions import ACTION_KEYS, FEEDBACK_KEYS, read_action  # noqa: F401 (keys re-exported)
 from uwgen.manifest.checks import ID_RANGE, IdUse
 from uwgen.manifest.fields import FieldsReader
+from uwgen.manifest.fleet import FleetTemplate, expand, read_fleet
 from uwgen.manifest.model import (
     FIFO_DEFAULT_DEPTH,  # noqa: F401 (re-exported)
     NATIVE,
@@ -39,6 +40,7 @@ from uwgen.manifest.model import (
     Topic,
 )
 from uwgen.manifest.nodes import ManifestError, Reader, compose
+from uwgen.manifest.rosnames import ROS_TOKEN, validate_ros_name  # noqa: F401 (re-exported)
 from uwgen.manifest.policy import POLICY_KEYS, QOS_KEYS, read_policy, read_qos  # noqa: F401 (QOS_KEYS re-exported)
 from uwgen.manifest.mac import check_turns_wire, read_mac
 from uwgen.manifest.security import SecurityCheck, network_security
@@ -49,8 +51,8 @@ __all__ = ["ManifestError", "load_manifest", "find_manifest", "MANIFEST_NAME", "
 
 MANIFEST_NAME = "uwgen.yaml"
 
-TOP_KEYS = ("network", "package", "profile", "sides", "fragment_id", "schema_id", "schema_period",
-            "defaults", "topics", "services", "actions", "security", "mac")
+TOP_KEYS = ("network", "package", "profile", "sides", "fleet", "fragment_id", "schema_id",
+            "schema_period", "defaults", "topics", "services", "actions", "security", "mac")
 DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
 TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security",
               "reliability")
@@ -61,7 +63,6 @@ SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profil
 
 NETWORK_NAME = re.compile(r"[a-z][a-z0-9_]*")
 PYTHON_PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-ROS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 class _Reported(Exception):
@@ -88,33 +89,6 @@ def load_manifest(path: Path, lib: InterfaceLibrary) -> Manifest:
     path = Path(path)
     root = compose(path)
     return _ManifestBuilder(Reader(path), lib).build(root)
-
-
-def validate_ros_name(name: str) -> str | None:
-    """Why `name` is not a fully qualified ROS 2 topic/service name, or None if it is one.
-
-    The rules of rcl/rmw's full-name validation: leads with '/', tokens of letters, digits
-    and '_' that do not start with a digit, no '//', no trailing '/'. Relative names are
-    refused because a bridge node's namespace would silently change them.
-    """
-    if not name:
-        return "a ROS name must not be empty"
-    if not name.startswith("/"):
-        return f"'{name}' is not a fully qualified ROS name: it must start with '/'"
-    if name == "/":
-        return "'/' alone is not a topic or service name"
-    if name.endswith("/"):
-        return f"'{name}' must not end with '/'"
-    if "//" in name:
-        return f"'{name}' must not contain '//'"
-    for token in name[1:].split("/"):
-        if token[0].isdigit():
-            return f"'{name}': the part '{token}' must not start with a digit"
-        if not ROS_TOKEN.fullmatch(token):   # the pattern is ASCII-only
-            return f"'{name}' may contain only letters, digits, '_' and '/'"
-    if len(name) > 255:
-        return f"'{name[:20]}...' is longer than 255 characters"
-    return None
 
 
 class _Errors(Collector):
@@ -203,8 +177,11 @@ class _ManifestBuilder:
                                           if k.value == "tag_bytes"), self.sec.block)
 
         sides = self.checked({}, read_sides, self, r.require(top, "sides", root, "the manifest"))
+        fleet: FleetTemplate | None = None
+        if "fleet" in top:   # vehicles become sides; their entries are copied below
+            fleet = self.checked(None, read_fleet, self, top["fleet"][1], sides)
         mac = MacConfig()
-        if "mac" in top and sides:
+        if "mac" in top and sides:   # after the fleet: its vehicles have slots and turns too
             mac = self.checked(mac, read_mac, r, top["mac"][1], sides)
 
         # Policy keys from `defaults` stay nodes (merged per key into each topic, errors
@@ -229,6 +206,8 @@ class _ManifestBuilder:
                     item = self.entry(read, node, *args)
                     if item is not None:
                         items.append(item)
+            if fleet is not None:
+                items += expand(self, fleet, key, read, sides, *args[1:])
         for entries, kind in ((topics, "topic"), (services, "service"), (actions, "action")):
             with errors.attempt(ManifestError):
                 checks.unique_names(entries, kind)
@@ -261,6 +240,7 @@ class _ManifestBuilder:
             schema_id=schema_id,
             schema_period=schema_period,
             security=security,
+            fleet=fleet.fleet if fleet is not None else None,
             mac=mac,
         )
         if "mac" in top:

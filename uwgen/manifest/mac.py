@@ -185,4 +185,8 @@ def mac_of_file(path) -> MacConfig:
     top = {k.value: v for k, v in root.value}
     if "mac" not in top or not isinstance(top.get("sides"), yaml.MappingNode):
         return MacConfig()
-    return read_mac(r, top["mac"], {k.value: Side(k.value) for k, _ in top["sides"].value})
+    sides = {k.value: Side(k.value) for k, _ in top["sides"].value}
+    if isinstance(top.get("fleet"), yaml.MappingNode):   # a fleet's vehicles have slots and turns too
+        from uwgen.manifest.fleet import vehicle_names
+        sides.update({v: Side(v) for v in vehicle_names(r, top["fleet"])})
+    return read_mac(r, top["mac"], sides)

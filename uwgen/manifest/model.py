@@ -186,6 +186,7 @@ class Topic:
     where: SourceRef | None = None
     fields: tuple[FieldEncoding, ...] = ()   # field encodings (manifest `fields:`)
     security: str = "off"       # off | sign | encrypt (the network's mode unless set here)
+    peers: tuple[str, ...] = ()  # the sides that take part (a fleet vehicle's entry); (): every side
 
 
 @dataclass(frozen=True)
@@ -202,6 +203,7 @@ class Service:
     request_fields: tuple[FieldEncoding, ...] = ()    # manifest `request_fields:`
     response_fields: tuple[FieldEncoding, ...] = ()   # manifest `response_fields:`
     security: str = "off"       # off | sign | encrypt (the network's mode unless set here)
+    peers: tuple[str, ...] = ()  # the sides that take part (a fleet vehicle's entry); (): every side
 
 
 @dataclass(frozen=True)
@@ -234,6 +236,29 @@ class SecurityPlan:
 MAX_GOALS_LIMIT = ACTION_HANDLES // 2   # goals in flight per action, at most
 
 
+def takes_part(entry, side: str) -> bool:
+    """Whether `side` bridges `entry` (a manifest entry or its codec): every side does,
+    unless the entry names its peers (a fleet vehicle's own entries: the vehicle and the
+    sides that lead the fleet)."""
+    peers = getattr(entry, "peers", ())
+    return not peers or side in peers
+
+
+@dataclass(frozen=True)
+class Fleet:
+    """The manifest's `fleet:` section, expanded (msg_samples/manifest-reference.yaml):
+    vehicles carrying the same interfaces, each as a side of its own."""
+
+    vehicles: tuple[str, ...]        # side names, in turn order (vehicle n is vehicles[n - 1])
+    namespaces: dict[str, str]       # vehicle -> its namespace, e.g. /auv1
+    leaders: tuple[str, ...]         # the sides declared under `sides:` (the surface): peers of every vehicle
+    id_stride: int                   # vehicle n's ids: the template's + (n - 1) * id_stride
+
+    def vehicle_of(self, entry) -> str | None:
+        """The vehicle a fleet entry belongs to (None: an entry of the whole network)."""
+        return next((p for p in getattr(entry, "peers", ()) if p in self.vehicles), None)
+
+
 def handle_range(sides: list[str], side: str, server: str) -> tuple[int, int]:
     """The goal handles (first, last) client side `side` uses for an action served by
     `server`: the 24 handles are split evenly between the client sides (in name order),
@@ -262,6 +287,7 @@ class Action:
     profile: str = NATIVE
     where: SourceRef | None = None
     security: str = "off"       # off | sign | encrypt: every payload on this id (wire format 12)
+    peers: tuple[str, ...] = ()  # the sides that take part (a fleet vehicle's entry); (): every side
 
 
 @dataclass
@@ -278,6 +304,7 @@ class Manifest:
     schema_id: int | None = None                 # reserved id for schema announcements (wire format 10)
     schema_period: float | None = SCHEMA_PERIOD_DEFAULT  # seconds between announcements; None: connect/request only
     security: Security = field(default_factory=Security)
+    fleet: Fleet | None = None                   # the `fleet:` section, when there is one
     mac: MacConfig = field(default_factory=MacConfig)
 
     def entry(self, id: int) -> Topic | Service | Action | None:

@@ -129,6 +129,7 @@ class TopicCodec:
     profile: str
     codec: TypeCodec
     fingerprint: bytes = b""           # schema fingerprint of this id (wire format section 10)
+    peers: tuple[str, ...] = ()        # the sides that take part (a fleet vehicle's entry); (): every side
 
     def ros_class(self) -> type:
         return self.codec.ros_class()
@@ -153,6 +154,7 @@ class ServiceCodec:
     response: TypeCodec
     ros_import: tuple[str, str]
     fingerprint: bytes = b""           # schema fingerprint of this id (wire format section 10)
+    peers: tuple[str, ...] = ()        # the sides that take part (a fleet vehicle's entry); (): every side
 
     def ros_class(self) -> type:
         module, name = self.ros_import
@@ -253,6 +255,7 @@ class ActionCodec:
     feedback: TypeCodec
     ros_import: tuple[str, str]
     fingerprint: bytes = b""      # schema fingerprint of this id, as for topics and services
+    peers: tuple[str, ...] = ()   # the sides that take part (a fleet vehicle's entry); (): every side
 
     def ros_class(self) -> type:
         module, name = self.ros_import

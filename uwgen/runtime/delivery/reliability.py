@@ -77,8 +77,14 @@ class Reliability:
                  ack_delay: float | None = None, ack_interval: float | None = None,
                  name: str = "link", max_read_length: int = MAX_FRAME,
                  other_overhead: int = 0, peer_names: dict[int, str] | None = None,
-                 epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0):
+                 epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0,
+                 destinations: dict[int, frozenset[int]] | None = None):
         self.sender, self.name, self.wall = sender, name, wall
+        # wire id -> the peers (sender ids) its messages are for, on a channel shared by more
+        # than two sides (a fleet): a packet is acknowledged by each of them (ReliableLink).
+        # None: two sides, the first report settles a packet.
+        self.destinations = destinations
+        self._everyone = frozenset().union(*destinations.values()) if destinations else frozenset()
         # this side's epoch and numbers on an unsealed link (None: the seal gives K)
         self.send_epoch = SendEpoch(epoch_source) if epoch_source is not None else None
         self._sync = False                            # the packet being built carries K
@@ -207,10 +213,23 @@ class Reliability:
                 messages.append(Sent(key, payload, deadline))
             self._resending.clear()
             messages += self.acks.carried()      # its reports: confirmed once it is acked
-            self.engine.sent(number, messages, now)
+            self.engine.sent(number, messages, now, self._to(messages))
             self.offsets.built(number, self.wall.now())
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
+
+    def _to(self, messages: list[Sent]) -> set[int] | None:
+        """The peers a packet must reach: those its messages are for, and those its reports
+        are about (None without destinations: two sides)."""
+        if self.destinations is None:
+            return None
+        to: set[int] = set()
+        for m in messages:
+            if m.key == REPORT_KEY:
+                to.add(m.ref[0])
+            else:
+                to |= self.destinations.get(wire_id(m.key), self._everyone)
+        return to
 
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:
@@ -262,7 +281,7 @@ class Reliability:
             if envelope.ack is not None:
                 self._sample_offset(peer, envelope, now)
                 before = self.engine.bad_acks
-                self.engine.acked(envelope.ack, now)
+                self.engine.acked(envelope.ack, now, reporter=peer)
                 if self.send_epoch is not None and self.engine.largest_acked is not None:
                     self.send_epoch.acked = True
                 self.acks.confirm()

@@ -10,6 +10,9 @@ peer's acknowledgements say, `acked(peer, a_bytes, now)`. From them it knows, pe
 numbers), re-sends lost messages of reliable entries until their deadline (`due(now)`),
 and measures the round trip for its retransmission timer (`RttEstimator`).
 
+With more than one peer (a fleet) a packet is delivered once each peer in `sent(..., to=)`
+acknowledged it (`acked(..., reporter=)`), lost once one reports it missing (docs/fleets.md).
+
 As a receiver it records each peer's packet numbers (`received`), builds the A part
 that acknowledges them (`ack_for`: largest number plus a bitmap of the ones before, as
 SACK blocks and LTP report segments do), says when an ack must go alone because no
@@ -175,6 +178,11 @@ class _Packet:
     messages: list[Sent]
     timed_out: bool = False
     fate_unknown: bool = False      # sent before the peer's restart was seen
+    waiting: set[int] | None = None   # peers whose ack it still needs (None: anyone's)
+
+    def awaits(self, reporter: int | None) -> bool:
+        """Whether a report of `reporter` speaks for this packet."""
+        return self.waiting is None or reporter is None or reporter in self.waiting
 
 
 @dataclass
@@ -215,16 +223,20 @@ class ReliableLink:
 
     # -- what left -------------------------------------------------------------------------
 
-    def sent(self, number: int, messages: list[Sent], now: float) -> None:
-        """Packet `number` (unwrapped, growing) left now carrying `messages`."""
+    def sent(self, number: int, messages: list[Sent], now: float,
+             to: Iterable[int] | None = None) -> None:
+        """Packet `number` (unwrapped, growing) left now carrying `messages`, for peers `to`
+        (None: the first report settles it)."""
         for m in messages:
             if m.key != REPORT_KEY:
                 self.entry(m.key).sent += 1
-        self.outstanding[number] = _Packet(number, now, list(messages))
+        waiting = None if to is None else set(to)
+        self.outstanding[number] = _Packet(number, now, list(messages), waiting=waiting)
         self.largest_sent = number
 
-    def acked(self, data: bytes, now: float) -> None:
-        """An A part arrived; reports about other senders are ignored. Bad bytes: counted."""
+    def acked(self, data: bytes, now: float, reporter: int | None = None) -> None:
+        """An A part arrived (from peer `reporter`, when known); reports about other senders
+        are ignored. Bad bytes: counted."""
         try:
             reports = decode_reports(data)
         except AckError:
@@ -232,9 +244,9 @@ class ReliableLink:
             return
         for report in reports:
             if report.peer == self.me and self.largest_sent is not None:
-                self._report(report, now)
+                self._report(report, now, reporter)
 
-    def _report(self, report: Report, now: float) -> None:
+    def _report(self, report: Report, now: float, reporter: int | None = None) -> None:
         largest = unwrap(report.largest, self.largest_sent)
         if largest > self.largest_sent:
             self.bad_acks += 1                  # names a packet never sent
@@ -242,21 +254,28 @@ class ReliableLink:
         got, missing = report.numbers()
         newest = None
         for n in got:
-            packet = self.outstanding.pop(unwrap(n, largest), None)
-            if packet is not None:
-                newest = packet if newest is None or packet.number > newest.number else newest
-                self._delivered_packet(packet)
+            packet = self.outstanding.get(unwrap(n, largest))
+            if packet is None or not packet.awaits(reporter):
+                continue
+            newest = packet if newest is None or packet.number > newest.number else newest
+            if packet.waiting is not None and reporter is not None:
+                packet.waiting.discard(reporter)
+                if packet.waiting:
+                    continue                    # other peers have yet to acknowledge it
+            del self.outstanding[packet.number]
+            self._delivered_packet(packet)
         if newest is not None and newest.number == largest and not newest.timed_out:
             self.rtt.sample(now - newest.at - min(report.delay, now - newest.at))
         if self.largest_acked is None or largest > self.largest_acked:
             self.largest_acked = largest
         for n in missing:
             number = unwrap(n, largest)
-            if largest - number >= LOSS_THRESHOLD and number in self.outstanding:
+            packet = self.outstanding.get(number)
+            if largest - number >= LOSS_THRESHOLD and packet is not None and packet.awaits(reporter):
                 self._lost(self.outstanding.pop(number), now)
         # Packets below what this report can name were never acknowledged: lost.
         floor = largest - 8 * report.nbytes
-        for number in [n for n in self.outstanding if n < floor]:
+        for number in [n for n, p in self.outstanding.items() if n < floor and p.awaits(reporter)]:
             self._lost(self.outstanding.pop(number), now)
 
     def _delivered_packet(self, packet: _Packet) -> None:

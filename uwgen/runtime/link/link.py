@@ -19,6 +19,9 @@ holding one envelope of several messages (uwgen.runtime.link.packets, envelope; 
 `hooks` (packets.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
 (the default, and what rmw_desert-profile links use) writes one frame per payload.
 
+Observers (`link.observers`): callables told of every packet written and read, with what became
+of it (uwgen.runtime.link.watch; a bridge recorder is one).
+
 Security: with a `guard` (uwgen.security.guard.LinkGuard) a whole payload is protected when it
 leaves its queue, before it is fragmented, and every whole payload received (after reassembly)
 goes through `guard.unprotect`; only what it passes reaches `on_payload`.
@@ -45,6 +48,7 @@ from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Un
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.probation import reconnect_cap
 from uwgen.runtime.link.scheduler import LinkScheduler
+from uwgen.runtime.link.watch import PacketWatch
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link")
@@ -93,6 +97,9 @@ class Link:
         self.packet_counters = Counters(PACKET_COUNTERS)
         v2 = wire_format == 2
         self._pulled_key: int | None = None       # channel of the payload pulled last
+        self.watch = w = PacketWatch(name, clock, lambda: self.counters["payloads_delivered"],
+                                     self.packet_counters)
+        self.observers = self.watch.observers     # see module docstring
         rng = rng or random.Random()
 
         self.fragmenter: Fragmenter | None = None
@@ -133,13 +140,13 @@ class Link:
         self.connection = DesertConnection(
             host, port, self.config, clock=clock, one_frame=v2,
             framing=SHORT if v2 else LONG, check=envelope_check if v2 else None,
-            source=self.packer.next_packet if v2 else self._source,
-            on_frame=self._on_packet if v2 else self._on_frame,
+            source=w.tx(self.packer.next_packet if v2 else self._source),
+            on_frame=w.rx(self._on_packet if v2 else self._on_frame, envelopes=v2),
             name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),
             stall_timeout=stall_timeout,
             next_ready=self._next_ready if v2 else self.scheduler.next_ready_time,
             on_tick=self._tick, pace_margin=pace_margin,
-            bitrate=bitrate, source_fit=None if v2 else self._source_fit, mac=self.mac)
+            bitrate=bitrate, source_fit=None if v2 else w.tx(self._source_fit), mac=self.mac)
 
     # -- contract API --------------------------------------------------------------------------
 
@@ -265,20 +272,24 @@ class Link:
     def _on_frame(self, payload: bytes) -> None:
         if self.reassembler is not None and is_fragment(payload, self.fragment_id,
                                                          compact=self.wire_format == 2):
+            self.watch.fragment = True
             whole = self.reassembler.feed(payload)
             if whole is None:
                 return
             if is_fragment(whole, self.fragment_id, compact=self.wire_format == 2):
                 self.counters.inc("nested_fragments")    # never sent by uwgen: refuse to recurse
+                self.watch.drop = "nested_fragment"
                 return
             payload = whole
         if self.guard is not None:
             payload = self.guard.unprotect(payload)
             if payload is None:
+                self.watch.drop = "security"
                 return                                   # counted by the guard
         if self.wire_format == 2 and self.hooks.admit is not None:
             payload = self.hooks.admit(payload, self.clock.now())
             if payload is None:
+                self.watch.drop = "not_admitted"
                 return                                   # a copy, or stale: counted by the hook
         if self.packed_ids and _wire_id(payload) in self.packed_ids:
             try:
@@ -287,6 +298,7 @@ class Link:
                 log_count(log, logging.WARNING, self.counters.inc("not_packed"),
                           "[%s] dropped a received payload of a packed id without its fields: %s",
                           self.name, e)
+                self.watch.drop = "not_packed"
                 return
         self.counters.inc("payloads_delivered")
         if self._on_payload is not None:
