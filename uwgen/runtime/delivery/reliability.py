@@ -37,9 +37,7 @@ from dataclasses import asdict
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
-from uwgen.runtime.wire.framing import MAX_FRAME
-from uwgen.runtime.wire.framing import MAX_PAYLOAD
-from uwgen.runtime.wire.framing import SHORT_OVERHEAD as FRAME_OVERHEAD   # wire format 3 links
+from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.delivery.freshness import stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.packets import PacketHooks, message_measure
@@ -93,8 +91,8 @@ class Reliability:
         # what a packet may hold besides P, W and the messages: the frame's payload minus what
         # the other joined hooks (the seal) may add; the A part takes what is left (acks.A_ROOM
         # at least, kept free by `overhead`)
-        self._part_room = (min(max_read_length, MAX_PAYLOAD + FRAME_OVERHEAD) - FRAME_OVERHEAD
-                           - env.HEAD - other_overhead)
+        self._part_room = (min(max_read_length, MAX_PAYLOAD + SHORT_OVERHEAD) - SHORT_OVERHEAD
+                           - env.HEAD - other_overhead)           # wire format 3's short frame
         self._room = 0
         self.deadlines = {k: (DEFAULT_DEADLINE if t is None else t) for k, t in reliable.items()}
         self.max_ages = dict(max_ages)
@@ -145,22 +143,18 @@ class Reliability:
     # -- sending ------------------------------------------------------------------------
 
     def next_overhead(self, now: float) -> int:
-        """Room the next packet keeps for the parts due on it (docs/seams.md section 9: nothing
-        is reserved by constant): one report's (acks.A_ROOM) when a report is due, with T when
-        it goes with one; K and T when the epoch is due. T for a message with a max age is
-        counted per message (`part_room`)."""
+        """Room for the parts due on the next packet (docs/seams.md section 9): an A part (and
+        T with it), or K, T and an A part's share; T of a message with a max age: `part_room`."""
         with self._lock:
             ack = self.acks.due(self._epochs, now)
             timed = ack and (self._timed_reports < TIMED_REPORTS
                              or now - self._last_timed_report >= TIMED_REPORT_EVERY)
-            if self.send_epoch is not None and self.send_epoch.due(now):
-                # K goes only with room for T and an A part's share besides (`carrying`)
+            if self.send_epoch is not None and self.send_epoch.due(now):   # as `carrying` asks
                 return env.SYNC_LEN + env.TIME_LEN + A_ROOM
             return (A_ROOM if ack else 0) + (env.TIME_LEN if timed else 0)
 
     def part_room(self, key: int) -> int:
-        """Bytes a message of channel `key` brings into its packet's parts: T (3) for an
-        entry with a max age, once a packet."""
+        """T (3 bytes, once a packet) for a message of an entry with a max age."""
         return env.TIME_LEN if wire_id(key) in self.max_ages else 0
 
     def head_room(self, key: int) -> int:
