@@ -3,6 +3,7 @@ never a traceback (OverflowError from 1e400 or a 400-digit number), never a run 
 not end (`uwgen emulate --nodes 100000000` built a hundred million nodes)."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -94,7 +95,8 @@ def test_demo_out_and_key_file_are_taken_from_the_callers_folder(tmp_path, monke
 
 
 def test_ros_interfaces_of_a_missing_or_empty_folder_exits_2(capsys, tmp_path):
-    for folder, says in ((tmp_path / "nosuch_dir", "no such folder"), (tmp_path, "no interface package here")):
+    for folder, says in ((tmp_path / "nosuch_dir", "no such folder"), (tmp_path, "no interface package here"),
+                         (tmp_path / ("d" * 5000), "cannot be looked at: File name too long")):
         rc, out = cli(capsys, "ros-interfaces", folder)
         assert rc == 2 and says in out, out
 
@@ -130,3 +132,34 @@ def test_rmw_config_export_replaces_a_file_with_other_content_only_with_force(ca
     assert rc == 0 and "/mine" not in target.read_text(), said
     rc, said = cli(capsys, "rmw-config", "export", "-m", manifest, "-o", target, SAMPLES)
     assert rc == 0 and "is up to date" in said, said         # the same table again: no --force needed
+
+
+@pytest.mark.parametrize("command", ["analyze", "build"])
+def test_an_interface_folder_with_a_name_too_long_is_a_located_error(capsys, tmp_path, command):
+    folder = tmp_path / ("d" * 5000)
+    argv = [command, folder, *(["-o", tmp_path / "out"] if command == "build" else ["-m", SAMPLES])]
+    rc, out = cli(capsys, *argv)
+    assert rc == 2 and "interface folder cannot be looked at: File name too long" in out, out[-500:]
+
+
+def test_a_bridge_package_dir_with_a_name_too_long_is_a_usage_error(capsys, tmp_path):
+    rc, out = cli(capsys, "bridge", "-m", SAMPLES / "uwgen.yaml", "--side", "vehicle",
+                  "--package-dir", tmp_path / ("p" * 5000))
+    assert rc == 2 and "not found in" in out and "(a name of 50" in out and len(out) < 1000, out[-500:]
+
+
+LOG = """
+import sys
+from uwgen.cli import main
+for name in sys.argv[1:]:
+    print(main(["log", name]), flush=True)
+"""
+
+
+def test_log_refuses_a_device_or_a_fifo_as_a_recording_at_once(tmp_path):
+    # Before: `uwgen log /dev/zero` or a FIFO never ended.
+    from .helpers import bounded
+    os.mkfifo(tmp_path / "run.mcap")
+    res = bounded(LOG, seconds=60, argv=["/dev/zero", str(tmp_path / "run.mcap")])
+    assert res.stdout.split() == ["2", "2"], res.stdout + res.stderr[-2000:]
+    assert "/dev/zero is a character device" in res.stderr and "run.mcap is a FIFO" in res.stderr

@@ -54,7 +54,7 @@ COMMANDS = commands()
 
 
 def test_every_subcommand_is_fuzzed():
-    assert set(COMMANDS) == {"build", "analyze", "emulate", "bridge", "demo", "ros-interfaces", "keygen",
+    assert set(COMMANDS) == {"build", "analyze", "emulate", "bridge", "demo", "ros-interfaces", "keygen", "log",
                              "rmw-config export", "rmw-config import", "rmw-config beacons"}
 
 

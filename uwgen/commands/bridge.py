@@ -77,7 +77,11 @@ def find_package(name: str, manifest: Path, given: Path | None = None) -> Module
     """Import the generated package `name` from the first candidate folder that holds it."""
     dirs = candidate_dirs(manifest, given)
     for d in dirs:
-        if (d / name / "__init__.py").is_file():
+        try:
+            there = (d / name / "__init__.py").is_file()
+        except OSError:         # --package-dir with a name too long for the system, say
+            there = False
+        if there:
             loaded = sys.modules.get(name)
             if loaded is not None and Path(loaded.__file__).parent.parent != d.resolve():
                 for mod in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
@@ -87,7 +91,7 @@ def find_package(name: str, manifest: Path, given: Path | None = None) -> Module
     raise PlanError(f"generated package {name!r} not found: looked for {name}/ in {looked}; "
                     f"run `uwgen build -m {manifest}` in your project folder first"
                     if given is None else
-                    f"generated package {name!r} not found in {given}: run `uwgen build` first")
+                    f"generated package {name!r} not found in {safefile.shown(given)}: run `uwgen build` first")
 
 
 def check_fresh(package: ModuleType, manifest: Path) -> None:

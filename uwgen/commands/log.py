@@ -35,6 +35,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"uwgen log: needs the `mcap` package ({exc})", file=sys.stderr)
         return EXIT_USAGE
     from uwgen.fieldkit.summary import format_summary, summarise
+    from uwgen import safefile
+    for path in args.files:      # a device or a FIFO is never read (it never ends, or blocks)
+        why = safefile.problem(path, "recording")
+        if why is not None:
+            print(f"uwgen log: {why}", file=sys.stderr)
+            return EXIT_USAGE
     try:
         recordings = read_recordings(args.files)
     except RecordingError as exc:

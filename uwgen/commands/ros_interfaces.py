@@ -22,6 +22,7 @@ HELP = "build rclpy type support for the interface packages in folders (cached),
 TAKES_COMMAND = True   # everything after `--` is the program to run
 
 ENV_KEYS = ("PYTHONPATH", "AMENT_PREFIX_PATH", "LD_LIBRARY_PATH")   # what --print-env prints
+from uwgen.safefile import shown
 from uwgen.typesupport import BuildError
 
 EXIT_FAILED = 1     # the type support build itself failed (the toolchain, not the input)
@@ -54,8 +55,12 @@ def ensure_folders(folders: list[Path], cache: Path | None = None, quiet: bool =
 
     envs = []
     for folder in folders:
-        if not Path(folder).is_dir():
-            raise InputError(f"{folder}: no such folder")
+        try:
+            is_dir = Path(folder).is_dir()
+        except OSError as exc:      # a name too long for the system, say
+            raise InputError(f"{shown(folder)}: cannot be looked at: {exc.strerror or exc}") from None
+        if not is_dir:
+            raise InputError(f"{shown(folder)}: no such folder")
         found = package_dirs(folder)
         if not found:
             raise InputError(f"{folder}: no interface package here (expected msg/, srv/ or action/ in it "

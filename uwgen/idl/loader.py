@@ -81,7 +81,12 @@ class InterfaceLibrary:
         seen_real: set[Path] = set()
         packages: set[str] = set()
         for folder in self.folders:
-            if not folder.is_dir():
+            try:
+                is_dir = folder.is_dir()
+            except OSError as exc:          # a name too long for the system, say
+                raise DefinitionError(SourceRef(folder, 1, 1),
+                                      f"interface folder cannot be looked at: {exc.strerror or exc}") from None
+            if not is_dir:
                 raise DefinitionError(SourceRef(folder, 1, 1), "interface folder does not exist or is not a folder")
             found = False
             for package_dir in self._package_dirs(folder):

@@ -81,7 +81,10 @@ class ManifestErrors(ManifestError, ErrorList):
 def find_manifest(folder: Path) -> Path | None:
     """`<folder>/uwgen.yaml` if it exists (the convention), else None."""
     candidate = Path(folder) / MANIFEST_NAME
-    return candidate if candidate.is_file() else None
+    try:
+        return candidate if candidate.is_file() else None
+    except OSError:         # a folder name too long to look into: it holds no manifest we can read
+        return None
 
 
 def load_manifest(path: Path, lib: InterfaceLibrary) -> Manifest:

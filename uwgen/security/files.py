@@ -16,6 +16,7 @@ import fcntl
 import os
 from pathlib import Path
 
+from uwgen.safefile import shown
 from uwgen.security.errors import SecurityError
 
 NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
@@ -70,7 +71,7 @@ class SideLock:
         try:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT | NOFOLLOW | CLOEXEC, 0o600)
         except OSError as exc:
-            raise SecurityError(f"cannot open the lock file {self.path} of {self.what}: "
+            raise SecurityError(f"cannot open the lock file {shown(self.path)} of {self.what}: "
                                 f"{exc.strerror or exc}") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
