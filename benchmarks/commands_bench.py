@@ -53,7 +53,7 @@ from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.wire import envelope
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.wire.framing import OVERHEAD, FrameDecoder
+from uwgen.runtime.wire.framing import OVERHEAD, ShortFrameDecoder
 from uwgen.runtime.link.packets import message_measure
 from uwgen.runtime.delivery.reliability import Reliability
 
@@ -329,7 +329,7 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
 
         def spy(now, pull, fit=None, take=take):
             batch = take(now, pull, fit)
-            for frame in FrameDecoder().feed(batch):
+            for frame in ShortFrameDecoder().feed(batch):
                 env = envelope.decode(frame)
                 if not env.messages:
                     repair["ack"] += len(frame) + OVERHEAD      # the whole ack-only packet

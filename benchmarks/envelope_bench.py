@@ -46,6 +46,11 @@ from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.wire import envelope
 from uwgen.runtime.wire.framing import FrameDecoder
+
+try:            # wire format 3's short frame (it reads long frames too)
+    from uwgen.runtime.wire.framing import ShortFrameDecoder
+except ImportError:     # a baseline build (--baseline): the long frame only
+    ShortFrameDecoder = FrameDecoder
 from uwgen.runtime.link.link import Link
 from uwgen.security.guard import GuardConfig, LinkGuard
 
@@ -75,7 +80,9 @@ class Pair:
 
     def __init__(self, wire: int, src: str = "a", dst: str = "b", *, secure_dir: Path | None = None,
                  packed: frozenset[int] = frozenset(), fragment_id: int | None = 250,
-                 tag_bytes: int = envelope.TAG_LEN):
+                 tag_bytes: int = envelope.TAG_LEN, bridge: bool = False):
+        """`bridge`: the demo's sides with the hooks a bridge gives its link (reliability,
+        joined with the seal when secured: uwgen.bridge.node)."""
         self.clock = ManualClock()
         self.delivered: list[bytes] = []
         self.air = 0
@@ -99,11 +106,22 @@ class Pair:
             kw_src = dict(kw, sender_id=SENDERS.get(src, 0))
         else:
             kw_src = kw
+        hooks = {side: seals[side].hooks() for side in seals}
+        if bridge and wire == 2:
+            from uwgen.bridge.plan import BridgePlan
+            from uwgen.bridge.reliability import reliability_for
+            from uwgen.runtime.link.packets import join_hooks
+            for side in (src, dst):
+                plan = BridgePlan.from_package(demo, side)
+                seal = hooks.get(side)
+                rel = reliability_for(plan, CONFIG,       # T on the wall clock, as the seal's
+                                      other_overhead=seal.overhead if seal is not None else 0)
+                hooks[side] = join_hooks(rel.hooks(), seal)
         self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}),
-                           **({"hooks": seals[src].hooks()} if seals else {}), **kw_src)
+                           **({"hooks": hooks[src]} if src in hooks else {}), **kw_src)
         self.receiver = Link(name=dst, on_payload=self.delivered.append,
                              **({"guard": guards[dst]} if guards else {}),
-                             **({"hooks": seals[dst].hooks()} if seals else {}), **kw)
+                             **({"hooks": hooks[dst]} if dst in hooks else {}), **kw)
         self.wire, self.tag_bytes = wire, tag_bytes
         self.batches: list[bytes] = []
         self.security = 0          # bytes protection added to the messages received
@@ -125,8 +143,8 @@ class Pair:
         out["DESERT"] = DESERT_HEADER * len(self.batches)
         out["security"] = self.security
         for batch in self.batches:
-            frames = FrameDecoder().feed(batch)
-            out["frame"] += 4 * len(frames)
+            frames = (ShortFrameDecoder() if self.wire == 2 else FrameDecoder()).feed(batch)
+            out["frame"] += len(batch) - sum(map(len, frames))
             for f in frames:
                 if self.wire == 2:
                     e = envelope.decode(f, self.tag_bytes)
@@ -183,17 +201,18 @@ def battery(k: int) -> BatteryState:
     return b
 
 
-def demo_mix(wire: int, seconds: float, tmp: Path,
-             tag_bytes: int = envelope.TAG_LEN) -> tuple[int, int, dict[str, int]]:
+def demo_mix(wire: int, seconds: float, tmp: Path | None,
+             tag_bytes: int = envelope.TAG_LEN, bridge: bool = False) -> tuple[int, int, dict[str, int]]:
     """Air bytes, delivered messages and the air bytes' breakdown of both directions of the
-    demo's traffic."""
+    demo's traffic (`tmp` None: unsecured; `bridge`: with a bridge's reliability hooks)."""
     t = demo.TOPICS
     air = delivered = 0
     parts: dict[str, int] = {}
     fingerprints = [(i, c.fingerprint) for i, c in sorted({**t, **demo.SERVICES}.items())]
     packed = frozenset(i for i, c in {**t, **demo.SERVICES}.items() if c.profile == "packed")
     for src, dst in (("surface", "vehicle"), ("vehicle", "surface")):
-        pair = Pair(wire, src, dst, secure_dir=tmp, packed=packed, tag_bytes=tag_bytes)
+        pair = Pair(wire, src, dst, secure_dir=tmp, packed=packed, tag_bytes=tag_bytes,
+                    bridge=bridge)
         link = pair.sender
         link.add_channel(249, LinkPolicy(queue="fifo", depth=4, priority=11, strict=True))
         # split as the bridge splits them: each leaves whole in one packet
@@ -308,11 +327,57 @@ def fragments(wire: int, size: int, repair: int = 0) -> tuple[int, int, bool]:
     return pair.packets, pair.written, pair.delivered == [payload]
 
 
+def as_deployed(seconds: float) -> dict[str, float]:
+    """Air bytes per delivered message of the demo's mix as the bridges send it (their
+    reliability hooks, the per-packet seal with the 8-byte tag when secured)."""
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, secure in (("unsecured", None), ("secured", Path(tmp))):
+            air, n, _ = demo_mix(2, seconds, secure, envelope.TAG_LEN, bridge=True)
+            out[label] = air / n
+    return out
+
+
+def baseline(rev: str, seconds: float) -> dict[str, float]:
+    """`as_deployed` on commit `rev`'s code (git archive into a temporary folder, first on
+    PYTHONPATH; this script and the demo's generated package as they are here)."""
+    import json
+    import os
+    import subprocess
+    tree = Path(tempfile.mkdtemp(prefix="uwgen_envbench_base_"))
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "uwgen"],
+                             capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    out = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--deployed-json",
+                          "--seconds", str(seconds)], env=env, capture_output=True, text=True,
+                         cwd=str(tree))
+    if out.returncode != 0:
+        raise SystemExit(f"baseline run failed:\n{out.stderr[-3000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=300.0, help="simulated seconds per run")
+    parser.add_argument("--baseline", default="a7c9504",
+                        help="commit whose code table 0 compares with (`none`: skip table 0)")
+    parser.add_argument("--deployed-json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     s = args.seconds
+    if args.deployed_json:
+        import json
+        print(json.dumps(as_deployed(s)))
+        return
+    if args.baseline != "none":
+        base, now = baseline(args.baseline, s), as_deployed(s)
+        print("Table 0: the demo's mix as bridges send it (their reliability hooks; secured: the "
+              "per-packet seal, 8-byte tag): air bytes per delivered message, both directions")
+        print(f"{'':<12}{'baseline ' + args.baseline:>20}{'this build':>12}{'goal':>8}")
+        for label, goal in (("unsecured", 15.0), ("secured", 21.0)):
+            print(f"{label:<12}{base[label]:>20.1f}{now[label]:>12.1f}{goal:>8.0f}  "
+                  f"{'ok' if now[label] <= goal else 'MISS'}")
+        print()
 
     print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions); "
           f"wire format 2 sealed {'per packet (PacketSeal)' if PacketSeal else 'per message (LinkGuard)'}")

@@ -1,17 +1,17 @@
 """The smallest `max_read_length` a side's link can run with (docs/wire-format.md section 14).
 
 DESERT's range is 1..4096 bytes per packet, but a wire format 2 packet carries more than its
-messages: the frame's sync, length and end bytes (framing.OVERHEAD), the envelope's P and W
+messages: the short frame's length byte (framing.SHORT_OVERHEAD), the envelope's P and W
 (envelope.HEAD), the reliability hooks' T and A parts (delivery.reliability.OVERHEAD), and on a
 secured link the seal's tag, K, T and C (packet_seal.max_overhead of the manifest's tag length).
 What is left must hold the smallest fragment (fragment.MIN_COMPACT_PAYLOAD), the piece every
 message longer than a packet is cut into. A link below that cannot send a message at all (the
-bridge ended in a ValueError from the fragmenter for every value below 47 with security on).
+bridge ended in a ValueError from the fragmenter for every value below the floor).
 
 A wire format 1 link (profile rmw_desert on the network) has no envelope: its frames cross
 packets (section 1), so every value of DESERT's range works.
 
-    floor = min_read_length(wire_format=2, tag_bytes=8)     # 47
+    floor = min_read_length(wire_format=2, tag_bytes=8)     # 44
     check_read_lengths(manifest)                          # ManifestError(s) at each side
 """
 from __future__ import annotations
@@ -25,7 +25,7 @@ from uwgen.runtime.delivery.reliability import OVERHEAD as RELIABILITY_OVERHEAD
 from uwgen.runtime.link.mac import TurnMac
 from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD
 from uwgen.runtime.wire.fragment import MIN_COMPACT_PAYLOAD
-from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.wire.framing import SHORT_OVERHEAD as FRAME_OVERHEAD
 from uwgen.security.packet_seal import max_overhead
 
 
@@ -44,7 +44,7 @@ def why_floor(wire_format: int, tag_bytes: int | None) -> str:
     if wire_format != 2:
         return "wire format 1 frames cross packets"
     seal = f", the seal's {max_overhead(tag_bytes)} (its tag of {tag_bytes})" if tag_bytes is not None else ""
-    return (f"a packet holds the frame's {FRAME_OVERHEAD} bytes, the envelope's {ENVELOPE_HEAD}, the "
+    return (f"a packet holds the frame's {FRAME_OVERHEAD} byte, the envelope's {ENVELOPE_HEAD}, the "
             f"reliability parts' {RELIABILITY_OVERHEAD}{seal} and a fragment of at least "
             f"{MIN_COMPACT_PAYLOAD}")
 

@@ -8,7 +8,7 @@ from test_msgs.srv import BasicTypes
 
 from uwgen.bridge.throttle import LogThrottle
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.wire.fragment import Reassembler
+from uwgen.runtime.wire.reassembly import Reassembler
 
 from .fakes import FakeServiceCodec, FakeTopicCodec, LinkPair, fake_package, wait_for
 from .harness import ros_sides, start_bridge

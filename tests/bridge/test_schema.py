@@ -359,7 +359,7 @@ def test_announcements_sized_by_the_link_each_leave_in_one_packet_unfragmented(w
     from uwgen.emulator import NodeSpec, Scenario
     from uwgen.emulator.linksim import LinkSim
     from uwgen.manifest.model import LinkConfig, LinkPolicy
-    from uwgen.runtime.wire.framing import FrameDecoder
+    from uwgen.runtime.wire.framing import ShortFrameDecoder
     from uwgen.security.guard import GuardConfig, LinkGuard
 
     scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),
@@ -380,6 +380,6 @@ def test_announcements_sized_by_the_link_each_leave_in_one_packet_unfragmented(w
     sim.run(len(payloads) * 0.25 + 1.0)
     assert link.scheduler.stats()[SID]["fragments_sent"] == 0
     assert len(sim.packets) == len(payloads)          # one packet each, none cut or fragmented
-    assert all(len(d.data) <= 64 and FrameDecoder().feed(d.data) for d in sim.packets)
+    assert all(len(d.data) <= 64 and ShortFrameDecoder().feed(d.data) for d in sim.packets)
     # as large as that allows: one more pair would not have fitted
     assert max(len(p) for p in payloads) > size - 6

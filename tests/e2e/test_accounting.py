@@ -21,7 +21,7 @@ from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 from uwgen.runtime.wire import envelope
-from uwgen.runtime.wire.framing import FrameDecoder
+from uwgen.runtime.wire.framing import ShortFrameDecoder
 from uwgen.runtime.link.link import Link
 
 from bridge.fakes import wait_for
@@ -49,7 +49,7 @@ def lossy_network(package, per: float):
 def frames_with_header(deliveries, node: str, header: bytes) -> int:
     """Messages (wire format 2: inside each packet's envelope) whose payload starts with header."""
     stream = b"".join(d.data for d in deliveries if d.node == node)
-    return sum(1 for f in FrameDecoder().feed(stream) for m in envelope.decode(f).messages
+    return sum(1 for f in ShortFrameDecoder().feed(stream) for m in envelope.decode(f).messages
                if envelope.to_v1(m).startswith(header))
 
 

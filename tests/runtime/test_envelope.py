@@ -1,16 +1,19 @@
-"""The envelope codec of wire format 2: worked bytes, one encoding per envelope, a total decoder."""
+"""The envelope codec of wire format 3: worked bytes, runs, one encoding per envelope, a total
+decoder."""
 from __future__ import annotations
+
+from dataclasses import replace
 
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from uwgen.runtime.wire.envelope import (FRAGMENT, Envelope, EnvelopeError, Message, Sync, decode, from_v1,
-                                    to_v1)
+from uwgen.runtime.wire.envelope import (FRAGMENT, Envelope, EnvelopeError, Message, Sync, decode,
+                                         from_v1, ordered, to_v1)
 
 
 def test_one_message_envelope_is_p_w_h_body():
     env = Envelope(sender=1, number=5, messages=(Message(0, 4, b"\x7d\x23"),))
-    assert env.encode() == bytes.fromhex("40 10 05 04 7D 23")
+    assert env.encode() == bytes.fromhex("60 10 05 04 7D 23")
 
 
 def test_every_message_but_the_last_carries_a_length():
@@ -18,7 +21,7 @@ def test_every_message_but_the_last_carries_a_length():
         Message(0, 4, b"\x7d\x23"), Message(2, 20, b"\x07\xf5"), Message(0, 250, b"\x2a\x00")))
     # 84 02 = topic 4 with length 2; C4 02 = request 20... (kind 01, id 10100) with length 2;
     # 00 FA = topic, id escaped (250), last: no length
-    assert env.encode() == bytes.fromhex("40 2A BC 84 02 7D 23 B4 02 07 F5 00 FA 2A 00")
+    assert env.encode() == bytes.fromhex("60 2A BC 84 02 7D 23 B4 02 07 F5 00 FA 2A 00")
     assert decode(env.encode()) == env
 
 
@@ -27,21 +30,21 @@ def test_optional_parts_come_in_order_k_t_a_c_and_the_tag_last():
                    sync=Sync(bytes.fromhex("A1A2A3A4A5A6"), 2), time=0x123456, ack=b"\xee",
                    control=b"", tag=bytes(range(8)))
     assert env.encode() == bytes.fromhex(
-        "5F 30 01 A1 A2 A3 A4 A5 A6 00 00 00 02 12 34 56 01 EE 00 47 01 00 01 02 03 04 05 06 07")
+        "7F 30 01 A1 A2 A3 A4 A5 A6 00 00 00 02 12 34 56 01 EE 00 47 01 00 01 02 03 04 05 06 07")
     assert decode(env.encode()) == env
     assert env.head_size() == 3 + 10 + 3 + 2 + 1 + 8
 
 
 def test_escaped_kind_carries_kind_and_id_bytes():
     env = Envelope(sender=0, number=0, messages=(Message(9, 3, b"x"),))
-    assert env.encode() == bytes.fromhex("40 00 00 60 09 03 78")
+    assert env.encode() == bytes.fromhex("60 00 00 60 09 03 78")
     assert decode(env.encode()) == env
 
 
 def test_an_envelope_may_carry_no_message():
     env = Envelope(sender=4, number=9, ack=b"\x01\x02")
     assert decode(env.encode()) == env
-    assert env.encode() == bytes.fromhex("42 40 09 02 01 02")
+    assert env.encode() == bytes.fromhex("62 40 09 02 01 02")
 
 
 @pytest.mark.parametrize("payload, message", [
@@ -62,23 +65,23 @@ def test_v1_payload_without_kind_and_id_is_refused(payload):
 
 @pytest.mark.parametrize("data, why", [
     ("", "at least"),
-    ("40 00", "at least"),
+    ("60 00", "at least"),
     ("00 04 F5", "version bits 0"),
     ("E0 00 00", "version bits 7"),
-    ("50 00 00 01 02", "tag"),
-    ("48 00 00 01 02 03", "sync"),
-    ("44 00 00 01", "time"),
-    ("42 00 00 05 01", "acknowledgement"),
-    ("41 00 00", "control"),
-    ("40 00 00 84 02 01", "does not fit"),
-    ("40 00 00 84 01 01", "last message carries a length"),
-    ("40 00 00 00 04", "escaped although"),
-    ("40 00 00 00", "ends before its id"),
-    ("40 00 00 60 00 04", "kind 0 escaped"),
-    ("40 00 00 62 05 04", "id bits"),
-    ("40 00 00 60 05", "escaped header"),
-    ("40 00 00 60 05 00", "id 0"),
-    ("40 00 00 84", "before its length"),
+    ("70 00 00 01 02", "tag"),
+    ("68 00 00 01 02 03", "sync"),
+    ("64 00 00 01", "time"),
+    ("62 00 00 05 01", "acknowledgement"),
+    ("61 00 00", "control"),
+    ("60 00 00 84 02 01", "does not fit"),
+    ("60 00 00 84 01 01", "last message carries a length"),
+    ("60 00 00 00 04", "escaped although"),
+    ("60 00 00 00", "ends before its id"),
+    ("60 00 00 60 00 04", "kind 0 escaped"),
+    ("60 00 00 63 05 04", "id bits"),
+    ("60 00 00 60 05", "escaped header"),
+    ("60 00 00 60 05 00", "id 0"),
+    ("60 00 00 84", "before its length"),
 ])
 def test_bad_envelopes_are_refused_with_a_reason(data, why):
     with pytest.raises(EnvelopeError, match=why):
@@ -118,10 +121,57 @@ envelopes = st.builds(
     control=st.none() | st.binary(max_size=10), tag=st.none() | st.binary(min_size=8, max_size=8))
 
 
-@given(envelopes)
-@settings(max_examples=300)
-def test_every_envelope_decodes_to_itself(env):
-    assert decode(env.encode()) == env
+runs = st.builds(lambda kind, ident, size, bodies: tuple(Message(kind, ident, bytes((b,)) * size)
+                                                         for b in bodies),
+                 st.sampled_from([0, 2, 7]), st.integers(1, 40), st.integers(0, 5),
+                 st.lists(st.integers(0, 255), min_size=1, max_size=6))
+grouped = st.builds(
+    Envelope, sender=st.integers(0, 15), number=st.integers(0, 4095),
+    messages=st.lists(runs | st.tuples(messages), max_size=4).map(lambda r: sum(r, ())),
+    tag=st.none() | st.binary(min_size=8, max_size=8))
+
+
+@given(envelopes | grouped)
+@settings(max_examples=400)
+def test_every_envelope_decodes_to_itself_in_blocks(env):
+    got = decode(env.encode())
+    assert got == replace(env, messages=ordered(env.messages))
+    for key in {(m.kind, m.id) for m in env.messages}:      # each entry's order is kept
+        assert [m for m in got.messages if (m.kind, m.id) == key] == \
+            [m for m in env.messages if (m.kind, m.id) == key]
+
+
+def test_three_messages_of_one_id_and_length_share_one_head():
+    ms = tuple(Message(0, 4, bytes((i, 0x23, 1, 2))) for i in range(13))
+    wire = Envelope(1, 6, ms).encode()
+    assert wire[:6] == bytes.fromhex("60 10 06 62 04 0D") and len(wire) == 6 + 52
+    assert len(Envelope(1, 6, ms[:9]).encode()) < len(b"".join(m.body for m in ms[:9])) + 3 + 18
+
+
+def test_the_blocks_follow_first_appearance_and_keep_each_entrys_order():
+    a = [Message(0, 4, bytes((i, 0))) for i in range(3)]
+    b = Message(2, 20, b"\x07\xf5")
+    env = Envelope(0, 1, (a[0], b, a[1], a[2]))
+    assert ordered(env.messages) == (a[0], a[1], a[2], b)
+    assert env.encode()[3:] == bytes.fromhex("E2 04 03 02 00 00 01 00 02 00 34 07 F5")
+
+
+@pytest.mark.parametrize("data, why", [
+    ("60 00 00 62 04 02 01 02", "at least 3"),                 # a run of 2: singles
+    ("60 00 00 62 04 03 01 02 03 04", "do not share out"),
+    ("60 00 00 84 01 01 84 01 02 04 03", "one encoding"),    # three singles: a run
+    ("60 00 00 E2 04 03 01 01 02 03 04 09", "one encoding"),   # id 4 again after the run
+    ("60 00 00 62 E4 03 01 02 03", "not a message's"),
+])
+def test_runs_out_of_their_one_encoding_are_refused(data, why):
+    with pytest.raises(EnvelopeError, match=why):
+        decode(bytes.fromhex(data))
+
+
+def test_a_wire_format_2_envelope_is_recognised_by_its_version_bits():
+    with pytest.raises(EnvelopeError) as e:
+        decode(bytes.fromhex("40 10 05 04 7D 23"))
+    assert e.value.version == 2
 
 
 @given(st.binary(max_size=300))

@@ -18,8 +18,8 @@ from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.wire import fec
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.wire.fragment import (
-    Fragment, FragmentError, Fragmenter, Reassembler, encode_fragment, fragment_payload_for,
-    parse_fragment)
+    Fragment, FragmentError, Fragmenter, encode_fragment, fragment_payload_for, parse_fragment)
+from uwgen.runtime.wire.reassembly import Reassembler
 
 FID = 250
 

@@ -85,10 +85,12 @@ def packets(channels: dict[int, tuple[LinkPolicy, int]], count: int) -> list[env
 def test_saturated_packets_of_small_messages_come_out_nearly_full():
     fifo = LinkPolicy(queue="fifo", depth=100)
     envs = packets({10: (fifo, 6), 11: (fifo, 8), 12: (fifo, 11), 13: (fifo, 14)}, 200)
-    sizes = [len(e.encode()) + 4 for e in envs]          # frame bytes included: at most 64
-    assert max(sizes) <= 64 and sum(sizes) / len(sizes) >= 62.5
+    sizes = [len(e.encode()) + 1 for e in envs]          # frame byte included: at most 64
+    # (a message joining a run costs less than the measure the tail is filled by counts, so a
+    # tail may keep a byte or two it could have used)
+    assert max(sizes) <= 64 and sum(sizes) / len(sizes) >= 62.0
     counts = [sum(1 for e in envs for m in e.messages if m.id == k) for k in (10, 11, 12, 13)]
-    assert max(counts) - min(counts) <= 2                 # equal weights: equal shares
+    assert max(counts) - min(counts) <= 3                 # equal weights: equal shares (1 %)
 
 
 def test_filling_keeps_shares_in_proportion_to_priority():
@@ -102,3 +104,44 @@ def test_filling_keeps_shares_in_proportion_to_priority():
     assert 0.17 <= ids.count(1) / len(ids) <= 0.19
     others = [ids.count(k) / len(ids) for k in range(2, 51)]
     assert min(others) >= 0.014 and max(others) <= 0.019
+
+
+def saturated_counts(top: LinkPolicy, top_size: int, seconds: float = 240.0) -> dict[int, int]:
+    """Messages per id of `seconds` of a saturated 64-byte link, one packet per 0.2 s of a
+    simulated clock: topic 1 (`top`, `top_size`-byte payloads) and 49 priority-0 topics of
+    4-byte bodies (ids 2-31 one byte shorter in the envelope than ids 32-50)."""
+    clock = ManualClock()
+    s = LinkScheduler(clock, measure=message_measure)
+    s.add_channel(1, top)
+    for key in range(2, 51):
+        s.add_channel(key, LinkPolicy(queue="fifo", depth=20))
+    packer = Packer(s, sender=1, max_read_length=64, counters=Counters(PACKET_COUNTERS))
+    counts = dict.fromkeys(range(1, 51), 0)
+    for step in range(int(seconds / 0.2)):
+        now = step * 0.2
+        clock.set(now)
+        for key in range(1, 51):
+            while s.stats()[key]["queued"] < 5:
+                body = bytes(top_size - 2) if key == 1 else bytes(4)
+                s.offer(key, (bytes((0, key)) if key < 24 else bytes((0, 0x18, key))) + body)
+        for m in envelope.decode(packer.next_packet(now)).messages:
+            counts[m.id] += 1
+    return counts
+
+
+def test_no_topic_starves_behind_a_strict_topic_that_leaves_room_for_one_message():
+    # The strict topic's 50-byte message leaves 7 bytes: one message of an id from 32 fills
+    # them exactly, one of ids 2-31 leaves a byte. The best fit alone would serve only ids
+    # from 32; a channel passed over at a packet's tail is served before the next pass.
+    counts = saturated_counts(LinkPolicy(queue="fifo", depth=20, priority=10, strict=True), 50)
+    assert counts[1] == 1200
+    assert min(counts[k] for k in range(2, 51)) > 0, counts
+    short, long = [counts[k] for k in range(2, 32)], [counts[k] for k in range(32, 51)]
+    assert min(short) >= max(long) - 2          # shares stay equal, whatever the id's length
+
+
+def test_no_topic_starves_in_a_saturated_run_without_a_strict_topic():
+    counts = saturated_counts(LinkPolicy(queue="fifo", depth=20, priority=10), 6)
+    assert min(counts.values()) > 0, counts
+    others = [counts[k] for k in range(2, 51)]
+    assert max(others) - min(others) <= 2

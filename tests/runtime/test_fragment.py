@@ -9,8 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.wire.fragment import (Fragment, FragmentError, Fragmenter, Reassembler, encode_fragment,
-                                    is_fragment, parse_fragment)
+from uwgen.runtime.wire.fragment import (Fragment, FragmentError, Fragmenter, encode_fragment,
+                                         is_fragment, parse_fragment)
+from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
 
 FID = 250

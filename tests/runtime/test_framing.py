@@ -321,3 +321,55 @@ def test_inserted_garbage_damages_only_the_frame_it_lands_in(payloads, data):
     out = _feed_in_chunks(data, dmg.stream)
     expected = [payloads[k] for k, (s, e) in enumerate(spans) if dmg.received_span(s, e) is not None]
     assert out == expected
+
+
+# -- the short frame of wire format 3 links (docs/wire-format.md section 14.1) -----------------
+
+def _envelopes(n: int) -> list[bytes]:
+    from uwgen.runtime.wire.envelope import Envelope, Message
+    return [Envelope(1, i, (Message(0, 4, bytes((i % 256,)) * (1 + i % 40)),)).encode()
+            for i in range(n)]
+
+
+def _short_decoder():
+    from uwgen.runtime.link.packets import envelope_check
+    from uwgen.runtime.wire.framing import ShortFrameDecoder
+    return ShortFrameDecoder(envelope_check)
+
+
+def test_a_short_frame_is_one_length_byte_and_the_envelope():
+    from uwgen.runtime.wire.framing import FrameError, encode_short_frame
+    assert encode_short_frame(bytes.fromhex("60 10 05 04 7D 23")) == bytes.fromhex(
+        "06 60 10 05 04 7D 23")
+    with pytest.raises(FrameError):
+        encode_short_frame(bytes.fromhex("00 04 F5"))     # not an envelope: no version bits 011
+
+
+def test_short_frames_come_out_whole_however_the_stream_is_cut():
+    from uwgen.runtime.wire.framing import encode_short_frame
+    payloads = _envelopes(60)
+    stream = b"".join(encode_short_frame(p) for p in payloads)
+    for step in (1, 3, 7, 64):
+        d = _short_decoder()
+        out = [f for i in range(0, len(stream), step) for f in d.feed(stream[i:i + step])]
+        assert out == payloads
+
+
+def test_after_a_slice_lost_mid_frame_the_short_decoder_finds_the_next_frames():
+    from uwgen.runtime.wire.framing import encode_short_frame
+    payloads = _envelopes(40)
+    frames = [encode_short_frame(p) for p in payloads]
+    for cut in range(1, len(frames[10])):
+        stream = b"".join(frames[:10]) + frames[10][cut:] + b"".join(frames[11:])
+        d = _short_decoder()
+        out = d.feed(stream) + d.flush()
+        assert out[:10] == payloads[:10]
+        # what follows the damaged frame is found again within a few frames, in order
+        tail = out[10:]
+        assert tail and tail == payloads[40 - len(tail):] and len(tail) >= 40 - 11 - 3
+
+
+def test_a_long_frame_reaches_the_envelope_layer_to_be_counted():
+    d = _short_decoder()
+    assert d.feed(encode_frame(bytes.fromhex("40 10 05 04 7D 23"))) == [
+        bytes.fromhex("40 10 05 04 7D 23")]

@@ -69,7 +69,7 @@ def test_the_packer_uses_the_sealers_number_and_leaves_the_room_it_asks_for():
     class Queue:
         items = [(4, bytes((0, 4)) + bytes(20)) for _ in range(5)]
 
-        def next_payload(self, now, budget=None, exclude=None, *, fill=False):
+        def next_payload(self, now, budget=None, exclude=None, *, fill=False, **_):
             if not self.items or (budget is not None and 23 > budget):
                 return None
             return self.items.pop(0)

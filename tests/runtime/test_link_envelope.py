@@ -11,7 +11,7 @@ from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.linksim import LinkSim
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.wire import envelope
-from uwgen.runtime.wire.framing import FrameDecoder, encode_frame
+from uwgen.runtime.wire.framing import ShortFrameDecoder, encode_frame, encode_short_frame
 from uwgen.runtime.link.packets import PacketHooks
 
 
@@ -22,7 +22,7 @@ def scenario(per: float = 0.0, seed: int = 1, mrl: int = 64) -> Scenario:
 
 
 def envelopes(sim: LinkSim) -> list[envelope.Envelope]:
-    return [envelope.decode(f) for d in sim.packets for f in FrameDecoder().feed(d.data)]
+    return [envelope.decode(f) for d in sim.packets for f in ShortFrameDecoder().feed(d.data)]
 
 
 def test_one_packet_carries_several_messages_in_one_envelope():
@@ -33,11 +33,11 @@ def test_one_packet_carries_several_messages_in_one_envelope():
         sim.sender.offer(4, p)
     sim.run(1.0)
     assert [p for _, p in sim.received] == sent
-    # messages of 12 bytes (H, 11 of body), 13 with a length: 4 fit (frame 4, P W 3, 3 x 13 + 12)
-    assert len(sim.packets) == 2 and [len(d.data) for d in sim.packets] == [58, 58]
+    # bodies of 11 bytes of one id: a run (H 62, H' 04, n) of 5 fits (frame 1, P W 3, 3 + 5 x 11)
+    assert len(sim.packets) == 2 and [len(d.data) for d in sim.packets] == [62, 40]
     envs = envelopes(sim)
     assert [e.number for e in envs] == [0, 1] and {e.sender for e in envs} == {3}
-    assert [len(e.messages) for e in envs] == [4, 4]
+    assert [len(e.messages) for e in envs] == [5, 3]
 
 
 def test_packed_ids_travel_without_their_byte_string_head():
@@ -46,8 +46,8 @@ def test_packed_ids_travel_without_their_byte_string_head():
     sim.sender.offer(5, bytes.fromhex("00 05 42 7D 23"))
     sim.run(0.5)
     assert [p for _, p in sim.received] == [bytes.fromhex("00 05 42 7D 23")]
-    # frame: 99 99 LEN, P, W, then H = 05 and the two bytes of fields: 3 bytes of message
-    assert sim.packets[0].data == bytes.fromhex("99 99 06 40 00 00 05 7D 23 55")
+    # the short frame: LEN, then P, W, H = 05 and the two bytes of fields: 3 bytes of message
+    assert sim.packets[0].data == bytes.fromhex("06 60 00 00 05 7D 23")
 
 
 def test_a_payload_of_a_packed_id_that_is_not_packed_is_refused_and_counted(caplog):
@@ -70,10 +70,10 @@ def test_large_messages_go_as_fragments_inside_envelopes_that_fit_a_packet():
     assert all(len(d.data) <= 64 for d in sim.packets)
     assert sim.receiver.stats()["fragments"]["completed"] == 1
     # the fragments are compact fragment messages (H 61), each filling its packet: 402 bytes in
-    # chunks of 53 (room 58: H, transfer, index, count, a length byte unless last), 8 of them
+    # chunks of 56 (room 61: H, transfer, index, count, a length byte unless last), 8 of them
     frags = [m for e in envelopes(sim) for m in e.messages if m.kind == envelope.FRAGMENT]
     assert [m.body[1:3] for m in frags] == [bytes((i, 8)) for i in range(8)]
-    assert [len(m.body) - 3 for m in frags] == [53] * 7 + [402 - 7 * 53]
+    assert [len(m.body) - 3 for m in frags] == [56] * 7 + [402 - 7 * 56]
 
 
 def test_a_v1_peer_is_refused_counted_and_logged_once(caplog):
@@ -89,14 +89,26 @@ def test_a_v1_peer_is_refused_counted_and_logged_once(caplog):
     assert caplog.text.count("wire format 1") == 1
 
 
+def test_a_wire_format_2_peer_is_counted_and_logged_once(caplog):
+    sim = LinkSim(scenario(), "a", "b", wire_format=2)
+    got = []
+    sim.receiver._on_payload = got.append
+    conn = sim.receiver.connection
+    with caplog.at_level(logging.ERROR, logger="uwgen.link"):
+        for _ in range(3):
+            conn._deliver(conn.decoder.feed(encode_frame(bytes.fromhex("40 10 05 04 7D 23"))))
+    assert got == [] and sim.receiver.stats()["packets"]["version_2"] == 3
+    assert caplog.text.count("wire format 2") == 1
+
+
 def test_garbage_envelopes_are_counted_not_delivered():
     sim = LinkSim(scenario(), "a", "b", wire_format=2)
     got = []
     sim.receiver._on_payload = got.append
     conn = sim.receiver.connection
-    conn._deliver(conn.decoder.feed(encode_frame(bytes.fromhex("40 00 00 84 09 01"))
-                                    + encode_frame(bytes.fromhex("40 00 00 60 07 04 01"))
-                                    + encode_frame(bytes.fromhex("40 00 01 07 F5"))))
+    conn._deliver(conn.decoder.feed(encode_frame(bytes.fromhex("60 00 00 84 09 01"))
+                                    + encode_frame(bytes.fromhex("60 00 00 60 07 04 01"))
+                                    + encode_short_frame(bytes.fromhex("60 00 01 07 F5"))))
     assert got == [bytes.fromhex("00 07 F5")]
     stats = sim.receiver.stats()["packets"]
     assert stats["bad_envelopes"] == 1 and stats["unknown_kind"] == 1

@@ -7,7 +7,7 @@ import pytest
 
 from uwgen.runtime.link.mac import TURN_END, TURN_GRANT, MacItem, decode_items, encode_items
 from uwgen.runtime.wire.envelope import Envelope, decode
-from uwgen.runtime.wire.framing import encode_frame
+from uwgen.runtime.wire.framing import encode_short_frame
 from uwgen.security import control
 
 from .test_wire2_doc import table
@@ -40,7 +40,7 @@ def test_worked_bytes(row):
     e = Envelope(int(sender), int(number, 0), (), control=c)
     hexes = lambda s: bytes.fromhex(s.strip("`"))   # noqa: E731
     assert e.encode() == hexes(envelope)
-    assert encode_frame(e.encode()) == hexes(frame)
+    assert encode_short_frame(e.encode()) == hexes(frame)
     back = decode(hexes(envelope))
     assert back.control == c
     assert [(i.code, i.sender) for i in decode_items(back.control)] == \

@@ -13,7 +13,7 @@ from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.wire import envelope
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.wire.framing import FrameDecoder
+from uwgen.runtime.wire.framing import ShortFrameDecoder
 from uwgen.runtime.delivery.reliability import Reliability
 
 RELIABLE = LinkPolicy(queue="fifo", depth=100, ttl=30.0, reliable=True)
@@ -169,7 +169,7 @@ def test_time_goes_only_on_packets_carrying_a_message_with_a_max_age():
 
     def spy(now, pull, fit=None):
         batch = take(now, pull, fit)
-        sent.extend(envelope.decode(f) for f in FrameDecoder().feed(batch))
+        sent.extend(envelope.decode(f) for f in ShortFrameDecoder().feed(batch))
         return batch
     conn.outbox.take = spy
     sim.run(5.0)

@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.wire.fragment import Fragmenter, Reassembler
+from uwgen.runtime.wire.fragment import Fragmenter
+from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.link.scheduler import DROP_REASONS, LinkScheduler
 
 FID = 250

@@ -46,7 +46,8 @@ def parse_parts(s: str) -> dict:
 
 
 def test_the_doc_has_the_examples():
-    assert [r[0] for r in rows()] == ["one", "three", "parts", "escape", "ack-only"]
+    assert [r[0] for r in rows()] == ["one", "three", "parts", "escape", "ack-only", "run",
+                                      "run, then one"]
 
 
 @pytest.mark.parametrize("row", rows(), ids=lambda r: r[0])

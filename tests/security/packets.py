@@ -19,7 +19,8 @@ class Queue:
     def __init__(self):
         self.items: list[tuple[int, bytes]] = []
 
-    def next_payload(self, now: float, budget: int | None = None, exclude=None, *, fill=False):
+    def next_payload(self, now: float, budget: int | None = None, exclude=None, *, fill=False,
+                     **_):
         if not self.items:
             return None
         if budget is not None and env.v1_message_size(self.items[0][1]) + 1 > budget:

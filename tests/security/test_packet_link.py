@@ -9,7 +9,7 @@ from uwgen.emulator.linksim import LinkSim
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.wire.framing import FrameDecoder
+from uwgen.runtime.wire.framing import ShortFrameDecoder
 from uwgen.runtime.link.link import Link
 from uwgen.runtime.link.packets import join_hooks
 from uwgen.security.packet_seal import PacketSeal
@@ -36,7 +36,7 @@ def sealed_sim(per: float = 0.0, seed: int = 1) -> tuple[LinkSim, PacketSeal, Pa
 
 
 def packets(sim: LinkSim) -> list[bytes]:
-    return [f for d in sim.packets for f in FrameDecoder().feed(d.data)]
+    return [f for d in sim.packets for f in ShortFrameDecoder().feed(d.data)]
 
 
 def test_an_encrypted_message_in_fragments_is_sealed_in_every_packet_and_arrives_whole():

@@ -9,7 +9,8 @@ import pytest
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.wire.fragment import Fragmenter, Reassembler
+from uwgen.runtime.wire.fragment import Fragmenter
+from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer, Unpacker
 from uwgen.runtime.stats import Counters
 from uwgen.security.guard import GuardConfig
@@ -27,7 +28,7 @@ class Queue:
     def __init__(self, items):
         self.items = list(items)
 
-    def next_payload(self, now, budget=None, exclude=None, *, fill=False):
+    def next_payload(self, now, budget=None, exclude=None, *, fill=False, **_):
         if not self.items or (budget is not None and env.v1_message_size(self.items[0][1]) > budget):
             return None
         return self.items.pop(0)

@@ -169,3 +169,109 @@ class FrameDecoder:
             del self._buf[:pos]
         else:
             self._buf = bytearray(src[pos:])
+
+
+# -- the short frame: `LEN payload` (wire format 3 links, docs/wire-format.md section 14.1) ------
+
+SHORT_OVERHEAD = 1                # LEN
+ENVELOPE_MASK, ENVELOPE_BITS = 0xE0, 0x60    # a wire format 3 envelope's P: version bits 011
+
+
+def encode_short_frame(payload: bytes | bytearray | memoryview) -> bytes:
+    """`LEN payload`: the frame of links that speak only uwgen (wire format 3). The payload is
+    an envelope: its first byte carries version bits 011 (FrameError otherwise)."""
+    n = len(payload)
+    if not 1 <= n <= MAX_PAYLOAD:
+        raise FrameError(f"frame payload must be 1 to {MAX_PAYLOAD} bytes, got {n}")
+    if payload[0] & ENVELOPE_MASK != ENVELOPE_BITS:
+        raise FrameError(f"a short frame carries an envelope (P {payload[0]:02X} is not one)")
+    return bytes((n,)) + bytes(payload)
+
+
+class ShortFrameDecoder(FrameDecoder):
+    """Incremental decoder of short frames, `LEN payload`, with the FrameDecoder's interface.
+
+    A frame starts where the previous one ended. A start is taken when LEN is not 0, the byte
+    after it carries an envelope's version bits (011) and `check(payload)` (the envelope's
+    total decoding, given by the link) accepts the LEN bytes; otherwise the first byte is
+    discarded and the next one tried, so a lost slice that cut a frame costs the frames it
+    touched and a few bytes of hunting. A long frame (`99 99 LEN payload 55`, a peer of wire
+    format 1 or 2: 0x99 never starts a short frame, its next byte 0x99 has version bits 100) is
+    delivered as well, so the envelope layer can count and log what the far side speaks.
+    """
+
+    def __init__(self, check=None) -> None:
+        super().__init__()
+        self.check = check
+
+    def _scan(self, src: bytes | bytearray, pos: int) -> tuple[list[bytes], int]:
+        st = self.stats
+        out: list[bytes] = []
+        n = len(src)
+        discarded = 0
+        while pos < n:
+            length = src[pos]
+            if length == SYNC_BYTE:                       # a long frame, or a byte to skip
+                if pos + 1 >= n or (src[pos + 1] == SYNC_BYTE and pos + 2 >= n):
+                    break                                  # not known yet
+                size = src[pos + 2] if src[pos + 1] == SYNC_BYTE else 0
+                if size:
+                    end = pos + 3 + size
+                    if end >= n:
+                        break                              # not complete yet
+                    if src[end] == END_BYTE:
+                        out.append(bytes(src[pos + 3:end]))
+                        pos = end + 1
+                        continue
+            if length == 0:
+                st.bad_length += 1
+                discarded += 1
+                pos += 1
+                continue
+            if pos + 1 < n and src[pos + 1] & ENVELOPE_MASK != ENVELOPE_BITS:
+                discarded += 1
+                pos += 1
+                continue
+            if pos + 1 + length > n:
+                break                                      # not complete yet
+            payload = bytes(src[pos + 1:pos + 1 + length])
+            if self.check is not None and not self.check(payload):
+                st.bad_terminator += 1
+                discarded += 1
+                pos += 1
+                continue
+            out.append(payload)
+            pos += 1 + length
+        st.bytes_discarded += discarded
+        st.frames += len(out)
+        return out, pos
+
+    def flush(self) -> list[bytes]:
+        """Give up the incomplete frame at the head of the buffer and hunt through the rest."""
+        out: list[bytes] = []
+        src = bytes(self._buf)
+        pos = 0
+        while pos < len(src):
+            self.stats.stalled += 1
+            self.stats.bytes_discarded += 1
+            more, pos = self._scan(src, pos + 1)
+            out += more
+        self._buf = bytearray()
+        return out
+
+
+@dataclass(frozen=True)
+class Framing:
+    """How a link cuts its byte stream into frames: the long frame of section 2 (every link of
+    wire format 1: rmw_desert nodes read it) or the short one (links that speak only uwgen)."""
+
+    overhead: int
+    encode: object
+    decoder: object
+
+    def new_decoder(self, check=None) -> FrameDecoder:
+        return self.decoder(check) if self.decoder is ShortFrameDecoder else self.decoder()
+
+
+LONG = Framing(OVERHEAD, encode_frame, FrameDecoder)
+SHORT = Framing(SHORT_OVERHEAD, encode_short_frame, ShortFrameDecoder)

@@ -73,6 +73,23 @@ class AckPolicy:
                     self._idle[peer] = self._idle.get(peer, 0) + 1
         return out
 
+    def due(self, epochs: dict[int, bytes], now: float) -> bool:
+        """Whether `a_part(epochs, now)` would name some peer (without its side effects):
+        what the packer leaves room for, asked before a packet's messages are picked."""
+        if self.final and self.engine.receipts:
+            return True
+        for peer in {p for p, _ in self.engine.receipts}:
+            r = self.engine._current(peer)
+            if r is None or r.largest is None:
+                continue
+            if r.eliciting_since is not None:
+                return True
+            low = self._confirmed.get((peer, epochs.get(peer, b"")))
+            unsettled = peer in self._news or low is None or low < r.largest
+            if unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval:
+                return True
+        return False
+
     def rename_epoch(self, peer: int, old: bytes, new: bytes) -> None:
         """The peer's stand-in epoch `old` is `new` (learnt from K): the same start."""
         if (peer, old) in self._confirmed:

@@ -37,8 +37,7 @@ from dataclasses import asdict
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
-from uwgen.runtime.wire.framing import MAX_FRAME
-from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.delivery.freshness import stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.packets import PacketHooks, message_measure
@@ -88,7 +87,8 @@ class Reliability:
         # what a packet may hold besides P, W and the messages: the frame's payload minus what
         # the other joined hooks (the seal) may add; the A part takes what is left (acks.A_ROOM
         # at least, kept free by `overhead`)
-        self._part_room = min(max_read_length, MAX_FRAME) - FRAME_OVERHEAD - env.HEAD - other_overhead
+        self._part_room = (min(max_read_length, MAX_PAYLOAD + SHORT_OVERHEAD) - SHORT_OVERHEAD
+                           - env.HEAD - other_overhead)           # wire format 3's short frame
         self._room = 0
         self.deadlines = {k: (DEFAULT_DEADLINE if t is None else t) for k, t in reliable.items()}
         self.max_ages = dict(max_ages)
@@ -124,7 +124,8 @@ class Reliability:
         # (which sizes fragments): it rides when the packet has room for it (`carrying`).
         numbering = {} if self.send_epoch is None else {"number": self.number}
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
-                           overhead=OVERHEAD, carrying=self.carrying, resend=self.resend,
+                           overhead=OVERHEAD, next_overhead=self.next_overhead,
+                           part_room=self.part_room, carrying=self.carrying, resend=self.resend,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
                            head_room=self.head_room, admit=self.admit, stats=self.stats,
                            **numbering)
@@ -135,6 +136,21 @@ class Reliability:
             return self._building
 
     # -- sending ------------------------------------------------------------------------
+
+    def next_overhead(self, now: float) -> int:
+        """Room for the parts due on the next packet (docs/seams.md section 9): an A part (and
+        T with it), or K, T and an A part's share; T of a message with a max age: `part_room`."""
+        with self._lock:
+            ack = self.acks.due(self._epochs, now)
+            timed = ack and (self._timed_reports < TIMED_REPORTS
+                             or now - self._last_timed_report >= TIMED_REPORT_EVERY)
+            if self.send_epoch is not None and self.send_epoch.due(now):   # as `carrying` asks
+                return env.SYNC_LEN + env.TIME_LEN + A_ROOM
+            return (A_ROOM if ack else 0) + (env.TIME_LEN if timed else 0)
+
+    def part_room(self, key: int) -> int:
+        """T (3 bytes, once a packet) for a message of an entry with a max age."""
+        return env.TIME_LEN if wire_id(key) in self.max_ages else 0
 
     def head_room(self, key: int) -> int:
         return self.heads.room(wire_id(key))
@@ -152,7 +168,8 @@ class Reliability:
         # peer measures our clock's offset (clock_offset.py)
         self._want_time = self._timed or (
             self._timed_reports < TIMED_REPORTS or now - self._last_timed_report >= TIMED_REPORT_EVERY)
-        used = sum(message_measure(p) for _, p in picked) - (1 if picked else 0)
+        # what the messages take as the envelope encodes them (runs share a head)
+        used = len(env.encode_messages([env.from_v1(p) for _, p in picked]))
         # K when due and the packet has room for it besides T and the A part's share (a
         # packet filled by a full-size fragment carries it on a later one)
         self._sync = (self.send_epoch is not None and self.send_epoch.due(now)

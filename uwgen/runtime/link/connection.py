@@ -30,7 +30,7 @@ from collections.abc import Callable
 
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
-from uwgen.runtime.wire.framing import OVERHEAD, FrameDecoder, FrameError, encode_frame
+from uwgen.runtime.wire.framing import LONG, FrameError, Framing
 from uwgen.runtime.link.mac import Mac
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN, MIN_FRAME, Outbox, Pacer
 from uwgen.runtime.link.probation import Event, Probation, reconnect_cap
@@ -103,7 +103,8 @@ class DesertConnection:
                  bitrate: float | None = None, probation: float = 0.3,
                  unserved_after: float | None = None,
                  source_fit: Callable[[float, int], bytes | None] | None = None,
-                 one_frame: bool = False, mac: Mac | None = None):
+                 one_frame: bool = False, mac: Mac | None = None, framing: Framing = LONG,
+                 check: Callable[[bytes], bool] | None = None):
         self.host, self.port, self.config, self.name = host, port, config, name
         self.clock = clock
         self._source, self._on_frame = source, on_frame
@@ -119,7 +120,8 @@ class DesertConnection:
         self.pacer = Pacer.for_link(config, pace_margin, bitrate)
         self.mac = mac or Mac()       # when this side may write besides the pacer (its turn)
         self.outbox = Outbox(self.pacer, one_frame=one_frame)
-        self.decoder = FrameDecoder()
+        self.framing = framing        # the long frame of section 2, or the short one (wire 3)
+        self.decoder = framing.new_decoder(check)
         self.counters = Counters(CONNECTION_COUNTERS)
 
         self._sock: socket.socket | None = None      # set exactly while connected
@@ -300,18 +302,19 @@ class DesertConnection:
         while True:
             now = self.clock.now()
             payload = (self._source(now) if room is None or self._source_fit is None
-                       else self._source_fit(now, room - OVERHEAD))
+                       else self._source_fit(now, room - self.framing.overhead))
             if payload is None:
                 return None
             try:
-                return encode_frame(payload)
+                return self.framing.encode(payload)
             except FrameError as e:
                 log_count(log, logging.ERROR, self.counters.inc("unframeable"),
                           "[%s] dropped a payload that cannot be framed: %s", self.name, e)
 
     def _fit(self, room: int) -> bytes | None:
         """A frame of at most `room` bytes from `source_fit`, or None."""
-        return self._pull(room) if self._source_fit is not None and room > OVERHEAD else None
+        return (self._pull(room) if self._source_fit is not None and room > self.framing.overhead
+                else None)
 
     def _deliver(self, payloads: list[bytes]) -> None:
         for p in payloads:

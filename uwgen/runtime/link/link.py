@@ -37,12 +37,14 @@ from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.link.connection import Backoff, DesertConnection
 from uwgen.runtime.wire.envelope import EnvelopeError, add_packed_head, from_v1, strip_packed_head
-from uwgen.runtime.wire.fragment import MAX_COUNT, Fragmenter, Reassembler, fragment_payload_for, is_fragment
-from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD
+from uwgen.runtime.wire.fragment import MAX_COUNT, Fragmenter, fragment_payload_for, is_fragment
+from uwgen.runtime.wire.reassembly import Reassembler
+from uwgen.runtime.wire.framing import LONG, MAX_FRAME, MAX_PAYLOAD, SHORT
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.runtime.link.mac import Mac
-from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker, envelope_room,
-                                   join_hooks, message_measure)
+from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker,
+                                        envelope_check, envelope_room, join_hooks,
+                                        message_measure)
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.probation import reconnect_cap
 from uwgen.runtime.link.scheduler import LinkScheduler
@@ -137,6 +139,7 @@ class Link:
             self.unpacker = Unpacker(self.hooks, counters=self.packet_counters, name=name)
         self.connection = DesertConnection(
             host, port, self.config, clock=clock, one_frame=v2,
+            framing=SHORT if v2 else LONG, check=envelope_check if v2 else None,
             source=w.tx(self.packer.next_packet if v2 else self._source),
             on_frame=w.rx(self._on_packet if v2 else self._on_frame, envelopes=v2),
             name=name, backoff=backoff or Backoff(maximum=reconnect_cap(self.config.period), rng=rng),

@@ -12,7 +12,8 @@ The seams of reliability and the seal (docs/seams.md section 5) are the `PacketH
 - `parts(now)` -> dict of extra `Envelope` fields (`time`, `ack`, `control`, `sync`) for the
   packet being built; `overhead` is the most bytes they and the seal add to a packet;
   `next_overhead(now)`, when given, the bytes they will add to the next packet (at most
-  `overhead`; asked before its messages are picked, so a packet without a sync part holds more);
+  `overhead` but for a part that goes only now and then, as K; asked before its messages are
+  picked, so a packet without a sync part holds more);
 - `number()` -> the full number of the packet being built, asked once per packet after its
   messages are picked (the seal numbers packets: its session's number, docs/seams.md section 2);
   without it the packer counts from 0;
@@ -37,6 +38,12 @@ Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"
 - `admit(payload, now)` -> the payload without its head, or None (a duplicate, a stale
   command: counted by the hook), for every whole payload received;
 - `stats()` -> a JSON-able dict the link reports (e.g. the per-entry ledger).
+
+Heads sized per packet (docs/seams.md section 9): `next_overhead(now)` is what the hooks add
+to *this* packet whatever it carries (an A part when an ack is due, the seal's tag and sync),
+and `part_room(key)` what a message of channel `key` brings into its packet's parts the first
+time one is picked (T, for an entry with a max age): the packer charges it once a packet,
+so nothing is reserved by constant.
 """
 from __future__ import annotations
 
@@ -46,13 +53,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from uwgen.runtime.wire import envelope as env
-from uwgen.runtime.wire.framing import MAX_FRAME, OVERHEAD
+from uwgen.runtime.wire.framing import MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.packets")
 
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
-                   "bad_envelopes", "version_1", "unknown_kind", "refused_payloads", "opened_none",
+                   "bad_envelopes", "version_1", "version_2", "unknown_kind", "refused_payloads", "opened_none",
                    "ack_only_sent")
 
 
@@ -75,6 +82,7 @@ class PacketHooks:
     next_time: Callable[[float], float | None] | None = None
     stamp: Callable[[int, bytes, float, float], bytes] | None = None
     head_room: Callable[[int], int] | None = None
+    part_room: Callable[[int], int] | None = None
     admit: Callable[[bytes, float], bytes | None] | None = None
     stats: Callable[[], dict] | None = None
 
@@ -93,7 +101,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     `next_overhead` the sum of each hook's (its `overhead` when it gives none). Likewise at most
     one hook may give the message heads (`stamp`, `head_room`, `admit`) and at most one
     `resend`; `ack_only` is any hook's, `next_time` the earliest, `stats` the union of the
-    hooks' dicts."""
+    hooks' dicts, `part_room` the sum."""
     given = [h for h in hooks if h is not None]
     sealers = [h for h in given if h.seal is not None or h.open is not None or h.number is not None]
     if len(sealers) > 1:
@@ -136,6 +144,10 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     askers = [h.ack_only for h in given if h.ack_only is not None]
     timers = [h.next_time for h in given if h.next_time is not None]
     reporters = [h.stats for h in given if h.stats is not None]
+    roomers = [h.part_room for h in given if h.part_room is not None]
+
+    def part_room(key: int) -> int:
+        return sum(room(key) for room in roomers)
 
     def carrying(picked: list[tuple[int, bytes]], now: float) -> None:
         for tell in carriers:
@@ -164,6 +176,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
                        ack_only=ack_only if askers else None,
                        next_time=next_time if timers else None,
                        stamp=header.stamp, head_room=header.head_room, admit=header.admit,
+                       part_room=part_room if roomers else None,
                        stats=stats if reporters else None)
 
 
@@ -176,9 +189,24 @@ def _one(hooks: list[PacketHooks], names: tuple[str, ...], what: str) -> PacketH
 
 
 def envelope_room(max_read_length: int, overhead: int = 0) -> int:
-    """Bytes of messages one packet holds: the frame's payload minus P, W and `overhead`, plus
-    one (the last message has no length byte, and `message_measure` counts one per message)."""
-    return min(max_read_length, MAX_FRAME) - OVERHEAD - env.HEAD - overhead + 1
+    """Bytes of messages one packet holds: the short frame's payload (wire format 3) minus P, W
+    and `overhead`, plus one (the last message has no length byte, and `message_measure`
+    counts one per message)."""
+    return (min(max_read_length, MAX_PAYLOAD + SHORT_OVERHEAD) - SHORT_OVERHEAD - env.HEAD
+            - overhead + 1)
+
+
+def envelope_check(payload: bytes) -> bool:
+    """Whether `payload` decodes as an envelope (a sealed one with any tag length a link may
+    have): what the short frame's decoder asks of a start before it takes it."""
+    for tag_len in env.TAG_LENGTHS:
+        try:
+            env.decode(payload, tag_len)
+            return True
+        except env.EnvelopeError:
+            if not payload[0] & env.FLAG_S:
+                return False
+    return False
 
 
 def message_measure(payload: bytes) -> int:
@@ -212,13 +240,25 @@ class Packer:
         picked: list[tuple[int, bytes]] = []
         messages: list[env.Message] = []
         h = self.hooks
-        budget = self.room
+        room = self.room
+        charged = 0               # bytes of parts the picked messages bring (part_room)
         if h.next_overhead is not None:
-            budget = envelope_room(self.max_read_length, min(h.next_overhead(now), h.overhead))
+            room = envelope_room(self.max_read_length, h.next_overhead(now))
+        budget = room
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
-        sources = [] if h.resend is None else [lambda room: h.resend(now, room)]
-        sources.append(lambda room: self.scheduler.next_payload(now, room if picked else None,
-                                                                fill=True))
+        # A message that brings a part (T) fits only with that part: the scheduler counts
+        # `extra(key)` into each channel's next size; a re-sent one is offered the room less
+        # the most a part may add.
+        roomy = h.part_room
+
+        def extra(key: int) -> int:
+            return max(0, roomy(key) - charged) if roomy is not None else 0
+
+        sources = [] if h.resend is None else [
+            lambda room: h.resend(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0))]
+        sources.append(lambda room: self.scheduler.next_payload(
+            now, room if picked else None, fill=True, packet=self.number,
+            extra=extra if roomy is not None else None))
         for source in sources:
             while budget > 1:
                 got = source(budget)
@@ -233,7 +273,13 @@ class Packer:
                               self.name, key, e)
                     continue
                 picked.append((key, payload))
-                budget -= messages[-1].size(last=False)
+                if h.part_room is not None:
+                    more = h.part_room(key) - charged
+                    if more > 0:        # a part this message brings (T): charged once a packet
+                        charged += more
+                # what the messages take as encoded (a message joining a run costs its body
+                # alone), counted as `message_measure` counts: each with a length byte
+                budget = room - charged - len(env.encode_messages(messages)) - 1
         if not messages:
             if h.ack_only is None or not h.ack_only(now):
                 return None
@@ -241,7 +287,7 @@ class Packer:
             h.carrying(picked, now)
         number = h.number() if h.number is not None else self.number
         try:
-            envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, tuple(messages),
+            envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, env.ordered(messages),
                                     **(h.parts(now) if h.parts is not None else {}))
             data = h.seal(envelope) if h.seal is not None else envelope.encode()
         except env.EnvelopeError as e:
@@ -298,6 +344,12 @@ class Unpacker:
         return out
 
     def _bad(self, data: bytes, e: env.EnvelopeError) -> list[bytes]:
+        if e.version == 2:
+            if self.counters.inc("version_2") == 1:
+                log.error("[%s] the far side speaks wire format 2 (P %02X): its packets are "
+                          "refused. Rebuild it with this uwgen (wire format %d); further ones "
+                          "are only counted (version_2)", self.name, data[0], env.VERSION)
+            return []
         if e.version == 0:
             if self.counters.inc("version_1") == 1:
                 log.error("[%s] the far side speaks wire format 1 (its first byte %02X is a "

@@ -45,172 +45,18 @@ import logging
 import threading
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Protocol
 
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
+from uwgen.runtime.link.channels import DROP_REASONS  # noqa: F401 (callers read it from here)
+from uwgen.runtime.link.channels import Channel, Message, expiry_for, queue_for, rate_for
 from uwgen.runtime.link.filling import first_keeping_best
 from uwgen.runtime.wire.framing import MAX_PAYLOAD
-from uwgen.runtime.stats import Counters, log_count
+from uwgen.runtime.stats import log_count
 
 log = logging.getLogger("uwgen.link.scheduler")
 FILL_TAIL = 2     # filling chooses among the fitting messages once the room left is below two
                   # of the longest of them: earlier, claim order alone decides (fair shares)
-
-CHANNEL_COUNTERS = ("offered", "sent", "superseded", "overflow", "expired", "too_large", "invalid",
-                    "rate_limited", "fragments_sent", "protect_failed")
-DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid", "protect_failed")
-
-
-@dataclass
-class Message:
-    payload: bytes
-    offered_at: float
-    rate_held: bool = False
-    sealed: bool = False        # protected already (or nothing to protect)
-
-
-# -- policy objects (one of each per channel; add new kinds here, not if-chains below) -----------
-
-class QueueDiscipline(Protocol):
-    def push(self, queue: deque[Message], msg: Message) -> list[tuple[Message, str]]:
-        """Add msg; return the messages this pushed out, each with its counter name."""
-
-
-class LatestQueue:
-    """Keep only the newest message: commands and poses, where an old value is worthless."""
-
-    def push(self, queue: deque[Message], msg: Message) -> list[tuple[Message, str]]:
-        dropped = [(m, "superseded") for m in queue]
-        queue.clear()
-        queue.append(msg)
-        return dropped
-
-
-class FifoQueue:
-    """Keep up to `depth` messages in order; on overflow the oldest goes (it is the stalest)."""
-
-    def __init__(self, depth: int):
-        if depth < 1:
-            raise ValueError(f"fifo depth must be at least 1, got {depth}")
-        self.depth = depth
-
-    def push(self, queue: deque[Message], msg: Message) -> list[tuple[Message, str]]:
-        queue.append(msg)
-        dropped = []
-        while len(queue) > self.depth:
-            dropped.append((queue.popleft(), "overflow"))
-        return dropped
-
-
-class RateLimit(Protocol):
-    def ready_at(self, now: float) -> float:
-        """Earliest time (>= now) a message may leave."""
-
-    def took(self, now: float) -> None:
-        """A message left at `now`."""
-
-
-class Unlimited:
-    def ready_at(self, now: float) -> float:
-        return now
-
-    def took(self, now: float) -> None:
-        pass
-
-
-class TokenBucket:
-    """At most `rate` messages per second, no bursts: a bucket of one token refilled at `rate`."""
-
-    def __init__(self, rate: float):
-        if rate <= 0:
-            raise ValueError(f"rate must be positive, got {rate}")
-        self.interval = 1.0 / rate
-        self._next = float("-inf")
-
-    def ready_at(self, now: float) -> float:
-        # Within a nanosecond counts as on time: 0.4 + 0.2 must not miss a poll at 0.6.
-        return now if now >= self._next - 1e-9 else self._next
-
-    def took(self, now: float) -> None:
-        self._next = now + self.interval
-
-
-class Expiry(Protocol):
-    def expired(self, msg: Message, now: float) -> bool: ...
-
-
-class NoExpiry:
-    def expired(self, msg: Message, now: float) -> bool:
-        return False
-
-
-class Ttl:
-    def __init__(self, ttl: float):
-        if ttl <= 0:
-            raise ValueError(f"ttl must be positive, got {ttl}")
-        self.ttl = ttl
-
-    def expired(self, msg: Message, now: float) -> bool:
-        return now - msg.offered_at > self.ttl
-
-
-def queue_for(policy: LinkPolicy) -> QueueDiscipline:
-    kinds: dict[str, Callable[[LinkPolicy], QueueDiscipline]] = {
-        "latest": lambda p: LatestQueue(),
-        "fifo": lambda p: FifoQueue(p.depth),
-    }
-    if policy.queue not in kinds:
-        raise ValueError(f"unknown queue kind {policy.queue!r} (known: {', '.join(kinds)})")
-    return kinds[policy.queue](policy)
-
-
-def rate_for(policy: LinkPolicy) -> RateLimit:
-    return Unlimited() if policy.rate is None else TokenBucket(policy.rate)
-
-
-def expiry_for(policy: LinkPolicy) -> Expiry:
-    return NoExpiry() if policy.ttl is None else Ttl(policy.ttl)
-
-
-# -- channels ----------------------------------------------------------------------------------
-
-@dataclass
-class Channel:
-    key: int
-    policy: LinkPolicy
-    name: str
-    queue_kind: QueueDiscipline
-    rate: RateLimit
-    expiry: Expiry
-    queue: deque[Message] = field(default_factory=deque)
-    in_progress: deque[bytes] | None = None      # remaining fragments of the message being sent
-    split_over: int = MAX_PAYLOAD                # longer payloads are fragmented
-    max_message: int = MAX_PAYLOAD               # longer payloads are refused (too_large)
-    counters: Counters = field(default_factory=lambda: Counters(CHANNEL_COUNTERS))
-    tag: float = 0.0                             # virtual time when it is next due (see claim)
-    turn: int = 0                                # the scheduler's serve count when last served
-
-    @property
-    def priority(self) -> int:
-        return self.policy.priority
-
-    @property
-    def weight(self) -> int:
-        return max(self.policy.priority, 0) + 1
-
-    @property
-    def queued(self) -> int:
-        return len(self.queue) + (self.in_progress is not None)
-
-    def ready_at(self, now: float) -> float | None:
-        if self.in_progress is not None:
-            return now
-        if self.queue:
-            return self.rate.ready_at(now)
-        return None
-
 
 Splitter = Callable[..., list[bytes]]          # (payload) or (payload, repair)
 Protect = Callable[[int, bytes], bytes]
@@ -300,7 +146,9 @@ class LinkScheduler:
     # -- consumer side (the connection, when it may write) -------------------------------------
 
     def next_payload(self, now: float | None = None, max_size: int | None = None,
-                     exclude: int | None = None, *, fill: bool = False) -> tuple[int, bytes] | None:
+                     exclude: int | None = None, *, fill: bool = False,
+                     packet: int | None = None,
+                     extra: Callable[[int], int] | None = None) -> tuple[int, bytes] | None:
         """The payload (at most 255 bytes) to send now, with its channel key; None if none may go.
 
         With `max_size` (the room left in a packet-aligned write), only a channel whose next
@@ -311,7 +159,11 @@ class LinkScheduler:
         fitting messages, FILL_TAIL), of the channels that fit, the first in claim order that
         still lets `max_size` be filled as well as any choice of their next messages could
         (uwgen.runtime.link.filling); claims move only for what is served, so a channel passed over
-        goes first in the next packet. Filling from the start would let message sizes decide
+        goes first in the next packet: `packet` (the packer's count of the packet being
+        filled) lets a channel passed over at one packet's tail go before any better fit at
+        a later packet's tail, when nothing served it in between. `extra(key)`: bytes a
+        message of channel `key` adds to the packet besides itself (a part it brings, T),
+        counted into its size. Filling from the start would let message sizes decide
         shares (measured: the priority-10 topic of envelope_bench's table 3 fell from 0.18 to
         0.15 of the link); the tail alone costs it nothing measurable.
         """
@@ -319,7 +171,8 @@ class LinkScheduler:
         with self._lock:
             self._expire(now)
             while True:
-                ch = self._pick(now, max_size, exclude, fill and max_size is not None)
+                ch = self._pick(now, max_size, exclude, fill and max_size is not None, packet,
+                                extra)
                 if ch is None:
                     return None
                 if self._seal_head(ch, now):   # sealed now, as it leaves (or nothing to seal)
@@ -356,7 +209,8 @@ class LinkScheduler:
                 ch.counters.inc("expired")
 
     def _pick(self, now: float, max_size: int | None = None, exclude: int | None = None,
-              fill: bool = False) -> Channel | None:
+              fill: bool = False, packet: int | None = None,
+              extra: Callable[[int], int] | None = None) -> Channel | None:
         """The channel to serve: a ready strict channel of the highest priority (in turns among
         equals), else the ready channel with the earliest claim (see `claim`); with `fill`, the
         first in claim order whose message keeps the best fill of `max_size` reachable."""
@@ -373,7 +227,8 @@ class LinkScheduler:
                     ch.queue[0].rate_held = True
                     ch.counters.inc("rate_limited")
                 continue
-            size = self._next_size(ch) if max_size is not None else 0
+            size = (self._next_size(ch) + (extra(ch.key) if extra is not None else 0)
+                    if max_size is not None else 0)
             if max_size is not None and size > max_size:
                 continue
             if ch.policy.strict:
@@ -387,8 +242,19 @@ class LinkScheduler:
                 best, best_rank = ch, rank
         if fill and not strict and len(fitting) > 1 and max_size < FILL_TAIL * max(f[2] for f in fitting):
             fitting.sort(key=lambda f: f[0])
-            i = first_keeping_best([f[2] for f in fitting], max_size)
-            chosen_fill = fitting[i][1] if i is not None else best
+            first = fitting[0][1]
+            if packet is not None and first.passed_in is not None and first.passed_in != packet:
+                # passed over at an earlier packet's tail and not served since (a strict
+                # topic may take every packet's head): it goes now, before any better fit,
+                # or a tail with room for one message would serve only the ids that fill it
+                chosen_fill = first
+            else:
+                i = first_keeping_best([f[2] for f in fitting], max_size)
+                chosen_fill = fitting[i][1] if i is not None else best
+                if packet is not None:
+                    for _, ch, _ in fitting[:i or 0]:
+                        if ch.passed_in is None:
+                            ch.passed_in = packet
         else:
             chosen_fill = best
         if strict:
@@ -404,6 +270,7 @@ class LinkScheduler:
         else:
             return None
         self._turns += 1
+        chosen.passed_in = None
         chosen.turn = self._turns        # equal claims: the one served longest ago goes first
         return chosen
 
