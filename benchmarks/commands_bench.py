@@ -120,9 +120,9 @@ class Side:
     _base = int(os.environ.get("ROS_DOMAIN_ID", "150"))
     domains = itertools.cycle((_base, _base + 1))
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, domain: int | None = None):
         self.context = Context()
-        rclpy.init(context=self.context, domain_id=next(Side.domains),
+        rclpy.init(context=self.context, domain_id=next(Side.domains) if domain is None else domain,
                    signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
         self.node = rclpy.create_node(f"bench_{name}", context=self.context)

@@ -40,8 +40,6 @@ from pathlib import Path
 
 import rclpy
 from rclpy.action import ActionClient, ActionServer
-from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
 from std_msgs.msg import String
 from test_msgs.action import Fibonacci
 from test_msgs.srv import BasicTypes
@@ -50,6 +48,9 @@ from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan, import_package
 from uwgen.emulator import BROADCAST, NodeSpec, Scenario, run_emulator
 from uwgen.emulator.from_manifest import with_mac
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from commands_bench import Side, fibonacci  # noqa: E402 - one ROS side and the Fibonacci reference, as there
 
 BITRATE = 4800.0
 MRL = 64
@@ -121,44 +122,6 @@ def build_package(vehicles: int, period: float, mac: str):
                    "-o", str(root / "generated" / package)]) != 0:
         sys.exit("uwgen build of the benchmark manifest failed")
     return import_package(package, root / "generated")
-
-
-def fibonacci(n: int) -> list[int]:
-    seq = [0, 1]
-    while len(seq) < n + 1:
-        seq.append(seq[-1] + seq[-2])
-    return seq[:max(2, n + 1)]
-
-
-class Side:
-    """One ROS domain with its executor thread."""
-
-    def __init__(self, name: str, domain: int):
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain,
-                   signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
-        self.node = rclpy.create_node(f"bench_{name}", context=self.context)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self):
-        try:
-            self.executor.spin()
-        except Exception:
-            pass
-
-    def close(self):
-        for node in list(self.executor.get_nodes()):
-            self.executor.remove_node(node)
-            close = getattr(node, "close", None)
-            try:
-                close() if close else node.destroy_node()
-            except Exception:
-                pass
-        self.executor.shutdown(timeout_sec=1.0)
-        rclpy.shutdown(context=self.context)
 
 
 def wait(future, seconds: float) -> bool:
