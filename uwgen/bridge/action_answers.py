@@ -1,20 +1,46 @@
 """What comes back over the link for this side's goals (wire format 13): answers, results and
 feedback, and the timers that resend, ask or give up when they do not come. The half of
 `uwgen.bridge.actions.ActionStandIns` that the link and the clock drive; the stand-ins'
-rclpy callbacks are the other half.
+rclpy callbacks are the other half. `GoalState` (one goal in flight) lives here, so the stand-ins
+import it from this module and nothing here imports them back.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
+
+from rclpy.task import Future
 
 from uwgen.runtime.wire.table import ABORTED, ACCEPTED, REJECTED, RESULTS
 
 if TYPE_CHECKING:
-    from uwgen.bridge.actions import GoalState
     from uwgen.bridge.calls import CallTable
     from uwgen.bridge.counters import ActionCounters
     from uwgen.bridge.wiring import Wiring
     from uwgen.runtime.delivery.reliable import RttEstimator
+
+
+@dataclass
+class GoalState:
+    """One local goal in flight over the link (client side)."""
+
+    ident: int                                    # the action's id
+    handle: int
+    request: Any                                  # the goal message (the key rclpy gives back)
+    answer: Future = field(default_factory=Future)   # -> ACCEPTED or REJECTED
+    result: Future = field(default_factory=Future)   # -> (status, result message)
+    cancel: Future | None = None                  # -> CANCELING or CANCEL_REFUSED
+    cancel_deadline: float = 0.0
+    goal_handle: Any = None                       # rclpy ServerGoalHandle, once accepted
+    early_feedback: Any = None                    # feedback that came before the goal handle
+    payload: bytes = b""                          # the goal as sent (sent again unchanged)
+    sends: int = 1
+    next_send: float = float("inf")               # when to send it again while unanswered (none
+                                                  # until it is first sent: the expiry timer
+                                                  # may run while the goal is being encoded)
+    next_query: float = 0.0                       # accepted, no result: when to ask for it
+    sent_at: float = 0.0                          # when the goal first left
+    asking: bool = False                          # unanswered past accept_timeout: asking
 
 
 class GoalAnswers:

@@ -32,13 +32,12 @@ case is logged and counted in ~/status under `actions`.
 from __future__ import annotations
 
 import random
-from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.task import Future
 
-from uwgen.bridge.action_answers import GoalAnswers
+from uwgen.bridge.action_answers import GoalAnswers, GoalState
 from uwgen.bridge.calls import CallTable, CallTableFull
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
@@ -47,29 +46,6 @@ from uwgen.manifest.model import ACTION_HANDLES
 from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
 from uwgen.runtime.delivery.reliable import RttEstimator, command_rtt
 from uwgen.runtime.wire.table import ACCEPTED, CANCELED, CANCELING, SUCCEEDED
-
-
-@dataclass
-class GoalState:
-    """One local goal in flight over the link (client side)."""
-
-    ident: int                                    # the action's id
-    handle: int
-    request: Any                                  # the goal message (the key rclpy gives back)
-    answer: Future = field(default_factory=Future)   # -> ACCEPTED or REJECTED
-    result: Future = field(default_factory=Future)   # -> (status, result message)
-    cancel: Future | None = None                  # -> CANCELING or CANCEL_REFUSED
-    cancel_deadline: float = 0.0
-    goal_handle: Any = None                       # rclpy ServerGoalHandle, once accepted
-    early_feedback: Any = None                    # feedback that came before the goal handle
-    payload: bytes = b""                          # the goal as sent (sent again unchanged)
-    sends: int = 1
-    next_send: float = float("inf")               # when to send it again while unanswered (none
-                                                  # until it is first sent: the expiry timer
-                                                  # may run while the goal is being encoded)
-    next_query: float = 0.0                       # accepted, no result: when to ask for it
-    sent_at: float = 0.0                          # when the goal first left
-    asking: bool = False                          # unanswered past accept_timeout: asking
 
 
 class ActionStandIns(GoalAnswers):
