@@ -247,8 +247,9 @@ def test_schema_announcements_each_fit_one_packet_and_their_air_time_is_listed(d
     from uwgen.bridge.schema import decode_announcement, encode_announcements
     from uwgen.analyze_control import whole_payload
     ids = {e.id for e in (*manifest.topics, *manifest.services, *manifest.actions)}
+    from uwgen.security.packet_seal import max_overhead
     payloads = encode_announcements(manifest.schema_id, [(i, bytes(4)) for i in ids], True,
-                                    whole_payload(2, 64, 14))
+                                    whole_payload(2, 64, max_overhead(manifest.security.tag_bytes)))
     assert sorted(i for p in payloads for i, _ in decode_announcement(p, manifest.schema_id).pairs) == sorted(ids)
     assert len(payloads) == len(a.control[0].items)
 
