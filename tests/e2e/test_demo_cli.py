@@ -13,6 +13,8 @@ from uwgen import tether
 from uwgen.commands import demo
 from uwgen.emulator import NodeSpec, Scenario, run_emulator
 
+from .recordings_check import check_recordings
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -47,8 +49,9 @@ def test_read_only_checkout_writes_to_the_cache(monkeypatch, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(240)
-def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
+@pytest.mark.timeout(300)
+def test_demo_runs_against_a_running_desert_quietly_and_its_recordings_reproduce_the_report(tmp_path):
+    # One demo run (about a minute) serves two checks: what it prints and what it recorded.
     # A DESERT someone else started (here the emulator, as another program would be).
     scen = Scenario(nodes=[NodeSpec("s", port=0, position=(0.0, 0.0, 0.0), dest="v"),
                            NodeSpec("v", port=0, position=(300.0, 0.0, 0.0), dest="s")],
@@ -85,6 +88,7 @@ def test_demo_runs_against_a_running_desert_and_quiet_is_quiet(tmp_path):
     assert "INFO" not in res.stdout + res.stderr
     assert "ERROR" not in res.stdout + res.stderr and "Traceback" not in res.stderr
     assert "[bridge_" not in res.stdout and "[operator]" not in res.stdout
+    check_recordings(tmp_path, res.stdout)
 
 
 def test_quiet_build_prints_no_info_lines(tmp_path):

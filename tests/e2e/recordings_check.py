@@ -1,4 +1,5 @@
-"""A demo run leaves one MCAP recording per side: the standard reader opens them, their ROS
+"""Checks of a demo run's recordings (tests/e2e/test_demo_cli.py runs the demo once for
+these and its other checks): one MCAP recording per side, the standard reader opens them, their ROS
 messages decode to what the vehicle published, and `uwgen log` on them prints the demo
 report's rows (same counts, latencies within 1 ms on a quiet machine, LATENCY_SLACK_MS here)."""
 from __future__ import annotations
@@ -8,8 +9,6 @@ import os
 import re
 import sys
 from pathlib import Path
-
-import pytest
 
 from uwgen import tether
 
@@ -40,17 +39,13 @@ def ms(cell: str) -> float | None:
     return None if cell == "-" else float(cell.split()[0])
 
 
-@pytest.mark.slow
-@pytest.mark.timeout(420)
-def test_demo_recordings_decode_and_reproduce_the_report(tmp_path):
+def check_recordings(tmp_path: Path, stdout: str) -> None:
+    """What a finished demo run in `tmp_path` (its report: `stdout`) must have recorded."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
     from uwgen.demo.records import f32
 
-    res = uwgen("--quiet", "demo", "--out", str(tmp_path), "--square-size", "1", "--timeout", "150",
-                "--key-file", str(tmp_path / "keys" / "demo.key"), timeout=360)
-    assert res.returncode == 0, res.stdout + res.stderr
     files = [tmp_path / "bridge_surface.mcap", tmp_path / "bridge_vehicle.mcap"]
     assert (tmp_path / "link.png").stat().st_size > 10_000
 
@@ -78,7 +73,7 @@ def test_demo_recordings_decode_and_reproduce_the_report(tmp_path):
     # uwgen log on the two recordings prints the report's rows.
     log = uwgen("log", *map(str, files), timeout=60)
     assert log.returncode == 0, log.stderr
-    demo_rows, log_rows = rows(res.stdout), rows(log.stdout)
+    demo_rows, log_rows = rows(stdout), rows(log.stdout)
     assert set(demo_rows) == set(log_rows) == {"/turtle1/cmd_vel", "/turtle1/pose",
                                                "/vehicle/battery", "/vehicle/log"}
     for topic, demo_row in demo_rows.items():
