@@ -24,6 +24,7 @@ from uwgen.runtime.clock import SYSTEM_CLOCK, Clock, WALL_CLOCK
 from uwgen.runtime.wire.codec import DecodeError, load_items
 from uwgen.security import wire
 from uwgen.security.droplog import SUMMARY_PERIOD
+from uwgen.runtime.delivery.epoch import on_schedule
 from uwgen.security.epochs import EPOCH_NUMBERS
 from uwgen.security.errors import SecurityError
 from uwgen.security.files import SideLock
@@ -77,8 +78,7 @@ class LinkGuard(SideSeal):
         with self._lock:
             seq = self.session.take()
             now = self.clock.now()
-            sync = (seq < SYNC_FIRST or seq % SYNC_EVERY == 0 or now - self._last_sync >= SYNC_PERIOD
-                    or self._sync_due > 0)
+            sync = on_schedule(seq, now, self._last_sync) or self._sync_due > 0
             self._sync_due = max(0, self._sync_due - 1)
             self.counters.inc("protected")
             word = None

@@ -39,7 +39,8 @@ from uwgen.security.epochs import EPOCH_NUMBERS
 from uwgen.security.errors import SecurityError
 from uwgen.security.files import SideLock
 from uwgen.security.side import SideSeal
-from uwgen.security.guard import DROP_REASONS, SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD, GuardConfig
+from uwgen.runtime.delivery.epoch import SYNC_BYTES, on_schedule
+from uwgen.security.guard import DROP_REASONS, GuardConfig
 from uwgen.security.keys import new_epoch, working_key
 from uwgen.security.receiver import Numbering
 from uwgen.security.window import WINDOW
@@ -50,7 +51,6 @@ SYNC_ANSWER = 2            # sync packets sent to answer a peer's request
 ASK_GAP = 5.0              # seconds between two requests to (or answers for) one peer
 NUMBER_BITS = 12           # W carries the packet number's low 12 bits
 ASK_BYTES = 2              # a C part of one item: its length byte and the item
-SYNC_BYTES = env.SYNC_LEN + env.TIME_LEN                       # K and T: 13
 
 
 def max_overhead(tag_bytes: int = env.TAG_LEN) -> int:
@@ -114,8 +114,7 @@ class PacketSeal(SideSeal):
 
     def _decide(self, now: float, seq: int) -> _Plan:
         ask = self.requests.next()
-        sync = (seq < SYNC_FIRST or seq % SYNC_EVERY == 0 or now - self._last_sync >= SYNC_PERIOD
-                or self._sync_due > 0 or ask is not None)
+        sync = on_schedule(seq, now, self._last_sync) or self._sync_due > 0 or ask is not None
         return _Plan(seq, sync, ask)
 
     def next_overhead(self, now: float) -> int:

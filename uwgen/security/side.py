@@ -23,9 +23,9 @@ from uwgen.security.receiver import Receiver
 
 DROP_REASONS = ("bad_tag", "replay", "too_old", "too_far", "stale", "before_start", "unknown_sender",
                 "reflected", "unsynced", "unprotected", "truncated", "malformed", "tag_length")
-SYNC_FIRST = 3          # the first frames (packets) of an epoch carry the sync word
-SYNC_EVERY = 64         # then every one whose number is a multiple of this,
-SYNC_PERIOD = 30.0      # and the first one after this many seconds without one
+# When the sync word (K) goes: one schedule for every link, sealed or not (docs/seams.md
+# sections 2 and 8), kept with the unsealed links' epochs below the security layer.
+from uwgen.runtime.delivery.epoch import SYNC_EVERY, SYNC_FIRST, SYNC_PERIOD  # noqa: E402,F401
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,14 @@ UNTIL_ACKED = 16          # K on every packet until one is acknowledged, at most
 SYNC_BYTES = env.SYNC_LEN + env.TIME_LEN
 
 
+def on_schedule(seq: int, now: float, last_sync: float) -> bool:
+    """K's standing schedule, the one rule for the seal and the unsealed link alike: the first
+    `SYNC_FIRST` packets of an epoch, every `SYNC_EVERY`-th, and the first after `SYNC_PERIOD`
+    s without one (`last_sync`: when K last went). The callers add their own occasions (a
+    peer's new epoch or request, an unacknowledged start)."""
+    return seq < SYNC_FIRST or seq % SYNC_EVERY == 0 or now - last_sync >= SYNC_PERIOD
+
+
 def new_epoch() -> bytes:
     return os.urandom(env.EPOCH_LEN)
 
@@ -50,8 +58,7 @@ class SendEpoch:
     def due(self, now: float) -> bool:
         """Whether the next packet carries K (planned now, kept for it)."""
         seq = self.next
-        self._planned = (seq < SYNC_FIRST or seq % SYNC_EVERY == 0 or self._answer > 0
-                         or now - self._last_sync >= SYNC_PERIOD
+        self._planned = (on_schedule(seq, now, self._last_sync) or self._answer > 0
                          or (not self.acked and seq < UNTIL_ACKED))
         return self._planned
 
