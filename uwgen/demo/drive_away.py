@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from statistics import median
 
+from uwgen import pngplot
+
 HOLD = 15.0          # seconds at the start distance (bridges connect, services, teleport)
 
 
@@ -78,9 +80,7 @@ def format_bins(name: str, bins: list[Bin]) -> str:
 
 
 def plot(curves: dict[str, list[Bin]], path: Path, title: str) -> Path:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pngplot.pyplot()
 
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.0, 6.0), dpi=110, sharex=True)
     for (name, bins), color in zip(curves.items(), ("tab:blue", "tab:orange")):
@@ -98,11 +98,7 @@ def plot(curves: dict[str, list[Bin]], path: Path, title: str) -> Path:
         ax.legend(fontsize=8)
     top.set_title(title, fontsize=10)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return pngplot.save(fig, path)
 
 
 def channel(phy_name: str, wind: float):

@@ -5,16 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from uwgen import pngplot
+
 
 def plot_paths(report: Any, path: Path, title: str = "") -> Path:
-    import matplotlib.pyplot as plt
-
-    fig = path_figure(report, title)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return pngplot.save(path_figure(report, title), path)
 
 
 def path_figure(report: Any, title: str = ""):

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from uwgen import pngplot
 from uwgen.emulator.core import EmulatorCore
 from uwgen.emulator.physics import SnrModel
 from uwgen.emulator.scenario import NodeSpec, Scenario
@@ -99,12 +100,8 @@ def format_table(sweep: dict[float, list[SweepPoint]]) -> str:
 
 def plot(sweep: dict[float, list[SweepPoint]], path: Path | str) -> Path:
     """Save the sweep as a PNG (matplotlib, Agg backend: no display needed)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pngplot.pyplot()
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(7, 4.2), dpi=110)
     for w, points in sweep.items():
         ax.plot([p.distance / 1000 for p in points], [p.pdr for p in points],
@@ -116,6 +113,4 @@ def plot(sweep: dict[float, list[SweepPoint]], path: Path | str) -> Path:
     ax.set_title("Emulated UW/PHYSICAL: 25 kHz, 5 kHz band, one-way traffic")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return pngplot.save(fig, path)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
+from uwgen import pngplot
 from uwgen.fieldkit.summary import Summary
 
 BIN = 10.0   # s per bar of the delivery and air-use panels
@@ -25,9 +26,7 @@ def _bins(points: list[tuple[float, float]], t0: float, width: float) -> dict[fl
 
 
 def plot_summary(s: Summary, path: Path, title: str = "") -> Path:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pngplot.pyplot()
 
     spans = [r.span for r in s.recordings if r.span]
     t0 = min(a for a, _ in spans) if spans else 0.0
@@ -82,8 +81,4 @@ def plot_summary(s: Summary, path: Path, title: str = "") -> Path:
     fig.suptitle(title or f"uwgen log: {', '.join(f'{r.network}/{r.side}' for r in s.recordings)}",
                  fontsize=10)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return pngplot.save(fig, path)
