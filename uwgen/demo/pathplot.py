@@ -14,9 +14,7 @@ def plot_paths(report: Any, path: Path, title: str = "") -> Path:
 
 def path_figure(report: Any, title: str = ""):
     """The figure of the commanded and reported paths (the caller saves and closes it)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pngplot.pyplot()
 
     fig, ax = plt.subplots(figsize=(6.4, 6.0), dpi=110)
     if report.commanded:
