@@ -174,9 +174,10 @@ class Network:
                         period=0.05, max_read_length=64, bitrate=48000.0, per=0.0, seed=5)
         self._emu_cm = run_emulator(scen)
         self.emu = self._emu_cm.__enter__()
-        self.vehicle = Vehicle(Ros(self.domains["vehicle"], "truth_vehicle"),
+        kind = "sealed" if self.sealed else "plain"       # one name per node of this process
+        self.vehicle = Vehicle(Ros(self.domains["vehicle"], f"truth_vehicle_{kind}"),
                                self.goal_seconds).start()
-        self.surface = Ros(self.domains["surface"], "truth_caller")
+        self.surface = Ros(self.domains["surface"], f"truth_caller_{kind}")
         from rclpy.action import ActionClient
         from test_msgs.action import Fibonacci
         from test_msgs.srv import BasicTypes
