@@ -28,7 +28,7 @@ from typing import Any, Callable
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 
-from uwgen.bridge import ledger
+from uwgen.runtime.delivery import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
