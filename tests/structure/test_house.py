@@ -33,7 +33,6 @@ LONG_CLASSES = {
     "uwgen/emulator/core.py:EmulatorCore",
     "uwgen/emulator/soak.py:Soak",
     "uwgen/emulator/server.py:Emulator",
-    "uwgen/idl/loader.py:InterfaceLibrary",
     "uwgen/bridge/action_servers.py:ActionServers",
     "uwgen/runtime/delivery/reliability.py:Reliability",
 }
