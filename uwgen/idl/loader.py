@@ -26,7 +26,7 @@ from typing import Iterable, Sequence
 from uwgen.idl import names
 from uwgen.idl.index import KINDS, Entry, default_prefixes, index_interfaces
 from uwgen.idl.model import (ACTION_PARTS, ActionDef, DefinitionError, InterfaceDef, MessageDef,
-                             ServiceDef, SourceRef)
+                             ServiceDef)
 from uwgen.idl.parser import parse_file
 
 
