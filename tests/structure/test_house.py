@@ -31,7 +31,6 @@ LONG_CLASSES = {
     "uwgen/runtime/link/connection.py:DesertConnection",
     "uwgen/runtime/link/scheduler.py:LinkScheduler",
     "uwgen/emulator/core.py:EmulatorCore",
-    "uwgen/emulator/soak.py:Soak",
     "uwgen/emulator/server.py:Emulator",
     "uwgen/bridge/action_servers.py:ActionServers",
     "uwgen/runtime/delivery/reliability.py:Reliability",
