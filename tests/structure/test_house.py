@@ -27,7 +27,6 @@ MAX_CLASS_LINES = 250
 # is within it (test_the_long_class_list_names_only_classes_still_over_it says when).
 LONG_CLASSES = {
     "uwgen/manifest/loader.py:_ManifestBuilder",
-    "uwgen/manifest/fields.py:FieldsReader",
     "uwgen/runtime/link/connection.py:DesertConnection",
     "uwgen/runtime/link/scheduler.py:LinkScheduler",
     "uwgen/emulator/core.py:EmulatorCore",
