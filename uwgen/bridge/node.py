@@ -118,7 +118,7 @@ class BridgeNode(Node):
         security_kw.update(link_mac(self.mac))
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
             seal_hooks.overhead if seal_hooks is not None else 0) + self.mac.overhead,
-            turn_gap=self.mac.turn_gap())
+            turn_gap=self.mac.turn_gap(), settled_by=self.mac.settled_by)
         reliability_hooks = self.reliability.hooks() if self.reliability is not None else None
         if reliability_hooks is not None or seal_hooks is not None:
             security_kw["hooks"] = join_hooks(reliability_hooks, seal_hooks)
