@@ -36,6 +36,7 @@ packets and bytes written with wire format 1 fragments and wire format 2 compact
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import random
 import sys
 import tempfile
@@ -84,6 +85,7 @@ class Pair:
         """`bridge`: the demo's sides with the hooks a bridge gives its link (reliability,
         joined with the seal when secured: uwgen.bridge.node)."""
         self.clock = ManualClock()
+        self.message_items = 0     # bytes of reliability heads (N, age) the receiver took off
         self.delivered: list[bytes] = []
         self.air = 0
         self.packets = 0
@@ -117,6 +119,13 @@ class Pair:
                 rel = reliability_for(plan, CONFIG,       # T on the wall clock, as the seal's
                                       other_overhead=seal.overhead if seal is not None else 0)
                 hooks[side] = join_hooks(rel.hooks(), seal)
+            admit = hooks[dst].admit
+
+            def counted_admit(payload: bytes, now: float) -> bytes | None:
+                out = admit(payload, now)       # the reliability head taken off (N, age)
+                self.message_items += len(payload) - (len(out) if out is not None else len(payload))
+                return out
+            hooks[dst] = dataclasses.replace(hooks[dst], admit=counted_admit)
         self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}),
                            **({"hooks": hooks[src]} if src in hooks else {}), **kw_src)
         self.receiver = Link(name=dst, on_payload=self.delivered.append,
@@ -161,6 +170,32 @@ class Pair:
         out["body"] -= self.security
         return out
 
+    def parts(self) -> dict[str, int]:
+        """Air bytes of wire format 2+ by part (table 0's breakdown): DESERT's header, the
+        frame, each envelope part (P, W, K, T, A, C), message heads (H, id, length and run
+        bytes), the reliability heads of messages (N, age: what the receiver's admit took
+        off), the tag and the bodies (the rest: seq, handles, fields, fragment heads)."""
+        out = dict.fromkeys(PARTS, 0)
+        out["DESERT"] = DESERT_HEADER * len(self.batches)
+        for batch in self.batches:
+            frames = ShortFrameDecoder().feed(batch)
+            out["frame"] += len(batch) - sum(map(len, frames))
+            for f in frames:
+                e = envelope.decode(f, self.tag_bytes)
+                out["P"] += 1
+                out["W"] += len(e.encode_head()) - 1 - part_bytes(e)
+                out["K"] += envelope.SYNC_LEN if e.sync is not None else 0
+                out["T"] += envelope.TIME_LEN if e.time is not None else 0
+                out["A"] += 1 + len(e.ack) if e.ack is not None else 0
+                out["C"] += 1 + len(e.control) if e.control is not None else 0
+                out["tag"] += len(e.tag) if e.sealed else 0
+                bodies = sum(len(m.body) for m in e.messages)
+                out["msg head"] += len(f) - e.head_size() - bodies
+                out["body"] += bodies
+        out["N, age"] = self.message_items
+        out["body"] -= self.message_items
+        return out
+
     def run(self, seconds: float, before_write=None) -> None:
         conn, rx = self.sender.connection, self.receiver.connection
         box = conn.outbox
@@ -180,6 +215,15 @@ class Pair:
             self.receiver._tick(t)
             nxt = box.pacer.next_write_at
             t = round(max(t + CONFIG.period / 16, nxt) if before_write is None else max(nxt, t + 1e-3), 9)
+
+
+PARTS = ("DESERT", "frame", "P", "W", "K", "T", "A", "C", "msg head", "N, age", "tag", "body")
+
+
+def part_bytes(e) -> int:
+    """Bytes of K, T, A and C in envelope `e` (what its head holds besides P and W)."""
+    return ((envelope.SYNC_LEN if e.sync is not None else 0) + (envelope.TIME_LEN if e.time is not None else 0)
+            + sum(1 + len(x) for x in (e.ack, e.control) if x is not None))
 
 
 # -- table 1: the demo's mix ------------------------------------------------------------------
@@ -247,7 +291,7 @@ def demo_mix(wire: int, seconds: float, tmp: Path | None,
         pair.run(seconds, offers)
         air += pair.air
         delivered += sum(1 for p in pair.delivered if p[1] != 249 and not p.startswith(b"\x00\x18\xf9"))
-        for k, v in pair.breakdown().items():
+        for k, v in (pair.parts() if bridge else pair.breakdown()).items():
             parts[k] = parts.get(k, 0) + v
     assert sum(parts.values()) == air, (parts, air)
     return air, delivered, parts
@@ -333,8 +377,9 @@ def as_deployed(seconds: float) -> dict[str, float]:
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         for label, secure in (("unsecured", None), ("secured", Path(tmp))):
-            air, n, _ = demo_mix(2, seconds, secure, envelope.TAG_LEN, bridge=True)
+            air, n, parts = demo_mix(2, seconds, secure, envelope.TAG_LEN, bridge=True)
             out[label] = air / n
+            out[label + " parts"] = {k: v / n for k, v in parts.items()}
     return out
 
 
@@ -377,6 +422,14 @@ def main() -> None:
         for label, goal in (("unsecured", 15.0), ("secured", 21.0)):
             print(f"{label:<12}{base[label]:>20.1f}{now[label]:>12.1f}{goal:>8.0f}  "
                   f"{'ok' if now[label] <= goal else 'MISS'}")
+        print("what they carry, bytes per delivered message (P, W, K, T, A, C: the envelope's "
+              "parts; msg head: H, id, length and run bytes; N, age: reliability heads):")
+        print(f"{'':<22}" + "".join(f"{k:>8}" for k in PARTS))
+        for label in ("unsecured", "secured"):
+            for which, figures in (("baseline", base), ("this build", now)):
+                split = figures.get(label + " parts")
+                if split is not None:
+                    print(f"{label + ', ' + which:<22}" + "".join(f"{split.get(k, 0):>8.2f}" for k in PARTS))
         print()
 
     print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions); "
