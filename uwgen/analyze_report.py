@@ -14,8 +14,8 @@ def _b(x: int | None) -> str:
 def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
     lines = [f"network {a.network}: message sizes (payload and frame bytes; typical / worst) and air time "
              f"at {a.bitrate:g} bit/s"]
-    if a.wire_format == 2:
-        lines.append("wire format 2: payload = the message in its packet's envelope (header H, no kind "
+    if a.wire_format != 1:
+        lines.append(f"wire format {a.wire_format}: payload = the message in its packet's envelope (header H, no kind "
                      "and id items); frame = that message alone in a packet (+ 4 frame, + 3 P and W); "
                      "messages sharing a packet pay 1 length byte each instead")
     if a.tag_bytes is not None:
