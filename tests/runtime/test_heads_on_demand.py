@@ -18,7 +18,7 @@ from uwgen.runtime.wire.heads import encode_age
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "wire-format.md"
 WALL0 = 1_700_000_000.0
-CMD = 9                       # a command: max age 2 s
+CMD = 9                       # a command: max age 30 s at the receiver
 
 
 class Wall:
@@ -31,7 +31,7 @@ class Wall:
 
 def receiver() -> tuple[Reliability, Wall]:
     wall = Wall()
-    return Reliability(2, period=0.2, reliable={}, max_ages={CMD: 2.0}, wall=wall, name="b"), wall
+    return Reliability(2, period=0.2, reliable={}, max_ages={CMD: 30.0}, wall=wall, name="b"), wall
 
 
 def packet(number: int, built: float | None, age: float = 0.0, body: bytes = b"\xf5") -> envelope.Envelope:
@@ -55,7 +55,7 @@ def test_a_packet_without_t_is_judged_by_the_earlier_t_and_a_fresh_one_is_taken(
     assert rel.counters["untimed"] == 0 and rel.counters["no_time"] == 0
 
 
-@pytest.mark.parametrize("hold", [10.0, 60.0, 3600.0, 2 * 86400.0])
+@pytest.mark.parametrize("hold", [40.0, 3600.0, 2 * 86400.0])
 def test_a_packet_without_t_held_for_any_time_is_refused(hold):
     rel, wall = receiver()
     assert arrive(rel, wall, packet(5, WALL0), WALL0 + 0.3)
@@ -67,9 +67,9 @@ def test_a_packet_without_t_held_for_any_time_is_refused(hold):
 def test_the_latest_earlier_t_bounds_a_late_packet_not_a_later_one():
     rel, wall = receiver()
     assert arrive(rel, wall, packet(5, WALL0), WALL0 + 0.2)
-    assert arrive(rel, wall, packet(8, WALL0 + 30.0), WALL0 + 30.2)
+    assert arrive(rel, wall, packet(8, WALL0 + 40.0), WALL0 + 40.2)
     # packet 6 (built just after 5) arrives after packet 8: bound by 5's T, not 8's
-    assert not arrive(rel, wall, packet(6, None), WALL0 + 30.3)
+    assert not arrive(rel, wall, packet(6, None), WALL0 + 40.3)
 
 
 def test_a_packet_it_cannot_bound_is_refused_counted_and_not_acknowledged(caplog):

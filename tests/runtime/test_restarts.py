@@ -23,9 +23,11 @@ from security.helpers import KEY, config
 PERIOD = 0.5
 
 
-def restartable(sealed: bool, per: float = 0.0, offsets: dict | None = None):
+def restartable(sealed: bool, per: float = 0.0, offsets: dict | None = None,
+                max_ages: dict | None = None):
     """Two sides a (sender 1) and b (sender 2); a's reliable topic 7. Unsealed, each side's
-    reliability gives K (a fresh epoch per start); sealed, the seal does."""
+    reliability gives K (a fresh epoch per start); sealed, the seal does, and reads T with the
+    offsets reliability measures, as the bridge wires them. `max_ages`: ids judged for age."""
     scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),
                            NodeSpec("b", position=(300, 0, 0), dest="a")],
                     period=PERIOD, max_read_length=64, per=per, seed=3, bitrate=4800.0)
@@ -38,13 +40,16 @@ def restartable(sealed: bool, per: float = 0.0, offsets: dict | None = None):
         wall = Wall(clock, (offsets or {}).get(side, 0.0))
         seal = None
         if sealed:
-            seal = PacketSeal(KEY, config(me, peer, "b" if side == "a" else "a", modes={7: "sign", 4: "sign"}),
+            seal = PacketSeal(KEY, config(me, peer, "b" if side == "a" else "a",
+                                          modes={7: "sign", 4: "sign", 9: "sign"}),
                               wall=wall, clock=clock, name=side,
                               epoch_source=lambda: next(epochs))
-        engines[side] = Reliability(me, period=PERIOD, reliable={7: 60.0}, max_ages={},
+        engines[side] = Reliability(me, period=PERIOD, reliable={7: 60.0}, max_ages=dict(max_ages or {}),
                                     wall=wall, name=side, max_read_length=64,
                                     other_overhead=0 if seal is None else seal.hooks().overhead,
                                     epoch_source=None if sealed else (lambda: next(epochs)))
+        if seal is not None:
+            seal.use_offsets(engines[side].offsets.of)
         return join_hooks(engines[side].hooks(), seal.hooks() if seal is not None else None)
     sim = DuplexSim(scen, ("a", "b"), hooks_for=hooks_for, wire_format=2, clock=clock)
     return sim, engines

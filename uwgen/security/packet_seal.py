@@ -13,7 +13,10 @@ docs/seams.md sections 2 and 5).
   `SYNC_PERIOD` s without one, the next `SYNC_FIRST` after a peer's new epoch, the next
   `SYNC_ANSWER` after a peer asked for one, and every packet that asks one;
 - receiving: `open(bytes)` decodes the envelope, refuses what is not sealed by a peer, checks a
-  T it carries against the max age of its messages, and hands the rest to
+  T it carries (`_time_ok`: against the max age of its messages, or, once the link's
+  reliability judges each command's age and gives this seal its peers' measured clock offsets
+  (`use_offsets`), against the link's default max age with the offset taken off), and hands
+  the rest to
   `receiver.Receiver.admit` (epoch, freshness, tag, replay window), so only admitted envelopes
   reach the link (and reliability's `received`). Every drop is counted by reason and logged
   throttled (`droplog.DropLog`); a packet dropped `unsynced` makes this side ask its sender for
@@ -30,7 +33,7 @@ from dataclasses import dataclass
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import SYSTEM_CLOCK, WALL_CLOCK, Clock
-from uwgen.runtime.delivery.freshness import stamp
+from uwgen.runtime.delivery.freshness import sent_at, stamp
 from uwgen.runtime.link.packets import PacketHooks
 from uwgen.runtime.stats import log_count
 from uwgen.security import control, packetwire, taglength, wire
@@ -49,6 +52,7 @@ COUNTERS = ("protected", "sync_sent", "verified", "epochs_seen", "asks_sent", "a
             "asks_ignored", "unknown_control", *DROP_REASONS)
 SYNC_ANSWER = 2            # sync packets sent to answer a peer's request
 ASK_GAP = 5.0              # seconds between two requests to (or answers for) one peer
+ASK_BEFORE = 2.0           # seconds: a packet refused before_start this near our start asks a sync
 NUMBER_BITS = 12           # W carries the packet number's low 12 bits
 ASK_BYTES = 2              # a C part of one item: its length byte and the item
 
@@ -88,6 +92,15 @@ class PacketSeal(SideSeal):
         self.requests = control.SyncRequests(ASK_GAP)
         self._told_length: set[int] = set()     # peers whose other tag length was logged
         self._told_time: set[int] = set()       # peers whose refused time T was logged
+        self._offset_of = None                  # sender -> measured clock offset (use_offsets)
+
+    def use_offsets(self, offset_of) -> None:
+        """`offset_of(sender)`: that peer's clock offset measured by the link's reliability
+        (`clock_offset.Offset`, or None), which also judges every message with a max age
+        (docs/wire-format.md section 15.5). From then on T is checked with the offset taken
+        off, against the link's default max age (docs/security.md, "Clocks")."""
+        with self._lock:
+            self._offset_of = offset_of
 
     def hooks(self) -> PacketHooks:
         return PacketHooks(parts=self.parts, seal=self.seal, open=self.open,
@@ -104,11 +117,6 @@ class PacketSeal(SideSeal):
 
     def _fingerprint(self, ident: int) -> bytes:
         return self.config.fingerprints.get(ident, b"")
-
-    def _max_age(self, messages) -> float:
-        ages = self.config.max_ages
-        return min((ages.get(m.id, self.config.max_age) for m in messages),
-                   default=self.config.max_age)
 
     # -- sending -----------------------------------------------------------------------
 
@@ -187,18 +195,18 @@ class PacketSeal(SideSeal):
         if e.sync is not None and e.time is None:
             return drop("malformed", None, e.sender)
         max_age = self._max_age(e.messages)
-        if e.sync is None and e.time is not None and not self.freshness.fresh(e.time, self.wall.now(), max_age):
+        if e.time is not None and not self._time_ok(e, max_age):
             self._tell_time(e)
             return drop("stale", None, e.sender)
         numbering = Numbering(e.sender, e.number, NUMBER_BITS,
                               None if e.sync is None else (e.sync.high << NUMBER_BITS) | e.number,
                               None if e.sync is None else wire.Sync(e.sync.epoch, e.time))
         got = self.receiver.admit(numbering, max_age, lambda aead, seq: packetwire.open_envelope(
-            aead, e, seq, self._encrypts, self._fingerprint))
+            aead, e, seq, self._encrypts, self._fingerprint), time_checked=True)
         if isinstance(got, str):
             if got == "stale" and e.sync is not None:
                 self._tell_time(e)
-            if got == "unsynced":
+            if got == "unsynced" or got == "before_start" and self._nearly_started(e.time):
                 self.requests.want(e.sender, self.clock.now())
             if got == "bad_tag" and e.sync is not None and self._other_length(data, e.sender):
                 got = "tag_length"
@@ -208,6 +216,43 @@ class PacketSeal(SideSeal):
         if got.control:
             self._control(got)
         return got
+
+    def _nearly_started(self, time24: int) -> bool:
+        """Whether a packet refused `before_start` was stamped less than `ASK_BEFORE` s before
+        this side started: a peer whose clock is behind by d looks so until d has passed; its
+        answer to a sync request, sealed a round trip later, then passes at once (the clock
+        exchange needs its K and T)."""
+        return self.receiver.started - sent_at(time24, self.wall.now()) < ASK_BEFORE
+
+    def _offset(self, sender: int):
+        """The sender's measured offset when it is known well enough to judge T by (its error
+        within the tolerance), else None."""
+        o = self._offset_of(sender) if self._offset_of is not None else None
+        return o if o is not None and o.error <= self.freshness.tolerance else None
+
+    def _max_age(self, messages) -> float:
+        """The max age T is checked against: the strictest of the packet's messages; with the
+        link's reliability judging each message's own (`use_offsets`), the link's default."""
+        if self._offset_of is not None:
+            return self.config.max_age
+        ages = self.config.max_ages
+        return min((ages.get(m.id, self.config.max_age) for m in messages),
+                   default=self.config.max_age)
+
+    def _time_ok(self, e: env.Envelope, max_age: float) -> bool:
+        """Whether the packet's T is fresh: sealed at most `max_age` plus the tolerance ago.
+        With the sender's offset measured, T is read on our clock (the offset taken off) and
+        may be ahead by the tolerance; before it is, with the link's reliability judging
+        commands, T may be ahead by up to the link's default max age, so a peer whose clock
+        is ahead is heard and measured (a time ahead never lets a held or recorded packet in:
+        holding makes T older, and T is under the tag). Never more than `max_age` plus the
+        tolerance old, whatever the offset."""
+        o = self._offset(e.sender)
+        wall = self.wall.now() + (o.offset if o is not None else 0.0)
+        age = self.freshness.age(e.time, wall)
+        ahead = (self.freshness.tolerance if o is not None or self._offset_of is None
+                 else max(self.freshness.tolerance, self.config.max_age))
+        return -ahead <= age <= max_age + self.freshness.tolerance
 
     def _tell_time(self, e: env.Envelope) -> None:
         """A packet refused for its time T: say by how much, once per sender (a clock set

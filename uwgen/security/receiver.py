@@ -63,12 +63,15 @@ class Receiver:
     def peer(self, sender: int) -> PeerEpochs:
         return self._peers[sender]
 
-    def admit(self, n: Numbering, max_age: float, verify: Callable[[Any, int], Any]) -> Any:
-        """What `verify` returned for the frame, or the drop reason (a str)."""
+    def admit(self, n: Numbering, max_age: float, verify: Callable[[Any, int], Any],
+              time_checked: bool = False) -> Any:
+        """What `verify` returned for the frame, or the drop reason (a str). `time_checked`:
+        the caller judged the sync frame's time already (the per-packet seal, with the
+        sender's measured clock offset)."""
         peer = self._peers[n.sender]
         if n.sync is not None:
             wall = self.wall.now()
-            if not self.freshness.fresh(n.sync.time, wall, max_age):
+            if not time_checked and not self.freshness.fresh(n.sync.time, wall, max_age):
                 return "stale"
             entry, seq = peer.get(n.sync.epoch), n.full
             if entry is None:

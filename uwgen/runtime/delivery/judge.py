@@ -106,7 +106,7 @@ class AgeJudge:
                        verdict.transit or 0.0, self.staleness.tolerance)
                    if verdict.transit is not None else "no packet time")
             log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: %.1f s old (age item "
+                      "[%s] refused a message of id %d from %s: it may be %.1f s old (age item "
                       "%.1f s, %s), its max age is %.1f s (counted stale)", self.name, ident,
                       self.who(peer), verdict.age, age, how, max_age)
         return True

@@ -3,24 +3,25 @@
 A message of an entry with a max age (a ttl, a service's timeout, a goal's accept_timeout)
 arrives with the packet's T (when the sender built the packet, on its wall clock:
 `uwgen.runtime.delivery.freshness`) and its age item (how long it waited before that, on the
-sender's monotonic clock: `uwgen.runtime.wire.heads`). Its age on arrival is
+sender's monotonic clock, in quarter seconds rounded down: `uwgen.runtime.wire.heads`). Its
+age on arrival is
 
     age + transit,   transit = receiver's wall clock - (T - offset)
 
-where `offset` is the sender's clock minus ours. Three cases:
+where `offset` is the sender's clock minus ours. The judgement is conservative: a message is
+taken only when the most it can be old is within its max age, so nothing is taken after its
+deadline whatever the offset's error and however long a packet was held:
 
-- the offset is measured (`clock_offset.ClockOffsets`, from an exchange): the message is
-  refused `stale` when age + transit > max age, the transit taken with the measured offset:
-  whatever the clocks and delays (a held packet's transit is counted in full), nothing is
-  taken later than its max age plus the measurement's `error` (half the least round trip
-  of an exchange, the two transits' possible asymmetry: shown in ~/status). Adding the error
-  to every age would refuse commands whose ttl is near one round trip (cmd_vel at 1 s over a
-  0.2 s link). An offset beyond the tolerance refuses every message with a max age
-  (`clock_offset`): the sides' clocks must be set (GPS, NTP) before commands run;
+- the offset is measured (`clock_offset.ClockOffsets`, from an exchange, within +-`error`):
+  refused `stale` when age + 1/4 s + max(0, transit + error) > max age (the age item's
+  rounding and the offset's error both taken against the message). An offset beyond the
+  tolerance refuses every message with a max age (`clock_offset`): the sides' clocks must be
+  set (GPS, NTP) before commands run;
 - the offset is not measured yet (the first packets after a start): the clocks are taken to
-  agree within `tolerance`; a transit outside [-tolerance, tolerance + max_transit] cannot be
-  told from an offset and the message is refused (`unexplained_delay`), never judged by its
-  age item alone; otherwise it is refused `stale` when age + transit > max age + tolerance;
+  agree within `tolerance`, which is then the offset's error: a transit outside
+  [-tolerance, tolerance + max_transit] cannot be told from an offset and the message is
+  refused (`unexplained_delay`), never judged by its age item alone; otherwise it is refused
+  `stale` when age + 1/4 s + max(0, transit + tolerance) > max age;
 - the packet has no T: judged by its age item alone (counted `untimed` by the caller).
 
 Pure: clocks and offsets are passed in.
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 
 from uwgen.runtime.delivery.clock_offset import Offset
 from uwgen.runtime.delivery.freshness import CLOCK_TOLERANCE, Freshness
+from uwgen.runtime.wire.heads import AGE_UNIT
 
 MAX_TRANSIT = 10.0        # seconds: DESERT's queue, one acoustic packet, and margin
 
@@ -40,7 +42,7 @@ STALE, CLOCK_OFFSET, UNEXPLAINED = "stale", "clock_offset", "unexplained_delay"
 @dataclass
 class Verdict:
     refused: str | None           # None: taken; else STALE, CLOCK_OFFSET or UNEXPLAINED
-    age: float                    # the message's age as judged (seconds)
+    age: float                    # the most the message can be old (seconds)
     transit: float | None = None  # the packet's transit as judged (offset taken off when known)
     offset: Offset | None = None  # the sender's measured offset used
 
@@ -62,11 +64,11 @@ class Staleness:
         apparent = Freshness(self.tolerance).age(time24, wall)
         if offset is not None:
             transit = apparent + offset.offset
+            most = age + AGE_UNIT + max(transit + offset.error, 0.0)
             if abs(offset.offset) > self.tolerance:
-                return Verdict(CLOCK_OFFSET, age + max(transit, 0.0), transit, offset)
-            total = age + max(transit, 0.0)
-            return Verdict(STALE if total > max_age else None, total, transit, offset)
+                return Verdict(CLOCK_OFFSET, most, transit, offset)
+            return Verdict(STALE if most > max_age else None, most, transit, offset)
+        most = age + AGE_UNIT + max(apparent + self.tolerance, 0.0)
         if not -self.tolerance <= apparent <= self.tolerance + self.max_transit:
-            return Verdict(UNEXPLAINED, age + max(apparent, 0.0), apparent)
-        total = age + max(apparent, 0.0)
-        return Verdict(STALE if total > max_age + self.tolerance else None, total, apparent)
+            return Verdict(UNEXPLAINED, most, apparent)
+        return Verdict(STALE if most > max_age else None, most, apparent)
