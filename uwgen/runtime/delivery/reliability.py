@@ -14,10 +14,8 @@ drives the pure engine `uwgen.runtime.delivery.reliable.ReliableLink`:
   sender's ledger (`acked`); each whole message's head is taken off (`admit`): a reliable
   message is delivered once (copies counted `duplicates`), a message with a max age is
   refused when older (`stale`, uwgen.runtime.delivery.staleness);
-- T (the packet's time, `freshness.stamp` of the injected wall clock) goes on a packet
-  carrying a message with a max age unless one of this epoch carried it a moment ago (heads on
-  demand, wire-format.md section 14.3): the receiver bounds a packet without T by the T of
-  its sender's latest earlier packet that had one, never by the age item alone.
+- T (the packet's time, `freshness.stamp` of the injected wall clock) goes on every packet
+  carrying a message with a max age.
 
 The per-entry ledger (`ledger()`, in the link's stats as `ledger`) is exact from packet
 numbers: sent = delivered + lost_on_link + in_flight + unacknowledged + unknown, per channel
@@ -52,22 +50,13 @@ from uwgen.runtime.stats import Counters, log_count
 log = logging.getLogger("uwgen.link.reliability")
 
 COUNTERS = ("stale", "clock_offset", "unexplained_delay", "offset_samples", "bad_heads", "bad_acks", "untimed", "restarts_seen",
-            "duplicate_packets", "no_time")
+            "duplicate_packets")
 DEFAULT_DEADLINE = 120.0          # seconds: a reliable entry without a ttl
 FORGET_AFTER = 2048               # packets: older ones cannot be named unambiguously (12 bits)
 # T, and an A part of one report (acks.A_ROOM): the most the hooks add to a packet.
 OVERHEAD = env.TIME_LEN + A_ROOM
 TIMED_REPORTS = 4                 # first packets with an A part that carry T (per peer epoch),
 TIMED_REPORT_EVERY = 30.0         # then one every this many seconds: the peer's clock offset
-# T on demand (wire-format.md section 14.3): a packet carrying messages with a max age leaves
-# without T when a packet of this side carried T less than T_SHARE of the smallest of those
-# max ages ago and fewer than T_PACKETS packets ago; the receiver takes the T of the sender's
-# latest earlier packet within T_REACH numbers (the last T_KEPT of them) as a lower bound of
-# the packet's build time, so it never judges a message younger than it is.
-T_SHARE = 0.25
-T_PACKETS = 32
-T_REACH = 64
-T_KEPT = 8
 
 
 def wire_id(key: int) -> int:
@@ -120,10 +109,6 @@ class Reliability:
         self._timed_reports = 0                       # packets with A and T since a peer's start
         self._last_timed_report = -float("inf")
         self._want_time = False
-        self._t_at = -float("inf")                    # when our last packet with T was built
-        self._t_packets = T_PACKETS                   # our packets since then
-        self._t_now = False                           # the packet being built carries T
-        self._times: dict[tuple[int, bytes], deque[tuple[int, int]]] = {}   # (peer, epoch) -> (number, T)
         self.counters = Counters(COUNTERS)
         # commands' ages, with each peer's clock offset measured from exchanges (judge.py)
         self.judge = AgeJudge(sender, name, wall, self.counters, self.max_ages, peer_names)
@@ -183,9 +168,7 @@ class Reliability:
             return stamped
 
     def carrying(self, picked: list[tuple[int, bytes]], now: float) -> None:
-        ages = [self.max_ages[wire_id(key)] for key, _ in picked if wire_id(key) in self.max_ages]
-        # T for messages with a max age, unless a packet carried it a moment ago (14.3)
-        self._timed = bool(ages) and (now - self._t_at >= T_SHARE * min(ages) or self._t_packets >= T_PACKETS)
+        self._timed = any(wire_id(key) in self.max_ages for key, _ in picked)
         # T also goes with the A part on the first packets and then now and then, so the
         # peer measures our clock's offset (clock_offset.py)
         self._want_time = self._timed or (
@@ -210,7 +193,6 @@ class Reliability:
                 out["sync"] = self.send_epoch.part(self._building, now)
             if self._timed or self._sync or (ack and self._want_time):
                 out["time"] = stamp(self.wall.now())
-                self._t_at, self._t_now = now, True
                 if ack:
                     self._timed_reports += 1
                     self._last_timed_report = now
@@ -229,8 +211,6 @@ class Reliability:
             self.offsets.built(number, self.wall.now())
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
-            self._t_packets = 0 if self._t_now else self._t_packets + 1
-            self._t_now = False
 
     def _to(self, messages: list[Sent]) -> set[int] | None:
         """The peers a packet must reach: those its messages are for, and those its reports
@@ -255,8 +235,7 @@ class Reliability:
                 elif message_measure(m.ref) <= room:
                     self._queue.remove(m)
                     self._resending[id(m.ref)] = m
-                    self._t_at = -float("inf")       # a copy goes with T: the first may have
-                    return m.key, m.ref              # been the one the peer bounds by
+                    return m.key, m.ref
             return None
 
     def ack_only(self, now: float) -> bool:
@@ -290,11 +269,7 @@ class Reliability:
             peer = envelope.sender
             epoch = self._epoch(envelope)
             eliciting = any(m.id in self.heads.numbered and m.kind == 0 for m in envelope.messages)
-            bound = self._time_bound(peer, epoch, envelope)
-            if bound is None and any(m.kind == env.FRAGMENT or m.id in self.max_ages for m in envelope.messages):
-                pass    # its messages with a max age are refused (admit) and the packet is not
-                #         acknowledged: its sender counts them lost and sends reliable ones again
-            elif not self.engine.received(peer, epoch, envelope.number, now, eliciting):
+            if not self.engine.received(peer, epoch, envelope.number, now, eliciting):
                 self.counters.inc("duplicate_packets")
             self.acks.heard(peer, bool(envelope.messages), now)
             if envelope.ack is not None:
@@ -310,31 +285,13 @@ class Reliability:
                               "[%s] ignored an acknowledgement from %s that is malformed "
                               "or names packets never sent: %s", self.name, self.judge.who(peer),
                               envelope.ack.hex(" "))
-            self._rx = (peer, epoch, bound)
-
-    def _time_bound(self, peer: int, epoch: bytes, envelope: env.Envelope) -> int | None:
-        """The packet's T, or for a packet without one the T of its sender's latest earlier
-        packet (same epoch, at most T_REACH numbers before) that had one: a lower bound of
-        its build time (section 14.3). None: no such packet was received."""
-        kept = self._times.get((peer, epoch))
-        if kept is None:        # a peer (or a start of one) new to us: it has no T of ours yet
-            kept = self._times[(peer, epoch)] = deque(maxlen=T_KEPT)
-            self._t_at, self._t_packets = -float("inf"), T_PACKETS
-        if envelope.time is not None:
-            kept.append((envelope.number, envelope.time))
-            return envelope.time
-        behind = [((envelope.number - n) % env.NUMBER_MOD, t) for n, t in kept]
-        before = [(d, t) for d, t in behind if 0 < d <= T_REACH]
-        return min(before)[1] if before else None
+            self._rx = (peer, epoch, envelope.time)
 
     def _epoch(self, envelope: env.Envelope) -> bytes:
         """The sender's epoch (epoch.PeerEpochs), acting on a stand-in named or a restart."""
         epoch, renamed, restarted = self._peers.of(envelope, self.engine.receipts)
         if renamed is not None:
             self.engine.rename_epoch(envelope.sender, renamed, epoch)
-            kept = self._times.pop((envelope.sender, renamed), None)
-            if kept is not None:
-                self._times[(envelope.sender, epoch)] = kept
             self.acks.rename_epoch(envelope.sender, renamed, epoch)
         if restarted:
             self._restarted(envelope.sender)
@@ -364,14 +321,6 @@ class Reliability:
                 return None
             ident = env.from_v1(got.payload).id if got.number is not None or got.age is not None else None
             peer, epoch, time24 = self._rx if self._rx is not None else (-1, b"", None)
-            if got.age is not None and time24 is None and self._rx is not None:
-                # no T on its packet nor on an earlier one within reach: its hold is unbounded
-                log_count(log, logging.WARNING, self.counters.inc("no_time"),
-                          "[%s] refused a message of id %d from %s: neither its packet nor an "
-                          "earlier one of that sender within %d packets carried a time, so how "
-                          "long it was held cannot be bounded (counted no_time)", self.name,
-                          ident, self.judge.who(peer), T_REACH)
-                return None
             if got.number is not None and not self.engine.deliver_once(peer, epoch, ident, got.number):
                 return None
             if got.age is not None and self.judge.refuses(ident, peer, time24, got.age):
