@@ -302,7 +302,7 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
     clock = ManualClock()
     mission = LinkPolicy(queue="fifo", depth=20, ttl=30.0, priority=3, reliable=reliable)
     rel: dict[str, Reliability] = {}
-    repair = {"ack": 0, "resent": 0}
+    repair = {"ack": 0, "resent": 0, "mac": 0}
 
     def hooks_for(side: str):
         r = rel[side] = Reliability(1 if side == "surface" else 2, period=0.2,
@@ -310,7 +310,7 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
                                     max_ages={i: p.ttl for _, i, _, _, p in TOPIC_MIX} | {MISSION: 30.0},
                                     wall=_Wall(clock), name=side, max_read_length=64,
                                     other_overhead=macs[side].overhead,
-                                    turn_gap=macs[side].turn_gap())
+                                    turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by)
         hooks = r.hooks()
         resend = hooks.resend
 
@@ -331,8 +331,10 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
             batch = take(now, pull, fit)
             for frame in ShortFrameDecoder().feed(batch):
                 env = envelope.decode(frame)
-                if not env.messages:
+                if not env.messages and env.ack is not None:
                     repair["ack"] += len(frame) + OVERHEAD      # the whole ack-only packet
+                elif not env.messages:
+                    repair["mac"] += len(frame) + OVERHEAD      # a turn's grant or end alone
                 elif env.ack is not None:
                     repair["ack"] += 1 + len(env.ack)
             return batch
@@ -364,8 +366,11 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
     written = sum(link.connection.outbox.stats.bytes_sent for link in sim.links.values())
     row = rel["surface"].ledger().get(MISSION, {})
     collisions = sum(sim.core.counters(n)["lost_collision"] for n in SENDERS)
+    engine = rel["surface"].engine
     return {"ratio": len(got) / len(sent_at), "p50": _pct(lat, 0.5), "p95": _pct(lat, 0.95),
-            "rtt": rel["surface"].engine.rtt.srtt or float("nan"), "collisions": collisions,
+            "rtt": engine.rtt.srtt or float("nan"), "collisions": collisions,
+            "round": macs["surface"].turn_gap(), "fast": engine.fast_resends,
+            "timer": engine.timer_resends,
             "dup": dup, "ack_share": repair["ack"] / written,
             "resent_share": repair["resent"] / written,
             "lost_on_link": row.get("lost_on_link", 0), "expired": row.get("expired", 0)}
@@ -386,7 +391,7 @@ def ledger_run(mac: str, seconds: float = 300.0, per: float = 0.0, seed: int = 5
     def hooks_for(side: str):
         rel[side] = Reliability(SENDERS[side], period=0.2, reliable={}, max_ages={}, wall=_Wall(clock),
                                 name=side, max_read_length=64, other_overhead=macs[side].overhead,
-                                turn_gap=macs[side].turn_gap())
+                                turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by)
         return rel[side].hooks()
     sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2, clock=clock,
                     step=0.025, link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})
@@ -424,16 +429,18 @@ def _pct(values: list[float], q: float) -> float:
 
 def topic_table(rates: list[float], seed: int, macs: list[str] = ("none",)) -> None:
     print("| PER | mac | mission topic | delivered | latency p50 / p95 (s) | measured round trip (s) "
-          "| p95 / round trip | duplicates | lost on link (copies) | collisions | acks / bytes "
-          "written | re-sends / bytes written | acks + re-sends |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| p95 / round trip | MAC round (s) | re-sent: report / timer | duplicates "
+          "| lost on link (copies) | collisions | acks / bytes written | re-sends / bytes written "
+          "| acks + re-sends |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for per in rates:
         for mac in macs:
             for reliable in (False, True):
                 r = topic_run(per, seed, reliable, mac=mac)
                 print(f"| {per:.0%} | {mac} | {'reliable' if reliable else 'best effort'} | "
                       f"{r['ratio']:.1%} | {r['p50']:.2f} / {r['p95']:.2f} | {r['rtt']:.2f} | "
-                      f"{r['p95'] / r['rtt']:.1f} | {r['dup']} | {r['lost_on_link']} | "
+                      f"{r['p95'] / r['rtt']:.1f} | {r['round']:.2f} | {r['fast']} / {r['timer']} | "
+                      f"{r['dup']} | {r['lost_on_link']} | "
                       f"{r['collisions']} | {r['ack_share']:.1%} | {r['resent_share']:.1%} | "
                       f"{r['ack_share'] + r['resent_share']:.1%} |", flush=True)
 

@@ -25,22 +25,30 @@ Goals: packed <= DCCL + 1 byte; native+enc <= 1.6 x DCCL; pk wf2 <= DCCL 4.2.
 Table 2, microseconds per encode+decode (into rclpy objects) of the quantized (native+enc)
 and packed codecs against rclpy's serialize_message + deserialize_message, with the
 geometric mean of the ratios (goal <= 1.0).
+
+Table 3, arrays of numeric structs (docs/wire-format.md section 4.2): a PolygonStamped of 50
+points (x, y not halves; z 0, or not a half either) in profile native by columns, against
+its CDR and against the items it took before columns (the header's items, the count, then
+every point's three float32 items, measured in this run). Goal: columns <= CDR.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import random
 import statistics
+import struct
 import tempfile
 import textwrap
 from pathlib import Path
 
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Point32, PolygonStamped, Twist
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import BatteryState, NavSatFix, NavSatStatus
 
 from uwgen.codegen import generate
+from uwgen.runtime.wire.codec import pack_items
 from uwgen.runtime.wire.envelope import from_v1, strip_packed_head
 
 from codec_bench import per_call_us   # the same timing rule as the codec table
@@ -164,6 +172,28 @@ def battery() -> BatteryState:
     return b
 
 
+def polygon(z_halves: bool) -> PolygonStamped:
+    """50 points of a survey area's outline, in metres: x and y not halves."""
+    rnd = random.Random(7)
+    msg = PolygonStamped()
+    msg.header.stamp, msg.header.frame_id = STAMP, "map"
+    msg.polygon.points = [Point32(x=rnd.uniform(-500, 500), y=rnd.uniform(-500, 500),
+                                  z=0.0 if z_halves else rnd.uniform(-50, 0)) for _ in range(50)]
+    return msg
+
+
+def items_size(codec, msg: PolygonStamped) -> int:
+    """The payload as items: the header's items (an empty polygon's payload but its count
+    `00`), then the count and the 150 float32 items (the form before columns)."""
+    empty = PolygonStamped(header=msg.header)
+    values = [struct_f32(v) for p in msg.polygon.points for v in (p.x, p.y, p.z)]
+    return len(codec.encode(empty)) - 1 + len(pack_items([len(msg.polygon.points), *values]))
+
+
+def struct_f32(x: float) -> float:
+    return struct.unpack("<f", struct.pack("<f", x))[0]
+
+
 def auv_status(pkg):
     cls = pkg.codec("auv_msgs/msg/AUVStatus").plain_class()
     return cls(stamp=pkg.codec("builtin_interfaces/msg/Time").plain_class()(sec=STAMP.sec, nanosec=0),
@@ -193,7 +223,12 @@ def manifest_text() -> str:
             if with_fields:
                 lines.append("    fields:" + textwrap.indent(fields, "    ").rstrip())
             ident += 1
+    lines += [f"  - name: /polygon", f"    id: {POLYGON_ID}", "    type: geometry_msgs/msg/PolygonStamped",
+              "    publisher: a"]
     return "\n".join(lines) + "\n"
+
+
+POLYGON_ID = 100
 
 
 def main() -> None:
@@ -237,6 +272,17 @@ def main() -> None:
                 ratios.append(t / t_ros)
             time_rows.append((label, t_ros, *times))
 
+        poly = pkg.TOPICS[POLYGON_ID]
+        poly_rows = []
+        for label, z_halves in (("z 0", True), ("z not halves", False)):
+            msg = polygon(z_halves)
+            payload = poly.encode(msg)
+            assert poly.decode(payload) == deserialize_message(serialize_message(msg), PolygonStamped)
+            t_cols = per_call_us(lambda msg=msg: poly.decode(poly.encode(msg)), number // 10)
+            t_ros = per_call_us(lambda msg=msg: deserialize_message(serialize_message(msg), PolygonStamped),
+                                number // 10)
+            poly_rows.append((label, len(serialize_message(msg)), items_size(poly, msg), len(payload), t_ros, t_cols))
+
     print("Table 1: bytes per message (payload, header included)")
     print(f"{'message':<16}{'CDR':>6}{'native':>8}{'nat+enc':>9}{'pk no enc':>10}{'packed':>8}{'DCCL':>6}"
           f"{'packed-DCCL':>13}{'nat+enc/DCCL':>14}{'DCCL 4.2':>10}{'pk wf2':>8}{'wf2-4.2':>10}")
@@ -254,6 +300,13 @@ def main() -> None:
         print(f"{label:<16}{t_ros:>10.2f}{t_q:>9.2f}{t_q / t_ros:>7.2f}{t_pk:>8.2f}{t_pk / t_ros:>7.2f}")
     geo = math.exp(statistics.fmean(math.log(r) for r in ratios))
     print(f"geometric mean of time ratios (uwgen / rclpy): {geo:.2f}  (goal: <= 1.0)")
+    print()
+    print("Table 3: PolygonStamped, 50 points: bytes (payload, header included) and us per encode+decode")
+    print(f"{'points':<14}{'CDR':>6}{'items':>7}{'columns':>9}{'col-CDR':>9}{'rclpy us':>10}{'columns us':>12}")
+    for label, cdr, items, cols, t_ros, t_cols in poly_rows:
+        ok = "ok" if cols <= cdr else "MISS"
+        print(f"{label:<14}{cdr:>6}{items:>7}{cols:>9}{cols - cdr:>+7} {ok:<4}{t_ros:>8.1f}{t_cols:>12.1f}")
+    print("goal: columns <= CDR (items: the form before columns, section 4)")
 
 
 if __name__ == "__main__":

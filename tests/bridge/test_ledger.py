@@ -1,11 +1,11 @@
-"""The per-topic books of a bridge (uwgen.bridge.ledger): identities, and the subscription's QoS."""
+"""The per-topic books of a bridge (uwgen.runtime.delivery.ledger): identities, and the subscription's QoS."""
 from __future__ import annotations
 
 from types import SimpleNamespace
 
 import pytest
 
-from uwgen.bridge import ledger
+from uwgen.runtime.delivery import ledger
 from uwgen.bridge.counters import TopicCounters
 from uwgen.manifest.model import LinkPolicy, Qos
 

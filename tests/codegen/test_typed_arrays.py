@@ -40,7 +40,7 @@ def pkg(tmp_path_factory):
 
 def doc_rows() -> dict[str, tuple[str, str]]:
     """example -> (payload hex, the 'sent' column), from section 4.1's table."""
-    section = DOC.read_text().split("### 4.1", 1)[1].split("\n## ", 1)[0]
+    section = DOC.read_text().split("### 4.1", 1)[1].split("\n## ", 1)[0].split("\n### ", 1)[0]
     rows = re.findall(r"^\| ([a-z0-9-]+) \| [^|]+ \| `([0-9A-F ]+)` \| ([^|]+) \|$", section, re.M)
     return {name: (payload, sent.strip()) for name, payload, sent in rows}
 

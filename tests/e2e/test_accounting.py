@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from geometry_msgs.msg import Twist
 from std_msgs.msg import String
 
-from uwgen.bridge import ledger
+from uwgen.runtime.delivery import ledger
 from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan
 from uwgen.emulator import NodeSpec, Scenario, run_emulator

@@ -52,7 +52,8 @@ def test_mode_none_always_allows():
 def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
     lead, follower = pair()
     lead.carries = True                              # its packets carry messages
-    assert write(lead, 0.0) == b"" and write(lead, 0.21) == b""
+    assert write(lead, 0.0) == b""
+    assert write(lead, 0.21) == bytes([0x22, 0])     # the second: notice of the grant to come
     grant = write(lead, 0.42)                        # the third packet carries the grant
     assert grant == bytes([0x22, 2])
     assert lead.next_write_at(0.5) > 0.5              # waiting for the vehicle's turn
@@ -174,3 +175,59 @@ def test_an_end_lost_after_the_answer_costs_two_intervals_not_a_timeout():
     assert lead.next_write_at(0.1) > 0.8 + 3 * lead.interval   # the first timer is longer
     lead.heard(2, b"", 0.8)                          # its first packet; the one with the end is lost
     assert lead.next_write_at(0.9) == pytest.approx(0.8 + 3 * lead.interval)
+
+
+def test_the_leader_gives_notice_of_its_grant_on_the_packet_before_it():
+    lead, _ = pair()
+    lead.carries = True
+    items = [write(lead, t) for t in (0.0, 0.21, 0.42)]
+    assert items == [b"", bytes([0x22, 0]), bytes([0x22, 2])]
+    assert decode_items(items[1]) == [MacItem(TURN_GRANT, 2, 0)]
+    assert [(i.code, i.sender) for i in control.items(items[1] + items[2])] == [(2, 2), (2, 2)]
+
+
+def test_a_follower_that_heard_the_notice_but_lost_the_grant_takes_its_turn_after_it():
+    _, follower = pair()
+    follower.backlog = lambda now: True
+    follower.heard(1, bytes([0x22, 0]), 1.0)
+    start = 1.0 + follower.interval + follower.air + 0.05      # the grant's packet has ended
+    assert follower.next_write_at(1.1) == pytest.approx(start)
+    assert follower.next_write_at(start) == -math.inf and follower.counts["turns_from_notice"] == 1
+    assert write(follower, start) == b""
+    assert write(follower, start + 0.21) == bytes([0x32])      # the manifest's 2 packets, then the end
+    assert follower.next_write_at(start + 0.3) == math.inf
+
+
+def test_a_grant_after_its_notice_starts_the_turn_at_once_and_others_notices_are_ignored():
+    _, follower = pair()
+    follower.heard(1, bytes([0x22, 0]), 1.0)
+    follower.heard(1, bytes([0x22, 2]), 1.21)
+    assert follower.next_write_at(1.21) == -math.inf and follower.counts["turns_from_notice"] == 0
+    _, other = pair()
+    other.heard(1, bytes([0x23, 0]), 1.0)                       # notice for sender 3
+    other.heard(3, bytes([0x22, 0]), 1.0)                       # not from the leader
+    assert other.next_write_at(5.0) == math.inf
+
+
+def test_settled_by_says_until_when_a_peers_answer_covers_this_sides_packets():
+    lead, follower = pair()
+    assert Mac().settled_by(2, 1.0) is None
+    lead.carries = False
+    write(lead, 0.42)                                           # the grant
+    assert lead.settled_by(2, 1.1) == 0.42 and lead.settled_by(3, 1.1) is None
+    follower.backlog = lambda now: False
+    follower.heard(1, bytes([0x22, 2]), 0.9)
+    assert follower.settled_by(1, 0.9) is None                  # its turn: nothing settled yet
+    write(follower, 0.9)                                        # the end
+    assert follower.settled_by(1, 2.0) == 0.9 and follower.settled_by(3, 2.0) is None
+
+
+def test_a_weighted_tdma_slot_drains_more_packets_a_frame():
+    # frame 3 s over 3 sides, the surface weighted 4 of 6: its slot is 2 s (ON 1.8 s), the
+    # others 0.5 s (ON 0.3 s); 64-byte packets take 0.113 s, one per 0.2 s period
+    config = MacConfig(mode="tdma", frame=3.0, guard=0.2, slots=("surface", "auv1", "auv2"),
+                       max_packet_per_slot=1000, queue_size=100, weights=(("surface", 4),))
+    assert tdma_capacity(config, LINK, "surface") == 15      # by the period: 3 s / 0.2 s
+    assert tdma_capacity(config, LINK, "auv1") == 3          # floor(0.3 / 0.113) + 1
+    assert TdmaMac(config, "surface", LINK).capacity == 15
+    assert TdmaMac(config, "auv2", LINK).capacity == 3

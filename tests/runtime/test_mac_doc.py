@@ -30,7 +30,7 @@ ROWS = table("mac-examples")
 
 
 def test_the_section_has_examples():
-    assert len(ROWS) == 3
+    assert len(ROWS) == 4
 
 
 @pytest.mark.parametrize("row", ROWS, ids=[r[0] for r in ROWS])

@@ -27,13 +27,10 @@ MAX_CLASS_LINES = 250
 # is within it (test_the_long_class_list_names_only_classes_still_over_it says when).
 LONG_CLASSES = {
     "uwgen/manifest/loader.py:_ManifestBuilder",
-    "uwgen/manifest/fields.py:FieldsReader",
     "uwgen/runtime/link/connection.py:DesertConnection",
     "uwgen/runtime/link/scheduler.py:LinkScheduler",
     "uwgen/emulator/core.py:EmulatorCore",
-    "uwgen/emulator/soak.py:Soak",
     "uwgen/emulator/server.py:Emulator",
-    "uwgen/idl/loader.py:InterfaceLibrary",
     "uwgen/bridge/action_servers.py:ActionServers",
     "uwgen/runtime/delivery/reliability.py:Reliability",
 }

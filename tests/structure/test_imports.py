@@ -149,3 +149,11 @@ def test_runtime_rooms_import_only_their_own_room_or_lower_ones():
 def test_the_room_check_sees_an_upward_import():
     assert _room("uwgen.runtime.delivery.acks") > _room("uwgen.runtime.wire.codec")
     assert _room("uwgen.runtime.clock") == _room("uwgen.runtime.stats")
+
+
+def test_the_field_kit_reads_recordings_without_the_bridge():
+    # The bridge records through the field kit's writer; the kit's readers and tables take the
+    # books from the runtime's ledger, so neither package needs the other back.
+    g = graph()
+    assert sorted((v, w) for v, ws in g.items() if v.startswith("uwgen.fieldkit")
+                  for w in ws if w.startswith("uwgen.bridge")) == []

@@ -28,7 +28,7 @@ from typing import Any, Callable
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 
-from uwgen.bridge import ledger
+from uwgen.runtime.delivery import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
 from uwgen.bridge.counters import BridgeCounters
@@ -118,7 +118,7 @@ class BridgeNode(Node):
         security_kw.update(link_mac(self.mac))
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
             seal_hooks.overhead if seal_hooks is not None else 0) + self.mac.overhead,
-            turn_gap=self.mac.turn_gap())
+            turn_gap=self.mac.turn_gap(), settled_by=self.mac.settled_by)
         reliability_hooks = self.reliability.hooks() if self.reliability is not None else None
         if self.reliability is not None and hasattr(self.guard, "use_offsets"):
             # the seal reads T with each peer's measured clock offset; reliability judges

@@ -16,7 +16,7 @@ bridge's CPU. So a latest-only topic has two states:
 
 Either way every message taken is counted as taken, and only the newest of one take is
 deserialized, encoded and offered; the older ones are counted as superseded
-(uwgen.bridge.ledger), as the link queue would have counted them. While polling, a
+(uwgen.runtime.delivery.ledger), as the link queue would have counted them. While polling, a
 message waits at most POLL_PERIOD more before it is offered.
 
 How the executor is kept off the subscription without a node of its own: each such

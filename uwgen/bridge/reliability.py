@@ -62,18 +62,22 @@ class _Wall:
 
 def reliability_for(plan: BridgePlan, link: LinkConfig,
                     wall: Clock | Callable[[], float] = WALL_CLOCK, *,
-                    other_overhead: int = 0, turn_gap: float = 0.0) -> Reliability | None:
+                    other_overhead: int = 0, turn_gap: float = 0.0,
+                    settled_by: Callable[[int, float], float | None] | None = None
+                    ) -> Reliability | None:
     """The link's reliability of this side (None on wire format 1). `wall`: the wall clock
     T is stamped with and checked against (a Clock, or a function giving seconds);
     `other_overhead`: what the hooks joined with it (the per-packet seal, the MAC) add to a
-    packet; `turn_gap`: the MAC's longest wait for the peer's turn (uwgen.runtime.link.mac)."""
+    packet; `turn_gap`: the MAC's longest wait for the peer's turn and `settled_by` what a
+    peer's answer covers of this side's packets (uwgen.runtime.link.mac)."""
     if plan.wire_format != 2:
         return None
     clock = wall if hasattr(wall, "now") else _Wall(wall)
     return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
                        max_read_length=link.max_read_length, other_overhead=other_overhead,
-                       turn_gap=turn_gap, destinations=destinations(plan, plan.side_ids),
+                       turn_gap=turn_gap, settled_by=settled_by,
+                       destinations=destinations(plan, plan.side_ids),
                        peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},
                        # K on an unsealed link is this side's; a sealed link's is the seal's
                        epoch_source=new_epoch if plan.security is None else None,

@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any, Callable
 
-from uwgen.bridge import ledger
+from uwgen.runtime.delivery import ledger
 from uwgen.bridge.counters import TopicCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.loops import BRIDGE_NODE_PREFIX
@@ -214,7 +214,7 @@ class TopicBridge:
     # -- status ------------------------------------------------------------------------
 
     def status(self, channels: dict[int, dict], link_lost: dict[int, int] | None = None) -> dict[str, dict]:
-        """Per topic: the counters, and the `accounting` that adds up (uwgen.bridge.ledger);
+        """Per topic: the counters, and the `accounting` that adds up (uwgen.runtime.delivery.ledger);
         `link_lost`: messages the link knows were lost, by id."""
         link_lost = link_lost or {}
         topics = {}

@@ -18,7 +18,7 @@ from __future__ import annotations
 from uwgen.codegen.emit_common import Function, field_access, func_name, not_sent, quantize_lines, slots_name
 from uwgen.codegen.emit_decode import Decoding
 from uwgen.codegen.encodings import (
-    Bool, BoolArray, ByteScalar, Enumerated, Filler, MessageArray, NumberArray, Octets, Quantized,
+    Bool, BoolArray, ByteScalar, ColumnArray, Enumerated, Filler, MessageArray, NumberArray, Octets, Quantized,
     Text, TextArray, TimeOfDay, TimeSinceEpoch,
 )
 from uwgen.codegen.ir import CodecType, Node, NumberRun, segments
@@ -120,6 +120,16 @@ class Lowering(Decoding):
             lines += self._length_check(enc.array, enc.size, p, count=counted)
             t = enc.text
             lines.append(f"out += _texts(x, {p}, {t.wide}, {t.bound}, {t.max_bytes})")
+            return lines
+        if isinstance(enc, ColumnArray):      # by columns (section 4.2)
+            lines += self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED)
+            fn = self.ref("enc", enc.type_key, suffix)
+            caught = "_struct.error, OverflowError, TypeError, AttributeError"
+            if slots:       # an element that is no rclpy message: encode it all by name
+                fn, caught = slots_name(fn), "_struct.error, OverflowError, TypeError"
+            getters = self.consts.getters(tuple(path for path, _code in enc.columns), slots)
+            codes = tuple(code for _path, code in enc.columns)
+            lines.append(f"out += _encode_columns(x, {getters}, {codes!r}, {fn}, {p}, ({caught}))")
             return lines
         if isinstance(enc, MessageArray):
             lines += self._length_check(enc.array, enc.size, p, count=enc.array is not ArrayKind.FIXED)

@@ -27,6 +27,13 @@ class Constants:
     def names(self, names: tuple[str, ...]) -> str:
         return self._add(repr(names), "_N")
 
+    def getters(self, paths: tuple[str, ...], slots: bool) -> str:
+        """`operator.attrgetter`s of dotted paths in an element ('linear.x'); with `slots`,
+        of rclpy's slots behind them ('_linear._x')."""
+        if slots:
+            paths = tuple(".".join("_" + part for part in path.split(".")) for path in paths)
+        return self._add("(" + "".join(f"_attrgetter({path!r}), " for path in paths) + ")", "_G")
+
     def values(self, values: tuple) -> str:
         """An enum's values, by index."""
         return self._add(repr(tuple(values)), "_V")

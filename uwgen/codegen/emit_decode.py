@@ -12,7 +12,7 @@ from uwgen.codegen.emit_common import (
     F32_MAX, Constants, Function, func_name, index_max, module_alias, not_read,
 )
 from uwgen.codegen.encodings import (
-    Absent, Bool, BoolArray, ByteScalar, Enumerated, Filler, MessageArray, Number, NumberArray, Octets,
+    Absent, Bool, BoolArray, ByteScalar, ColumnArray, Enumerated, Filler, MessageArray, Number, NumberArray, Octets,
     Quantized, Text, TextArray, TimeOfDay, TimeSinceEpoch,
 )
 from uwgen.codegen.ir import CodecType, Node, NumberRun, segments
@@ -140,6 +140,8 @@ class Decoding:
             elif enc.array is ArrayKind.BOUNDED:
                 lines.append(f"if len({var}) > {enc.size}: raise _DecodeError({p}, f'{{len({var})}} bytes, over the bound of {enc.size}')")
             return lines
+        if isinstance(enc, ColumnArray):
+            return self._columns(enc, var, p, suffix)
         # Arrays of items: a count (or the fixed size), then the elements.
         counted = enc.array is not ArrayKind.FIXED or getattr(enc, "fixed_count", False)
         per_elem = max(enc.elem_min_items, 1) if isinstance(enc, MessageArray) else 1
@@ -184,6 +186,25 @@ class Decoding:
         elif isinstance(enc, TextArray):
             lines.append(f"_check_texts({var}, {p}, {enc.text.bound})")
         return lines
+
+    def _columns(self, enc: ColumnArray, var: str, p: str, suffix: str) -> list[str]:
+        """An array by columns (section 4.2): the count (sequences), the columns read
+        row-major, then each element through its type's decoder, which checks its values."""
+        if enc.array is ArrayKind.FIXED:
+            lines = [f"n = {enc.size}"]
+        else:
+            bound = enc.size if enc.array is ArrayKind.BOUNDED else None
+            lines = [f"n = _count(v, i, {p}, {bound}, 0)  # columns may be one byte string each", "i += 1"]
+        fn = self.ref("dec", enc.type_key, suffix)
+        return lines + [f"r, i = _decode_columns(v, i, n, {enc.columns!r}, {p})",
+                        f"{var} = []",
+                        "j = k = 0",
+                        "try:",
+                        "    for k in range(n):",
+                        f"        e, j = {fn}(r, j, C)",
+                        f"        {var}.append(e)",
+                        "except _DecodeError as exc:",
+                        f"    raise _under(exc, {p}, k) from None"]
 
     def index_value(self, enc, n: str, p: str) -> str:
         """The expression of the field value that index `n` stands for."""

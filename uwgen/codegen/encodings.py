@@ -120,6 +120,23 @@ class MessageArray:
 
 
 @dataclass(frozen=True)
+class ColumnArray(MessageArray):
+    """An array of a message type whose every field is a number, nested messages flattened
+    (Point32, Vector3, Twist): profile native sends it by columns (wire format section 4.2),
+    the count once (sequences), then each member's n values as one byte string
+    (little-endian at the member's width, or halves for a float member whose every value
+    is one) or as its n items, whichever is smaller. `columns` are the members in field
+    order: (path within the element, struct code)."""
+    columns: tuple[tuple[str, str], ...] = ()
+    kind: str = "column_array"
+
+    @property
+    def row_width(self) -> int:
+        """Bytes of one element with every column at its width."""
+        return sum(struct.calcsize("<" + code) for _path, code in self.columns)
+
+
+@dataclass(frozen=True)
 class Absent:
     """Not on the wire (rmw_desert drops byte fields); decoders leave the default."""
     why: str
@@ -230,7 +247,7 @@ class TimeSinceEpoch:
 
 
 Encoding = (Number | Bool | ByteScalar | Text | Octets | NumberArray | BoolArray | TextArray
-            | MessageArray | Absent | Filler | Quantized | Enumerated | Static | TimeOfDay
+            | MessageArray | ColumnArray | Absent | Filler | Quantized | Enumerated | Static | TimeOfDay
             | TimeSinceEpoch)
 
 TIME_TYPE = "builtin_interfaces/msg/Time"

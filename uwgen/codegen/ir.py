@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Iterator
 
 from uwgen.codegen.encodings import (
-    STRUCT_CODES, Absent, Bool, BoolArray, ByteScalar, Encoding, Enumerated, Filler, MessageArray,
+    STRUCT_CODES, Absent, Bool, BoolArray, ByteScalar, ColumnArray, Encoding, Enumerated, Filler, MessageArray,
     Number, NumberArray, Octets, Quantized, Static, Text, TextArray, TimeOfDay, TimeSinceEpoch,
     field_encoding, type_key,
 )
@@ -216,6 +216,10 @@ class IRBuilder:
                 elem = self.codec(sub, profile)
                 if elem.key not in uses:
                     uses.append(elem.key)
+                columns = self._columns(elem) if profile == NATIVE else None
+                if columns:
+                    return Node(name, path, ColumnArray(ftype.array, ftype.size, elem.key, elem.min_items,
+                                                        elem.fixed_items, elem.min_bytes, columns=columns))
                 return Node(name, path, MessageArray(ftype.array, ftype.size, elem.key,
                                                      elem.min_items, elem.fixed_items, elem.min_bytes))
             return Node(name, path, children=self._fields(sub, profile, path, uses),
@@ -237,6 +241,16 @@ class IRBuilder:
         tag = TYPED_TAGS.get(code) if profile == NATIVE else None
         return Node(name, path, NumberArray(base, code, ftype.array, ftype.size,
                                             INTEGER_RANGES.get(base), tag))
+
+    @staticmethod
+    def _columns(elem: CodecType) -> tuple[tuple[str, str], ...] | None:
+        """The columns of an array of `elem` (wire format section 4.2): (path, struct code)
+        of each of its numbers, when every field of `elem` is one (nested messages
+        flattened); else None: the array travels as items."""
+        leaves = list(elem.root.leaves())
+        if not all(isinstance(leaf.encoding, Number) for leaf in leaves):
+            return None
+        return tuple((leaf.path, leaf.encoding.code) for leaf in leaves)
 
     @staticmethod
     def _scalar(base: str, bound: int | None, rmw: bool) -> Encoding:
@@ -270,6 +284,10 @@ class IRBuilder:
             return _Size(1, 1, 3 if enc.is_float else 1)
         if isinstance(enc, (Bool, ByteScalar, Text, Filler)):
             return _Size(1, 1, 1)
+        if isinstance(enc, ColumnArray) and fixed_array:   # one byte string or the items per column
+            n = enc.size
+            per = [n if code not in "fd" else min(3 * n, head_size(2 * n) + 2 * n) for _p, code in enc.columns]
+            return _Size(len(enc.columns) if n else 0, None, sum(per))
         if not fixed_array:                     # a count, then maybe nothing
             return _Size(1, None, 1)
         if isinstance(enc, Octets):

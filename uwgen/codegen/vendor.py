@@ -27,6 +27,7 @@ from pathlib import Path
 CARRIED = {
     "codec": "uwgen.runtime.wire.codec",
     "typed_arrays": "uwgen.runtime.wire.typed_arrays",
+    "columns": "uwgen.runtime.wire.columns",
     "model": "uwgen.manifest.model",
     "framing": "uwgen.runtime.wire.framing",
     "bits": "uwgen.runtime.wire.bits",

@@ -46,14 +46,14 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 
-from uwgen.emulator.core import LOSS_CAUSES, EmulatorCore
+from uwgen.emulator.core import EmulatorCore
 from uwgen.emulator.physics import SnrModel
+from uwgen.emulator.soak_checks import problems
 from uwgen.emulator.scenario import NodeSpec, Scenario
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.link.link import Link
 from uwgen.runtime.delivery.reliability import Reliability
-from uwgen.runtime.link.scheduler import DROP_REASONS
 
 FRAGMENT_ID = 250
 SIDES = ("surface", "vehicle")
@@ -382,64 +382,6 @@ class Soak:
         twice or out of order, at most `corrupt_allowed` false frames, every channel's
         offered = sent + queued + dropped, every byte written reached DESERT, and (drained)
         every packet DESERT took was delivered, lost or dropped by a restart."""
-        problems = []
-        for name, rec in self.received.items():
-            if rec.repeated:
-                problems.append(f"{name}: {rec.repeated} messages delivered twice or out of order")
-        if self.corrupt() > corrupt_allowed:
-            problems.append(f"{self.corrupt()} messages delivered with wrong content "
-                            f"(allowed {corrupt_allowed})")
-        if self.unknown:
-            problems.append(f"{self.unknown} payloads of no flow delivered")
-        for side, s in self.sides.items():
-            for key, c in s.link.scheduler.stats().items():
-                accounted = c["sent"] + c["queued"] + sum(c[r] for r in DROP_REASONS)
-                if c["offered"] != accounted:
-                    problems.append(f"{side} channel {key}: offered {c['offered']} != sent + "
-                                    f"queued + dropped {accounted}")
-            wrote = s.link.connection.outbox.stats.bytes_sent
-            if wrote != self.core.counters(side)["bytes_in"]:
-                problems.append(f"{side}: the link wrote {wrote} bytes, DESERT read "
-                                f"{self.core.counters(side)['bytes_in']}")
-        for name, row in self.ledger().items():
-            # sent = delivered + lost: nothing arrives that was not sent, the receiver never
-            # counts more lost than did not arrive, and the sender's own ledger (wire-format 15.7),
-            # once there, says exactly what arrived and what did not.
-            if row["lost"] < 0:
-                problems.append(f"{name}: delivered {row['delivered']} > sent {row['sent']}")
-            if drained and row["lost_seen"] > row["lost"]:
-                problems.append(f"{name}: the receiver saw {row['lost_seen']} lost, but only "
-                                f"{row['lost']} of {row['sent']} sent did not arrive")
-            link = row["link"]
-            if link is not None and link["sent"] != (link["delivered"] + link["lost_on_link"]
-                                                     + link.get("in_flight", 0)
-                                                     + link.get("unacknowledged", 0)
-                                                     + link.get("unknown", 0)):
-                problems.append(f"{name}: the link's ledger does not close: {link}")
-            flow = next(f for f in self.flows if f.name == name)
-            whole = max(flow.sizes) <= self.sides[flow.src].link.fragmenter.max_payload
-            flying = link.get("in_flight", 0) if link is not None else 0
-            if drained and whole and link is not None and not (
-                    link["sent"] == row["sent"]
-                    and link["delivered"] <= row["delivered"] <= link["delivered"] + flying
-                    and link["lost_on_link"] + link.get("unacknowledged", 0) <= row["lost"]
-                    <= link["lost_on_link"] + link.get("unacknowledged", 0) + flying):
-                # unfragmented, never re-sent: the link's copies are the flow's messages; exact
-                # but for copies no acknowledgement named yet (in_flight: the tail of a run)
-                problems.append(f"{name}: the link's ledger says sent {link['sent']} delivered "
-                                f"{link['delivered']} lost {link['lost_on_link']} (+ "
-                                f"{link.get('unacknowledged', 0)} unacknowledged, {flying} in "
-                                f"flight); sent {row['sent']} = "
-                                f"delivered {row['delivered']} + lost {row['lost']}")
-        if drained:
-            for src in SIDES:
-                dst = self._other(src)
-                a, b = self.core.counters(src), self.core.counters(dst)
-                lost = sum(b[f"lost_{c}"] for c in LOSS_CAUSES)
-                if a["packets_queued"] != b["packets_delivered"] + lost + a["dropped_restart"]:
-                    problems.append(
-                        f"{src}->{dst}: {a['packets_queued']} packets != delivered "
-                        f"{b['packets_delivered']} + lost {lost} + dropped at restarts "
-                        f"{a['dropped_restart']}")
-        if problems:
-            raise AssertionError("; ".join(problems))
+        found = problems(self, drained, corrupt_allowed)
+        if found:
+            raise AssertionError("; ".join(found))

@@ -13,7 +13,7 @@ Columns, per topic (from the publishing side to the other):
   delivered  messages the far application received
   latency    from publication to delivery (median and 95th percentile), matched per message
 So `taken = on link + policy + still queued`, and `on link = received by the far bridge + lost`
-(uwgen.bridge.ledger, pure accounting); a topic whose bridge counters do not add up is named
+(uwgen.runtime.delivery.ledger, pure accounting); a topic whose bridge counters do not add up is named
 under the table. The counts come from the two bridges' final status (`topic_row`); the
 demo fills published, delivered and latencies from its applications' records, `uwgen log`
 from the bridges' recordings (uwgen.fieldkit.summary).
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from statistics import median
 from typing import Iterable
 
-from uwgen.bridge import ledger
+from uwgen.runtime.delivery import ledger
 from uwgen.runtime.link.scheduler import DROP_REASONS
 
 

@@ -20,18 +20,14 @@ for and cached, so naming one type costs one parse plus its dependencies.
 """
 from __future__ import annotations
 
-import os
-import sys
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Sequence
 
 from uwgen.idl import names
+from uwgen.idl.index import KINDS, Entry, default_prefixes, index_interfaces
 from uwgen.idl.model import (ACTION_PARTS, ActionDef, DefinitionError, InterfaceDef, MessageDef,
-                             ServiceDef, SourceRef)
+                             ServiceDef)
 from uwgen.idl.parser import parse_file
-
-_KINDS = (("msg", ".msg"), ("srv", ".srv"), ("action", ".action"))
 
 
 class UnknownInterface(DefinitionError, KeyError):
@@ -39,23 +35,6 @@ class UnknownInterface(DefinitionError, KeyError):
 
     def __str__(self) -> str:  # KeyError would quote the message
         return DefinitionError.__str__(self)
-
-
-@dataclass(frozen=True)
-class _Entry:
-    full_name: str
-    package: str
-    path: Path
-    local: bool
-
-
-def default_prefixes() -> list[Path]:
-    """Install prefixes searched for `share/<package>/msg|srv`: sys.prefix, then AMENT_PREFIX_PATH."""
-    prefixes = [Path(sys.prefix)]
-    for item in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        if item:
-            prefixes.append(Path(item))
-    return prefixes
 
 
 class InterfaceLibrary:
@@ -69,94 +48,9 @@ class InterfaceLibrary:
     ):
         self.folders = [Path(f) for f in folders]
         self.prefixes = [Path(p) for p in (default_prefixes() if prefixes is None else prefixes)] if installed else []
-        self._index: dict[str, _Entry] = {}
         self._parsed: dict[Path, InterfaceDef] = {}
         self._checked: set[str] = set()
-        local_packages = self._index_folders()
-        self._index_installed(local_packages)
-
-    # -- index -----------------------------------------------------------------------
-
-    def _index_folders(self) -> set[str]:
-        seen_real: set[Path] = set()
-        packages: set[str] = set()
-        for folder in self.folders:
-            try:
-                is_dir = folder.is_dir()
-            except OSError as exc:          # a name too long for the system, say
-                raise DefinitionError(SourceRef(folder, 1, 1),
-                                      f"interface folder cannot be looked at: {exc.strerror or exc}") from None
-            if not is_dir:
-                raise DefinitionError(SourceRef(folder, 1, 1), "interface folder does not exist or is not a folder")
-            found = False
-            for package_dir in self._package_dirs(folder):
-                real = package_dir.resolve()
-                if real in seen_real:
-                    found = True
-                    continue
-                seen_real.add(real)
-                package = package_dir.name
-                if not names.is_package_name(package):
-                    raise DefinitionError(
-                        SourceRef(package_dir, 1, 1),
-                        f"'{package}' is not a valid ROS package name (lower case letters, digits, '_')",
-                    )
-                for entry in self._package_entries(package, package_dir, local=True):
-                    previous = self._index.get(entry.full_name)
-                    if previous is not None:
-                        raise DefinitionError(
-                            SourceRef(entry.path, 1, 1),
-                            f"{entry.full_name} is defined twice: also in {previous.path}",
-                        )
-                    self._index[entry.full_name] = entry
-                    found = True
-                packages.add(package)
-            if not found:
-                raise DefinitionError(
-                    SourceRef(folder, 1, 1),
-                    "no interfaces found: expected <package>/msg/*.msg, <package>/srv/*.srv or "
-                    "<package>/action/*.action (or a package folder with msg/, srv/ or action/)",
-                )
-        return packages
-
-    @staticmethod
-    def _package_dirs(folder: Path) -> list[Path]:
-        def has_kinds(d: Path) -> bool:
-            return any((d / kind).is_dir() for kind, _ in _KINDS)
-        if has_kinds(folder):
-            return [folder]
-        return sorted(child for child in folder.iterdir() if child.is_dir() and has_kinds(child))
-
-    @staticmethod
-    def _package_entries(package: str, package_dir: Path, local: bool) -> list[_Entry]:
-        entries = []
-        for kind, suffix in _KINDS:
-            sub = package_dir / kind
-            if not sub.is_dir():
-                continue
-            for path in sorted(sub.iterdir()):
-                if path.suffix == suffix and path.is_file():
-                    entries.append(_Entry(f"{package}/{kind}/{path.stem}", package, path, local))
-        return entries
-
-    def _index_installed(self, hidden: set[str]) -> None:
-        provided: set[str] = set(hidden)
-        for prefix in self.prefixes:
-            share = prefix / "share"
-            try:
-                children = sorted(os.scandir(share), key=lambda e: e.name)
-            except OSError:
-                continue
-            for child in children:
-                if child.name in provided or not child.is_dir():
-                    continue
-                package_dir = Path(child.path)
-                entries = self._package_entries(child.name, package_dir, local=False)
-                if not entries:
-                    continue
-                provided.add(child.name)
-                for entry in entries:
-                    self._index[entry.full_name] = entry
+        self._index: dict[str, Entry] = index_interfaces(self.folders, self.prefixes)
 
     # -- names -----------------------------------------------------------------------
 
@@ -185,11 +79,11 @@ class InterfaceLibrary:
         resolved = self._resolve(name)
         return None if resolved is None else resolved[0]
 
-    def _resolve(self, name: str) -> tuple[str, _Entry, str | None] | None:
+    def _resolve(self, name: str) -> tuple[str, Entry, str | None] | None:
         """(full name, entry, part) for any spelling `normalize` accepts; see `_lookup`."""
         parts = name.split("/")
         if len(parts) == 2:
-            candidates = [f"{parts[0]}/{kind}/{parts[1]}" for kind, _ in _KINDS]
+            candidates = [f"{parts[0]}/{kind}/{parts[1]}" for kind, _ in KINDS]
         elif len(parts) == 3:
             candidates = [name]
         else:
@@ -200,7 +94,7 @@ class InterfaceLibrary:
                 return full, *found
         return None
 
-    def _lookup(self, full: str) -> tuple[_Entry, str | None] | None:
+    def _lookup(self, full: str) -> tuple[Entry, str | None] | None:
         """(entry, part) for a full name; part is 'request'/'response' for a service's
         message, 'goal'/'result'/'feedback' for an action's."""
         entry = self._index.get(full)
@@ -255,7 +149,7 @@ class InterfaceLibrary:
             return f"'{name}' is not an interface name: expected pkg/msg/Name, pkg/srv/Name, pkg/action/Name or pkg/Name"
         return f"unknown interface '{name}' (looked in: {self.looked_in()})"
 
-    def _parse(self, entry: _Entry) -> InterfaceDef:
+    def _parse(self, entry: Entry) -> InterfaceDef:
         definition = self._parsed.get(entry.path)
         if definition is None:
             definition = parse_file(entry.path, entry.package)

@@ -8,9 +8,7 @@ a bound looser than the .msg's own, two encodings for one field.
 """
 from __future__ import annotations
 
-import math
 import re
-import struct
 from fractions import Fraction
 
 import yaml
@@ -19,6 +17,7 @@ from uwgen.idl.model import FLOAT_TYPES, INTEGER_RANGES, STRING_TYPES, ArrayKind
 from uwgen.manifest.model import (
     ENUM, MAX_COUNT, MAX_LENGTH, OMIT, QUANTIZE, STATIC, TIME_OF_DAY, TIME_SINCE_EPOCH, FieldEncoding,
 )
+from uwgen.manifest.field_values import FieldValues
 from uwgen.manifest.nodes import Reader
 
 ENCODING_KEYS = ("min", "max", "precision", "resolution", "out_of_range", "static", "omit", "time",
@@ -32,17 +31,13 @@ MAX_CODES = 1 << 64          # an index must fit a CBOR unsigned integer
 SEGMENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 
 
-def exact(value) -> Fraction:
-    """The decimal number the manifest wrote, exactly: 0.1 -> 1/10 (never 0.1000000000000000055...)."""
-    return Fraction(value) if isinstance(value, int) else Fraction(repr(value))
-
-
 class FieldsReader:
     """Checks one `fields:` mapping against the message type it encodes."""
 
     def __init__(self, reader: Reader, lookup):
         self.r = reader
         self.lookup = lookup          # full name -> MessageDef
+        self.values = FieldValues(reader)
 
     def read(self, node: yaml.Node, msg: MessageDef, label: str) -> tuple[FieldEncoding, ...]:
         r = self.r
@@ -134,7 +129,7 @@ class FieldsReader:
             return FieldEncoding(path, OMIT, where=where)
         if "static" in keys:
             alone("static")
-            value = self.static_value(keys["static"][1], ftype, what)
+            value = self.values.static_value(keys["static"][1], ftype, what)
             return FieldEncoding(path, STATIC, value=value, where=where)
         if "time" in keys:
             return self.time(keys, path, ftype, elem, what, alone, where)
@@ -170,8 +165,8 @@ class FieldsReader:
         prim = ftype.base
         if prim not in INTEGER_RANGES and prim not in FLOAT_TYPES or prim == "byte":
             raise r.error(node, f"min/max of {what} need a number field, and the field is a {prim}")
-        lo = self.decimal(r.require(keys, "min", node, what), f"min of {what}")
-        hi = self.decimal(r.require(keys, "max", node, what), f"max of {what}")
+        lo = self.values.decimal(r.require(keys, "min", node, what), f"min of {what}")
+        hi = self.values.decimal(r.require(keys, "max", node, what), f"max of {what}")
         if lo >= hi:
             raise r.error(keys["min"][1], f"min of {what} must be below max ({lo} >= {hi})")
         if "precision" in keys and "resolution" in keys:
@@ -182,7 +177,7 @@ class FieldsReader:
             step = Fraction(1, 10 ** digits) if digits >= 0 else Fraction(10 ** -digits)
         elif "resolution" in keys:
             step_node = keys["resolution"][1]
-            step = self.decimal(step_node, f"resolution of {what}")
+            step = self.values.decimal(step_node, f"resolution of {what}")
             if step <= 0:
                 raise r.error(step_node, f"resolution of {what} must be > 0, got {step}")
         elif prim in INTEGER_RANGES:
@@ -207,64 +202,6 @@ class FieldsReader:
             clamp = r.choice(keys["out_of_range"][1], f"out_of_range of {what}", OUT_OF_RANGE) == "clamp"
         return FieldEncoding(path, QUANTIZE, min=lo, max=hi, step=step, clamp=clamp, where=where)
 
-    def decimal(self, node: yaml.Node, what: str) -> Fraction:
-        value = self.r.value(node, what)
-        self.r.expected_number(node, value, what)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.r.error(node, f"{what} must be a finite number, got {self.r.describe(node)}")
-        return exact(value)
-
-    def static_value(self, node: yaml.Node, ftype: FieldType, what: str):
-        r = self.r
-        if not ftype.is_primitive:
-            raise r.error(node, f"static of {what}: the field is a {ftype.base} message; give static values "
-                                "to its number, bool or string fields (or omit: true for the whole message)")
-        if ftype.is_array:
-            items = r.sequence(node, f"static of {what}") if not isinstance(node, yaml.ScalarNode) else None
-            if items is None:
-                raise r.error(node, f"static of {what} must be a list: the field is a {ftype}")
-            if ftype.array is ArrayKind.FIXED and len(items) != ftype.size:
-                raise r.error(node, f"static of {what} has {len(items)} elements; the field is a {ftype}")
-            if ftype.array is ArrayKind.BOUNDED and len(items) > ftype.size:
-                raise r.error(node, f"static of {what} has {len(items)} elements, over the bound of {ftype}")
-            return tuple(self.fits(item, ftype.element(), f"static of {what}") for item in items)
-        return self.fits(node, ftype, f"static of {what}")
-
-    def fits(self, node: yaml.Node, ftype: FieldType, what: str):
-        """The value of scalar `node` as field type `ftype` holds it, or a located error."""
-        r = self.r
-        value = r.value(node, what)
-        prim = ftype.base
-        if not isinstance(node, yaml.ScalarNode):
-            raise r.error(node, f"{what} must be a single value, got {r.describe(node)}")
-        if prim == "bool":
-            if not isinstance(value, bool):
-                raise r.error(node, f"{what} must be true or false for a bool field, got {r.describe(node)}")
-            return value
-        if prim in STRING_TYPES:
-            if not isinstance(value, str):
-                raise r.error(node, f"{what} must be a string for a {prim} field, got {r.describe(node)}")
-            if ftype.string_bound is not None and len(value) > ftype.string_bound:
-                raise r.error(node, f"{what} has {len(value)} characters, over the bound of {ftype}")
-            return value
-        r.expected_number(node, value, what)     # a plain 0o17 where a number goes
-        if prim in INTEGER_RANGES:
-            lo, hi = INTEGER_RANGES[prim]
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise r.error(node, f"{what} must be an integer for a {prim} field, got {r.describe(node)}")
-            if not lo <= value <= hi:
-                raise r.error(node, f"{what} {value} is outside the {prim} range {lo}..{hi}")
-            return value
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise r.error(node, f"{what} must be a number for a {prim} field, got {r.describe(node)}")
-        value = float(value)
-        if prim == "float32" and math.isfinite(value):
-            try:
-                struct.pack("<f", value)
-            except OverflowError:
-                raise r.error(node, f"{what} {value} is outside the float32 range") from None
-        return value
-
     def enum(self, node: yaml.Node, path: str, ftype: FieldType, what: str, where) -> FieldEncoding:
         r = self.r
         self.scalar_kind(node, ftype, what, "values")
@@ -277,7 +214,7 @@ class FieldsReader:
             raise r.error(node, f"values of {what} must list at least one value")
         values = []
         for item in items:
-            value = self.fits(item, ftype, f"a value of {what}")
+            value = self.values.fits(item, ftype, f"a value of {what}")
             if value in values:
                 raise r.error(item, f"value {value!r} of {what} is listed twice")
             values.append(value)
@@ -312,7 +249,7 @@ class FieldsReader:
         step = Fraction(1)
         if "resolution" in keys:
             step_node = keys["resolution"][1]
-            step = self.decimal(step_node, f"resolution of {what}")
+            step = self.values.decimal(step_node, f"resolution of {what}")
             if step <= 0 or (step * 10 ** 9).denominator != 1:
                 raise r.error(step_node, f"resolution of {what} must be a positive whole number of nanoseconds")
         if kind == "day":
@@ -323,7 +260,7 @@ class FieldsReader:
         alone("time", ("resolution", "epoch", "span"))
         epoch = r.integer(r.require(keys, "epoch", node, what), f"epoch of {what} (unix seconds)", 0, 2 ** 31 - 1)
         span_node = r.require(keys, "span", node, what)
-        span = self.decimal(span_node, f"span of {what} (seconds)")
+        span = self.values.decimal(span_node, f"span of {what} (seconds)")
         if span <= 0 or span % step:
             raise r.error(span_node, f"span of {what} must be a positive multiple of the resolution {step} s")
         if epoch + span > 2 ** 31 - 1:

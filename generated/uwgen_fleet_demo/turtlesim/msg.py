@@ -15,6 +15,7 @@
 """turtlesim/msg: plain classes and CBOR codecs (uwgen wire format v1)."""
 # ruff: noqa
 import struct as _struct
+from operator import attrgetter as _attrgetter
 
 from .._runtime.codec import (
     CodecError as _CodecError, DecodeError as _DecodeError, EncodeError as _EncodeError,
@@ -30,6 +31,7 @@ from .._runtime.typed_arrays import (
     number_array as _number_array, float32_array as _float32_array,
     numeric_sequence as _numeric_sequence, typed_array as _typed_array,
 )
+from .._runtime.columns import decode_columns as _decode_columns, encode_columns as _encode_columns
 from .._runtime.rosclasses import new_message as _new
 from .._runtime.bits import (
     end as _end,

@@ -48,7 +48,10 @@ class AckPolicy:
                 continue
             epoch = epochs.get(peer, b"")
             low = self._confirmed.get((peer, epoch))
-            waited = r.eliciting_since is not None
+            # the peer waits for an ack of a reliable message, or a gap may hide one: its
+            # loss is reported on this packet, so the sender re-sends it in its next packet
+            # (RFC 5681's immediate ack of a segment out of order), not after its timer
+            waited = r.eliciting_since is not None or r.gap
             # news, or numbers no report the peer received has named yet: those ride on
             # packets leaving anyway, every ack_interval, until a report naming them is known
             # to have arrived (then the peer's ledger has them)
@@ -82,7 +85,7 @@ class AckPolicy:
             r = self.engine._current(peer)
             if r is None or r.largest is None:
                 continue
-            if r.eliciting_since is not None:
+            if r.eliciting_since is not None or r.gap:
                 return True
             low = self._confirmed.get((peer, epochs.get(peer, b"")))
             unsettled = peer in self._news or low is None or low < r.largest

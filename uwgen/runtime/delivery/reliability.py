@@ -76,8 +76,13 @@ class Reliability:
                  other_overhead: int = 0, peer_names: dict[int, str] | None = None,
                  epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0,
                  clock_exchange: bool = False,
-                 destinations: dict[int, frozenset[int]] | None = None):
+                 destinations: dict[int, frozenset[int]] | None = None,
+                 settled_by: Callable[[int, float], float | None] | None = None):
         self.sender, self.name, self.wall = sender, name, wall
+        # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
+        # peer or been lost before the peer's packet heard now was built (turns: the peer
+        # answers in a turn that began after them); a report there names a loss at once
+        self.settled_by = settled_by or (lambda peer, now: None)
         # wire id -> the peers (sender ids) its messages are for, on a channel shared by more
         # than two sides (a fleet): a packet is acknowledged by each of them (ReliableLink).
         # None: two sides, the first report settles a packet.
@@ -299,7 +304,8 @@ class Reliability:
             if envelope.ack is not None:
                 self.judge.sample(peer, envelope, self.engine.largest_sent, now)
                 before = self.engine.bad_acks
-                self.engine.acked(envelope.ack, now, reporter=peer)
+                self.engine.acked(envelope.ack, now, reporter=peer,
+                                  settled_by=self.settled_by(peer, now))
                 if self.send_epoch is not None and self.engine.largest_acked is not None:
                     self.send_epoch.acked = True
                 self.acks.confirm()
@@ -374,5 +380,7 @@ class Reliability:
                     "reliability": {**self.counters.as_dict(), "rto": rtt.rto, "srtt": rtt.srtt,
                                     "rtt_samples": rtt.samples,
                                     "spurious_resends": self.engine.spurious,
+                                    "fast_resends": self.engine.fast_resends,
+                                    "timer_resends": self.engine.timer_resends,
                                     "clock_offsets": {p: o.as_dict() for p, o in
                                                       self.offsets.peers().items()}}}

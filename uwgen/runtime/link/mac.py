@@ -19,8 +19,12 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   packets, the last carrying C item 3 (end of turn); the leader takes the turn back when it
   hears the end, or when its timer (from measured turn round trips) runs out: the miss is
   counted and the next side is granted, so a lost grant or answer costs one timeout and a
-  side that starts late or restarts answers the next grant naming it. Needs no change inside
+  side that starts late or restarts answers the next grant naming it. The packet before a
+  full turn's last gives notice of the grant (`2S 00`): a follower that heard it and lost the
+  grant takes its turn all the same once the grant's packet has ended. Needs no change inside
   DESERT and no clock agreement: every timer starts from an event this side saw.
+  `settled_by` tells delivery that a peer's answer was built after all of this side's packets
+  of the turn before it had arrived or been lost (a report there names their loss at once).
 """
 from __future__ import annotations
 
@@ -33,7 +37,8 @@ from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.packets import PacketHooks
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN, PACKET_HEADER
 
-TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255)
+TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255);
+                        # `2S 00`: notice that the leader's next packet grants S its turn
 TURN_END = 3            # C item `3S`: sender S ends its turn
 INF = math.inf
 LISTEN = 0.05           # s: DESERT's CSMA-ALOHA listen before a packet starts (10-20 ms measured, docs/emulator.md)
@@ -43,7 +48,7 @@ LISTEN = 0.05           # s: DESERT's CSMA-ALOHA listen before a packet starts (
 class MacItem:
     code: int
     sender: int
-    count: int = 0      # TURN_GRANT: packets granted
+    count: int = 0      # TURN_GRANT: packets granted (0: a notice of the grant to come)
 
 
 def encode_items(items: list[MacItem]) -> bytes:
@@ -53,8 +58,8 @@ def encode_items(items: list[MacItem]) -> bytes:
             raise ValueError(f"MAC item for sender {it.sender}: a sender id fits 4 bits")
         out.append((it.code << 4) | it.sender)
         if it.code == TURN_GRANT:
-            if not 1 <= it.count <= 255:
-                raise ValueError(f"a turn grant is for 1..255 packets, got {it.count}")
+            if not 0 <= it.count <= 255:
+                raise ValueError(f"a turn grant is for 1..255 packets (0: a notice), got {it.count}")
             out.append(it.count)
     return bytes(out)
 
@@ -66,7 +71,7 @@ def decode_items(control: bytes) -> list[MacItem]:
     while i < len(control):
         code, sender = control[i] >> 4, control[i] & 0x0F
         if code == TURN_GRANT:
-            if i + 1 < len(control) and control[i + 1]:
+            if i + 1 < len(control):
                 out.append(MacItem(code, sender, control[i + 1]))
             i += 2
             continue
@@ -111,6 +116,12 @@ class Mac:
     def turn_gap(self) -> float:
         return 0.0
 
+    def settled_by(self, sender: int, now: float) -> float | None:
+        """Until when this side's writes had all reached `sender` or been lost before the
+        packet heard from it now was built (None: the MAC cannot say). Delivery takes a
+        report in that packet as naming all of them (a packet it does not name was lost)."""
+        return None
+
     def stats(self) -> dict:
         return {"mode": self.mode}
 
@@ -141,7 +152,7 @@ class TdmaMac(Mac):
                  margin: float = DEFAULT_MARGIN):
         super().__init__()
         self.config = config
-        self.capacity = tdma_capacity(config, link)
+        self.capacity = tdma_capacity(config, link, side)
         self.window = config.frame * (1.0 + margin)
         self._writes: deque[float] = deque()
         self.deferred = 0
@@ -163,11 +174,11 @@ class TdmaMac(Mac):
         return {"mode": self.mode, "capacity_per_frame": self.capacity, "frame": self.config.frame}
 
 
-def tdma_capacity(config: MacConfig, link: LinkConfig) -> int:
-    """Packets one slot drains per frame: DESERT starts a packet anywhere in the ON window
-    (slot - guard) while `max_packet_per_slot` allows, one after the other, and uwApplication
-    feeds its MAC one packet per `period`; at least one."""
-    on = config.slot - config.guard
+def tdma_capacity(config: MacConfig, link: LinkConfig, side: str | None = None) -> int:
+    """Packets `side`'s slot drains per frame (None: the shortest slot's): DESERT starts a
+    packet anywhere in the ON window (slot - guard) while `max_packet_per_slot` allows, one
+    after the other, and uwApplication feeds its MAC one packet per `period`; at least one."""
+    on = (config.slot if side is None else config.slot_length(side)) - config.guard
     by_window = math.floor(on / air_time(link.max_read_length, config.bitrate)) + 1
     by_period = max(1, math.floor(config.frame / link.period))
     return max(1, min(config.max_packet_per_slot, by_window, by_period, config.queue_size))
@@ -205,7 +216,8 @@ class TurnMac(Mac):
         self.leader_id = senders[config.leader]
         self.leading = side == config.leader
         self.my_packets = config.turn_packets(side)
-        self.interval = max(link.period * (1 + margin), air_time(link.max_read_length, config.bitrate))
+        self.air = air_time(link.max_read_length, config.bitrate)
+        self.interval = max(link.period * (1 + margin), self.air)
         self.followers = [(senders[s], config.turn_packets(s)) for s in senders if s != config.leader]
         # A turn's round trip besides its packets: the grant's and the end's trips across the
         # range, DESERT's period tick and its MAC's listen on both sides.
@@ -219,8 +231,11 @@ class TurnMac(Mac):
         self._waiting: tuple[int, int, float, float] | None = None   # (sender, n, at, deadline)
         self._heard_in_wait = 0
         self._turn_until = INF            # follower: a turn not used by then is dropped
+        self._notice_at = INF             # follower: its turn starts then if the grant is lost
+        self._last_end: float | None = None   # follower: when it last wrote its turn's end
         self.counts = {k: 0 for k in ("turns", "grants_sent", "grants_heard", "ends_heard",
-                                      "missed", "recovered", "dropped_turns", "not_mine")}
+                                      "missed", "recovered", "dropped_turns", "not_mine",
+                                      "notices_heard", "turns_from_notice")}
 
     # -- when ----------------------------------------------------------------------------
 
@@ -230,7 +245,7 @@ class TurnMac(Mac):
             return -INF
         if self._waiting is not None:
             return self._waiting[3]
-        return INF
+        return self._notice_at
 
     def must_send(self, now: float) -> bool:
         self._expire(now)
@@ -240,7 +255,9 @@ class TurnMac(Mac):
         self._expire(now)
         if self._holding:
             return now
-        return self._waiting[3] if self._waiting is not None else None
+        if self._waiting is not None:
+            return self._waiting[3]
+        return self._notice_at if self._notice_at < INF else None
 
     def _expire(self, now: float) -> None:
         if self._waiting is not None and now >= self._waiting[3]:
@@ -250,6 +267,11 @@ class TurnMac(Mac):
         if not self.leading and self._holding and now >= self._turn_until:
             self.counts["dropped_turns"] += 1   # too late to use it: the leader has moved on
             self._holding = False
+        if now >= self._notice_at:
+            # the notice was heard and the grant it announced lost: the turn is ours all the
+            # same, for the manifest's count, once the leader's last packet has ended
+            self.counts["turns_from_notice"] += 1
+            self._take_turn(self.my_packets, self._notice_at)
 
     def _own_turn(self) -> None:
         self._holding, self._granted, self._sent = True, self.my_packets, 0
@@ -265,6 +287,11 @@ class TurnMac(Mac):
         more = self.carries if self.leading else self.backlog(now)
         if self._sent < self._granted and more:
             self._closing = None
+            if self.leading and self.followers and self._sent == self._granted - 1:
+                # the next packet is the last: tell its follower now, so one lost packet
+                # does not lose the follower's whole turn (rule 2, the notice)
+                sid, _ = self.followers[self._next % len(self.followers)]
+                return encode_items([MacItem(TURN_GRANT, sid, 0)])
             return b""
         if self.leading:
             if not self.followers:
@@ -290,6 +317,7 @@ class TurnMac(Mac):
             self._heard_in_wait = 0
         else:
             self.counts["turns"] += 1
+            self._last_end = now
 
     def heard(self, sender: int, control: bytes, now: float) -> None:
         items = decode_items(control) if control else []
@@ -315,6 +343,13 @@ class TurnMac(Mac):
         for item in items:
             if item.code != TURN_GRANT:
                 continue
+            if item.count == 0:                 # a notice: the grant comes on the next packet
+                if item.sender == self.me and not self._holding:
+                    self.counts["notices_heard"] += 1
+                    # that packet ends within an interval and its air time (and the listen)
+                    self._notice_at = now + self.interval + self.air + LISTEN
+                continue
+            self._notice_at = INF
             if item.sender != self.me:
                 self.counts["not_mine"] += 1
                 self._holding = False
@@ -322,9 +357,13 @@ class TurnMac(Mac):
             self.counts["grants_heard"] += 1
             if self._holding:
                 self.counts["recovered"] += 1
-            self._holding, self._granted, self._sent = True, item.count, 0
-            # the leader waits a round trip plus these packets: a turn not used by then is gone
-            self._turn_until = now + (item.count + 1) * self.interval + self.config.delay
+            self._take_turn(item.count, now)
+
+    def _take_turn(self, count: int, now: float) -> None:
+        self._notice_at = INF
+        self._holding, self._granted, self._sent = True, count, 0
+        # the leader waits a round trip plus these packets: a turn not used by then is gone
+        self._turn_until = now + (count + 1) * self.interval + self.config.delay
 
     # -- for delivery and status ----------------------------------------------------------
 
@@ -338,6 +377,19 @@ class TurnMac(Mac):
 
     def turn_gap(self) -> float:
         return self.cycle()
+
+    def settled_by(self, sender: int, now: float) -> float | None:
+        """The leader: a follower answers in the turn granted by its last packet, so
+        everything written until the grant was heard or lost before the answer was built. A
+        follower: the leader writes again only after its end (or the leader's timer: after a
+        round trip), so everything it wrote until the end."""
+        if self.leading:
+            if self._waiting is not None and sender == self._waiting[0]:
+                return self._waiting[2]
+            return None
+        if sender == self.leader_id and not self._holding:
+            return self._last_end
+        return None
 
     def stats(self) -> dict:
         out = {"mode": self.mode, "leader": self.leading, **self.counts}

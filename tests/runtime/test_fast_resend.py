@@ -1,0 +1,188 @@
+"""Loss found from acknowledgement reports (docs/wire-format.md sections 15.2-15.3): a gap is
+reported on the receiver's next packet, a report that names a later packet (or, under turns,
+one that rides in a turn begun after the packet) hands its reliable messages back at once
+(`fast_resends`), and a lost report falls back to the retransmission timer (`timer_resends`).
+Every time is explicit (the engine) or a ManualClock (the links)."""
+from __future__ import annotations
+
+from uwgen.emulator import NodeSpec, Scenario
+from uwgen.emulator.duplex import DuplexSim
+from uwgen.manifest.model import LinkConfig, LinkPolicy, MacConfig
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.delivery.acks import AckPolicy
+from uwgen.runtime.delivery.reliability import Reliability
+from uwgen.runtime.delivery.reliable import ReliableLink, RttEstimator, Sent, decode_reports
+from uwgen.runtime.link.mac import mac_for
+
+SURFACE, VEHICLE = 1, 2
+EPOCH = b"\x01" * 6
+RELIABLE = LinkPolicy(queue="fifo", depth=20, ttl=30.0, reliable=True)
+BEST_EFFORT = LinkPolicy(queue="latest", ttl=2.0)
+
+
+def engine(me: int) -> ReliableLink:
+    return ReliableLink(me, RttEstimator(6.0, 1.0, 60.0, 0.5), ack_delay=2.0, bitmap_bytes=1)
+
+
+# -- the engine and the ack policy (explicit times) -----------------------------------------
+
+def test_a_gap_makes_the_next_packet_carry_a_report_before_the_ack_interval():
+    r = engine(VEHICLE)
+    acks = AckPolicy(r, ack_delay=2.0, ack_interval=4.0)
+    r.received(SURFACE, EPOCH, 0, 0.0, eliciting=False)
+    assert acks.a_part({SURFACE: EPOCH}, 0.1)             # news, first report
+    r.received(SURFACE, EPOCH, 1, 0.5, eliciting=False)
+    assert not acks.due({SURFACE: EPOCH}, 0.6)            # no gap, within the interval: none
+    r.received(SURFACE, EPOCH, 3, 1.0, eliciting=False)   # 2 is missing: it may have carried one
+    assert acks.due({SURFACE: EPOCH}, 1.1)
+    a_part = acks.a_part({SURFACE: EPOCH}, 1.1)
+    report = decode_reports(a_part)[0]
+    assert report.largest == 3 and 2 in report.numbers()[1]
+    assert not acks.due({SURFACE: EPOCH}, 1.2)            # reported: nothing urgent any more
+    assert not r.ack_only_due(SURFACE, 10.0)              # a gap never sends a packet alone
+
+
+def test_a_report_naming_a_later_packet_hands_the_message_back_at_once():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(8, "mission", deadline=30.0)], 0.0)
+    s.sent(1, [Sent(4, "cmd", None)], 0.2)
+    r.received(SURFACE, EPOCH, 1, 0.9, eliciting=False)
+    s.acked(r.ack_for(SURFACE, 1.0), 1.7)
+    assert [m.ref for m in s.due(1.7)] == ["mission"]      # not after RTO + ack delay (8 s)
+    assert (s.fast_resends, s.timer_resends) == (1, 0)
+
+
+def test_under_turns_a_report_below_a_packet_sent_before_the_turn_settles_it_as_lost():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(4, "cmd", None)], 0.0)
+    s.sent(1, [Sent(8, "mission", deadline=30.0)], 0.2)    # the turn's last packet: lost
+    r.received(SURFACE, EPOCH, 0, 0.7, eliciting=False)
+    report = r.ack_for(SURFACE, 1.0)
+    s.acked(report, 1.7)                                   # no MAC: nothing says 1 is lost
+    assert s.due(1.7) == []
+    s.acked(report, 1.8, settled_by=0.2)                   # the turn began after packet 1
+    assert [m.ref for m in s.due(1.8)] == ["mission"] and s.fast_resends == 1
+    # the packet stays in flight for the ledger, and is not handed back twice
+    assert s.in_flight() == {8: 1}
+    s.acked(report, 1.9, settled_by=0.2)
+    assert s.due(1.9) == [] and s.fast_resends == 1
+
+
+def test_a_lost_report_falls_back_to_the_timer():
+    s = engine(SURFACE)
+    s.sent(0, [Sent(8, "mission", deadline=30.0)], 0.0)
+    s.sent(1, [Sent(4, "cmd", None)], 0.2)
+    # the peer's report naming packet 1 (and 0 missing) is lost: nothing arrives
+    assert s.due(7.9) == [] and s.next_timeout() == 8.0    # RTO 6 s + ack delay 2 s
+    assert [m.ref for m in s.due(8.0)] == ["mission"]
+    assert (s.fast_resends, s.timer_resends) == (0, 1)
+
+
+# -- two links under turns (a ManualClock) ------------------------------------------------
+
+TURNS = MacConfig(mode="turns", range=1000.0, leader="surface",
+                  packets=(("surface", 4), ("vehicle", 2)), bitrate=4800.0)
+SENDERS = {"surface": SURFACE, "vehicle": VEHICLE}
+MISSION, CMD, POSE = 8, 4, 5
+
+
+class Wall:
+    def __init__(self, clock: ManualClock):
+        self.clock = clock
+
+    def now(self) -> float:
+        return 1.7e9 + self.clock.now()
+
+
+def turns_pair(mac: MacConfig = TURNS, cmd_every: float = 0.5):
+    scen = Scenario(nodes=[NodeSpec("surface", position=(0, 0, 0), dest="vehicle"),
+                           NodeSpec("vehicle", position=(1000, 0, 0), dest="surface")],
+                    period=0.2, max_read_length=64, bitrate=4800.0)
+    clock = ManualClock()
+    macs = {side: mac_for(mac, side, SENDERS, LinkConfig(64, 0.2)) for side in SENDERS}
+    rel = {}
+
+    def hooks_for(side):
+        rel[side] = Reliability(SENDERS[side], period=0.2, reliable={MISSION: 30.0},
+                                max_ages={MISSION: 30.0}, wall=Wall(clock), name=side,
+                                max_read_length=64, other_overhead=macs[side].overhead,
+                                turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by)
+        return rel[side].hooks()
+    sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2, clock=clock,
+                    step=0.025, link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})
+    written: dict[str, list] = {s: [] for s in SENDERS}
+    for side, link in sim.links.items():
+        sent = link.hooks.sent
+
+        def spy(number, picked, now, side=side, sent=sent):
+            keys = [("m", rel[side].heads.take(p).payload[2]) if k == MISSION else k
+                    for k, p in picked]
+            written[side].append((now, number, keys))
+            return sent(number, picked, now)
+        link.hooks.sent = spy
+    sim.links["surface"].add_channel(MISSION, RELIABLE)
+    sim.links["surface"].add_channel(CMD, BEST_EFFORT)
+    sim.links["vehicle"].add_channel(POSE, BEST_EFFORT)
+    for k in range(int(60 / cmd_every)):                   # both sides talk, as the demo's
+        sim.at(0.1 + cmd_every * k,
+               lambda k=k: sim.links["surface"].offer(CMD, bytes((0, CMD, k % 256)) + bytes(8)))
+    for k in range(120):
+        sim.at(0.3 + 0.5 * k, lambda k=k: sim.links["vehicle"].offer(POSE, bytes((0, POSE, k)) + bytes(8)))
+    return sim, rel, written
+
+
+def mission_copies(written, k: int) -> list[tuple[float, int]]:
+    """(time, packet number) of each surface packet that carried mission message k."""
+    return [(t, n) for t, n, keys in written["surface"] if ("m", k) in keys]
+
+
+def offer_missions(sim, count: int, every: float = 2.0, start: float = 3.0):
+    for k in range(count):
+        sim.at(start + every * k,
+               lambda k=k: sim.links["surface"].offer(MISSION, bytes((0, MISSION, k)) + bytes(10)))
+
+
+def test_under_turns_a_lost_message_goes_again_in_the_senders_next_turn_not_after_its_timer():
+    sim, rel, written = turns_pair()
+    offer_missions(sim, 1)
+    sim.run(2.9)
+    sim.drop("surface", len(written["surface"]))           # the next write: it carries the message
+    sim.run(25.0)
+    copies = mission_copies(written, 0)
+    assert len(copies) == 2
+    assert [p[2] for _, p in sim.received["vehicle"] if p[1] == MISSION] == [0]
+    engine = rel["surface"].engine
+    assert (engine.fast_resends, engine.timer_resends) == (1, 0)
+    # the copy left in the surface's first turn after the vehicle's answer: within one round
+    # of turns, well before the timer (RTO + ack delay) could have fired
+    cycle = sim.links["surface"].mac.cycle()
+    assert copies[1][0] - copies[0][0] < cycle < engine.rtt.rto + engine.ack_delay
+
+
+def test_a_lost_grant_is_carried_by_its_notice_and_a_message_in_it_goes_again_next_turn():
+    sim, rel, written = turns_pair(cmd_every=0.2)       # a busy surface: its turns run full
+    surface = sim.links["surface"].mac
+    lost: list[int] = []
+    sent = sim.links["surface"].hooks.sent
+
+    def drop_a_grant_carrying_a_mission(number, picked, now):
+        closing = surface._closing
+        if not lost and closing is not None and closing.count and \
+                any(k == MISSION for k, _ in picked):
+            lost.append(number)
+            sim.drop("surface", sim.written["surface"])
+        return sent(number, picked, now)
+    sim.links["surface"].hooks.sent = drop_a_grant_carrying_a_mission
+    offer_missions(sim, 20, every=1.3)
+    sim.run(60.0)
+    assert lost, "no grant packet carried a mission message"
+    vehicle = sim.links["vehicle"].mac
+    assert vehicle.counts["turns_from_notice"] == 1 and surface.counts["missed"] == 0
+    k = next(k for k in range(20) if any(n == lost[0] for _, n in mission_copies(written, k)))
+    copies = mission_copies(written, k)
+    assert len(copies) == 2 and copies[1][0] - copies[0][0] < surface.cycle()   # the next turn
+    assert rel["surface"].engine.timer_resends == 0
+    got = [p[2] for _, p in sim.received["vehicle"] if p[1] == MISSION]
+    assert sorted(got) == list(range(20))                 # each once
+    for side in SENDERS:
+        assert sim.core.counters(side)["lost_collision"] == 0
