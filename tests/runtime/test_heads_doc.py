@@ -29,7 +29,7 @@ def test_section_14_3_worked_packet():
     cmd = demo.TOPICS[4]
     m = envelope.from_v1(envelope.strip_packed_head(
         cmd.encode(Twist(linear=Vector3(x=0.5), angular=Vector3(z=0.3)))))
-    assert (m.kind, m.id, cmd.profile, cmd.policy.ttl) == (0, 4, "packed", 1.0)
+    assert (m.kind, m.id, cmd.profile, cmd.policy.ttl) == (0, 4, "packed", 2.0)
     body = encode_age(0.0) + m.body
     got = {}
     for link, tag in (("unsecured", None), ("secured", bytes(8))):
