@@ -83,7 +83,7 @@ def secured_network(package):
         yield net
 
 
-def tap(link, prefix: bytes) -> list[bytes]:
+def tap(link, prefix: bytes, tag_bytes: int = 8) -> list[bytes]:
     """Record the packets (sealed envelopes) the link writes that carry a message of `prefix`
     (kind and id; the ids of a sealed packet stay readable): what an eavesdropper on the water
     hears of them."""
@@ -94,7 +94,7 @@ def tap(link, prefix: bytes) -> list[bytes]:
     def next_packet(*args, **kwargs):
         data = original(*args, **kwargs)
         if data is not None and any((m.kind, m.id) == (kind, ident)
-                                    for m in env.decode(data).messages):
+                                    for m in env.decode(data, tag_bytes).messages):
             heard.append(data)
         return data
     link.connection._source = next_packet
@@ -150,7 +150,7 @@ def cmd_vel_ends(net):
     got: list[Twist] = []
     net.vehicle.node("sim").create_subscription(Twist, "/cmd_vel", got.append, 50)
     pub = net.surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
-    heard = tap(net.bridges["surface"].link, CMD_VEL)
+    heard = tap(net.bridges["surface"].link, CMD_VEL, net.package.MANIFEST.security.tag_bytes)
     wait_for(lambda: net.connected()
              and pub.get_subscription_count(), what="secured bridges up")
     return got, pub, heard
