@@ -20,10 +20,11 @@ from uwgen.codegen.fingerprint import wire_format_of
 from uwgen.codegen.ir import IRBuilder, variant_name
 from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest, takes_part
 from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
+from uwgen.runtime.wire.envelope import VERSION as ENVELOPE_VERSION
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.security.packet_seal import max_overhead
 
-PACKET_ALONE = FRAME_OVERHEAD + ENVELOPE_HEAD   # wire format 2: frame, P and W around one message
+PACKET_ALONE = FRAME_OVERHEAD + ENVELOPE_HEAD   # an envelope link: frame, P and W around one message
 DEFAULT_BITRATE = 4800.0    # bit/s of DESERT's default modem settings used by the emulator
 
 
@@ -86,10 +87,11 @@ class Analysis:
     bitrate: float
     entries: list[EntryCost]
     budgets: list[SideBudget]
-    wire_format: int = 2
+    wire_format: int = ENVELOPE_VERSION     # 1 (rmw_desert on the network) or the envelope's
     control: list[SideControl] = field(default_factory=list)   # discovery, schema announcements
-    tag_bytes: int | None = None     # the per-packet tag of a secured wire format 2 link
+    tag_bytes: int | None = None     # the per-packet tag of a secured envelope link
     mac_notes: list[str] = field(default_factory=list)   # uwgen.mac_budget.mac_warnings
+    mac_shares: list[str] = field(default_factory=list)  # uwgen.mac_budget.mac_shares
 
     def warnings(self) -> list[str]:
         out = list(self.mac_notes)
@@ -125,7 +127,7 @@ def capacity(max_read_length: int, period: float, bitrate: float) -> tuple[float
     return (by_period, "period") if by_period <= by_bitrate else (by_bitrate, "bit rate")
 
 
-from uwgen.mac_budget import capacity_under_mac, mac_warnings  # noqa: E402
+from uwgen.mac_budget import capacity_under_mac, mac_shares, mac_warnings  # noqa: E402
 
 
 def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Analysis:
@@ -184,7 +186,8 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     sealed = (seal.typical, seal.max) if manifest.protected() else (0, 0)
     control = control_costs(manifest, bitrate, wire, sealed)
     return Analysis(manifest.network, bitrate, entries, budgets, wire, control,
-                    tag if manifest.protected() and wire == 2 else None, mac_warnings(manifest))
+                    tag if manifest.protected() and wire != 1 else None, mac_warnings(manifest),
+                    mac_shares(manifest))
 
 
 def _schema_rate(manifest: Manifest) -> float:
@@ -205,13 +208,13 @@ def _schema_rate(manifest: Manifest) -> float:
     size = whole_payload(wire, mrl, sealed.max if signed else 0)
     payloads = encode_announcements(schema_id, [(i, bytes(FINGERPRINT_BYTES)) for i in ids],
                                     request=False, max_payload=size)     # as the bridge splits them
-    if wire == 2:     # each in a packet of its own: H instead of kind and id
+    if wire != 1:     # each in a packet of its own: H instead of kind and id
         return sum(v1_message_size(p, last=True) + PACKET_ALONE + signed for p in payloads) / period
     return sum(len(p) + FRAME_OVERHEAD + signed for p in payloads) / period
 
 
 # What the secure link adds to a frame (wire format section 12): wire format 1, each payload
-# 10 bytes, 23 on sync frames; wire format 2 (section 12.2), each packet 8 bytes, 21 on sync
+# 10 bytes, 23 on sync frames; an envelope link (section 12.2), each packet 8 bytes, 21 on sync
 # packets, 23 on one that also asks for a sync. A frame here is one message alone.
 _SECURED = Size(10, 10, 23)
 _UNSECURED = Size(0, 0, 0)
@@ -219,8 +222,8 @@ _UNSECURED = Size(0, 0, 0)
 
 def _secured(wire: int, tag_bytes: int = DEFAULT_TAG_BYTES) -> Size:
     """What the seal adds: per payload (wire format 1), or per packet with the manifest's
-    `security: {tag_bytes}` (wire format 2: the tag, K and T on sync packets, C when asking)."""
-    if wire != 2:
+    `security: {tag_bytes}` (an envelope link: the tag, K and T on sync packets, C when asking)."""
+    if wire == 1:
         return _SECURED
     return Size(tag_bytes, tag_bytes, max_overhead(tag_bytes))
 
@@ -237,7 +240,7 @@ def _server_of(manifest: Manifest, entry: EntryCost) -> str | None:
 def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, profile, fields, variant,
            header_items, security: Size = _UNSECURED) -> EntryCost:
     wire = getattr(sizer, "wire", 1)
-    if wire == 2:                         # H: one byte for ids up to 31, else two
+    if wire != 1:                         # H: one byte for ids up to 31, else two
         head = Size(1, 1, 1) if ident <= 31 else Size(2, 2, 2)
     else:
         head = Size(2, 2, 2) if ident < 24 else Size(3, 3, 3)
@@ -260,7 +263,7 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
         if prof == PACKED:
             body = Size(*(None if b is None else _packed_bytes(b, wire) for b in (body.min, body.typical, body.max)))
         payload = head + body
-        alone = PACKET_ALONE if wire == 2 else FRAME_OVERHEAD
+        alone = PACKET_ALONE if wire != 1 else FRAME_OVERHEAD
         frame = payload + security + Size(alone, alone, alone)
         costs.append(ProfileCost(label, ct is configured, payload, frame))
     leaves = []
@@ -274,6 +277,6 @@ def _entry(builder, sizer, kind, name, ident, type_name, sender, rate, msg, prof
 
 def _packed_bytes(bits: int, wire: int = 1) -> int:
     """Bytes of the packed fields: the bits padded to bytes, after a byte string head in wire
-    format 1 (wire format 2 says the length once, in the envelope)."""
+    format 1 (an envelope says the length once)."""
     n = (bits + 7) // 8
-    return n if wire == 2 else n + (1 if n < 24 else 2 if n < 256 else 3)
+    return n if wire != 1 else n + (1 if n < 24 else 2 if n < 256 else 3)

@@ -71,7 +71,7 @@ def air_time(written: int, packets: int, bitrate: float) -> float:
 
 def whole_payload(wire: int, max_read_length: int, protection: int = 0) -> int:
     """The longest payload that leaves whole in one packet (as `Link.whole_payload`)."""
-    room = envelope_room(max_read_length) if wire == 2 else max_read_length - FRAME_OVERHEAD
+    room = envelope_room(max_read_length) if wire != 1 else max_read_length - FRAME_OVERHEAD
     return max(1, min(MAX_PAYLOAD, room - protection))
 
 
@@ -114,7 +114,7 @@ def control_costs(manifest: Manifest, bitrate: float, wire: int,
                                             request=True, max_payload=size)
             for k, p in enumerate(payloads, 1):
                 what = f"schema announcement {k}/{len(payloads)}"
-                if wire == 2:
+                if wire != 1:
                     written = FRAME_OVERHEAD + ENVELOPE_HEAD + v1_message_size(p, last=True) + typical
                     sc.items.append(ControlItem(what, len(p), written, 1, air_time(written, 1, bitrate)))
                 else:

@@ -14,8 +14,8 @@ def _b(x: int | None) -> str:
 def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
     lines = [f"network {a.network}: message sizes (payload and frame bytes; typical / worst) and air time "
              f"at {a.bitrate:g} bit/s"]
-    if a.wire_format == 2:
-        lines.append("wire format 2: payload = the message in its packet's envelope (header H, no kind "
+    if a.wire_format != 1:
+        lines.append(f"wire format {a.wire_format}: payload = the message in its packet's envelope (header H, no kind "
                      "and id items); frame = that message alone in a packet (+ 4 frame, + 3 P and W); "
                      "messages sharing a packet pay 1 length byte each instead")
     if a.tag_bytes is not None:
@@ -51,6 +51,7 @@ def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
         verdict = "fits" if b.fits else "DOES NOT FIT" if b.typical > b.capacity or (
             b.worst is not None and b.worst > b.capacity) else "check warnings"
         lines.append(f"  {b.side:<12}{b.capacity:>14.1f}{b.limited_by:>12}{b.typical:>13.1f}{worst:>12}  {verdict}")
+    lines += [f"  {line}" for line in a.mac_shares]
     for w in a.warnings():
         lines.append(f"WARNING: {w}")
     return "\n".join(lines)

@@ -108,7 +108,7 @@ ROS_INTERFACES = {
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("e52770cd")
+SCHEMA_DIGEST = bytes.fromhex("291548ca")
 
 MANIFEST = ManifestInfo(
     network="demo",
@@ -123,7 +123,7 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
     security=SecurityPlan(key_file='keys/demo.key', senders={'surface': 1, 'vehicle': 2}, modes={4: 'encrypt', 5: 'sign', 6: 'sign', 20: 'encrypt', 21: 'encrypt', 30: 'encrypt', 249: 'sign'}, tag_bytes=8, seal_fingerprints={}),
-    mac=MacConfig(mode='turns', bitrate=4800.0, range=300.0, frame=1.0, guard=0.05, slots=(), max_packet_per_slot=1, queue_size=10, leader='surface', packets=(('surface', 2), ('vehicle', 1))),
+    mac=MacConfig(mode='turns', bitrate=4800.0, range=300.0, frame=1.0, guard=0.05, slots=(), max_packet_per_slot=1, queue_size=10, weights=(), leader='surface', packets=(('surface', 2), ('vehicle', 1))),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
@@ -156,28 +156,28 @@ TOPICS = {
         policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t4"],
-        fingerprint=bytes.fromhex("c280d66e")),
+        fingerprint=bytes.fromhex("3ade524e")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="vehicle", profile="packed",
         policy=LinkPolicy(rate=2.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t5"],
-        fingerprint=bytes.fromhex("bc80a5ec")),
+        fingerprint=bytes.fromhex("798370f0")),
     6: TopicCodec(
         id=6, name="/vehicle/battery", type_name="sensor_msgs/msg/BatteryState",
         publisher="vehicle", profile="native",
         policy=LinkPolicy(rate=0.2, queue='latest', depth=1, ttl=10.0, priority=1, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t6"],
-        fingerprint=bytes.fromhex("399f5423")),
+        fingerprint=bytes.fromhex("c16caf4d")),
     7: TopicCodec(
         id=7, name="/vehicle/log", type_name="std_msgs/msg/String",
         publisher="vehicle", profile="native",
         policy=LinkPolicy(rate=None, queue='fifo', depth=8, ttl=60.0, priority=0, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("std_msgs/msg/String", "native")],
-        fingerprint=bytes.fromhex("a825686a")),
+        fingerprint=bytes.fromhex("c7a70fd9")),
 }
 
 SERVICES = {
@@ -188,7 +188,7 @@ SERVICES = {
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "native")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
-        fingerprint=bytes.fromhex("2d69ff10")),
+        fingerprint=bytes.fromhex("233e3b81")),
     21: ServiceCodec(
         id=21, name="/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="vehicle", timeout=10.0, profile="native",
@@ -196,7 +196,7 @@ SERVICES = {
         request=CODECS[("turtlesim/srv/SetPen_Request", "native")],
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),
-        fingerprint=bytes.fromhex("15262f9f")),
+        fingerprint=bytes.fromhex("d7bdc86d")),
 }
 
 ACTIONS = {
@@ -210,5 +210,5 @@ ACTIONS = {
         result=CODECS[("turtlesim/action/RotateAbsolute_Result", "native")],
         feedback=CODECS[("turtlesim/action/RotateAbsolute_Feedback", "native")],
         ros_import=("turtlesim.action", "RotateAbsolute"),
-        fingerprint=bytes.fromhex("8db9f99a")),
+        fingerprint=bytes.fromhex("1c1548c5")),
 }

@@ -101,7 +101,7 @@ ROS_INTERFACES = {
 
 
 # Schema fingerprint of the whole manifest (wire-format.md section 10).
-SCHEMA_DIGEST = bytes.fromhex("af1fb65a")
+SCHEMA_DIGEST = bytes.fromhex("5f08b225")
 
 MANIFEST = ManifestInfo(
     network="fleet_demo",
@@ -118,7 +118,7 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
     security=SecurityPlan(key_file='../keys/demo.key', senders={'auv1': 2, 'auv2': 3, 'auv3': 4, 'surface': 1}, modes={10: 'encrypt', 11: 'sign', 12: 'encrypt', 13: 'encrypt', 14: 'encrypt', 20: 'encrypt', 21: 'sign', 22: 'encrypt', 23: 'encrypt', 24: 'encrypt', 30: 'encrypt', 31: 'sign', 32: 'encrypt', 33: 'encrypt', 34: 'encrypt', 249: 'sign'}, tag_bytes=8, seal_fingerprints={}),
-    mac=MacConfig(mode='tdma', bitrate=4800.0, range=300.0, frame=3.1, guard=0.34, slots=('surface', 'auv1', 'auv2', 'auv3'), max_packet_per_slot=3, queue_size=10, leader='', packets=()),
+    mac=MacConfig(mode='tdma', bitrate=4800.0, range=300.0, frame=3.1, guard=0.34, slots=('surface', 'auv1', 'auv2', 'auv3'), max_packet_per_slot=3, queue_size=10, weights=(), leader='', packets=()),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
@@ -148,7 +148,7 @@ TOPICS = {
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t10"],
         peers=('surface', 'auv1'),
-        fingerprint=bytes.fromhex("84807227")),
+        fingerprint=bytes.fromhex("220193ef")),
     11: TopicCodec(
         id=11, name="/auv1/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="auv1", profile="packed",
@@ -156,7 +156,7 @@ TOPICS = {
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t11"],
         peers=('surface', 'auv1'),
-        fingerprint=bytes.fromhex("5430baed")),
+        fingerprint=bytes.fromhex("5675017b")),
     20: TopicCodec(
         id=20, name="/auv2/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="packed",
@@ -164,7 +164,7 @@ TOPICS = {
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t20"],
         peers=('surface', 'auv2'),
-        fingerprint=bytes.fromhex("93370568")),
+        fingerprint=bytes.fromhex("f16ac64d")),
     21: TopicCodec(
         id=21, name="/auv2/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="auv2", profile="packed",
@@ -172,7 +172,7 @@ TOPICS = {
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t21"],
         peers=('surface', 'auv2'),
-        fingerprint=bytes.fromhex("fe738a1f")),
+        fingerprint=bytes.fromhex("d128fdad")),
     30: TopicCodec(
         id=30, name="/auv3/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="packed",
@@ -180,7 +180,7 @@ TOPICS = {
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t30"],
         peers=('surface', 'auv3'),
-        fingerprint=bytes.fromhex("c9bc107f")),
+        fingerprint=bytes.fromhex("09c04cd4")),
     31: TopicCodec(
         id=31, name="/auv3/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="auv3", profile="packed",
@@ -188,7 +188,7 @@ TOPICS = {
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t31"],
         peers=('surface', 'auv3'),
-        fingerprint=bytes.fromhex("9fd19a2e")),
+        fingerprint=bytes.fromhex("eee8faf0")),
 }
 
 SERVICES = {
@@ -200,7 +200,7 @@ SERVICES = {
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
         peers=('surface', 'auv1'),
-        fingerprint=bytes.fromhex("27ea330a")),
+        fingerprint=bytes.fromhex("98ca7345")),
     13: ServiceCodec(
         id=13, name="/auv1/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="auv1", timeout=20.0, profile="native",
@@ -209,7 +209,7 @@ SERVICES = {
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),
         peers=('surface', 'auv1'),
-        fingerprint=bytes.fromhex("5a6574b8")),
+        fingerprint=bytes.fromhex("a63d25e5")),
     22: ServiceCodec(
         id=22, name="/auv2/turtle1/teleport_absolute", type_name="turtlesim/srv/TeleportAbsolute",
         server="auv2", timeout=20.0, profile="native",
@@ -218,7 +218,7 @@ SERVICES = {
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
         peers=('surface', 'auv2'),
-        fingerprint=bytes.fromhex("a3e05ccc")),
+        fingerprint=bytes.fromhex("99765786")),
     23: ServiceCodec(
         id=23, name="/auv2/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="auv2", timeout=20.0, profile="native",
@@ -227,7 +227,7 @@ SERVICES = {
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),
         peers=('surface', 'auv2'),
-        fingerprint=bytes.fromhex("7d53a87d")),
+        fingerprint=bytes.fromhex("43fece2c")),
     32: ServiceCodec(
         id=32, name="/auv3/turtle1/teleport_absolute", type_name="turtlesim/srv/TeleportAbsolute",
         server="auv3", timeout=20.0, profile="native",
@@ -236,7 +236,7 @@ SERVICES = {
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "native")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),
         peers=('surface', 'auv3'),
-        fingerprint=bytes.fromhex("363e0bf8")),
+        fingerprint=bytes.fromhex("ed7ca909")),
     33: ServiceCodec(
         id=33, name="/auv3/vehicle/set_pen", type_name="turtlesim/srv/SetPen",
         server="auv3", timeout=20.0, profile="native",
@@ -245,7 +245,7 @@ SERVICES = {
         response=CODECS[("turtlesim/srv/SetPen_Response", "native")],
         ros_import=("turtlesim.srv", "SetPen"),
         peers=('surface', 'auv3'),
-        fingerprint=bytes.fromhex("898b3e6b")),
+        fingerprint=bytes.fromhex("cd1470fc")),
 }
 
 ACTIONS = {
@@ -260,7 +260,7 @@ ACTIONS = {
         feedback=CODECS[("turtlesim/action/RotateAbsolute_Feedback", "native")],
         ros_import=("turtlesim.action", "RotateAbsolute"),
         peers=('surface', 'auv1'),
-        fingerprint=bytes.fromhex("4a680690")),
+        fingerprint=bytes.fromhex("854d031c")),
     24: ActionCodec(
         id=24, name="/auv2/turtle1/rotate_absolute", type_name="turtlesim/action/RotateAbsolute",
         server="auv2", accept_timeout=20.0, result_timeout=90.0,
@@ -272,7 +272,7 @@ ACTIONS = {
         feedback=CODECS[("turtlesim/action/RotateAbsolute_Feedback", "native")],
         ros_import=("turtlesim.action", "RotateAbsolute"),
         peers=('surface', 'auv2'),
-        fingerprint=bytes.fromhex("b1fd9e7d")),
+        fingerprint=bytes.fromhex("80d59a6c")),
     34: ActionCodec(
         id=34, name="/auv3/turtle1/rotate_absolute", type_name="turtlesim/action/RotateAbsolute",
         server="auv3", accept_timeout=20.0, result_timeout=90.0,
@@ -284,5 +284,5 @@ ACTIONS = {
         feedback=CODECS[("turtlesim/action/RotateAbsolute_Feedback", "native")],
         ros_import=("turtlesim.action", "RotateAbsolute"),
         peers=('surface', 'auv3'),
-        fingerprint=bytes.fromhex("0cdc0525")),
+        fingerprint=bytes.fromhex("1e600916")),
 }

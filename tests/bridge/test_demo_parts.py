@@ -109,9 +109,9 @@ def test_report_matches_messages_and_accounts_for_drops(tmp_path):
     write(tmp_path / "vehicle.jsonl", veh)
     (tmp_path / "bridge_surface.json").write_text(json.dumps({"topics": {"/turtle1/cmd_vel": {
         "taken": 10, "link": {"offered": 10, "sent": 6, "superseded": 4, "queued": 0}}},
-        "link": {"wire_format": 2, "connection": {"bytes_sent": 100, "writes": 10}}}))
+        "link": {"wire_format": 4, "connection": {"bytes_sent": 100, "writes": 10}}}))
     (tmp_path / "bridge_vehicle.json").write_text(json.dumps({"topics": {"/turtle1/cmd_vel": {
-        "received": 5}}, "link": {"wire_format": 2, "connection": {"bytes_sent": 200, "writes": 5}}}))
+        "received": 5}}, "link": {"wire_format": 4, "connection": {"bytes_sent": 200, "writes": 5}}}))
     report = build_report(tmp_path)
     cmd = report.topics[0]
     assert (cmd.published, cmd.taken, cmd.on_link, cmd.policy, cmd.lost, cmd.delivered) == (10, 10, 6, 4, 1, 5)
@@ -126,7 +126,7 @@ def test_report_matches_messages_and_accounts_for_drops(tmp_path):
             "turned 1.25 rad") in text
     # air: 100 + 4 x 10 and 200 + 4 x 5 bytes for 5 cmd + 5 pose + 2 (one call) + 7 (mission)
     assert report.messages_delivered == 19
-    assert "air bytes per delivered message: 18.9 (19 messages" in text and "wire format 2" in text
+    assert "air bytes per delivered message: 18.9 (19 messages" in text and "wire format 4" in text
     png = plot_paths(report, tmp_path / "p.png")
     assert png.read_bytes()[:4] == b"\x89PNG"
 

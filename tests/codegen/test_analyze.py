@@ -104,7 +104,7 @@ def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     # (room 58, up to 23 of it the seal's: 35), so it is split as the bridge splits it:
     # payloads of 34 and 17 bytes, messages of 33 and 16 behind H 00 F9, + 7 alone, + 8
     # sealed: 48 and 31. The action's goals have no rate: warned about below.
-    assert a.wire_format == 2
+    assert a.wire_format == 4          # the envelope of wire format section 14
     assert surface.schema == pytest.approx((48 + 31) / 600)
     assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 8) + (48 + 31) / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())

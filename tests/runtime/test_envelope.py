@@ -13,7 +13,7 @@ from uwgen.runtime.wire.envelope import (FRAGMENT, Envelope, EnvelopeError, Mess
 
 def test_one_message_envelope_is_p_w_h_body():
     env = Envelope(sender=1, number=5, messages=(Message(0, 4, b"\x7d\x23"),))
-    assert env.encode() == bytes.fromhex("60 10 05 04 7D 23")
+    assert env.encode() == bytes.fromhex("80 10 05 04 7D 23")
 
 
 def test_every_message_but_the_last_carries_a_length():
@@ -21,7 +21,7 @@ def test_every_message_but_the_last_carries_a_length():
         Message(0, 4, b"\x7d\x23"), Message(2, 20, b"\x07\xf5"), Message(0, 250, b"\x2a\x00")))
     # 84 02 = topic 4 with length 2; C4 02 = request 20... (kind 01, id 10100) with length 2;
     # 00 FA = topic, id escaped (250), last: no length
-    assert env.encode() == bytes.fromhex("60 2A BC 84 02 7D 23 B4 02 07 F5 00 FA 2A 00")
+    assert env.encode() == bytes.fromhex("80 2A BC 84 02 7D 23 B4 02 07 F5 00 FA 2A 00")
     assert decode(env.encode()) == env
 
 
@@ -30,21 +30,21 @@ def test_optional_parts_come_in_order_k_t_a_c_and_the_tag_last():
                    sync=Sync(bytes.fromhex("A1A2A3A4A5A6"), 2), time=0x123456, ack=b"\xee",
                    control=b"", tag=bytes(range(8)))
     assert env.encode() == bytes.fromhex(
-        "7F 30 01 A1 A2 A3 A4 A5 A6 00 00 00 02 12 34 56 01 EE 00 47 01 00 01 02 03 04 05 06 07")
+        "9F 30 01 A1 A2 A3 A4 A5 A6 00 00 00 02 12 34 56 01 EE 00 47 01 00 01 02 03 04 05 06 07")
     assert decode(env.encode()) == env
     assert env.head_size() == 3 + 10 + 3 + 2 + 1 + 8
 
 
 def test_escaped_kind_carries_kind_and_id_bytes():
     env = Envelope(sender=0, number=0, messages=(Message(9, 3, b"x"),))
-    assert env.encode() == bytes.fromhex("60 00 00 60 09 03 78")
+    assert env.encode() == bytes.fromhex("80 00 00 60 09 03 78")
     assert decode(env.encode()) == env
 
 
 def test_an_envelope_may_carry_no_message():
     env = Envelope(sender=4, number=9, ack=b"\x01\x02")
     assert decode(env.encode()) == env
-    assert env.encode() == bytes.fromhex("62 40 09 02 01 02")
+    assert env.encode() == bytes.fromhex("82 40 09 02 01 02")
 
 
 @pytest.mark.parametrize("payload, message", [
@@ -65,23 +65,23 @@ def test_v1_payload_without_kind_and_id_is_refused(payload):
 
 @pytest.mark.parametrize("data, why", [
     ("", "at least"),
-    ("60 00", "at least"),
+    ("80 00", "at least"),
     ("00 04 F5", "version bits 0"),
     ("E0 00 00", "version bits 7"),
-    ("70 00 00 01 02", "tag"),
-    ("68 00 00 01 02 03", "sync"),
-    ("64 00 00 01", "time"),
-    ("62 00 00 05 01", "acknowledgement"),
-    ("61 00 00", "control"),
-    ("60 00 00 84 02 01", "does not fit"),
-    ("60 00 00 84 01 01", "last message carries a length"),
-    ("60 00 00 00 04", "escaped although"),
-    ("60 00 00 00", "ends before its id"),
-    ("60 00 00 60 00 04", "kind 0 escaped"),
-    ("60 00 00 63 05 04", "id bits"),
-    ("60 00 00 60 05", "escaped header"),
-    ("60 00 00 60 05 00", "id 0"),
-    ("60 00 00 84", "before its length"),
+    ("90 00 00 01 02", "tag"),
+    ("88 00 00 01 02 03", "sync"),
+    ("84 00 00 01", "time"),
+    ("82 00 00 05 01", "acknowledgement"),
+    ("81 00 00", "control"),
+    ("80 00 00 84 02 01", "does not fit"),
+    ("80 00 00 84 01 01", "last message carries a length"),
+    ("80 00 00 00 04", "escaped although"),
+    ("80 00 00 00", "ends before its id"),
+    ("80 00 00 60 00 04", "kind 0 escaped"),
+    ("80 00 00 65 05 04", "id bits"),
+    ("80 00 00 60 05", "escaped header"),
+    ("80 00 00 60 05 00", "id 0"),
+    ("80 00 00 84", "before its length"),
 ])
 def test_bad_envelopes_are_refused_with_a_reason(data, why):
     with pytest.raises(EnvelopeError, match=why):
@@ -144,7 +144,7 @@ def test_every_envelope_decodes_to_itself_in_blocks(env):
 def test_three_messages_of_one_id_and_length_share_one_head():
     ms = tuple(Message(0, 4, bytes((i, 0x23, 1, 2))) for i in range(13))
     wire = Envelope(1, 6, ms).encode()
-    assert wire[:6] == bytes.fromhex("60 10 06 62 04 0D") and len(wire) == 6 + 52
+    assert wire[:6] == bytes.fromhex("80 10 06 62 04 0D") and len(wire) == 6 + 52
     assert len(Envelope(1, 6, ms[:9]).encode()) < len(b"".join(m.body for m in ms[:9])) + 3 + 18
 
 
@@ -157,11 +157,11 @@ def test_the_blocks_follow_first_appearance_and_keep_each_entrys_order():
 
 
 @pytest.mark.parametrize("data, why", [
-    ("60 00 00 62 04 02 01 02", "at least 3"),                 # a run of 2: singles
-    ("60 00 00 62 04 03 01 02 03 04", "do not share out"),
-    ("60 00 00 84 01 01 84 01 02 04 03", "one encoding"),    # three singles: a run
-    ("60 00 00 E2 04 03 01 01 02 03 04 09", "one encoding"),   # id 4 again after the run
-    ("60 00 00 62 E4 03 01 02 03", "not a message's"),
+    ("80 00 00 62 04 02 01 02", "at least 3"),                 # a run of 2: singles
+    ("80 00 00 62 04 03 01 02 03 04", "do not share out"),
+    ("80 00 00 84 01 01 84 01 02 04 03", "one encoding"),    # three singles: a run
+    ("80 00 00 E2 04 03 01 01 02 03 04 09", "one encoding"),   # id 4 again after the run
+    ("80 00 00 62 E4 03 01 02 03", "not a message's"),
 ])
 def test_runs_out_of_their_one_encoding_are_refused(data, why):
     with pytest.raises(EnvelopeError, match=why):

@@ -323,7 +323,7 @@ def test_inserted_garbage_damages_only_the_frame_it_lands_in(payloads, data):
     assert out == expected
 
 
-# -- the short frame of wire format 3 links (docs/wire-format.md section 14.1) -----------------
+# -- the short frame of envelope links (docs/wire-format.md section 14.1) ----------------------
 
 def _envelopes(n: int) -> list[bytes]:
     from uwgen.runtime.wire.envelope import Envelope, Message
@@ -339,10 +339,34 @@ def _short_decoder():
 
 def test_a_short_frame_is_one_length_byte_and_the_envelope():
     from uwgen.runtime.wire.framing import FrameError, encode_short_frame
-    assert encode_short_frame(bytes.fromhex("60 10 05 04 7D 23")) == bytes.fromhex(
-        "06 60 10 05 04 7D 23")
+    assert encode_short_frame(bytes.fromhex("80 10 05 04 7D 23")) == bytes.fromhex(
+        "06 80 10 05 04 7D 23")
     with pytest.raises(FrameError):
-        encode_short_frame(bytes.fromhex("00 04 F5"))     # not an envelope: no version bits 011
+        encode_short_frame(bytes.fromhex("00 04 F5"))     # not an envelope: no version bits 100
+    with pytest.raises(FrameError):
+        encode_short_frame(bytes.fromhex("60 10 05 04"))  # wire format 3's P: not this build's
+
+
+def test_the_short_frame_knows_the_version_bits_the_envelope_speaks():
+    from uwgen.runtime.wire import envelope, framing
+    assert (framing.ENVELOPE_MASK, framing.ENVELOPE_BITS) == (envelope.VERSION_MASK,
+                                                              envelope.VERSION_BITS)
+
+
+def test_a_short_frame_that_also_looks_like_a_long_one_is_read_as_the_envelope():
+    # LEN 0x99 and P 0x99 (version 4, S, K, C): a 153-byte sealed envelope with a sync part
+    # and a control part; its W high byte, read as a long frame's LEN (16), points at the
+    # 0x55 that is its body's third byte.
+    from uwgen.runtime.wire.envelope import Envelope, Message, Sync
+    from uwgen.runtime.wire.framing import encode_short_frame
+    body = bytearray(range(0x99 - 3 - 10 - 2 - 1 - 8))      # P W, K, C, H, tag
+    body[2] = 0x55
+    e = Envelope(1, 0x0A0, (Message(0, 4, bytes(body)),), sync=Sync(bytes(6), 0),
+                 control=b"\x00", tag=bytes(8))
+    frame = encode_short_frame(e.encode())
+    assert frame[:3] == bytes.fromhex("99 99 10") and frame[3 + 0x10] == 0x55
+    d = _short_decoder()
+    assert d.feed(frame + encode_short_frame(_envelopes(1)[0])) == [frame[1:], _envelopes(1)[0]]
 
 
 def test_short_frames_come_out_whole_however_the_stream_is_cut():

@@ -47,7 +47,7 @@ def test_packed_ids_travel_without_their_byte_string_head():
     sim.run(0.5)
     assert [p for _, p in sim.received] == [bytes.fromhex("00 05 42 7D 23")]
     # the short frame: LEN, then P, W, H = 05 and the two bytes of fields: 3 bytes of message
-    assert sim.packets[0].data == bytes.fromhex("06 60 00 00 05 7D 23")
+    assert sim.packets[0].data == bytes.fromhex("06 80 00 00 05 7D 23")
 
 
 def test_a_payload_of_a_packed_id_that_is_not_packed_is_refused_and_counted(caplog):
@@ -101,14 +101,33 @@ def test_a_wire_format_2_peer_is_counted_and_logged_once(caplog):
     assert caplog.text.count("wire format 2") == 1
 
 
+def test_an_envelope_link_reports_the_wire_format_it_speaks():
+    from uwgen.runtime.wire.envelope import VERSION
+    sim = LinkSim(scenario(), "a", "b", wire_format=2)
+    assert sim.sender.stats()["wire_format"] == VERSION == 4
+    assert LinkSim(scenario(), "a", "b").sender.stats()["wire_format"] == 1
+
+
+def test_a_wire_format_3_peer_is_counted_and_logged_once(caplog):
+    # its short frames reach the envelope layer (the frame decoder takes their starts)
+    sim = LinkSim(scenario(), "a", "b", wire_format=2)
+    got = []
+    sim.receiver._on_payload = got.append
+    conn = sim.receiver.connection
+    with caplog.at_level(logging.ERROR, logger="uwgen.link"):
+        conn._deliver(conn.decoder.feed(bytes.fromhex("06 60 10 05 04 7D 23") * 3))
+    assert got == [] and sim.receiver.stats()["packets"]["version_3"] == 3
+    assert caplog.text.count("wire format 3") == 1
+
+
 def test_garbage_envelopes_are_counted_not_delivered():
     sim = LinkSim(scenario(), "a", "b", wire_format=2)
     got = []
     sim.receiver._on_payload = got.append
     conn = sim.receiver.connection
-    conn._deliver(conn.decoder.feed(encode_frame(bytes.fromhex("60 00 00 84 09 01"))
-                                    + encode_frame(bytes.fromhex("60 00 00 60 07 04 01"))
-                                    + encode_short_frame(bytes.fromhex("60 00 01 07 F5"))))
+    conn._deliver(conn.decoder.feed(encode_frame(bytes.fromhex("80 00 00 84 09 01"))
+                                    + encode_frame(bytes.fromhex("80 00 00 60 07 04 01"))
+                                    + encode_short_frame(bytes.fromhex("80 00 01 07 F5"))))
     assert got == [bytes.fromhex("00 07 F5")]
     stats = sim.receiver.stats()["packets"]
     assert stats["bad_envelopes"] == 1 and stats["unknown_kind"] == 1

@@ -20,8 +20,8 @@ fingerprints are those of earlier builds).
 where `entry` is "topic", "service" or "action", `kinds` the header kinds the id travels
 with ([0], [2, 3] for a service, [0, 2, 3] for an action), `roots` the codec keys of the
 message(s) (request then response for a service; goal, result, feedback for an action) and `types` every codec type they reach (inlined or through
-arrays), sorted by key, and `wire format` 1 or 2 (wire-format.md section 14: 2 unless an
-entry of the manifest is in profile rmw_desert), each written generically: a dataclass becomes a map of its
+arrays), sorted by key, and `wire format` 1 or the envelope's version (wire-format.md
+section 14: 4 unless an entry of the manifest is in profile rmw_desert), each written generically: a dataclass becomes a map of its
 fields plus "@": its class name (leaving out fields marked `metadata={"schema": False}`,
 which name generated code and not bytes), an Enum its value, a list/tuple an array. Any IR
 node class added later is therefore covered without being named here.
@@ -44,6 +44,7 @@ import cbor2
 from uwgen.codegen.ir import CodecType, variant_name
 from uwgen.manifest.model import DEFAULT_TAG_BYTES
 from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.wire.envelope import VERSION as ENVELOPE_VERSION
 
 FINGERPRINT_BYTES = 4      # 2**-32 chance that two different schemas look alike (docs section 10)
 SCHEMA_MAGIC = "uwgen-schema"
@@ -82,8 +83,9 @@ def canonical(value: Any, where: str = "") -> Any:
 
 
 def description(entry: str, kinds: Iterable[int], ident: int, profile: str, type_name: str,
-                roots: list[CodecType], codecs: dict[str, CodecType], *, wire: int = 2,
-                security: str = "off", tag_bytes: int = DEFAULT_TAG_BYTES) -> list:
+                roots: list[CodecType], codecs: dict[str, CodecType], *,
+                wire: int = ENVELOPE_VERSION, security: str = "off",
+                tag_bytes: int = DEFAULT_TAG_BYTES) -> list:
     """The CBOR-able description of one manifest id (see the module docstring).
 
     `codecs` maps codec key -> CodecType for this profile; every type the roots reach
@@ -110,15 +112,15 @@ def digest(data: Any) -> bytes:
 
 
 def topic_fingerprint(ident: int, profile: str, type_name: str, root: CodecType,
-                      codecs: dict[str, CodecType], wire: int = 2, security: str = "off",
-                      tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
+                      codecs: dict[str, CodecType], wire: int = ENVELOPE_VERSION,
+                      security: str = "off", tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
     return digest(description("topic", [KIND_TOPIC], ident, profile, type_name, [root], codecs,
                               wire=wire, security=security, tag_bytes=tag_bytes))
 
 
 def service_fingerprint(ident: int, profile: str, type_name: str, request: CodecType,
-                        response: CodecType, codecs: dict[str, CodecType], wire: int = 2,
-                        security: str = "off", tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
+                        response: CodecType, codecs: dict[str, CodecType],
+                        wire: int = ENVELOPE_VERSION, security: str = "off", tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
     return digest(description("service", [KIND_REQUEST, KIND_RESPONSE], ident, profile, type_name,
                               [request, response], codecs, wire=wire, security=security,
                               tag_bytes=tag_bytes))
@@ -126,8 +128,8 @@ def service_fingerprint(ident: int, profile: str, type_name: str, request: Codec
 
 def action_fingerprint(ident: int, profile: str, type_name: str, goal: CodecType,
                        result: CodecType, feedback: CodecType,
-                       codecs: dict[str, CodecType], wire: int = 2, security: str = "off",
-                       tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
+                       codecs: dict[str, CodecType], wire: int = ENVELOPE_VERSION,
+                       security: str = "off", tag_bytes: int = DEFAULT_TAG_BYTES) -> bytes:
     return digest(description("action", [KIND_TOPIC, KIND_REQUEST, KIND_RESPONSE], ident, profile,
                               type_name, [goal, result, feedback], codecs, wire=wire,
                               security=security, tag_bytes=tag_bytes))
@@ -171,9 +173,13 @@ def entry_codecs(manifest: Any, builder: Any) -> dict[tuple[str, int], tuple[lis
 
 
 def wire_format_of(manifest: Any) -> int:
-    """1 when an entry is in profile rmw_desert (its links keep wire format 1), else 2."""
+    """The wire format the manifest's links speak: 1 when an entry is in profile rmw_desert
+    (its links keep wire format 1), else the envelope's version this build speaks
+    (`envelope.VERSION`), so two builds of different envelopes tell each other apart."""
     entries = (*manifest.topics, *manifest.services, *getattr(manifest, "actions", ()))
-    return 1 if any(getattr(e, "profile", "native") == "rmw_desert" for e in entries) else 2
+    if any(getattr(e, "profile", "native") == "rmw_desert" for e in entries):
+        return 1
+    return ENVELOPE_VERSION
 
 
 def manifest_fingerprints(manifest: Any, builder: Any,

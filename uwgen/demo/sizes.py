@@ -22,7 +22,7 @@ class FrameSize:
 def frame_sizes(manifest: Path, folders: list[Path]) -> list[FrameSize]:
     """Frame bytes of a representative /turtle1/cmd_vel and /turtle1/pose as `manifest`
     sends them, next to the same messages in profile native without field encodings
-    (codecs built for the occasion, so the numbers follow the manifest). On wire format 2 (no
+    (codecs built for the occasion, so the numbers follow the manifest). On an envelope link (no
     rmw_desert entry) a frame is the message alone in a packet's envelope, sealed as the
     bridge seals packets when the topic is protected (one tag; a sync packet has 13 bytes
     more); on wire format 1 the payload sealed as its bridge seals it. Measured, under a

@@ -93,6 +93,16 @@ class FrameDecoder:
         self._keep(src, pos)
         return out
 
+    def _short_frame_at(self, src: bytes | bytearray, pos: int) -> bool:
+        """Whether a short frame of LEN 0x99 starts at `pos` although a long frame seems to:
+        an envelope of 153 bytes whose P is 0x99 (version 4 with S, K and C), complete and
+        accepted by `check`; it is preferred, since a long frame comes only from a peer of
+        another wire format, whose packets are refused anyway."""
+        end = pos + 1 + SYNC_BYTE
+        return (self.check is not None and end <= len(src)
+                and src[pos + 1] & ENVELOPE_MASK == ENVELOPE_BITS
+                and bool(self.check(bytes(src[pos + 1:end]))))
+
     def flush(self) -> list[bytes]:
         """Give up the incomplete frame at the head of the buffer, hunt through what is left, empty it.
 
@@ -171,15 +181,23 @@ class FrameDecoder:
             self._buf = bytearray(src[pos:])
 
 
-# -- the short frame: `LEN payload` (wire format 3 links, docs/wire-format.md section 14.1) ------
+# -- the short frame: `LEN payload` (envelope links, docs/wire-format.md section 14.1) -----------
 
 SHORT_OVERHEAD = 1                # LEN
-ENVELOPE_MASK, ENVELOPE_BITS = 0xE0, 0x60    # a wire format 3 envelope's P: version bits 011
+# An envelope's P carries the version bits this build speaks (envelope.VERSION_BITS; generated
+# packages carry this module without the envelope's, so the bits are repeated here, and
+# tests/runtime/test_framing.py holds the two equal).
+ENVELOPE_MASK, ENVELOPE_BITS = 0xE0, 0x80    # version bits 100: wire format 4
+# A start is also taken when P says wire format 3 (the first short frame's envelope), so the
+# envelope layer can count and log a peer of that build (`version_3`) instead of the frame
+# decoder discarding its packets as noise; `check` decides whether the bytes are one.
+START_BITS = (ENVELOPE_BITS, 0x60)
 
 
 def encode_short_frame(payload: bytes | bytearray | memoryview) -> bytes:
-    """`LEN payload`: the frame of links that speak only uwgen (wire format 3). The payload is
-    an envelope: its first byte carries version bits 011 (FrameError otherwise)."""
+    """`LEN payload`: the frame of links that speak only uwgen (the envelope's wire format).
+    The payload is an envelope: its first byte carries this build's version bits (FrameError
+    otherwise)."""
     n = len(payload)
     if not 1 <= n <= MAX_PAYLOAD:
         raise FrameError(f"frame payload must be 1 to {MAX_PAYLOAD} bytes, got {n}")
@@ -192,12 +210,14 @@ class ShortFrameDecoder(FrameDecoder):
     """Incremental decoder of short frames, `LEN payload`, with the FrameDecoder's interface.
 
     A frame starts where the previous one ended. A start is taken when LEN is not 0, the byte
-    after it carries an envelope's version bits (011) and `check(payload)` (the envelope's
+    after it carries an envelope's version bits (`START_BITS`) and `check(payload)` (the envelope's
     total decoding, given by the link) accepts the LEN bytes; otherwise the first byte is
     discarded and the next one tried, so a lost slice that cut a frame costs the frames it
     touched and a few bytes of hunting. A long frame (`99 99 LEN payload 55`, a peer of wire
-    format 1 or 2: 0x99 never starts a short frame, its next byte 0x99 has version bits 100) is
-    delivered as well, so the envelope layer can count and log what the far side speaks.
+    format 1 or 2) is delivered as well, so the envelope layer can count and log what the far
+    side speaks; the one short frame that also looks like a long one (LEN 0x99 and P 0x99, a
+    153-byte sealed envelope with K and C) is taken as the short frame when it is complete and
+    its envelope decodes (`_short_frame_at`).
     """
 
     def __init__(self, check=None) -> None:
@@ -219,7 +239,7 @@ class ShortFrameDecoder(FrameDecoder):
                     end = pos + 3 + size
                     if end >= n:
                         break                              # not complete yet
-                    if src[end] == END_BYTE:
+                    if src[end] == END_BYTE and not self._short_frame_at(src, pos):
                         out.append(bytes(src[pos + 3:end]))
                         pos = end + 1
                         continue
@@ -228,7 +248,7 @@ class ShortFrameDecoder(FrameDecoder):
                 discarded += 1
                 pos += 1
                 continue
-            if pos + 1 < n and src[pos + 1] & ENVELOPE_MASK != ENVELOPE_BITS:
+            if pos + 1 < n and src[pos + 1] & ENVELOPE_MASK not in START_BITS:
                 discarded += 1
                 pos += 1
                 continue
@@ -245,6 +265,16 @@ class ShortFrameDecoder(FrameDecoder):
         st.bytes_discarded += discarded
         st.frames += len(out)
         return out, pos
+
+    def _short_frame_at(self, src: bytes | bytearray, pos: int) -> bool:
+        """Whether a short frame of LEN 0x99 starts at `pos` although a long frame seems to:
+        an envelope of 153 bytes whose P is 0x99 (version 4 with S, K and C), complete and
+        accepted by `check`; it is preferred, since a long frame comes only from a peer of
+        another wire format, whose packets are refused anyway."""
+        end = pos + 1 + SYNC_BYTE
+        return (self.check is not None and end <= len(src)
+                and src[pos + 1] & ENVELOPE_MASK == ENVELOPE_BITS
+                and bool(self.check(bytes(src[pos + 1:end]))))
 
     def flush(self) -> list[bytes]:
         """Give up the incomplete frame at the head of the buffer and hunt through the rest."""

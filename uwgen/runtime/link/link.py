@@ -13,7 +13,8 @@ Incoming: frames are decoded, fragments reassembled, and `on_payload` receives e
 on the link's thread. Fragments are recognised by their header (kind 0, fragment_id); with
 fragment_id None nothing is treated as a fragment.
 
-Wire format 2 (`wire_format=2`, links of profiles native and packed): each write is one frame
+Envelope links (`wire_format=2` here, links of profiles native and packed; they speak the
+envelope's wire format, `envelope.VERSION`, which `stats()` reports): each write is one frame
 holding one envelope of several messages (uwgen.runtime.link.packets, envelope; wire format section
 14); profile-`packed` payloads (ids in `packed_ids`) travel without their byte string's head.
 `hooks` (packets.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
@@ -36,6 +37,7 @@ from typing import Any
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.link.connection import Backoff, DesertConnection
+from uwgen.runtime.wire.envelope import VERSION as ENVELOPE_VERSION
 from uwgen.runtime.wire.envelope import EnvelopeError, add_packed_head, from_v1, strip_packed_head
 from uwgen.runtime.wire.fragment import MAX_COUNT, Fragmenter, fragment_payload_for, is_fragment
 from uwgen.runtime.wire.reassembly import Reassembler
@@ -218,7 +220,7 @@ class Link:
             "connection": conn,
             "fragments": frag,
             "payloads_delivered": self.counters["payloads_delivered"],
-            "wire_format": self.wire_format,
+            "wire_format": ENVELOPE_VERSION if self.wire_format == 2 else 1,   # what it speaks
             "packets": self.packet_counters.as_dict() if self.wire_format == 2 else None,
             "security": self.guard.stats() if self.guard is not None else None,
             "mac": self.mac.stats(),

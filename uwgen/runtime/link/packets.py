@@ -57,9 +57,11 @@ from uwgen.runtime.wire.framing import MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.packets")
+OLD_ENVELOPES = (2, 3)      # envelope versions of earlier builds: counted version_N, logged once
+OLD_SHORT_BITS = 3 << 5     # P of wire format 3, the first to use the short frame
 
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
-                   "bad_envelopes", "version_1", "version_2", "unknown_kind", "refused_payloads", "opened_none",
+                   "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind", "refused_payloads", "opened_none",
                    "ack_only_sent")
 
 
@@ -198,7 +200,11 @@ def envelope_room(max_read_length: int, overhead: int = 0) -> int:
 
 def envelope_check(payload: bytes) -> bool:
     """Whether `payload` decodes as an envelope (a sealed one with any tag length a link may
-    have): what the short frame's decoder asks of a start before it takes it."""
+    have): what the short frame's decoder asks of a start before it takes it. An envelope of
+    wire format 3 is taken when it would decode with this build's version bits (3 is 4 without
+    cut messages), so that the unpacker counts and logs its sender (`version_3`)."""
+    if payload and payload[0] & env.VERSION_MASK == OLD_SHORT_BITS:
+        payload = bytes((payload[0] & ~env.VERSION_MASK & 0xFF | env.VERSION_BITS,)) + payload[1:]
     for tag_len in env.TAG_LENGTHS:
         try:
             env.decode(payload, tag_len)
@@ -344,18 +350,20 @@ class Unpacker:
         return out
 
     def _bad(self, data: bytes, e: env.EnvelopeError) -> list[bytes]:
-        if e.version == 2:
-            if self.counters.inc("version_2") == 1:
-                log.error("[%s] the far side speaks wire format 2 (P %02X): its packets are "
+        if e.version in OLD_ENVELOPES:
+            counter = f"version_{e.version}"
+            if self.counters.inc(counter) == 1:
+                log.error("[%s] the far side speaks wire format %d (P %02X): its packets are "
                           "refused. Rebuild it with this uwgen (wire format %d); further ones "
-                          "are only counted (version_2)", self.name, data[0], env.VERSION)
+                          "are only counted (%s)", self.name, e.version, data[0], env.VERSION,
+                          counter)
             return []
         if e.version == 0:
             if self.counters.inc("version_1") == 1:
                 log.error("[%s] the far side speaks wire format 1 (its first byte %02X is a "
                           "CBOR kind, not an envelope): its frames are refused. Rebuild it with "
-                          "this uwgen (wire format 2); further ones are only counted "
-                          "(version_1)", self.name, data[0])
+                          "this uwgen (wire format %d); further ones are only counted "
+                          "(version_1)", self.name, data[0], env.VERSION)
             return []
         log_count(log, logging.WARNING, self.counters.inc("bad_envelopes"),
                   "[%s] dropped a packet that is not a valid envelope: %s", self.name, e)

@@ -18,6 +18,7 @@ log = logging.getLogger("uwgen.link")
 Observer = Callable[[float, str, bytes, str], None]   # (time, "tx"|"rx", packet, outcome)
 # Packet counters whose increase says why a packet read was refused whole.
 UNPACK_DROPS = {"bad_envelopes": "bad_envelope", "version_1": "bad_envelope",
+                "version_2": "bad_envelope", "version_3": "bad_envelope",
                 "unknown_kind": "bad_envelope", "opened_none": "seal"}
 
 

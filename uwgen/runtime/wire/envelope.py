@@ -1,12 +1,13 @@
-"""The packet envelope of wire format 3 (docs/wire-format.md section 14, docs/seams.md section 1).
+"""The packet envelope of wire format 4 (docs/wire-format.md section 14, docs/seams.md sections 1
+and 11).
 
 A link of profile `native` or `packed` writes one frame per DESERT write, and that frame's payload
 is one envelope:
 
     P | W | [K] | [T] | [A] | [C] | M1 M2 ... Mn | [tag]
 
-- P (1 byte): bits 7-5 the version (`011` = 3; `010` was wire format 2, the same parts
-  without runs), then flags S (sealed: a tag ends the
+- P (1 byte): bits 7-5 the version (`100` = 4; `011` was wire format 3, without cut
+  messages; `010` wire format 2, without runs either), then flags S (sealed: a tag ends the
   envelope; 8 bytes, or the link's `security: {tag_bytes}`), K, T, A, C (which optional parts
   follow);
 - W (2 bytes, big-endian): sender id (bits 15-12), packet number mod 4096 (bits 11-0);
@@ -39,9 +40,9 @@ from uwgen.runtime.wire.messages import (  # noqa: F401 (this module's interface
 from uwgen.runtime.wire.v1payload import (  # noqa: F401 (this module's interface)
     add_packed_head, from_v1, strip_packed_head, to_v1, v1_message_size)
 
-VERSION = 3
+VERSION = 4                 # the envelope this build speaks (the schema fingerprint hashes it)
 VERSION_MASK = 0xE0
-VERSION_BITS = VERSION << 5          # 0x60
+VERSION_BITS = VERSION << 5          # 0x80
 FLAG_S, FLAG_K, FLAG_T, FLAG_A, FLAG_C = 0x10, 0x08, 0x04, 0x02, 0x01
 
 HEAD = 3                    # P and W
