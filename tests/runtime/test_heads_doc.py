@@ -33,7 +33,7 @@ def test_section_14_3_worked_packet():
     cmd = demo.TOPICS[4]
     m = envelope.from_v1(envelope.strip_packed_head(
         cmd.encode(Twist(linear=Vector3(x=0.5), angular=Vector3(z=0.3)))))
-    assert (m.kind, m.id, cmd.profile, cmd.policy.ttl) == (0, 4, "packed", 1.0)
+    assert (m.kind, m.id, cmd.profile, cmd.policy.ttl) == (0, 4, "packed", 2.0)
     heads = Heads(aged=frozenset({4}))
     built = envelope.Message(0, 4, encode_age(AGE) + m.body)      # as the link stamps it
     got = {}
