@@ -221,10 +221,9 @@ class PacketSeal(SideSeal):
         return got
 
     def _nearly_started(self, time24: int) -> bool:
-        """Whether a packet refused `before_start` was stamped less than `ASK_BEFORE` s before
-        this side started: a peer whose clock is behind by d looks so until d has passed; its
-        answer to a sync request, sealed a round trip later, then passes at once (the clock
-        exchange needs its K and T)."""
+        """Whether a packet refused `before_start` was stamped under `ASK_BEFORE` s before our
+        start (a peer whose clock is behind looks so until it passes our start): its answer to
+        a sync request, sealed a round trip later, then passes (the clock exchange needs it)."""
         return self.receiver.started - sent_at(time24, self.wall.now()) < ASK_BEFORE
 
     def _offset(self, sender: int):
@@ -272,9 +271,8 @@ class PacketSeal(SideSeal):
                   "behind" if apparent > 0 else "ahead of", self.freshness.tolerance)
 
     def _tell_before(self, e: env.Envelope) -> None:
-        """A new epoch's packet refused `before_start` whose T is behind our clock by more than
-        the tolerance: its sender's clock may be behind by that much (it is heard, and
-        measured, once its stamps pass our start); said once per sender, with the figure."""
+        """A packet refused `before_start` stamped further behind than the tolerance: its
+        sender's clock may be that far behind; said once per sender, with the figure."""
         behind = self.freshness.age(e.time, self.wall.now())
         if e.sender in self._told_before or behind <= self.freshness.tolerance:
             return
