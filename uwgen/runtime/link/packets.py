@@ -52,7 +52,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from uwgen.runtime.link.filling import cut_point
 from uwgen.runtime.wire import envelope as env
+from uwgen.runtime.wire.cuts import Joiner, cut
 from uwgen.runtime.wire.framing import MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
@@ -61,8 +63,9 @@ OLD_ENVELOPES = (2, 3)      # envelope versions of earlier builds: counted versi
 OLD_SHORT_BITS = 3 << 5     # P of wire format 3, the first to use the short frame
 
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
-                   "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind", "refused_payloads", "opened_none",
-                   "ack_only_sent")
+                   "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind",
+                   "refused_payloads", "opened_none", "ack_only_sent",
+                   "cut_sent", "cut_dropped", "cut_joined", "cut_orphan")
 
 
 @dataclass
@@ -241,6 +244,7 @@ class Packer:
         self.counters = counters
         self.name = name
         self.number = 0                     # the next packet's number (full count)
+        self.first: env.Message | None = None   # the cut tail the next packet starts with
 
     def next_packet(self, now: float) -> bytes | None:
         picked: list[tuple[int, bytes]] = []
@@ -250,7 +254,16 @@ class Packer:
         charged = 0               # bytes of parts the picked messages bring (part_room)
         if h.next_overhead is not None:
             room = envelope_room(self.max_read_length, h.next_overhead(now))
-        budget = room
+        if self.first is not None:          # the rest of the message cut at the last packet's end
+            first, self.first = self.first, None
+            if first.size(last=False) <= room:
+                messages.append(first)
+            else:
+                log_count(log, logging.ERROR, self.counters.inc("cut_dropped"),
+                          "[%s] the rest of a cut message (%d bytes) does not fit the next "
+                          "packet (its parts took the room): the message is lost",
+                          self.name, len(first.body))
+        budget = room - len(env.encode_messages(messages)) - 1 if messages else room
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         # A message that brings a part (T) fits only with that part: the scheduler counts
         # `extra(key)` into each channel's next size; a re-sent one is offered the room less
@@ -262,9 +275,17 @@ class Packer:
 
         sources = [] if h.resend is None else [
             lambda room: h.resend(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0))]
+        def added(payload: bytes) -> int:
+            """What a message adds to the packet as encoded (a message joining a run: its body)."""
+            try:
+                m = env.from_v1(payload)
+            except env.EnvelopeError:
+                return message_measure(payload)
+            return len(env.encode_messages([*messages, m])) - len(env.encode_messages(messages))
+
         sources.append(lambda room: self.scheduler.next_payload(
-            now, room if picked else None, fill=True, packet=self.number,
-            extra=extra if roomy is not None else None))
+            now, room if messages else None, fill=True, packet=self.number,
+            extra=extra if roomy is not None else None, measure=added))
         for source in sources:
             while budget > 1:
                 got = source(budget)
@@ -286,6 +307,8 @@ class Packer:
                 # what the messages take as encoded (a message joining a run costs its body
                 # alone), counted as `message_measure` counts: each with a length byte
                 budget = room - charged - len(env.encode_messages(messages)) - 1
+        if messages and budget > 1:
+            self._cut_last(now, messages, picked, room - charged - 1)
         if not messages:
             if h.ack_only is None or not h.ack_only(now):
                 return None
@@ -311,6 +334,39 @@ class Packer:
         return data
 
 
+    def _cut_last(self, now: float, messages: list[env.Message], picked: list[tuple[int, bytes]],
+                  limit: int) -> None:
+        """End the packet with the head of a message cut to fit (wire format 14.2), its tail
+        kept to start the next packet: the first message in claim order of a cuttable channel
+        that brings no part (T: an entry with a max age is judged by the packet that carries
+        it, which would be the wrong one for a cut message) and whose cut is worth it
+        (`filling.cut_point`). `limit`: the bytes of messages this packet holds."""
+        roomy = self.hooks.part_room
+
+        def accept(key: int, payload: bytes) -> bool:
+            if roomy is not None and roomy(key):
+                return False
+            try:
+                m = env.from_v1(payload)
+            except env.EnvelopeError:
+                return False
+            return cut_point(messages, m, limit, self.room) is not None
+
+        got = self.scheduler.next_payload(now, fill=False, packet=self.number, cut=accept)
+        if got is None:
+            return
+        key, payload = got
+        picked.append((key, payload))
+        m = env.from_v1(payload)
+        at = cut_point(messages, m, limit, self.room)
+        if at is None:        # its head changed as it was taken: it goes whole, first, next time
+            self.first = m
+            return
+        head, self.first = cut(m, at)
+        messages.append(head)
+        self.counters.inc("cut_sent")
+
+
 class Unpacker:
     """Opens received envelopes; refuses (counted, logged once) what is not one."""
 
@@ -318,6 +374,7 @@ class Unpacker:
         self.hooks = hooks or PacketHooks()
         self.counters = counters
         self.name = name
+        self.joiner = Joiner()
 
     def feed(self, data: bytes, now: float) -> list[bytes]:
         """The messages of one frame's payload, as wire format 1 payloads (kind, id, body)."""
@@ -339,7 +396,16 @@ class Unpacker:
         if self.hooks.received is not None:
             self.hooks.received(envelope, now)
         out = []
-        for m in envelope.messages:
+        joiner = self.joiner
+        orphans = joiner.orphans
+        messages = joiner.feed(envelope)
+        c.inc("cut_joined", joiner.joined - c["cut_joined"])
+        if joiner.orphans > orphans:
+            log_count(log, logging.WARNING, c.inc("cut_orphan", joiner.orphans - orphans),
+                      "[%s] dropped a part of a cut message from sender %d that cannot be "
+                      "joined (the packet with its other part was lost)", self.name,
+                      envelope.sender)
+        for m in messages:
             if m.kind not in env.KIND_CODES and m.kind != env.FRAGMENT:
                 log_count(log, logging.WARNING, c.inc("unknown_kind"),
                           "[%s] dropped a message of kind %d (id %d) from sender %d: this build "

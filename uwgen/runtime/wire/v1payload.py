@@ -35,6 +35,8 @@ def to_v1(message: Message) -> bytes:
     message stays as it is in the envelope (H 0x61, then its body): only fragment.py reads it."""
     if message.kind == FRAGMENT:
         return bytes((H_FRAGMENT,)) + message.body
+    if message.cut:
+        raise EnvelopeError("a part of a cut message is no payload until it is joined")
     k, i = message.kind, message.id
     head = bytes((k,)) if k < 24 else bytes((0x18, k))
     head += bytes((i,)) if i < 24 else bytes((0x18, i))
