@@ -8,6 +8,13 @@ simulated time: every write the sender's connection would make goes, lossless, i
 receiver's decoder. Air bytes count each packet as DESERT sends it: the bytes written plus the
 4 bytes of UDP and IP header DESERT adds (docs/wire-format.md section 1).
 
+Table 0, the demo's mix as bridges send it: both directions at once on one pair of links, each
+with the hooks a bridge gives it (reliability, and the per-packet seal with the 8-byte tag when
+secured), so acknowledgements and the clock offset's exchange flow; air bytes per delivered
+message against a baseline commit's code (`--baseline`, `main` for the branch's start), and
+what they carry part by part (DESERT, frame, P, W, K, T, A, C, message heads, the reliability
+heads N and age, tag, body; docs/wire-format.md section 14.3). Goals: 15 unsecured, 21 secured.
+
 Table 1, the demo's mix, secured as the demo is (docs/demo.md): cmd_vel published at 10 Hz
 (encrypted, packed, rate 5), pose at 10 Hz (signed, packed, rate 2), battery at 1 Hz (signed,
 rate 0.2), 8 log lines every 20 s (not protected), an encrypted teleport request every 30 s, and
@@ -83,8 +90,12 @@ class Pair:
                  packed: frozenset[int] = frozenset(), fragment_id: int | None = 250,
                  tag_bytes: int = envelope.TAG_LEN, bridge: bool = False):
         """`bridge`: the demo's sides with the hooks a bridge gives its link (reliability,
-        joined with the seal when secured: uwgen.bridge.node)."""
+        joined with the seal when secured: uwgen.bridge.node), both of them sending (`run`
+        carries each side's writes to the other, so acknowledgements and the clock offset's
+        exchange flow as between real bridges); their wall clock follows the simulation's."""
         self.clock = ManualClock()
+        self.two_way = bridge and wire == 2
+        wall = SimWall(self.clock)
         self.message_items = 0     # bytes of reliability heads (N, age) the receiver took off
         self.delivered: list[bytes] = []
         self.air = 0
@@ -101,7 +112,8 @@ class Pair:
                 lock = secure_dir / f"{wire}-{tag_bytes}-{src}{dst}-{side}.lock"
                 if wire == 2 and PacketSeal is not None:    # as a bridge does: one tag a packet
                     seals[side] = PacketSeal.for_key(MASTER, cfg, lock, clock=self.clock, name=side,
-                                                     fragment_id=fragment_id)
+                                                     fragment_id=fragment_id,
+                                                     **({"wall": wall} if self.two_way else {}))
                 else:
                     guards[side] = LinkGuard.for_key(MASTER, cfg, lock, clock=self.clock, name=side)
         if wire == 2:
@@ -116,18 +128,16 @@ class Pair:
             for side in (src, dst):
                 plan = BridgePlan.from_package(demo, side)
                 seal = hooks.get(side)
-                rel = reliability_for(plan, CONFIG,       # T on the wall clock, as the seal's
+                rel = reliability_for(plan, CONFIG, wall,   # T on the wall clock, as the seal's
                                       other_overhead=seal.overhead if seal is not None else 0)
                 hooks[side] = join_hooks(rel.hooks(), seal)
-            admit = hooks[dst].admit
-
-            def counted_admit(payload: bytes, now: float) -> bytes | None:
-                out = admit(payload, now)       # the reliability head taken off (N, age)
-                self.message_items += len(payload) - (len(out) if out is not None else len(payload))
-                return out
-            hooks[dst] = dataclasses.replace(hooks[dst], admit=counted_admit)
+                hooks[side] = dataclasses.replace(hooks[side], admit=self._counted(hooks[side].admit))
+        self.returned: list[bytes] = []     # what the sender receives (two_way)
         self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}),
-                           **({"hooks": hooks[src]} if src in hooks else {}), **kw_src)
+                           **({"hooks": hooks[src]} if src in hooks else {}), **kw_src,
+                           **({"on_payload": self.returned.append} if self.two_way else {}))
+        if self.two_way:
+            kw = dict(kw, sender_id=SENDERS.get(dst, 0))
         self.receiver = Link(name=dst, on_payload=self.delivered.append,
                              **({"guard": guards[dst]} if guards else {}),
                              **({"hooks": hooks[dst]} if dst in hooks else {}), **kw)
@@ -170,6 +180,13 @@ class Pair:
         out["body"] -= self.security
         return out
 
+    def _counted(self, admit):
+        def counted_admit(payload: bytes, now: float) -> bytes | None:
+            out = admit(payload, now)       # the reliability head taken off (N, age)
+            self.message_items += len(payload) - (len(out) if out is not None else len(payload))
+            return out
+        return counted_admit
+
     def parts(self) -> dict[str, int]:
         """Air bytes of wire format 2+ by part (table 0's breakdown): DESERT's header, the
         frame, each envelope part (P, W, K, T, A, C), message heads (H, id, length and run
@@ -199,22 +216,36 @@ class Pair:
     def run(self, seconds: float, before_write=None) -> None:
         conn, rx = self.sender.connection, self.receiver.connection
         box = conn.outbox
+        ways = [(conn, rx)] + ([(rx, conn)] if self.two_way else [])
         t = 0.0
         while t <= seconds:
             self.clock.set(t)
             if before_write is not None:
                 before_write(t)
-            batch = box.take(t, conn._pull, conn._fit)
-            if batch:
-                box.sent(t)
-                self.batches.append(batch)
-                self.packets += 1
-                self.written += len(batch)
-                self.air += len(batch) + DESERT_HEADER
-                rx._deliver(rx.decoder.feed(batch))
+            for tx, to in ways:
+                batch = tx.outbox.take(t, tx._pull, tx._fit)
+                if batch:
+                    tx.outbox.sent(t)
+                    self.batches.append(batch)
+                    self.packets += 1
+                    self.written += len(batch)
+                    self.air += len(batch) + DESERT_HEADER
+                    to._deliver(to.decoder.feed(batch))
             self.receiver._tick(t)
-            nxt = box.pacer.next_write_at
+            if self.two_way:
+                self.sender._tick(t)
+            nxt = min(tx.outbox.pacer.next_write_at for tx, _ in ways)
             t = round(max(t + CONFIG.period / 16, nxt) if before_write is None else max(nxt, t + 1e-3), 9)
+
+
+class SimWall:
+    """A wall clock that follows the simulation's clock (table 0's bridges stamp T with it)."""
+
+    def __init__(self, clock: ManualClock, start: float = 1.7e9):
+        self.clock, self.start = clock, start
+
+    def now(self) -> float:
+        return self.start + self.clock.now()
 
 
 PARTS = ("DESERT", "frame", "P", "W", "K", "T", "A", "C", "msg head", "N, age", "tag", "body")
@@ -248,53 +279,63 @@ def battery(k: int) -> BatteryState:
 def demo_mix(wire: int, seconds: float, tmp: Path | None,
              tag_bytes: int = envelope.TAG_LEN, bridge: bool = False) -> tuple[int, int, dict[str, int]]:
     """Air bytes, delivered messages and the air bytes' breakdown of both directions of the
-    demo's traffic (`tmp` None: unsecured; `bridge`: with a bridge's reliability hooks)."""
-    t = demo.TOPICS
+    demo's traffic (`tmp` None: unsecured). `bridge`: with a bridge's reliability hooks, both
+    directions on one pair of links at once, as between real bridges (each side's packets
+    carry the acknowledgements of the other's); else each direction alone."""
     air = delivered = 0
     parts: dict[str, int] = {}
-    fingerprints = [(i, c.fingerprint) for i, c in sorted({**t, **demo.SERVICES}.items())]
-    packed = frozenset(i for i, c in {**t, **demo.SERVICES}.items() if c.profile == "packed")
-    for src, dst in (("surface", "vehicle"), ("vehicle", "surface")):
+    packed = frozenset(i for i, c in {**demo.TOPICS, **demo.SERVICES}.items() if c.profile == "packed")
+    ways = [("surface", "vehicle")] if bridge and wire == 2 else [("surface", "vehicle"), ("vehicle", "surface")]
+    for src, dst in ways:
         pair = Pair(wire, src, dst, secure_dir=tmp, packed=packed, tag_bytes=tag_bytes,
                     bridge=bridge)
-        link = pair.sender
-        link.add_channel(249, LinkPolicy(queue="fifo", depth=4, priority=11, strict=True))
-        # split as the bridge splits them: each leaves whole in one packet
-        for p in encode_announcements(249, fingerprints, request=True,
-                                      max_payload=link.whole_payload(249)):
-            pair.clock.set(0.0)
-            link.offer(249, p)
-        events: list[tuple[float, int, bytes]] = []
-        if src == "surface":
-            link.add_channel(4, t[4].policy)
-            link.add_channel(20, demo.SERVICES[20].policy)
-            events += [(k * 0.1, 4, t[4].encode(twist(k))) for k in range(int(seconds * 10))]
-            req = demo.SERVICES[20].encode_request(7, TeleportAbsolute_Request(x=5.5, y=5.5, theta=0.0))
-            events += [(k * 30.0 + 1.0, 20, req) for k in range(int(seconds / 30))]
-        else:
-            for key in (5, 6, 7):
-                link.add_channel(key, t[key].policy)
-            events += [(k * 0.1, 5, t[5].encode(pose(k))) for k in range(int(seconds * 10))]
-            events += [(k * 1.0, 6, t[6].encode(battery(k))) for k in range(int(seconds))]
-            events += [(k * 20.0 + 0.5, 7, t[7].encode(String(data=f"mission step {k}: depth 12.{j} m ok")))
-                       for k in range(int(seconds / 20)) for j in range(8)]
-        events.sort(key=lambda e: e[0])
+        sides = [(pair.sender, src)] + ([(pair.receiver, dst)] if pair.two_way else [])
+        events = sorted((e for link, side in sides for e in load(pair, link, side, seconds)),
+                        key=lambda e: e[0])
         pending = iter(events)
         nxt = [next(pending, None)]
 
         def offers(now: float) -> None:
             while nxt[0] is not None and nxt[0][0] <= now:
-                _, key, payload = nxt[0]
+                _, link, key, payload = nxt[0]
                 link.offer(key, payload)
                 nxt[0] = next(pending, None)
 
         pair.run(seconds, offers)
         air += pair.air
-        delivered += sum(1 for p in pair.delivered if p[1] != 249 and not p.startswith(b"\x00\x18\xf9"))
+        delivered += sum(1 for p in pair.delivered + pair.returned
+                         if p[1] != 249 and not p.startswith(b"\x00\x18\xf9"))
         for k, v in (pair.parts() if bridge else pair.breakdown()).items():
             parts[k] = parts.get(k, 0) + v
     assert sum(parts.values()) == air, (parts, air)
     return air, delivered, parts
+
+
+def load(pair: Pair, link: Link, side: str, seconds: float) -> list[tuple[float, Link, int, bytes]]:
+    """Give `link` the demo's channels of `side` and its announcements; its offers, in time."""
+    t = demo.TOPICS
+    fingerprints = [(i, c.fingerprint) for i, c in sorted({**t, **demo.SERVICES}.items())]
+    link.add_channel(249, LinkPolicy(queue="fifo", depth=4, priority=11, strict=True))
+    # split as the bridge splits them: each leaves whole in one packet
+    for p in encode_announcements(249, fingerprints, request=True,
+                                  max_payload=link.whole_payload(249)):
+        pair.clock.set(0.0)
+        link.offer(249, p)
+    events: list[tuple[float, Link, int, bytes]] = []
+    if side == "surface":
+        link.add_channel(4, t[4].policy)
+        link.add_channel(20, demo.SERVICES[20].policy)
+        events += [(k * 0.1, link, 4, t[4].encode(twist(k))) for k in range(int(seconds * 10))]
+        req = demo.SERVICES[20].encode_request(7, TeleportAbsolute_Request(x=5.5, y=5.5, theta=0.0))
+        events += [(k * 30.0 + 1.0, link, 20, req) for k in range(int(seconds / 30))]
+    else:
+        for key in (5, 6, 7):
+            link.add_channel(key, t[key].policy)
+        events += [(k * 0.1, link, 5, t[5].encode(pose(k))) for k in range(int(seconds * 10))]
+        events += [(k * 1.0, link, 6, t[6].encode(battery(k))) for k in range(int(seconds))]
+        events += [(k * 20.0 + 0.5, link, 7, t[7].encode(String(data=f"mission step {k}: depth 12.{j} m ok")))
+                   for k in range(int(seconds / 20)) for j in range(8)]
+    return events
 
 
 # -- table 2: link use under saturation -------------------------------------------------------
@@ -424,12 +465,12 @@ def main() -> None:
                   f"{'ok' if now[label] <= goal else 'MISS'}")
         print("what they carry, bytes per delivered message (P, W, K, T, A, C: the envelope's "
               "parts; msg head: H, id, length and run bytes; N, age: reliability heads):")
-        print(f"{'':<22}" + "".join(f"{k:>8}" for k in PARTS))
+        print(f"{'':<22}" + "".join(f"{k:>9}" for k in PARTS))
         for label in ("unsecured", "secured"):
             for which, figures in (("baseline", base), ("this build", now)):
                 split = figures.get(label + " parts")
                 if split is not None:
-                    print(f"{label + ', ' + which:<22}" + "".join(f"{split.get(k, 0):>8.2f}" for k in PARTS))
+                    print(f"{label + ', ' + which:<22}" + "".join(f"{split.get(k, 0):>9.2f}" for k in PARTS))
         print()
 
     print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions); "

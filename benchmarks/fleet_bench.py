@@ -3,7 +3,8 @@
 behind its own bridge, against the same per-vehicle workload between two sides, same run.
 
     python benchmarks/fleet_bench.py [--vehicles 8] [--per 0.1] [--calls 13] [--goals 13]
-                                     [--seed 5] [--mac tdma|turns|none]
+                                     [--seed 5] [--mac tdma|turns|none] [--surface-weight 4]
+                                     [--surface-packets 6]
 
 The network is one manifest with a `fleet:` section (uwgen.manifest.fleet): each vehicle
 carries 2 topics (telemetry from the vehicle every --every seconds, a command from the
@@ -17,8 +18,10 @@ The channel: 4800 bit/s, 64-byte packets (one every 0.2 s at most), vehicles on 
 circle around the surface, --per packet error rate on top of collisions. The manifest's
 `mac:` section shares it, for the bridges and the emulator alike: `tdma` is DESERT's UW/TDMA
 (one slot per side in the fleet's turn order, a guard over a packet's air time and the
-longest delay; each bridge writes no more than its slot drains), `turns` the surface granting
-each vehicle its turn in order over stock CSMA-ALOHA, `none` stock CSMA-ALOHA alone.
+longest delay; each bridge writes no more than its slot drains; the surface, which carries
+every vehicle's commands, gets a slot --surface-weight times a vehicle's, DESERT's manual
+mode), `turns` the surface granting each vehicle its turn in order over stock CSMA-ALOHA
+(--surface-packets a surface turn), `none` stock CSMA-ALOHA alone.
 
 It prints one row per network (the fleet and the two-side reference): telemetry and commands
 delivered (unique messages received over published), calls ok within their timeout with the
@@ -96,18 +99,23 @@ OMIT = "{" + ", ".join(f"{f}: {{omit: true}}" for f in (
     "string_value")) + "}"
 
 
-def mac_section(mode: str, nodes: int) -> str:
+def mac_section(mode: str, nodes: int, surface_weight: int = 1, surface_packets: int = 3) -> str:
     """The manifest's mac: for `nodes` sides. TDMA: a guard of one packet's air time plus the
-    longest delay (across the circle), an ON window in which SLOT_PACKETS packets start."""
+    longest delay (across the circle), a vehicle's ON window one in which SLOT_PACKETS
+    packets start, the surface's slot `surface_weight` vehicle slots long (its window drains
+    as many more: max_packet_per_slot follows it). Turns: `surface_packets` a surface turn."""
     common = f"bitrate: {BITRATE:g}, range: {2 * RADIUS:g}"
     if mode == "tdma":
         air = (MRL + HEADER) * 8 / BITRATE
         guard = round(air + 2 * RADIUS / SOUND + 0.02, 3)
         slot = guard + (SLOT_PACKETS - 1) * max(air, PERIOD) + 0.02
-        return (f"{{mode: tdma, frame: {nodes * slot:.3f}, guard: {guard}, "
-                f"max_packet_per_slot: {SLOT_PACKETS}, queue_size: 10, {common}}}")
+        frame = (nodes - 1 + surface_weight) * slot
+        weights = f", weights: {{surface: {surface_weight}}}" if surface_weight != 1 else ""
+        return (f"{{mode: tdma, frame: {frame:.3f}, guard: {guard}, "
+                f"max_packet_per_slot: {SLOT_PACKETS * surface_weight}, queue_size: "
+                f"{max(10, SLOT_PACKETS * surface_weight)}{weights}, {common}}}")
     if mode == "turns":
-        return f"{{mode: turns, leader: surface, packets: {{surface: 3}}, {common}}}"
+        return f"{{mode: turns, leader: surface, packets: {{surface: {surface_packets}}}, {common}}}"
     return f"{{mode: none, {common}}}"
 
 
@@ -134,7 +142,9 @@ def wait(future, seconds: float) -> bool:
 def run(vehicles: int, args, base_domain: int) -> dict:
     names = [f"auv{n}" for n in range(1, vehicles + 1)]
     period = PERIOD
-    package = build_package(vehicles, period, mac_section(args.mac, vehicles + 1))
+    package = build_package(vehicles, period, mac_section(
+        args.mac, vehicles + 1, args.surface_weight if vehicles > 1 else 1,
+        args.surface_packets if vehicles > 1 else 3))
     mac = package.MANIFEST.mac
     nodes = [NodeSpec("surface", dest=BROADCAST if vehicles > 1 else "auv1")]
     for k, name in enumerate(names):
@@ -274,6 +284,10 @@ def main() -> int:
                     help="a command to each vehicle every this many telemetry messages")
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--mac", choices=("tdma", "turns", "none"), default="tdma")
+    ap.add_argument("--surface-weight", type=int, default=4,
+                    help="tdma, fleet row: the surface's slot in vehicle slots (1: equal slots)")
+    ap.add_argument("--surface-packets", type=int, default=6,
+                    help="turns, fleet row: packets a surface turn")
     ap.add_argument("--verbose", action="store_true", help="also print link and emulator counters")
     args = ap.parse_args()
     base = int(os.environ.get("ROS_DOMAIN_ID") or 150)

@@ -91,6 +91,7 @@ class Analysis:
     control: list[SideControl] = field(default_factory=list)   # discovery, schema announcements
     tag_bytes: int | None = None     # the per-packet tag of a secured envelope link
     mac_notes: list[str] = field(default_factory=list)   # uwgen.mac_budget.mac_warnings
+    mac_shares: list[str] = field(default_factory=list)  # uwgen.mac_budget.mac_shares
 
     def warnings(self) -> list[str]:
         out = list(self.mac_notes)
@@ -126,7 +127,7 @@ def capacity(max_read_length: int, period: float, bitrate: float) -> tuple[float
     return (by_period, "period") if by_period <= by_bitrate else (by_bitrate, "bit rate")
 
 
-from uwgen.mac_budget import capacity_under_mac, mac_warnings  # noqa: E402
+from uwgen.mac_budget import capacity_under_mac, mac_shares, mac_warnings  # noqa: E402
 
 
 def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Analysis:
@@ -185,7 +186,8 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     sealed = (seal.typical, seal.max) if manifest.protected() else (0, 0)
     control = control_costs(manifest, bitrate, wire, sealed)
     return Analysis(manifest.network, bitrate, entries, budgets, wire, control,
-                    tag if manifest.protected() and wire != 1 else None, mac_warnings(manifest))
+                    tag if manifest.protected() and wire != 1 else None, mac_warnings(manifest),
+                    mac_shares(manifest))
 
 
 def _schema_rate(manifest: Manifest) -> float:

@@ -51,6 +51,7 @@ def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
         verdict = "fits" if b.fits else "DOES NOT FIT" if b.typical > b.capacity or (
             b.worst is not None and b.worst > b.capacity) else "check warnings"
         lines.append(f"  {b.side:<12}{b.capacity:>14.1f}{b.limited_by:>12}{b.typical:>13.1f}{worst:>12}  {verdict}")
+    lines += [f"  {line}" for line in a.mac_shares]
     for w in a.warnings():
         lines.append(f"WARNING: {w}")
     return "\n".join(lines)

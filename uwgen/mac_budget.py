@@ -1,8 +1,9 @@
 """What the manifest's MAC (`mac:`, uwgen.manifest.mac) leaves each side, for `uwgen analyze`.
 
 - capacity: mode none keeps the link's (a packet per period, the bit rate); tdma gives a side
-  the packets one slot drains per frame (uwgen.runtime.link.mac.tdma_capacity); turns gives
-  it its turn's packets per round of turns;
+  the packets its slot drains per frame (uwgen.runtime.link.mac.tdma_capacity; a side's
+  slot is its weight's share of the frame); turns gives it its turn's packets per round of
+  turns; `mac_shares` says each side's slot or turn in one line;
 - warnings: a TDMA guard a packet starting at the end of the ON window overruns (it runs into
   the next side's slot: DESERT does not check that it fits), and every deadline (a service's
   timeout, an action's accept_timeout, a reliable topic's ttl) that cannot fit one round trip
@@ -21,13 +22,38 @@ def capacity_under_mac(manifest: Manifest, side: Side, capacity: float, limit: s
     mac = manifest.mac
     link = side.link
     if mac.mode == "tdma":
-        share = tdma_capacity(mac, link) * link.max_read_length / mac.frame
+        share = tdma_capacity(mac, link, side.name) * link.max_read_length / mac.frame
         return (share, "tdma slot") if share < capacity else (capacity, limit)
     if mac.mode == "turns":
         cycle = turn_cycle(manifest)
         share = mac.turn_packets(side.name) * link.max_read_length / cycle
         return (share, "turns") if share < capacity else (capacity, limit)
     return capacity, limit
+
+
+def mac_shares(manifest: Manifest) -> list[str]:
+    """Each side's share of the channel under the MAC, a line per side (none: nothing)."""
+    from uwgen.runtime.link.mac import tdma_capacity
+
+    mac = manifest.mac
+    if mac.mode == "tdma":
+        out = [f"mac tdma: a {mac.frame:g} s frame, guard {mac.guard:g} s, max_packet_per_slot "
+               f"{mac.max_packet_per_slot}, queue_size {mac.queue_size}; per side:"]
+        for name in mac.slots:
+            side = manifest.sides[name]
+            start, length = mac.slot_start(name), mac.slot_length(name)
+            weight = f", weight {mac.weight(name)}" if mac.weights else ""
+            out.append(f"  {name:<12} slot {start:.3f}-{start + length:.3f} s{weight}, ON "
+                       f"{length - mac.guard:.3f} s: {tdma_capacity(mac, side.link, name)} packets "
+                       "a frame")
+        return out
+    if mac.mode == "turns":
+        cycle = turn_cycle(manifest)
+        out = [f"mac turns: leader {mac.leader}, a round of turns about {cycle:.2f} s; per side:"]
+        out += [f"  {name:<12} {mac.turn_packets(name)} packets a turn"
+                for name in manifest.sides]
+        return out
+    return []
 
 
 def turn_cycle(manifest: Manifest) -> float:
@@ -50,6 +76,15 @@ def mac_warnings(manifest: Manifest) -> list[str]:
     links = {s.name: s.link for s in manifest.sides.values()}
     longest = max(links.values(), key=lambda link: link.max_read_length)
     if mac.mode == "tdma":
+        from uwgen.runtime.link.mac import tdma_capacity
+        shortest = min(mac.slots, key=mac.slot_length)
+        for name in (s for s in mac.slots if mac.weight(s) > mac.weight(shortest)):
+            link = manifest.sides[name].link
+            if tdma_capacity(mac, link, name) <= tdma_capacity(mac, link, shortest):
+                out.append(f"mac tdma: side {name}'s longer slot (weight {mac.weight(name)}) drains "
+                           f"no more than a weight-{mac.weight(shortest)} one: max_packet_per_slot "
+                           f"{mac.max_packet_per_slot}, queue_size {mac.queue_size} or the period "
+                           "caps it; raise them")
         overrun = air_time(longest.max_read_length, mac.bitrate) + mac.delay
         if mac.guard < overrun:
             out.append(f"mac tdma: guard {mac.guard:g} s is shorter than a {longest.max_read_length}-byte "

@@ -123,7 +123,7 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
     security=SecurityPlan(key_file='keys/demo.key', senders={'surface': 1, 'vehicle': 2}, modes={4: 'encrypt', 5: 'sign', 6: 'sign', 20: 'encrypt', 21: 'encrypt', 30: 'encrypt', 249: 'sign'}, tag_bytes=8, seal_fingerprints={}),
-    mac=MacConfig(mode='turns', bitrate=4800.0, range=300.0, frame=1.0, guard=0.05, slots=(), max_packet_per_slot=1, queue_size=10, leader='surface', packets=(('surface', 2), ('vehicle', 1))),
+    mac=MacConfig(mode='turns', bitrate=4800.0, range=300.0, frame=1.0, guard=0.05, slots=(), max_packet_per_slot=1, queue_size=10, weights=(), leader='surface', packets=(('surface', 2), ('vehicle', 1))),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.

@@ -58,3 +58,33 @@ def test_a_goal_left_by_a_killed_server_side_bridge_is_adopted_and_its_result_re
     assert results == [5]                                  # run once, watched to the end
     assert counted(again)["orphans_adopted"] == 1
     assert counted(bridges["surface"])["goals_lost_there"] == 0
+
+
+def test_a_goal_that_finished_while_the_server_side_bridge_was_down_reports_its_real_outcome(
+        pair, fib_codec):  # noqa: F811
+    """The goal succeeds on the vehicle while no server-side bridge runs; the new one finds it
+    finished on the local server's status list and, asked by the client side, gives the
+    result the server kept: the caller is told succeeded, not aborted or lost."""
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    fib_server(vehicle.node("real"), results, delay=0.5)
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    goal_handle = send_goal(client, 5)
+    assert goal_handle.accepted
+    kill(vehicle, bridges["vehicle"])
+    time.sleep(2.0)                                        # it finishes meanwhile
+    assert results == [5]
+    pkg = fake_package([])
+    pkg.ACTIONS = {9: fib_codec}
+    again = start_bridge(vehicle, pkg, links.factory)
+    future = goal_handle.get_result_async()
+    wait_for(future.done, timeout=15.0, what="the goal's result")
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+    assert list(future.result().result.sequence) == [0, 1]
+    assert results == [5]                                  # run once
+    status = counted(again)
+    assert (status["orphans_finished"], status["orphans_adopted"], status["lost_goals"]) == (1, 0, 0)
+    assert counted(bridges["surface"])["goals_lost_there"] == 0

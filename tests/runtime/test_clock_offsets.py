@@ -17,6 +17,7 @@ from uwgen.runtime.delivery.staleness import Staleness
 from runtime.test_reliability_link import BEST_EFFORT, duplex, numbers
 
 COMMAND = LinkPolicy(queue="fifo", depth=8)
+MAX_AGE = 3.0                  # the commands' (id 9) in `link`
 
 
 def commands(sim, every: float = 2.0, count: int = 10, start: float = 0.0):
@@ -63,8 +64,8 @@ def test_a_command_held_on_the_way_is_never_delivered_after_its_max_age(hold, se
     sim.hold("a", hold, sim.written["a"], sim.written["a"] + 1)
     with caplog.at_level(logging.WARNING, logger="uwgen.link.reliability"):
         sim.run(40.0 + hold + 10)
-    # command i is published at 2 i s: none is delivered after its max age, 2 s
-    late = [(p[2], t) for t, p in sim.received["b"] if p[1] == 9 and t - 2 * p[2] > 2.0]
+    # command i is published at 2 i s: none is delivered after its max age
+    late = [(p[2], t) for t, p in sim.received["b"] if p[1] == 9 and t - 2 * p[2] > MAX_AGE]
     assert late == []
     assert rel["b"].counters["stale"] >= 1 and "old (age item" in caplog.text
     assert rel["b"].offsets.of(1) is not None
@@ -84,25 +85,29 @@ def test_a_held_command_before_any_exchange_is_refused_as_unexplained(caplog):
 
 
 def link(sealed: bool, offsets: dict):
-    """The two sides a and b, sealed (the seal reading T with reliability's offsets, as the
-    bridge wires it) or not; commands of id 9 have a max age of 2 s."""
+    """The two sides a and b as the bridge makes them (clock probes at start), sealed (the seal
+    reading T with reliability's offsets) or not; commands of id 9 have a max age of 3 s (this
+    link's round trip is about 1.4 s: the strict bound takes transit plus the offset's error,
+    about one round trip, so 2 s is near the edge)."""
     if not sealed:
-        return duplex(max_ages={7: 30.0, 9: 2.0}, offsets=offsets)
+        return duplex(max_ages={7: 30.0, 9: MAX_AGE}, offsets=offsets, clock_exchange=True)
     from runtime.test_restarts import restartable
-    return restartable(sealed=True, offsets=offsets, max_ages={7: 30.0, 9: 2.0})
+    return restartable(sealed=True, offsets=offsets, max_ages={7: 30.0, 9: MAX_AGE},
+                       clock_exchange=True)
 
 
 @pytest.mark.parametrize("sealed", [False, True], ids=["unsealed", "sealed"])
 @pytest.mark.parametrize("offset", [3.0, -3.0])
 def test_commands_work_with_clocks_within_the_tolerance(offset, sealed):
-    """From the first exchange on every command is taken; before it a max age of 2 s cannot
-    be promised (the clocks may disagree by the 5 s tolerance), so the first is refused."""
+    """The clock probes at start measure the offset before or with the first command; from
+    then on every command is taken (before it a max age under the 5 s tolerance cannot be
+    promised, so a command that comes first is refused)."""
     sim, rel = link(sealed, {"b": offset})
     commands(sim)
     sim.run(25.0)
     measured_at = rel["b"].first_offset_at[1]
     taken = sorted(numbers(sim, "b", 9))
-    assert measured_at < (4.0 if not sealed else abs(offset) + 6.0)
+    assert measured_at < (2.0 if not sealed else abs(offset) + 6.0)
     assert set(i for i in range(10) if 2 * i > measured_at) <= set(taken)
     # unsealed, the missing ones are counted stale; sealed, also before_start (a's clock is
     # behind b's start for the first 3 s: docs/security.md, "Clocks")
@@ -125,7 +130,7 @@ def test_commands_beyond_the_tolerance_are_refused_and_the_offset_named(offset, 
         commands(sim, count=30)
         sim.run(65.0)
     measured_at = rel["b"].first_offset_at[1]
-    assert measured_at < (4.0 if not sealed else abs(offset) + 6.0)   # within the first exchange
+    assert measured_at < (2.0 if not sealed else abs(offset) + 8.0)   # within the first exchange
     assert numbers(sim, "b", 9) == []
     c = rel["b"].counters
     assert c["clock_offset"] >= 8
@@ -165,3 +170,15 @@ def test_nothing_is_taken_after_its_deadline_whatever_the_exchange_asymmetry():
             taken += 1
             late += true_age > max_age
     assert taken > 500 and late == 0
+
+
+def test_the_probes_at_start_measure_both_clocks_before_any_command_and_then_stop():
+    sim, rel = duplex(max_ages={7: 30.0, 9: MAX_AGE}, offsets={"b": 4.0}, clock_exchange=True)
+    sim.run(20.0)                                   # nobody sends anything
+    assert rel["a"].first_offset_at[2] < 2.0 and rel["b"].first_offset_at[1] < 2.0
+    assert abs(rel["a"].offsets.of(2).offset - 4.0) <= rel["a"].offsets.of(2).error
+    sent = {s: sim.links[s].stats()["packets"]["packets_sent"] for s in "ab"}
+    assert 1 <= sent["a"] <= 4 and 1 <= sent["b"] <= 4        # a few packets, then silence
+    quiet, _ = duplex(max_ages={7: 30.0, 9: MAX_AGE})          # without: no packet at all
+    quiet.run(20.0)
+    assert quiet.links["a"].stats()["packets"]["packets_sent"] == 0

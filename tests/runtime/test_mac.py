@@ -220,3 +220,14 @@ def test_settled_by_says_until_when_a_peers_answer_covers_this_sides_packets():
     assert follower.settled_by(1, 0.9) is None                  # its turn: nothing settled yet
     write(follower, 0.9)                                        # the end
     assert follower.settled_by(1, 2.0) == 0.9 and follower.settled_by(3, 2.0) is None
+
+
+def test_a_weighted_tdma_slot_drains_more_packets_a_frame():
+    # frame 3 s over 3 sides, the surface weighted 4 of 6: its slot is 2 s (ON 1.8 s), the
+    # others 0.5 s (ON 0.3 s); 64-byte packets take 0.113 s, one per 0.2 s period
+    config = MacConfig(mode="tdma", frame=3.0, guard=0.2, slots=("surface", "auv1", "auv2"),
+                       max_packet_per_slot=1000, queue_size=100, weights=(("surface", 4),))
+    assert tdma_capacity(config, LINK, "surface") == 15      # by the period: 3 s / 0.2 s
+    assert tdma_capacity(config, LINK, "auv1") == 3          # floor(0.3 / 0.113) + 1
+    assert TdmaMac(config, "surface", LINK).capacity == 15
+    assert TdmaMac(config, "auv2", LINK).capacity == 3

@@ -31,7 +31,8 @@ class Wall:
         return WALL0 + self.clock.now() + self.offset
 
 
-def duplex(per: float = 0.0, seed: int = 1, *, max_ages=None, offsets=None) -> tuple[DuplexSim, dict]:
+def duplex(per: float = 0.0, seed: int = 1, *, max_ages=None, offsets=None,
+           clock_exchange: bool = False) -> tuple[DuplexSim, dict]:
     scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),
                            NodeSpec("b", position=(300, 0, 0), dest="a")],
                     period=0.5, max_read_length=64, per=per, seed=seed, bitrate=4800.0)
@@ -42,7 +43,7 @@ def duplex(per: float = 0.0, seed: int = 1, *, max_ages=None, offsets=None) -> t
         engines[side] = Reliability(1 if side == "a" else 2, period=0.5, reliable={7: 30.0},
                                     max_ages=max_ages if max_ages is not None else {7: 30.0},
                                     wall=Wall(clock, (offsets or {}).get(side, 0.0)), name=side,
-                                    max_read_length=64)
+                                    max_read_length=64, clock_exchange=clock_exchange)
         return engines[side].hooks()
     sim = DuplexSim(scen, ("a", "b"), hooks_for=hooks_for, wire_format=2, clock=clock)
     return sim, engines

@@ -24,7 +24,7 @@ PERIOD = 0.5
 
 
 def restartable(sealed: bool, per: float = 0.0, offsets: dict | None = None,
-                max_ages: dict | None = None):
+                max_ages: dict | None = None, clock_exchange: bool = False):
     """Two sides a (sender 1) and b (sender 2); a's reliable topic 7. Unsealed, each side's
     reliability gives K (a fresh epoch per start); sealed, the seal does, and reads T with the
     offsets reliability measures, as the bridge wires them. `max_ages`: ids judged for age."""
@@ -47,7 +47,8 @@ def restartable(sealed: bool, per: float = 0.0, offsets: dict | None = None,
         engines[side] = Reliability(me, period=PERIOD, reliable={7: 60.0}, max_ages=dict(max_ages or {}),
                                     wall=wall, name=side, max_read_length=64,
                                     other_overhead=0 if seal is None else seal.hooks().overhead,
-                                    epoch_source=None if sealed else (lambda: next(epochs)))
+                                    epoch_source=None if sealed else (lambda: next(epochs)),
+                                    clock_exchange=clock_exchange)
         if seal is not None:
             seal.use_offsets(engines[side].offsets.of)
         return join_hooks(engines[side].hooks(), seal.hooks() if seal is not None else None)

@@ -139,6 +139,7 @@ class ActionServers:
             counters.duplicate_goals += 1
             return
         self.results[ident].forget(handle)        # a new goal on a handle used before
+        self.watches[ident].forget(handle)
         now = self.w.clock.now()
         # A goal waits for the local server at most half its accept_timeout: the client
         # side's clock started before the goal's trip, and the answer needs one too.
@@ -187,6 +188,10 @@ class ActionServers:
             counters.results_resent += 1
             self._offer(ident, recent, "result")
             return
+        finished = self.watches[ident].finished_goal(handle)
+        if finished is not None:                  # it finished while no bridge watched it
+            self._adopt(ident, handle, *finished, done=True)
+            return
         # Neither running nor finished here: never arrived (a goal older than its
         # accept_timeout is refused on arrival, so it never will), or this bridge restarted
         # and did not find it. Answered 0: no such goal here; not before the local server's
@@ -201,10 +206,12 @@ class ActionServers:
         self._answer(ident, handle, REJECTED)
         counters.lost_goals += 1
 
-    def _adopt(self, ident: int, handle: int, uuid: bytes, info: Any) -> None:
+    def _adopt(self, ident: int, handle: int, uuid: bytes, info: Any, done: bool = False) -> None:
         """A goal a previous start of this bridge sent the local server, still running: adopt
         it (its result goes to the client side under its handle), or cancel it when its
-        handle is busy with a newer goal (orphans.py)."""
+        handle is busy with a newer goal (orphans.py). `done`: it finished while no bridge
+        watched it, and the client side asks for its result: the local server's kept result
+        (get_result) goes to it."""
         from rclpy.action.client import ClientGoalHandle
         from unique_identifier_msgs.msg import UUID
         codec, client = self.served[ident]
@@ -223,11 +230,17 @@ class ActionServers:
         sent.set_result(goal_handle)
         self.goals[ident][handle] = Served(sent, now + codec.result_timeout, arrived=now,
                                            goal_handle=goal_handle)
-        self.counters[ident].orphans_adopted += 1
-        self.w.log.warning(f"{codec.name}: adopted goal {handle}, which a previous start of this "
-                           "bridge left running on the local server: its result goes to the "
-                           f"client side, and it is cancelled if not done within "
-                           f"{codec.result_timeout:g} s")
+        if done:
+            self.counters[ident].orphans_finished += 1
+            self.w.log.warning(f"{codec.name}: goal {handle} finished on the local server while "
+                               "this bridge was down; its result, kept by the server, goes to "
+                               "the client side")
+        else:
+            self.counters[ident].orphans_adopted += 1
+            self.w.log.warning(f"{codec.name}: adopted goal {handle}, which a previous start of "
+                               "this bridge left running on the local server: its result goes "
+                               f"to the client side, and it is cancelled if not done within "
+                               f"{codec.result_timeout:g} s")
         goal_handle.get_result_async().add_done_callback(
             lambda f: self._finished(ident, handle, goal_handle, f))
 

@@ -103,6 +103,7 @@ class ActionCounters:
     lost_goals: int = 0       # asked about a goal unknown here: answered "no such goal"
     orphans_adopted: int = 0  # goals a previous start of this bridge left running: adopted
     orphans_cancelled: int = 0  # such goals whose handle was busy again: cancelled
+    orphans_finished: int = 0  # such goals that finished while no bridge watched: result given
     feedback_sent: int = 0    # feedback offered to the link (latest-only: may be superseded)
     encode_errors: int = 0    # feedback or results that could not be encoded
     reply_refused: int = 0    # answers, results or feedback the link refused

@@ -14,6 +14,14 @@ and `result_timeout` is supervised as for any goal), or **cancelled** when its h
 busy with a newer goal. Until the status topic has been heard (at most `STATUS_GRACE`
 seconds after start), the server side does not tell the client side that it knows no such
 goal, so a client asking meanwhile is not told "lost" for a goal about to be adopted.
+
+A goal of ours that **finished** while no bridge watched it (succeeded, aborted or cancelled
+while the server side was down) is listed too, for as long as the local server keeps its
+result. Its result is given to the client side only when the client side asks for the result
+of that handle (it keeps asking while it waits): handles are reused, so an old result pushed
+unasked could complete a newer goal. Of the finished goals on one handle the latest accepted
+is kept (goals on a handle follow one another); a newer goal on the handle drops it
+(`finished_goal`, `forget`).
 """
 from __future__ import annotations
 
@@ -24,6 +32,7 @@ from typing import Any
 MARK = b"uwg"
 STATUS_GRACE = 3.0          # seconds after start before "no such goal" is said without the list
 ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
+FINISHED = (4, 5, 6)        # GoalStatus SUCCEEDED, CANCELED, ABORTED
 
 
 def goal_uuid(ident: int, handle: int, rng: random.Random) -> bytes:
@@ -50,6 +59,7 @@ class OrphanWatch:
         self.ident, self.adopt, self.own, self.started = ident, adopt, own, started
         self.heard = False
         self.seen: set[bytes] = set()
+        self.finished: dict[int, tuple[int, bytes, Any]] = {}   # handle -> (stamp, uuid, info)
         self.sub = node.create_subscription(GoalStatusArray, f"{action_name}/_action/status",
                                             self._status, qos_profile_action_status_default,
                                             callback_group=callback_group)
@@ -58,12 +68,31 @@ class OrphanWatch:
         """Whether "no such goal" may be said: the list was heard, or the grace is over."""
         return self.heard or now - self.started >= STATUS_GRACE
 
+    def finished_goal(self, handle: int) -> tuple[bytes, Any] | None:
+        """(uuid, goal info) of the latest goal of ours on `handle` that finished unwatched,
+        taken (it is handed over once); None when there is none."""
+        got = self.finished.pop(handle, None)
+        return None if got is None else (got[1], got[2])
+
+    def forget(self, handle: int) -> None:
+        """A newer goal came on `handle`: a finished one's result is no longer asked for."""
+        self.finished.pop(handle, None)
+
     def _status(self, msg: Any) -> None:
         self.heard = True
         for status in msg.status_list:
             uuid = bytes(status.goal_info.goal_id.uuid)
             handle = handle_of(uuid, self.ident)
-            if handle is None or uuid in self.own or uuid in self.seen or status.status not in ACTIVE:
+            if handle is None or uuid in self.own or uuid in self.seen:
+                continue
+            if status.status in FINISHED:
+                stamp = status.goal_info.stamp
+                ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+                if ns >= self.finished.get(handle, (-1,))[0]:
+                    self.finished[handle] = (ns, uuid, status.goal_info)
+                continue
+            if status.status not in ACTIVE:
                 continue
             self.seen.add(uuid)
+            self.finished.pop(handle, None)       # a goal running on it is newer
             self.adopt(handle, uuid, status.goal_info)

@@ -80,7 +80,9 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
                        destinations=destinations(plan, plan.side_ids),
                        peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},
                        # K on an unsealed link is this side's; a sealed link's is the seal's
-                       epoch_source=new_epoch if plan.security is None else None)
+                       epoch_source=new_epoch if plan.security is None else None,
+                       # probes at start, so commands are judged with a measured offset
+                       clock_exchange=True)
 
 
 def link_ledger(link_stats: Any) -> dict[int, dict]:

@@ -75,7 +75,8 @@ def with_mac(scenario: Scenario, mac) -> Scenario:
     if mac.mode == "tdma":
         return replace(scenario, bitrate=mac.bitrate, tdma=TdmaSpec(
             frame=mac.frame, guard=mac.guard, slots=len(mac.slots),
-            max_packet_per_slot=mac.max_packet_per_slot, queue_size=mac.queue_size))
+            max_packet_per_slot=mac.max_packet_per_slot, queue_size=mac.queue_size,
+            weights=mac.slot_weights() if mac.weights else ()))
     if mac.mode == "turns":
         return replace(scenario, bitrate=mac.bitrate, tdma=None)
     return scenario

@@ -17,6 +17,7 @@ import yaml
 from uwgen import safefile, yamltext
 from uwgen.emulator.motion import PoseFeed, Position, Track, check_waypoints
 from uwgen.emulator.physics import SnrModel
+from uwgen.emulator.slots import check_slots
 
 MAX_READ_LENGTH_LIMIT = 4096  # DESERT crashes above this (measured on DESERT 4.0.0)
 BROADCAST = "*"               # a node's dest: every other node (DESERT's IP broadcast)
@@ -58,16 +59,17 @@ class NodeSpec:
 
 @dataclass(frozen=True)
 class TdmaSpec:
-    """UW/TDMA in fair mode, as DESERT runs it (uwgen.emulator.tdma): a frame of `slots`
-    equal slots; a node starts packets only in its ON window (its slot minus `guard`), up to
-    `max_packet_per_slot` of them, and a packet may end past the window; its MAC queue holds
-    `queue_size` packets (a new one is dropped when it is full, counted)."""
+    """UW/TDMA as DESERT runs it (uwgen.emulator.tdma): a frame of `slots` slots, equal or as
+    `weights` (manual mode); a node starts packets only in its ON window (its slot minus
+    `guard`), up to `max_packet_per_slot` of them, and a packet may end past the window; its
+    MAC queue holds `queue_size` packets (a new one is dropped when it is full, counted)."""
 
     frame: float = 1.0
     guard: float = 0.05
     slots: int | None = None      # default: the number of nodes
     max_packet_per_slot: int = 1000     # DESERT's default is 1; its ROV sample sets 1000
     queue_size: int = 1000              # DESERT's queue_size_ (default 10)
+    weights: tuple[int, ...] = ()       # per slot, in slot order; () : equal slots (fair mode)
 
 
 @dataclass(frozen=True)
@@ -208,14 +210,11 @@ def _validate(s: Scenario) -> None:
         slots = s.tdma_slots()
         if not isinstance(slots, int) or slots < 1:
             bad(f"tdma.slots must be a positive integer, got {slots!r}")
-        slot_len = t.frame / slots
         for n in s.nodes:
             slot = s.slot_of(n.name)
             if not isinstance(slot, int) or not 0 <= slot < slots:
                 bad(f"node {n.name}: tdma slot must be 0..{slots - 1}, got {slot!r}")
-        if slot_len - t.guard <= 0:
-            bad(f"tdma guard {t.guard:g} s leaves no ON window in a {slot_len:g} s slot: "
-                "no node could ever send")
+        check_slots(t, slots, bad)
         for key in ("max_packet_per_slot", "queue_size"):
             value = getattr(t, key)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:

@@ -8,7 +8,9 @@ Simulated time is seconds since the emulator started, on the loop's monotonic cl
 Like DESERT's UW/APPLICATION, each node serves one client at a time: a second client's
 connection is accepted by the kernel but not read from (nor written to) until the first
 one disconnects.  `restart()` behaves like killing and restarting DESERT: every socket is
-closed, queued and in-flight packets are lost, and the same ports listen again.
+closed, queued and in-flight packets are lost, and the same ports listen again. `hold()` keeps
+what the medium delivers to a node for some seconds before writing it to its client (an
+attacker's store-and-forward, a relay: the delay series of docs/seams.md section 8).
 
     with run_emulator(scenario) as emu:
         port = emu.port("vehicle"); emu.counters("vehicle"); emu.restart(delay=0.5)
@@ -87,6 +89,8 @@ class Emulator:
         self._timer: asyncio.TimerHandle | None = None
         self._listening = threading.Event()
         self._stopped = False
+        self._holds: dict[str, list[list[float]]] = {}   # node -> [[seconds, until, count]]
+        self._held: dict[str, int] = {}                  # node -> deliveries held so far
 
     # ------------------------------------------------------------------ public API
     def start(self) -> "Emulator":
@@ -160,6 +164,41 @@ class Emulator:
         self._socket(node)
         with self._lock:
             return self._core.position(node, self._now() if self._loop else 0.0)
+
+    def hold(self, node: str, seconds: float, *, window: float = 0.0, count: int = 0) -> None:
+        """Hold what the medium delivers to `node` `seconds` before writing it to its client:
+        every delivery within `window` seconds from now, or the next `count` ones. A held
+        delivery is written when its time comes if a client is connected then, else lost."""
+        self._socket(node)
+        if seconds < 0 or window < 0 or count < 0 or not (window or count):
+            raise ValueError("hold: seconds >= 0 and a window or a count > 0")
+        self._require_loop()
+        with self._lock:
+            until = self._now() + window if window else float("inf")
+            self._holds.setdefault(node, []).append([seconds, until, count or float("inf")])
+
+    def held(self, node: str) -> int:
+        """How many deliveries to `node` were held so far."""
+        with self._lock:
+            return self._held.get(node, 0)
+
+    def _held_for(self, node: str, now: float) -> float | None:
+        """Seconds the delivery to `node` arriving now is held (None: not held); under lock."""
+        holds = self._holds.get(node)
+        if not holds:
+            return None
+        holds[:] = [h for h in holds if h[1] >= now and h[2] > 0]
+        if not holds:
+            return None
+        h = holds[0]
+        h[2] -= 1
+        self._held[node] = self._held.get(node, 0) + 1
+        return h[0]
+
+    def _release(self, d: Delivery) -> None:
+        ns = self._nodes[d.node]
+        if ns.active is not None and ns.active.transport is not None:
+            ns.active.transport.write(d.data)
 
     def deliveries(self, node: str | None = None) -> list[Delivery]:
         """Every packet written to a client so far (to `node`'s, or to any), in order. Kept only
@@ -330,11 +369,16 @@ class Emulator:
         if self._loop is None or self._loop.is_closed():
             return
         with self._lock:
-            deliveries = self._core.advance(self._now())
+            now = self._now()
+            deliveries = self._core.advance(now)
             nxt = self._core.next_event_time()
             if self._record:
                 self._delivered.extend(deliveries)
-        for d in deliveries:
+            held = [self._held_for(d.node, now) for d in deliveries]
+        for d, seconds in zip(deliveries, held):
+            if seconds is not None:
+                self._loop.call_later(seconds, self._release, d)
+                continue
             ns = self._nodes[d.node]
             if ns.active is not None and ns.active.transport is not None:
                 ns.active.transport.write(d.data)

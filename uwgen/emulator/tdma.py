@@ -3,7 +3,9 @@ emulator's core (uwgen.emulator.core): pure functions of the scenario's `TdmaSpe
 
 - Fair mode: slot = frame / slots; a node is ON for slot - guard from its slot's start
   (`slot_number * slot`, from the node's start), OFF for the rest of the frame: the guard is
-  a silent tail at the end of the node's own slot.
+  a silent tail at the end of the node's own slot. Manual mode (`weights`): slot k starts
+  after the slots before it and lasts its weight's share of the frame (each node's
+  setStartTime and setSlotDuration), the same otherwise.
 - A packet may START anywhere in the ON window and ends when its air time ends, past the
   window if it must (DESERT never checks that it fits): a guard shorter than a packet's air
   time plus the propagation delay lets it run into the next node's slot.
@@ -18,6 +20,7 @@ from __future__ import annotations
 import math
 
 from uwgen.emulator.scenario import TdmaSpec
+from uwgen.emulator.slots import bounds
 
 
 def next_start(tdma: TdmaSpec, slots: int, slot: int, origin: float, t: float,
@@ -25,11 +28,11 @@ def next_start(tdma: TdmaSpec, slots: int, slot: int, origin: float, t: float,
     """(earliest time >= t a packet may start in the node's ON window, that window's frame
     index). `counted_frame`, `sent`: the window the node last sent in and how many it started
     there (max_packet_per_slot)."""
-    slot_len = tdma.frame / slots
+    start, slot_len = bounds(tdma, slots, slot)
     on = slot_len - tdma.guard
-    k = math.floor((t - origin - slot * slot_len) / tdma.frame)
+    k = math.floor((t - origin - start) / tdma.frame)
     while True:
-        open_at = origin + k * tdma.frame + slot * slot_len
+        open_at = origin + k * tdma.frame + start
         close_at = open_at + on
         full = k == counted_frame and sent >= tdma.max_packet_per_slot
         if t < close_at - 1e-12 and not full:

@@ -3,13 +3,16 @@
     mac: {mode: none}                                    # the default: DESERT's MAC decides
     mac: {mode: tdma, frame: 1.0, guard: 0.25, slots: [surface, vehicle],
           max_packet_per_slot: 4, queue_size: 10, bitrate: 4800, range: 300}
+    mac: {mode: tdma, frame: 4.5, guard: 0.2, slots: [surface, auv1, auv2],
+          weights: {surface: 2}}                         # the surface's slot is twice as long
     mac: {mode: turns, leader: surface, packets: {surface: 4, vehicle: 3},
           bitrate: 4800, range: 300}
 
 Refused here, at the offending node: an unknown side, a side given two slots (two slots of one
-frame overlap in time for no one: DESERT's fair mode gives each node exactly one), a side
-without a slot, a guard that leaves no ON window, a ON window too short for one packet of
-the side's `max_read_length` to start, and turn-taking on a wire format 1 link (no C part).
+frame overlap in time for no one: DESERT's UW/TDMA gives each node exactly one; a side that
+needs more of the frame gets a longer slot, `weights`), a side without a slot, a weight for a
+side without a slot or outside 1..100, a guard that leaves no ON window in some side's slot,
+and turn-taking on a wire format 1 link (no C part).
 What only costs time (a guard shorter than a packet's air time plus the range, a deadline
 shorter than a round trip under the MAC) is `uwgen analyze`'s warning (uwgen.analyze).
 """
@@ -23,8 +26,8 @@ from uwgen.manifest.model import MAC_MODES, MacConfig, Side
 from uwgen.manifest.nodes import Reader
 
 MAC_KEYS = ("mode", "bitrate", "range", "frame", "guard", "slots", "max_packet_per_slot",
-            "queue_size", "leader", "packets")
-TDMA_ONLY = ("frame", "guard", "slots", "max_packet_per_slot", "queue_size")
+            "queue_size", "weights", "leader", "packets")
+TDMA_ONLY = ("frame", "guard", "slots", "max_packet_per_slot", "queue_size", "weights")
 TURNS_ONLY = ("leader", "packets")
 PACKET_HEADER = 4            # bytes DESERT adds to each packet on the air (pacing.PACKET_HEADER)
 
@@ -52,6 +55,7 @@ def read_mac(r: Reader, node: yaml.Node, sides: dict[str, Side]) -> MacConfig:
             kw[key] = r.integer(fields[key][1], f"mac {key}", 1, 100_000)
     if mode == "tdma":
         kw["slots"] = _slots(r, fields, node, sides)
+        kw["weights"] = _weights(r, fields, kw["slots"])
         config = MacConfig(**kw)
         _check_window(r, fields, node, config, sides)
         return config
@@ -87,16 +91,33 @@ def _slots(r: Reader, fields: dict, owner: yaml.Node, sides: dict[str, Side]) ->
     return tuple(seen)
 
 
+def _weights(r: Reader, fields: dict, slots: tuple[str, ...]) -> tuple[tuple[str, int], ...]:
+    if "weights" not in fields:
+        return ()
+    out = []
+    for name, (key_node, value_node) in r.open_mapping(fields["weights"][1], "mac weights").items():
+        if name not in slots:
+            raise r.error(key_node, f"mac weights: '{name}' has no slot (slots: {', '.join(slots)})")
+        weight = r.integer(value_node, f"mac weight of side '{name}'", 1, 100)
+        if weight != 1:
+            out.append((name, weight))
+    return tuple(out)
+
+
 def _check_window(r: Reader, fields: dict, owner: yaml.Node, config: MacConfig,
                   sides: dict[str, Side]) -> None:
-    on = config.slot - config.guard
+    side = min(config.slots, key=config.slot_length)          # the shortest slot
+    slot = config.slot_length(side)
+    on = slot - config.guard
     at = fields.get("guard", fields.get("frame", (owner, owner)))[1]
+    whose = (f"side {side}'s {slot:g} s slot (frame {config.frame:g} s, weight "
+             f"{config.weight(side)} of {sum(config.slot_weights())})" if config.weights else
+             f"a {slot:g} s slot (frame {config.frame:g} s / {len(config.slots)} slots)")
     if on <= 0:
-        raise r.error(at, f"mac guard {config.guard:g} s leaves no time to send in a "
-                      f"{config.slot:g} s slot (frame {config.frame:g} s / {len(config.slots)} slots)")
+        raise r.error(at, f"mac guard {config.guard:g} s leaves no time to send in {whose}")
     if on < 1e-3:
-        raise r.error(at, f"mac guard {config.guard:g} s leaves a {on * 1000:.2f} ms window: "
-                      "no packet can start in it reliably")
+        raise r.error(at, f"mac guard {config.guard:g} s leaves a {on * 1000:.2f} ms window in "
+                      f"{whose}: no packet can start in it reliably")
 
 
 def _leader(r: Reader, fields: dict, sides: dict[str, Side]) -> str:

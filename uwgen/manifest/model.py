@@ -87,7 +87,9 @@ class MacConfig:
     - `tdma`: DESERT runs UW/TDMA in fair mode: a `frame` of one slot per side in `slots`
       order, each ON for slot - `guard`, at most `max_packet_per_slot` packets in a slot and
       `queue_size` packets in DESERT's MAC queue. The bridge writes no more than its slot
-      drains per frame;
+      drains per frame. `weights` (side -> a positive integer, default 1) make slots
+      unequal: a side's slot is its weight's share of the frame, one contiguous slot each
+      (DESERT's manual mode: setStartTime, setSlotDuration);
     - `turns`: DESERT keeps its stock MAC; the `leader` side grants the turn to one side at a
       time in a C item, that side answers after hearing it and ends its turn with another
       (docs/wire-format.md section 16). `packets`: how many packets a turn allows, per side.
@@ -103,15 +105,33 @@ class MacConfig:
     slots: tuple[str, ...] = ()                     # tdma: sides in slot order
     max_packet_per_slot: int = 1
     queue_size: int = 10
+    weights: tuple[tuple[str, int], ...] = ()       # tdma: (side, weight) where not 1
     leader: str = ""                                # turns
     packets: tuple[tuple[str, int], ...] = ()       # turns: (side, packets per turn)
 
     @property
     def slot(self) -> float:
-        return self.frame / max(1, len(self.slots))
+        """The shortest slot (all of them when no side has a weight)."""
+        return min((self.slot_length(s) for s in self.slots), default=self.frame)
 
     def slot_of(self, side: str) -> int:
         return self.slots.index(side)
+
+    def weight(self, side: str) -> int:
+        return dict(self.weights).get(side, 1)
+
+    def slot_weights(self) -> tuple[int, ...]:
+        """Every slot's weight, in slot order."""
+        return tuple(self.weight(s) for s in self.slots)
+
+    def slot_length(self, side: str) -> float:
+        """Seconds of `side`'s slot: its weight's share of the frame."""
+        return self.frame * self.weight(side) / max(1, sum(self.slot_weights()))
+
+    def slot_start(self, side: str) -> float:
+        """Seconds from the frame's start to `side`'s slot (DESERT's setStartTime)."""
+        before = sum(self.weight(s) for s in self.slots[:self.slot_of(side)])
+        return self.frame * before / max(1, sum(self.slot_weights()))
 
     def turn_packets(self, side: str) -> int:
         return dict(self.packets).get(side, DEFAULT_TURN_PACKETS)

@@ -37,6 +37,10 @@ def column(raw: bytes, code: str, n: int) -> bytes | list:
     if code in _FLOATS:
         if raw.count(0) == size:              # all 0.0 (a 2-D polygon's z, a quaternion's x)
             return bytes(2 * n)
+        if n > 1 and raw == raw[:w] * n:      # one value throughout (a quaternion's w): one check
+            half = _halves(raw[:w], code, 1)
+            if half is not None:
+                return half * n
         low_zeros = raw[0::w].count(0)       # every short float item has its lowest byte 0
         if low_zeros == n and n:
             half = _halves(raw, code, n)
@@ -135,6 +139,10 @@ def decode_columns(v: list, i: int, n: int, columns: tuple[tuple[str, str], ...]
             if len(item) == n * w:
                 raw = item
             elif code in _FLOATS and len(item) == 2 * n:
+                if n > 1 and item == item[:2] * n:      # one value throughout
+                    cols.append(_values(_from_halves(item[:2], code, 1), code, 1) * n)
+                    i += 1
+                    continue
                 raw = _from_halves(item, code, n)
             else:
                 halves = " or 2 (halves)" if code in _FLOATS else ""

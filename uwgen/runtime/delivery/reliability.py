@@ -55,6 +55,8 @@ DEFAULT_DEADLINE = 120.0          # seconds: a reliable entry without a ttl
 FORGET_AFTER = 2048               # packets: older ones cannot be named unambiguously (12 bits)
 # T, and an A part of one report (acks.A_ROOM): the most the hooks add to a packet.
 OVERHEAD = env.TIME_LEN + A_ROOM
+PROBES, PROBE_EVERY = 10, 1.0     # packets with T alone while no peer's offset is known
+CLOCK_REPLIES = 2                 # reports with T answered at a start (the clock exchange)
 TIMED_REPORTS = 4                 # first packets with an A part that carry T (per peer epoch),
 TIMED_REPORT_EVERY = 30.0         # then one every this many seconds: the peer's clock offset
 
@@ -73,6 +75,7 @@ class Reliability:
                  name: str = "link", max_read_length: int = MAX_FRAME,
                  other_overhead: int = 0, peer_names: dict[int, str] | None = None,
                  epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0,
+                 clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
                  settled_by: Callable[[int, float], float | None] | None = None):
         self.sender, self.name, self.wall = sender, name, wall
@@ -109,6 +112,8 @@ class Reliability:
         self._timed_reports = 0                       # packets with A and T since a peer's start
         self._last_timed_report = -float("inf")
         self._want_time = False
+        self._probes, self._next_probe = 0, -float("inf")   # clock probes sent, the next one
+        self.clock_exchange = clock_exchange          # probe and answer at start (the bridge's)
         self.counters = Counters(COUNTERS)
         # commands' ages, with each peer's clock offset measured from exchanges (judge.py)
         self.judge = AgeJudge(sender, name, wall, self.counters, self.max_ages, peer_names)
@@ -191,7 +196,11 @@ class Reliability:
                 self.acks.final = False              # the last word has left (farewell)
             if self._sync:
                 out["sync"] = self.send_epoch.part(self._building, now)
-            if self._timed or self._sync or (ack and self._want_time):
+            probe = self._probing() and now >= self._next_probe
+            if probe:
+                self._probes += 1
+                self._next_probe = now + PROBE_EVERY
+            if self._timed or self._sync or (ack and self._want_time) or probe:
                 out["time"] = stamp(self.wall.now())
                 if ack:
                     self._timed_reports += 1
@@ -240,7 +249,7 @@ class Reliability:
 
     def ack_only(self, now: float) -> bool:
         with self._lock:
-            return self.acks.alone(now)
+            return self.acks.alone(now) or (self._probing() and now >= self._next_probe)
 
     def farewell(self) -> bool:
         """Closing: the next packet reports every peer's packets, so their ledgers close (a
@@ -260,7 +269,17 @@ class Reliability:
                 return now
             times = [t for t in [self.engine.next_timeout()] if t is not None]
             times += self.acks.next_times()
+            if self._probing():
+                times.append(self._next_probe)
             return max(now, min(times)) if times else None
+
+    def _probing(self) -> bool:
+        """Whether this side still probes its peers' clocks: it judges commands' ages and knows
+        no peer's offset yet. A probe is a packet with T (and its K), sent alone at start and
+        every PROBE_EVERY s, PROBES times at most; a peer whose offset is unknown reports it
+        at once (`received`), so both offsets are measured before the first command comes."""
+        return (self.clock_exchange and bool(self.max_ages) and self._probes < PROBES
+                and not self.offsets.peers())
 
     # -- receiving ------------------------------------------------------------------------
 
@@ -269,8 +288,18 @@ class Reliability:
             peer = envelope.sender
             epoch = self._epoch(envelope)
             eliciting = any(m.id in self.heads.numbered and m.kind == 0 for m in envelope.messages)
-            if not self.engine.received(peer, epoch, envelope.number, now, eliciting):
+            # the clock exchange (clock_offset.py) completes at once: a packet with T from a
+            # peer whose offset is not measured is reported without waiting, and a report
+            # with T is answered while we have sent fewer than CLOCK_REPLIES (a few per start)
+            clock = self.clock_exchange and envelope.time is not None and (
+                self.offsets.of(peer) is None
+                or envelope.ack is not None and self._timed_reports < CLOCK_REPLIES)
+            if not self.engine.received(peer, epoch, envelope.number, now, eliciting or clock):
                 self.counters.inc("duplicate_packets")
+            elif clock and not eliciting:
+                r = self.engine._current(peer)
+                if r is not None and r.eliciting_since is not None:
+                    r.eliciting_since = min(r.eliciting_since, now - self.ack_delay)
             self.acks.heard(peer, bool(envelope.messages), now)
             if envelope.ack is not None:
                 self.judge.sample(peer, envelope, self.engine.largest_sent, now)

@@ -152,7 +152,7 @@ class TdmaMac(Mac):
                  margin: float = DEFAULT_MARGIN):
         super().__init__()
         self.config = config
-        self.capacity = tdma_capacity(config, link)
+        self.capacity = tdma_capacity(config, link, side)
         self.window = config.frame * (1.0 + margin)
         self._writes: deque[float] = deque()
         self.deferred = 0
@@ -174,11 +174,11 @@ class TdmaMac(Mac):
         return {"mode": self.mode, "capacity_per_frame": self.capacity, "frame": self.config.frame}
 
 
-def tdma_capacity(config: MacConfig, link: LinkConfig) -> int:
-    """Packets one slot drains per frame: DESERT starts a packet anywhere in the ON window
-    (slot - guard) while `max_packet_per_slot` allows, one after the other, and uwApplication
-    feeds its MAC one packet per `period`; at least one."""
-    on = config.slot - config.guard
+def tdma_capacity(config: MacConfig, link: LinkConfig, side: str | None = None) -> int:
+    """Packets `side`'s slot drains per frame (None: the shortest slot's): DESERT starts a
+    packet anywhere in the ON window (slot - guard) while `max_packet_per_slot` allows, one
+    after the other, and uwApplication feeds its MAC one packet per `period`; at least one."""
+    on = (config.slot if side is None else config.slot_length(side)) - config.guard
     by_window = math.floor(on / air_time(link.max_read_length, config.bitrate)) + 1
     by_period = max(1, math.floor(config.frame / link.period))
     return max(1, min(config.max_packet_per_slot, by_window, by_period, config.queue_size))
