@@ -206,3 +206,20 @@ def test_an_entry_with_a_max_age_is_never_cut():
     cuts = [m for _ in range(12) for m in env.decode(packer.next_packet(clock.now())).messages
             if m.kind & env.CUT_HEAD]
     assert cuts and {m.id for m in cuts} == {4}
+
+
+def test_on_a_sealed_link_an_encrypted_message_is_cut_sealed_and_joined():
+    from tests.security.helpers import twist
+    from tests.security.test_packet_link import packets, sealed_sim
+    sim, _tx, rx = sealed_sim()
+    sim.sender.add_channel(4, LinkPolicy(queue="fifo", depth=200))     # id 4 is encrypt
+    sent = [twist(float(i)) for i in range(40)]
+    for p in sent:
+        sim.sender.offer(4, p)
+    sim.run(20.0)
+    assert [p for _, p in sim.received] == sent
+    frames = packets(sim)
+    heads = [m for f in frames for m in env.decode(f).messages if m.kind & env.CUT_HEAD]
+    assert heads and sim.receiver.stats()["packets"]["cut_joined"] == len(heads)
+    assert rx.stats()["verified"] == len(frames)
+    assert all(p[2:12] not in f for p in sent for f in frames)          # never in the clear
