@@ -223,3 +223,14 @@ def test_on_a_sealed_link_an_encrypted_message_is_cut_sealed_and_joined():
     assert heads and sim.receiver.stats()["packets"]["cut_joined"] == len(heads)
     assert rx.stats()["verified"] == len(frames)
     assert all(p[2:12] not in f for p in sent for f in frames)          # never in the clear
+
+
+def test_the_tail_of_the_last_message_cut_wakes_the_connection_for_the_next_packet():
+    sim = LinkSim(scenario(), "a", "b", wire_format=2, sender_id=1)
+    sim.sender.add_channel(5, LinkPolicy(queue="fifo", depth=100))
+    for i in range(2):
+        sim.sender.offer(5, bytes((0, 5)) + i.to_bytes(2, "big") + bytes(28))
+    assert sim.sender.packer.next_packet(0.0) is not None          # one whole, one cut
+    assert sim.sender.scheduler.next_ready_time(0.0) is None       # nothing queued...
+    assert sim.sender._next_ready(0.5) == 0.5                       # ...but the tail must go
+    assert sim.sender._backlog(0.5, sim.sender.hooks)

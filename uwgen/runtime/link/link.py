@@ -238,10 +238,12 @@ class Link:
         return lambda key: (protect(key) if protect else 0) + (head(key) if head else 0)
 
     def _next_ready(self, now: float) -> float | None:
-        """When the packer will next have something: a queued message, or what the hooks
-        want (an acknowledgement that must go alone, a message to send again)."""
+        """When the packer will next have something: a queued message, the tail of a message
+        cut at the last packet's end (now), or what the hooks want (an acknowledgement that
+        must go alone, a message to send again)."""
         times = [t for t in (self.scheduler.next_ready_time(now),
-                             self.hooks.next_time(now) if self.hooks.next_time else None)
+                             self.hooks.next_time(now) if self.hooks.next_time else None,
+                             now if self.packer.first is not None else None)
                  if t is not None]
         return min(times) if times else None
 
@@ -251,7 +253,8 @@ class Link:
         pacer = self.connection.pacer
         horizon = now + pacer.period * (1.0 + pacer.margin)
         times = [self.scheduler.next_ready_time(now),
-                 hooks.next_time(now) if hooks.next_time is not None else None]
+                 hooks.next_time(now) if hooks.next_time is not None else None,
+                 now if self.packer is not None and self.packer.first is not None else None]
         return any(t is not None and t <= horizon for t in times)
 
     def _source(self, now: float) -> bytes | None:
