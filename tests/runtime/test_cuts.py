@@ -234,3 +234,21 @@ def test_the_tail_of_the_last_message_cut_wakes_the_connection_for_the_next_pack
     assert sim.sender.scheduler.next_ready_time(0.0) is None       # nothing queued...
     assert sim.sender._next_ready(0.5) == 0.5                       # ...but the tail must go
     assert sim.sender._backlog(0.5, sim.sender.hooks)
+
+
+def test_the_hooks_are_told_the_tail_takes_room_but_not_that_it_was_sent_again():
+    # reliability sizes its A part from what `carrying` says the messages take
+    from uwgen.runtime.link.packets import PacketHooks
+    carried, sent = [], []
+    hooks = PacketHooks(carrying=lambda picked, now: carried.append(list(picked)),
+                        sent=lambda n, picked, now: sent.append(list(picked)))
+    sim = LinkSim(scenario(), "a", "b", wire_format=2, sender_id=1, hooks=hooks)
+    sim.sender.add_channel(5, LinkPolicy(queue="fifo", depth=100))
+    for i in range(3):
+        sim.sender.offer(5, bytes((0, 5)) + i.to_bytes(2, "big") + bytes(28))
+    first, second = (env.decode(sim.sender.packer.next_packet(t)) for t in (0.0, 0.2))
+    assert second.messages[0].kind == env.CUT_TAIL
+    assert carried[1][0] == (5, env.to_v1(second.messages[0]))
+    assert len(env.encode_messages([env.from_v1(p) for _, p in carried[1]])) == \
+        len(env.encode_messages(second.messages))
+    assert [len(s) for s in sent] == [2, 1]           # each message is sent in one list

@@ -26,7 +26,9 @@ The seams of reliability and the seal (docs/seams.md section 5) are the `PacketH
 
 Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"):
 
-- `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`;
+- `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`
+  (the cut tail a packet starts with is among them, as `64 body`: it takes room, but it is
+  in no `sent` list: its message went with the packet of its head);
 - `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
   `message_measure`, or None: served before the scheduler's messages;
 - `ack_only(now)` -> True when a packet must leave even without messages (an acknowledgement
@@ -245,6 +247,7 @@ class Packer:
         self.name = name
         self.number = 0                     # the next packet's number (full count)
         self.first: env.Message | None = None   # the cut tail the next packet starts with
+        self.first_key = 0                       # and its channel
 
     def next_packet(self, now: float) -> bytes | None:
         picked: list[tuple[int, bytes]] = []
@@ -254,10 +257,12 @@ class Packer:
         charged = 0               # bytes of parts the picked messages bring (part_room)
         if h.next_overhead is not None:
             room = envelope_room(self.max_read_length, h.next_overhead(now))
+        carried: list[tuple[int, bytes]] = []   # what `carrying` is told takes room
         if self.first is not None:          # the rest of the message cut at the last packet's end
             first, self.first = self.first, None
             if first.size(last=False) <= room:
                 messages.append(first)
+                carried.append((self.first_key, env.to_v1(first)))
             else:
                 log_count(log, logging.ERROR, self.counters.inc("cut_dropped"),
                           "[%s] the rest of a cut message (%d bytes) does not fit the next "
@@ -313,7 +318,7 @@ class Packer:
             if h.ack_only is None or not h.ack_only(now):
                 return None
         if h.carrying is not None:
-            h.carrying(picked, now)
+            h.carrying(carried + picked, now)
         number = h.number() if h.number is not None else self.number
         try:
             envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, env.ordered(messages),
@@ -359,6 +364,7 @@ class Packer:
         picked.append((key, payload))
         m = env.from_v1(payload)
         at = cut_point(messages, m, limit, self.room)
+        self.first_key = key
         if at is None:        # its head changed as it was taken: it goes whole, first, next time
             self.first = m
             return
