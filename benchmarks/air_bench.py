@@ -239,14 +239,14 @@ def main() -> None:
     now = {n: measure(n, args.seconds, args.domain) for n in names}
     print("Bodies as a share of each saturated packet, captured at the far DESERT port behind "
           f"real bridges ({args.seconds:.0f} s each; baseline {args.baseline})")
-    print(f"{'scenario':<18}{'base bodies':>12}{'written':>9}{'msgs/pkt':>9}"
+    print(f"{'scenario':<21}{'base bodies':>12}{'written':>9}{'msgs/pkt':>9}"
           f"{'bodies':>8}{'written':>9}{'msgs/pkt':>9}{'pace':>6}  goal")
     for n in names:
         r, b = now[n], base.get(n)
         left = (f"{b['bodies']:>12.2f}{b['written']:>9.2f}{b['msgs_per_packet']:>9.1f}"
                 if b else f"{'-':>12}{'-':>9}{'-':>9}")
         goal = GOALS[n]
-        print(f"{n:<18}{left}{r['bodies']:>8.2f}{r['written']:>9.2f}{r['msgs_per_packet']:>9.1f}"
+        print(f"{n:<21}{left}{r['bodies']:>8.2f}{r['written']:>9.2f}{r['msgs_per_packet']:>9.1f}"
               f"{r['pace']:>6.2f}  >= {goal}: {'ok' if r['bodies'] >= goal else 'MISS'}")
     for n in names:
         starved = [i for i in now[n]["ids"]

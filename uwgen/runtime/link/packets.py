@@ -339,6 +339,11 @@ class Packer:
         return data
 
 
+    def tail_at(self, now: float) -> float | None:
+        """Now when the last packet ended with a cut message's head (its tail must go next,
+        even when every queue is empty), else None."""
+        return now if self.first is not None else None
+
     def _cut_last(self, now: float, messages: list[env.Message], picked: list[tuple[int, bytes]],
                   limit: int) -> None:
         """End the packet with the head of a message cut to fit (wire format 14.2), its tail
