@@ -9,8 +9,10 @@ bytes: each cut fills a packet's tail (more bodies per packet), and each lost pa
 cost one message more (the one cut across it). Two real Links over the emulator's core on
 simulated time (uwgen.emulator.linksim), the sender saturated: FIFO Twist-sized messages
 (native Twist bodies, 30 or 24 bytes), and three latest topics of the same; per
-run the receiver's delivered messages and body bytes per second, and the bodies' share of
-the packets sent (max_read_length each).
+run the receiver's delivered messages and body bytes per second, and the delivered bodies'
+share of the packets the channel carried (max_read_length each; the packets delivered over
+1 - PER: at 128 bytes and 4800 bit/s a packet takes longer than the 0.2 s period, so the
+sender writes more than the channel carries and a backlog waits in the emulator).
 """
 from __future__ import annotations
 
