@@ -280,6 +280,7 @@ class Packer:
 
         sources = [] if h.resend is None else [
             lambda room: h.resend(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0))]
+
         def added(payload: bytes) -> int:
             """What a message adds to the packet as encoded (a message joining a run: its body)."""
             try:
@@ -337,7 +338,6 @@ class Packer:
         if not messages:
             self.counters.inc("ack_only_sent")
         return data
-
 
     def tail_at(self, now: float) -> float | None:
         """Now when the last packet ended with a cut message's head (its tail must go next,
