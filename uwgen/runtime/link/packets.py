@@ -1,11 +1,12 @@
-"""Packets of wire format 2: one envelope per DESERT write, filled from the link scheduler.
+"""Packets of wire format 4: one envelope per DESERT write, filled from the link scheduler.
 
 `Packer.next_packet(now)` is called by the connection when it may write; it pulls messages from
-the scheduler while they fit one packet (`max_read_length` minus the frame's 4 bytes, P, W and
-whatever the hooks add), builds the envelope at that moment (so a seal is never older than the
-packet), and tells the hooks which messages went in which packet number. `Unpacker.feed(payload)`
-opens one received frame's envelope and returns its messages as wire format 1 payloads, for the
-link's fragment, security and dispatch layers, which are unchanged.
+the scheduler while they fit one packet (`max_read_length` minus the frame, P, W and what the
+hooks add), may end it with a cut message's head (wire-format.md 14.2), builds the envelope at
+that moment (so a seal is never older than the packet), and tells the hooks which messages went
+in which packet number. `Unpacker.feed(payload)` opens one received frame's envelope, joins cut
+messages and returns its messages as wire format 1 payloads, for the link's fragment, security
+and dispatch layers, which are unchanged.
 
 The seams of reliability and the seal (docs/seams.md section 5) are the `PacketHooks`:
 
@@ -346,11 +347,10 @@ class Packer:
 
     def _cut_last(self, now: float, messages: list[env.Message], picked: list[tuple[int, bytes]],
                   limit: int) -> None:
-        """End the packet with the head of a message cut to fit (wire format 14.2), its tail
-        kept to start the next packet: the first message in claim order of a cuttable channel
-        that brings no part (T: an entry with a max age is judged by the packet that carries
-        it, which would be the wrong one for a cut message) and whose cut is worth it
-        (`filling.cut_point`). `limit`: the bytes of messages this packet holds."""
+        """End the packet with the head of the first message in claim order of a cuttable
+        channel that brings no part (T: an entry with a max age is judged by the packet that
+        carries it) and whose cut is worth it (`filling.cut_point`; `limit`: the bytes of
+        messages the packet holds); its tail starts the next packet (wire format 14.2)."""
         roomy = self.hooks.part_room
 
         def accept(key: int, payload: bytes) -> bool:
