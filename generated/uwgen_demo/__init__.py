@@ -128,7 +128,7 @@ MANIFEST = ManifestInfo(
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "6df371868d3a2c9a",
+    "manifest": "ea174ba45af5e2c1",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
@@ -153,7 +153,7 @@ TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="packed",
-        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0, strict=False, reliable=False, cut=True),
+        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=2.0, priority=10, repair=0, strict=False, reliable=False, cut=True),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t4"],
         fingerprint=bytes.fromhex("3ade524e")),
