@@ -17,7 +17,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from uwgen.runtime.wire.cuts import TAIL_HEAD
-from uwgen.runtime.wire.envelope import CUT_HEAD, Message, encode_messages
+from uwgen.runtime.wire.envelope import (CUT_HEAD, EnvelopeError, Message, encode_messages,
+                                         from_v1)
 
 CUT_MIN = 3       # bytes of body a cut head carries at least: a cut costs 2 bytes of heads more
                   # than the whole message (63 and H' where H was, 64 and a length byte where
@@ -67,3 +68,14 @@ def cut_point(messages: Sequence[Message], message: Message, limit: int, room: i
     if TAIL_HEAD + len(message.body) - first > room:
         return None
     return first
+
+
+def added(messages: Sequence[Message], payload: bytes) -> int:
+    """The bytes a wire format 1 `payload` adds to a packet holding `messages`, as encoded: its
+    header, body and the length byte the message before it gains, or its body alone when it
+    joins a run (what the scheduler compares with the room left)."""
+    try:
+        m = from_v1(payload)
+    except EnvelopeError:
+        return len(payload) + 1
+    return len(encode_messages([*messages, m])) - len(encode_messages(messages))

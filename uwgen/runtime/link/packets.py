@@ -55,7 +55,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from uwgen.runtime.link.filling import cut_point
+from uwgen.runtime.link.filling import added, cut_point
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.wire.cuts import Joiner, cut
 from uwgen.runtime.wire.framing import MAX_PAYLOAD, SHORT_OVERHEAD
@@ -210,10 +210,9 @@ def envelope_room(max_read_length: int, overhead: int = 0) -> int:
 
 
 def envelope_check(payload: bytes) -> bool:
-    """Whether `payload` decodes as an envelope (a sealed one with any tag length a link may
-    have): what the short frame's decoder asks of a start before it takes it. An envelope of
-    wire format 3 is taken when it would decode with this build's version bits (3 is 4 without
-    cut messages), so that the unpacker counts and logs its sender (`version_3`)."""
+    """Whether `payload` decodes as an envelope (sealed, with any tag length a link may have):
+    what the short frame's decoder asks of a start. One of wire format 3 is taken when it would
+    decode as 4 (3 is 4 without cuts), so that the unpacker counts its sender (`version_3`)."""
     if payload and payload[0] & env.VERSION_MASK == OLD_SHORT_BITS:
         payload = bytes((payload[0] & ~env.VERSION_MASK & 0xFF | env.VERSION_BITS,)) + payload[1:]
     for tag_len in env.TAG_LENGTHS:
@@ -270,10 +269,9 @@ class Packer:
                 messages.append(first)
                 carried.append((self.first_key, env.to_v1(first)))
             else:
-                log_count(log, logging.ERROR, self.counters.inc("cut_dropped"),
-                          "[%s] the rest of a cut message (%d bytes) does not fit the next "
-                          "packet (its parts took the room): the message is lost",
-                          self.name, len(first.body))
+                log_count(log, logging.ERROR, self.counters.inc("cut_dropped"), "[%s] the rest "
+                          "of a cut message (%d bytes) does not fit the next packet (its parts "
+                          "took the room): the message is lost", self.name, len(first.body))
         budget = room - len(env.encode_messages(messages)) - 1 if messages else room
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         # A message that brings a part (T) fits only with that part: the scheduler counts
@@ -286,18 +284,10 @@ class Packer:
 
         sources = [] if h.resend is None else [
             lambda room: h.resend(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0))]
-
-        def added(payload: bytes) -> int:
-            """What a message adds to the packet as encoded (a message joining a run: its body)."""
-            try:
-                m = env.from_v1(payload)
-            except env.EnvelopeError:
-                return message_measure(payload)
-            return len(env.encode_messages([*messages, m])) - len(env.encode_messages(messages))
-
         sources.append(lambda room: self.scheduler.next_payload(
             now, room if messages else None, fill=True, packet=self.number,
-            extra=extra if roomy is not None else None, measure=added))
+            extra=extra if roomy is not None else None,
+            measure=lambda payload: added(messages, payload)))
         for source in sources:
             while budget > 1:
                 got = source(budget)
