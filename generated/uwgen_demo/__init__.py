@@ -123,12 +123,12 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
     security=SecurityPlan(key_file='keys/demo.key', senders={'surface': 1, 'vehicle': 2}, modes={4: 'encrypt', 5: 'sign', 6: 'sign', 20: 'encrypt', 21: 'encrypt', 30: 'encrypt', 249: 'sign'}, tag_bytes=8, seal_fingerprints={}),
-    mac=MacConfig(mode='turns', bitrate=4800.0, range=300.0, frame=1.0, guard=0.05, slots=(), max_packet_per_slot=1, queue_size=10, weights=(), leader='surface', packets=(('surface', 2), ('vehicle', 1))),
+    mac=MacConfig(mode='turns', bitrate=4800.0, range=300.0, frame=1.0, guard=0.05, slots=(), max_packet_per_slot=1, queue_size=10, weights=(), leader='surface', packets=(('surface', 2), ('vehicle', 2))),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "ea174ba45af5e2c1",
+    "manifest": "ca9a83a0659b7696",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",

@@ -117,11 +117,11 @@ def test_the_budget_under_turns_is_each_sides_turn_per_round(demo):
     assert manifest.mac.mode == "turns"
     surface, vehicle = (next(b for b in a.budgets if b.side == s) for s in ("surface", "vehicle"))
     assert surface.limited_by == vehicle.limited_by == "turns"
-    # one round: the surface's 2 and the vehicle's 1 packet, 1.05 periods apart, and the
+    # one round: the surface's 2 and the vehicle's 2 packets, 1.05 periods apart, and the
     # vehicle's turn round trip (twice: a period tick, 68 bytes at 4800 bit/s, 300 m, listen)
-    cycle = 3 * 0.21 + 2 * (0.2 + 68 * 8 / 4800 + 0.2 + 0.05)
+    cycle = 4 * 0.21 + 2 * (0.2 + 68 * 8 / 4800 + 0.2 + 0.05)
     assert surface.capacity == pytest.approx(2 * 64 / cycle)
-    assert vehicle.capacity == pytest.approx(64 / cycle)
+    assert vehicle.capacity == pytest.approx(2 * 64 / cycle)
     assert any("side surface: topic /turtle1/cmd_vel (latest) counted at" in w for w in a.warnings())
 
 
