@@ -238,9 +238,9 @@ class Link:
         return lambda key: (protect(key) if protect else 0) + (head(key) if head else 0)
 
     def _next_ready(self, now: float) -> float | None:
-        """When the packer will next have something: a queued message, or what the hooks
-        want (an acknowledgement that must go alone, a message to send again)."""
-        times = [t for t in (self.scheduler.next_ready_time(now),
+        """When the packer will next have something: a queued message, a cut message's tail
+        (`Packer.tail_at`), or what the hooks want (an ack that must go alone, a re-send)."""
+        times = [t for t in (self.scheduler.next_ready_time(now), self.packer.tail_at(now),
                              self.hooks.next_time(now) if self.hooks.next_time else None)
                  if t is not None]
         return min(times) if times else None
@@ -250,7 +250,7 @@ class Link:
         (the MAC keeps the turn for it: a stream offered at the link's pace fills the turn)."""
         pacer = self.connection.pacer
         horizon = now + pacer.period * (1.0 + pacer.margin)
-        times = [self.scheduler.next_ready_time(now),
+        times = [self.scheduler.next_ready_time(now), self.packer and self.packer.tail_at(now),
                  hooks.next_time(now) if hooks.next_time is not None else None]
         return any(t is not None and t <= horizon for t in times)
 

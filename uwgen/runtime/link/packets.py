@@ -1,11 +1,12 @@
-"""Packets of wire format 2: one envelope per DESERT write, filled from the link scheduler.
+"""Packets of wire format 4: one envelope per DESERT write, filled from the link scheduler.
 
 `Packer.next_packet(now)` is called by the connection when it may write; it pulls messages from
-the scheduler while they fit one packet (`max_read_length` minus the frame's 4 bytes, P, W and
-whatever the hooks add), builds the envelope at that moment (so a seal is never older than the
-packet), and tells the hooks which messages went in which packet number. `Unpacker.feed(payload)`
-opens one received frame's envelope and returns its messages as wire format 1 payloads, for the
-link's fragment, security and dispatch layers, which are unchanged.
+the scheduler while they fit one packet (`max_read_length` minus the frame, P, W and what the
+hooks add), may end it with a cut message's head (wire-format.md 14.2), builds the envelope at
+that moment (so a seal is never older than the packet), and tells the hooks which messages went
+in which packet number. `Unpacker.feed(payload)` opens one received frame's envelope, joins cut
+messages and returns its messages as wire format 1 payloads, for the link's fragment, security
+and dispatch layers, which are unchanged.
 
 The seams of reliability and the seal (docs/seams.md section 5) are the `PacketHooks`:
 
@@ -26,7 +27,9 @@ The seams of reliability and the seal (docs/seams.md section 5) are the `PacketH
 
 Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"):
 
-- `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`;
+- `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`
+  (the cut tail a packet starts with is among them, as `64 body`: it takes room, but it is
+  in no `sent` list: its message went with the packet of its head);
 - `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
   `message_measure`, or None: served before the scheduler's messages;
 - `ack_only(now)` -> True when a packet must leave even without messages (an acknowledgement
@@ -52,7 +55,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from uwgen.runtime.link.filling import added, cut_point
 from uwgen.runtime.wire import envelope as env
+from uwgen.runtime.wire.cuts import Joiner, cut
 from uwgen.runtime.wire.framing import MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
@@ -61,8 +66,9 @@ OLD_ENVELOPES = (2, 3)      # envelope versions of earlier builds: counted versi
 OLD_SHORT_BITS = 3 << 5     # P of wire format 3, the first to use the short frame
 
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
-                   "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind", "refused_payloads", "opened_none",
-                   "ack_only_sent")
+                   "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind",
+                   "refused_payloads", "opened_none", "ack_only_sent",
+                   "cut_sent", "cut_dropped", "cut_joined", "cut_orphan")
 
 
 @dataclass
@@ -204,10 +210,9 @@ def envelope_room(max_read_length: int, overhead: int = 0) -> int:
 
 
 def envelope_check(payload: bytes) -> bool:
-    """Whether `payload` decodes as an envelope (a sealed one with any tag length a link may
-    have): what the short frame's decoder asks of a start before it takes it. An envelope of
-    wire format 3 is taken when it would decode with this build's version bits (3 is 4 without
-    cut messages), so that the unpacker counts and logs its sender (`version_3`)."""
+    """Whether `payload` decodes as an envelope (sealed, with any tag length a link may have):
+    what the short frame's decoder asks of a start. One of wire format 3 is taken when it would
+    decode as 4 (3 is 4 without cuts), so that the unpacker counts its sender (`version_3`)."""
     if payload and payload[0] & env.VERSION_MASK == OLD_SHORT_BITS:
         payload = bytes((payload[0] & ~env.VERSION_MASK & 0xFF | env.VERSION_BITS,)) + payload[1:]
     for tag_len in env.TAG_LENGTHS:
@@ -246,6 +251,8 @@ class Packer:
         self.counters = counters
         self.name = name
         self.number = 0                     # the next packet's number (full count)
+        self.first: env.Message | None = None   # the cut tail the next packet starts with
+        self.first_key = 0                       # and its channel
 
     def next_packet(self, now: float) -> bytes | None:
         picked: list[tuple[int, bytes]] = []
@@ -255,7 +262,17 @@ class Packer:
         charged = 0               # bytes of parts the picked messages bring (part_room)
         if h.next_overhead is not None:
             room = envelope_room(self.max_read_length, h.next_overhead(now))
-        budget = room
+        carried: list[tuple[int, bytes]] = []   # what `carrying` is told takes room
+        if self.first is not None:          # the rest of the message cut at the last packet's end
+            first, self.first = self.first, None
+            if first.size(last=False) <= room:
+                messages.append(first)
+                carried.append((self.first_key, env.to_v1(first)))
+            else:
+                log_count(log, logging.ERROR, self.counters.inc("cut_dropped"), "[%s] the rest "
+                          "of a cut message (%d bytes) does not fit the next packet (its parts "
+                          "took the room): the message is lost", self.name, len(first.body))
+        budget = room - len(env.encode_messages(messages)) - 1 if messages else room
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         # A message that brings a part (T) fits only with that part: the scheduler counts
         # `extra(key)` into each channel's next size; a re-sent one is offered the room less
@@ -268,8 +285,9 @@ class Packer:
         sources = [] if h.resend is None else [
             lambda room: h.resend(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0))]
         sources.append(lambda room: self.scheduler.next_payload(
-            now, room if picked else None, fill=True, packet=self.number,
-            extra=extra if roomy is not None else None))
+            now, room if messages else None, fill=True, packet=self.number,
+            extra=extra if roomy is not None else None,
+            measure=lambda payload: added(messages, payload)))
         for source in sources:
             while budget > 1:
                 got = source(budget)
@@ -291,11 +309,13 @@ class Packer:
                 # what the messages take as encoded (a message joining a run costs its body
                 # alone), counted as `message_measure` counts: each with a length byte
                 budget = room - charged - len(env.encode_messages(messages)) - 1
+        if messages and budget > 1:
+            self._cut_last(now, messages, picked, room - charged - 1)
         if not messages:
             if h.ack_only is None or not h.ack_only(now):
                 return None
         if h.carrying is not None:
-            h.carrying(picked, now)
+            h.carrying(carried + picked, now)
         number = h.number() if h.number is not None else self.number
         try:
             envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, env.ordered(messages),
@@ -317,6 +337,43 @@ class Packer:
             self.counters.inc("ack_only_sent")
         return data
 
+    def tail_at(self, now: float) -> float | None:
+        """Now when the last packet ended with a cut message's head (its tail must go next,
+        even when every queue is empty), else None."""
+        return now if self.first is not None else None
+
+    def _cut_last(self, now: float, messages: list[env.Message], picked: list[tuple[int, bytes]],
+                  limit: int) -> None:
+        """End the packet with the head of the first message in claim order of a cuttable
+        channel that brings no part (T: an entry with a max age is judged by the packet that
+        carries it) and whose cut is worth it (`filling.cut_point`; `limit`: the bytes of
+        messages the packet holds); its tail starts the next packet (wire format 14.2)."""
+        roomy = self.hooks.part_room
+
+        def accept(key: int, payload: bytes) -> bool:
+            if roomy is not None and roomy(key):
+                return False
+            try:
+                m = env.from_v1(payload)
+            except env.EnvelopeError:
+                return False
+            return cut_point(messages, m, limit, self.room) is not None
+
+        got = self.scheduler.next_payload(now, fill=False, packet=self.number, cut=accept)
+        if got is None:
+            return
+        key, payload = got
+        picked.append((key, payload))
+        m = env.from_v1(payload)
+        at = cut_point(messages, m, limit, self.room)
+        self.first_key = key
+        if at is None:        # its head changed as it was taken: it goes whole, first, next time
+            self.first = m
+            return
+        head, self.first = cut(m, at)
+        messages.append(head)
+        self.counters.inc("cut_sent")
+
 
 class Unpacker:
     """Opens received envelopes; refuses (counted, logged once) what is not one."""
@@ -325,6 +382,7 @@ class Unpacker:
         self.hooks = hooks or PacketHooks()
         self.counters = counters
         self.name = name
+        self.joiner = Joiner()
 
     def feed(self, data: bytes, now: float) -> list[bytes]:
         """The messages of one frame's payload, as wire format 1 payloads (kind, id, body)."""
@@ -348,7 +406,16 @@ class Unpacker:
         if self.hooks.received is not None:
             self.hooks.received(envelope, now)
         out = []
-        for m in envelope.messages:
+        joiner = self.joiner
+        orphans = joiner.orphans
+        messages = joiner.feed(envelope)
+        c.inc("cut_joined", joiner.joined - c["cut_joined"])
+        if joiner.orphans > orphans:
+            log_count(log, logging.WARNING, c.inc("cut_orphan", joiner.orphans - orphans),
+                      "[%s] dropped a part of a cut message from sender %d that cannot be "
+                      "joined (the packet with its other part was lost)", self.name,
+                      envelope.sender)
+        for m in messages:
             if m.kind not in env.KIND_CODES and m.kind != env.FRAGMENT:
                 log_count(log, logging.WARNING, c.inc("unknown_kind"),
                           "[%s] dropped a message of kind %d (id %d) from sender %d: this build "
