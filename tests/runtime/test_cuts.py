@@ -238,7 +238,7 @@ def test_the_tail_of_the_last_message_cut_wakes_the_connection_for_the_next_pack
 
 def test_the_hooks_are_told_the_tail_takes_room_but_not_that_it_was_sent_again():
     # reliability sizes its A part from what `carrying` says the messages take
-    from uwgen.runtime.link.packets import PacketHooks
+    from uwgen.runtime.link.hooks import PacketHooks
     carried, sent = [], []
     hooks = PacketHooks(carrying=lambda picked, now: carried.append(list(picked)),
                         sent=lambda n, picked, now: sent.append(list(picked)))

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from uwgen.runtime.wire import envelope
-from uwgen.runtime.link.packets import PacketHooks, join_hooks
+from uwgen.runtime.link.hooks import PacketHooks, join_hooks
 
 
 def test_parts_of_joined_hooks_are_merged_and_overheads_added():

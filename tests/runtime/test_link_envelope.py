@@ -12,7 +12,7 @@ from uwgen.emulator.linksim import LinkSim
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.wire import envelope
 from uwgen.runtime.wire.framing import ShortFrameDecoder, encode_frame, encode_short_frame
-from uwgen.runtime.link.packets import PacketHooks
+from uwgen.runtime.link.hooks import PacketHooks
 
 
 def scenario(per: float = 0.0, seed: int = 1, mrl: int = 64) -> Scenario:

@@ -17,7 +17,7 @@ Envelope links (`wire_format=2` here, links of profiles native and packed; they 
 envelope's wire format, `envelope.VERSION`, which `stats()` reports): each write is one frame
 holding one envelope of several messages (uwgen.runtime.link.packets, envelope; wire format section
 14); profile-`packed` payloads (ids in `packed_ids`) travel without their byte string's head.
-`hooks` (packets.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
+`hooks` (hooks.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
 (the default, and what rmw_desert-profile links use) writes one frame per payload.
 
 Observers (`link.observers`): callables told of every packet written and read, with what became
@@ -44,8 +44,8 @@ from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.wire.framing import LONG, MAX_FRAME, MAX_PAYLOAD, SHORT
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.runtime.link.mac import Mac
-from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker,
-                                        envelope_check, envelope_room, join_hooks,
+from uwgen.runtime.link.hooks import PacketHooks, join_hooks
+from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, Unpacker, envelope_check, envelope_room,
                                         message_measure)
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.probation import reconnect_cap

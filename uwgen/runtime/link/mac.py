@@ -34,7 +34,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from uwgen.manifest.model import LinkConfig, MacConfig
-from uwgen.runtime.link.packets import PacketHooks
+from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN, PACKET_HEADER
 from uwgen.runtime.wire import envelope as env
 
