@@ -126,7 +126,10 @@ class Pair:
         if bridge and wire == 2:
             from uwgen.bridge.plan import BridgePlan
             from uwgen.bridge.reliability import reliability_for
-            from uwgen.runtime.link.hooks import join_hooks
+            try:
+                from uwgen.runtime.link.hooks import join_hooks
+            except ImportError:     # a baseline build (--baseline): in the packer's module
+                from uwgen.runtime.link.packets import join_hooks
             for side in (src, dst):
                 plan = BridgePlan.from_package(demo, side)
                 seal = hooks.get(side)
