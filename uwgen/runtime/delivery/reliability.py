@@ -138,6 +138,7 @@ class Reliability:
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
                            overhead=OVERHEAD, next_overhead=self.next_overhead,
                            part_room=self.part_room, carrying=self.carrying, resend=self.resend,
+                           cut=self.cut,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
                            head_room=self.head_room, admit=self.admit,
                            shape=self.shape, unshape=self.heads.with_age, stats=self.stats,
@@ -242,6 +243,12 @@ class Reliability:
             else:
                 to |= self.destinations.get(wire_id(m.key), self._everyone)
         return to
+
+    def cut(self, number: int, moved: bool = False) -> None:
+        """Packet `number`'s last message was cut (or, `moved`, goes whole in the next packet):
+        the ledger waits for the next packet's fate too (wire-format.md section 14.2)."""
+        with self._lock:
+            self.engine.cut(number, moved)
 
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:

@@ -25,6 +25,9 @@ class PacketHooks:
     next_overhead: Callable[[float], int] | None = None
     number: Callable[[], int] | None = None
     carrying: Callable[[list[tuple[int, bytes]], float], None] | None = None
+    # packet `number`'s last message was cut, its tail starts the next packet (or, moved=True,
+    # the message goes whole in the next packet): wire-format.md section 14.2
+    cut: Callable[..., None] | None = None
     resend: Callable[[float, int], tuple[int, bytes] | None] | None = None
     ack_only: Callable[[float], bool] | None = None
     next_time: Callable[[float], float | None] | None = None
@@ -48,7 +51,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     part two hooks give must have the same value, otherwise building the packet fails with
     EnvelopeError.
     At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise); its
-    `number` numbers the packets. `sent`, `received` and `carrying` are called in order;
+    `number` numbers the packets. `sent`, `received`, `carrying` and `cut` are called in order;
     `overhead` is the sum (an upper bound: a part two hooks both give is counted twice),
     `next_overhead` the sum of each hook's (its `overhead` when it gives none). Likewise at most
     one hook may give the message heads (`stamp`, `head_room`, `admit`) and at most one
@@ -93,6 +96,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     header = _one(given, ("stamp", "head_room", "admit", "shape", "unshape"), "give message heads")
     resender = _one(given, ("resend",), "re-send messages")
     carriers = [h.carrying for h in given if h.carrying is not None]
+    cutters = [h.cut for h in given if h.cut is not None]
     askers = [h.ack_only for h in given if h.ack_only is not None]
     timers = [h.next_time for h in given if h.next_time is not None]
     reporters = [h.stats for h in given if h.stats is not None]
@@ -104,6 +108,10 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     def carrying(picked: list[tuple[int, bytes]], now: float) -> None:
         for tell in carriers:
             tell(picked, now)
+
+    def cut(number: int, moved: bool = False) -> None:
+        for tell in cutters:
+            tell(number, moved)
 
     def ack_only(now: float) -> bool:
         return any(ask(now) for ask in askers)
@@ -125,6 +133,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
                                       else None),
                        number=sealer.number,
                        carrying=carrying if carriers else None, resend=resender.resend,
+                       cut=cut if cutters else None,
                        ack_only=ack_only if askers else None,
                        next_time=next_time if timers else None,
                        stamp=header.stamp, head_room=header.head_room, admit=header.admit,

@@ -123,6 +123,8 @@ class Packer:
         self.name = name
         self.number = 0                     # the next packet's number (full count)
         self.first: env.Message | None = None   # the cut tail the next packet starts with
+        self._cut_of: int | None = None         # the packet `first` was cut at (self.number)
+        self._moved = False                     # `first` is a whole message, not a tail
         self.first_key = 0                       # and its channel
 
     def next_packet(self, now: float) -> bytes | None:
@@ -180,6 +182,7 @@ class Packer:
                 # what the messages take as encoded (a message joining a run costs its body
                 # alone), counted as `message_measure` counts: each with a length byte
                 budget = room - charged - len(env.encode_messages(messages)) - 1
+        cut_at = self.number
         if messages and budget > 1:
             self._cut_last(now, messages, picked, room - charged - 1)
         if not messages:
@@ -201,6 +204,8 @@ class Packer:
             return None
         if h.sent is not None:
             h.sent(number, picked, now)
+        if h.cut is not None and self.first is not None and self._cut_of == cut_at:
+            h.cut(number, moved=self._moved)    # the ledger waits for the tail's packet too
         self.number = number + 1
         self.counters.inc("packets_sent")
         self.counters.inc("messages_sent", len(messages))
@@ -239,8 +244,9 @@ class Packer:
         at = cut_point(messages, m, limit, self.room)
         self.first_key = key
         if at is None:        # its head changed as it was taken: it goes whole, first, next time
-            self.first = m
+            self.first, self._cut_of, self._moved = m, self.number, True
             return
+        self._cut_of, self._moved = self.number, False
         head, self.first = cut(m, at)
         messages.append(head)
         self.counters.inc("cut_sent")
