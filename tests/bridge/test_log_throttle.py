@@ -96,3 +96,19 @@ def test_a_bridged_call_that_times_out_is_a_warning_not_an_error():
                  what="the call timed out")
     assert errors == [] and len(warnings) == 1 and "got no response within 0.4 s" in warnings[0]
     assert not future.done() or future.result() is None
+
+
+def test_warnings_and_errors_through_one_rclpy_logger_never_raise():
+    # rclpy keys a logger's calls by their call site and refuses one whose severity changes
+    # (ValueError): the throttle's warnings and errors must each have a call site of their own
+    from rclpy.impl.rcutils_logger import RcutilsLogger
+    log = RcutilsLogger("uwgen_throttle_test")
+    clock = ManualClock()
+    t = LogThrottle(log.error, clock, every=10.0, warn=log.warning)
+    t.report("lost_answer", "an answer was lost", expected=True)
+    t.report("bad_bytes", "bytes that do not decode")
+    t.report("lost_answer", "again")
+    t.report("bad_bytes", "again")
+    clock.advance(10.0)
+    t.tick()                                    # both summaries, through the same logger
+    assert t.totals == {"lost_answer": 2, "bad_bytes": 2}

@@ -30,7 +30,8 @@ from collections.abc import Callable
 from typing import Any
 
 MARK = b"uwg"
-STATUS_GRACE = 3.0          # seconds after start before "no such goal" is said without the list
+STATUS_GRACE = 10.0         # seconds after start before "no such goal" is said without the list
+                            # (discovery of the local server can take seconds on a loaded machine)
 ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
 FINISHED = (4, 5, 6)        # GoalStatus SUCCEEDED, CANCELED, ABORTED
 

@@ -40,7 +40,7 @@ class LogThrottle:
             self._first[key] = text
             if expected:
                 self._expected.add(key)
-            self._say(key)(f"{text} (further ones are counted, summarised every {self.every:g} s)")
+            self._say(key, f"{text} (further ones are counted, summarised every {self.every:g} s)")
             return
         self._since[key] = self._since.get(key, 0) + 1
 
@@ -58,9 +58,14 @@ class LogThrottle:
     def _summarise(self) -> None:
         for key, n in sorted(self._since.items()):
             if n:
-                self._say(key)(f"{n} more since the last summary ({self.totals[key]} in all) like: "
+                self._say(key, f"{n} more since the last summary ({self.totals[key]} in all) like: "
                                f"{self._first[key]}")
         self._since.clear()
 
-    def _say(self, key: str) -> Callable[[str], None]:
-        return self._warn if key in self._expected else self._emit
+    def _say(self, key: str, text: str) -> None:
+        # one call site per emitter: rclpy's logger refuses a call site whose severity changes
+        # between calls (ValueError), which took a bridge down mid-goal
+        if key in self._expected:
+            self._warn(text)
+        else:
+            self._emit(text)

@@ -258,9 +258,12 @@ def main(argv: list[str] | None = None) -> int:
         succeeded = status == GoalStatus.STATUS_SUCCEEDED
         record("mission", name=name, ok=succeeded, status=names.get(status, "no result"),
                feedback=len(feedback), rtt=rtt, delta=done.result().result.delta if succeeded else None)
-        say = log.info if succeeded else log.warning
-        say(f"{name}: {names.get(status, 'no result')} after {rtt:.2f} s, {len(feedback)} feedback "
-            "messages" + (f", turned {done.result().result.delta:.2f} rad" if succeeded else ""))
+        line = (f"{name}: {names.get(status, 'no result')} after {rtt:.2f} s, {len(feedback)} "
+                "feedback messages" + (f", turned {done.result().result.delta:.2f} rad" if succeeded else ""))
+        if succeeded:           # one call site per severity (rclpy's logger insists)
+            log.info(line)
+        else:
+            log.warning(line)
 
     def drive(lin: float, ang: float, k: int) -> None:
         msg = Twist()
