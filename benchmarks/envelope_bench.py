@@ -43,7 +43,6 @@ packets and bytes written with wire format 1 fragments and wire format 2 compact
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import random
 import sys
 import tempfile
@@ -60,6 +59,8 @@ try:            # wire format 3's short frame (it reads long frames too)
 except ImportError:     # a baseline build (--baseline): the long frame only
     ShortFrameDecoder = FrameDecoder
 from uwgen.runtime.link.link import Link
+
+from envelope_parts import DESERT_HEADER, SimWall, air_parts, baseline, counting_heads, print_table0
 from uwgen.security.guard import GuardConfig, LinkGuard
 
 try:            # the per-packet seal (wire-format 12.2): what a bridge uses on wire format 2 links
@@ -77,7 +78,6 @@ from uwgen_demo.turtlesim.msg import Pose  # noqa: E402
 from uwgen_demo.turtlesim.srv import TeleportAbsolute_Request  # noqa: E402
 
 CONFIG = LinkConfig(max_read_length=64, period=0.2)
-DESERT_HEADER = 4
 MASTER = bytes(range(32))
 SENDERS = {"surface": 1, "vehicle": 2}
 MODES = {4: "encrypt", 5: "sign", 6: "sign", 20: "encrypt", 21: "encrypt", 30: "encrypt", 249: "sign"}
@@ -131,7 +131,7 @@ class Pair:
                 rel = reliability_for(plan, CONFIG, wall,   # T on the wall clock, as the seal's
                                       other_overhead=seal.overhead if seal is not None else 0)
                 hooks[side] = join_hooks(rel.hooks(), seal)
-                hooks[side] = dataclasses.replace(hooks[side], admit=self._counted(hooks[side].admit))
+                hooks[side] = counting_heads(self, hooks[side])
         self.returned: list[bytes] = []     # what the sender receives (two_way)
         self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}),
                            **({"hooks": hooks[src]} if src in hooks else {}), **kw_src,
@@ -180,38 +180,9 @@ class Pair:
         out["body"] -= self.security
         return out
 
-    def _counted(self, admit):
-        def counted_admit(payload: bytes, now: float) -> bytes | None:
-            out = admit(payload, now)       # the reliability head taken off (N, age)
-            self.message_items += len(payload) - (len(out) if out is not None else len(payload))
-            return out
-        return counted_admit
-
     def parts(self) -> dict[str, int]:
-        """Air bytes of wire format 2+ by part (table 0's breakdown): DESERT's header, the
-        frame, each envelope part (P, W, K, T, A, C), message heads (H, id, length and run
-        bytes), the reliability heads of messages (N, age: what the receiver's admit took
-        off), the tag and the bodies (the rest: seq, handles, fields, fragment heads)."""
-        out = dict.fromkeys(PARTS, 0)
-        out["DESERT"] = DESERT_HEADER * len(self.batches)
-        for batch in self.batches:
-            frames = ShortFrameDecoder().feed(batch)
-            out["frame"] += len(batch) - sum(map(len, frames))
-            for f in frames:
-                e = envelope.decode(f, self.tag_bytes)
-                out["P"] += 1
-                out["W"] += len(e.encode_head()) - 1 - part_bytes(e)
-                out["K"] += envelope.SYNC_LEN if e.sync is not None else 0
-                out["T"] += envelope.TIME_LEN if e.time is not None else 0
-                out["A"] += 1 + len(e.ack) if e.ack is not None else 0
-                out["C"] += 1 + len(e.control) if e.control is not None else 0
-                out["tag"] += len(e.tag) if e.sealed else 0
-                bodies = sum(len(m.body) for m in e.messages)
-                out["msg head"] += len(f) - e.head_size() - bodies
-                out["body"] += bodies
-        out["N, age"] = self.message_items
-        out["body"] -= self.message_items
-        return out
+        """Air bytes of wire format 2+ by part (table 0's breakdown: envelope_parts.air_parts)."""
+        return air_parts(self.batches, self.tag_bytes, self.message_items)
 
     def run(self, seconds: float, before_write=None) -> None:
         conn, rx = self.sender.connection, self.receiver.connection
@@ -236,25 +207,6 @@ class Pair:
                 self.sender._tick(t)
             nxt = min(tx.outbox.pacer.next_write_at for tx, _ in ways)
             t = round(max(t + CONFIG.period / 16, nxt) if before_write is None else max(nxt, t + 1e-3), 9)
-
-
-class SimWall:
-    """A wall clock that follows the simulation's clock (table 0's bridges stamp T with it)."""
-
-    def __init__(self, clock: ManualClock, start: float = 1.7e9):
-        self.clock, self.start = clock, start
-
-    def now(self) -> float:
-        return self.start + self.clock.now()
-
-
-PARTS = ("DESERT", "frame", "P", "W", "K", "T", "A", "C", "msg head", "N, age", "tag", "body")
-
-
-def part_bytes(e) -> int:
-    """Bytes of K, T, A and C in envelope `e` (what its head holds besides P and W)."""
-    return ((envelope.SYNC_LEN if e.sync is not None else 0) + (envelope.TIME_LEN if e.time is not None else 0)
-            + sum(1 + len(x) for x in (e.ack, e.control) if x is not None))
 
 
 # -- table 1: the demo's mix ------------------------------------------------------------------
@@ -424,25 +376,6 @@ def as_deployed(seconds: float) -> dict[str, float]:
     return out
 
 
-def baseline(rev: str, seconds: float) -> dict[str, float]:
-    """`as_deployed` on commit `rev`'s code (git archive into a temporary folder, first on
-    PYTHONPATH; this script and the demo's generated package as they are here)."""
-    import json
-    import os
-    import subprocess
-    tree = Path(tempfile.mkdtemp(prefix="uwgen_envbench_base_"))
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "uwgen"],
-                             capture_output=True, check=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
-    env = dict(os.environ, PYTHONPATH=str(tree))
-    out = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--deployed-json",
-                          "--seconds", str(seconds)], env=env, capture_output=True, text=True,
-                         cwd=str(tree))
-    if out.returncode != 0:
-        raise SystemExit(f"baseline run failed:\n{out.stderr[-3000:]}")
-    return json.loads(out.stdout.strip().splitlines()[-1])
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=300.0, help="simulated seconds per run")
@@ -456,22 +389,8 @@ def main() -> None:
         print(json.dumps(as_deployed(s)))
         return
     if args.baseline != "none":
-        base, now = baseline(args.baseline, s), as_deployed(s)
-        print("Table 0: the demo's mix as bridges send it (their reliability hooks; secured: the "
-              "per-packet seal, 8-byte tag): air bytes per delivered message, both directions")
-        print(f"{'':<12}{'baseline ' + args.baseline:>20}{'this build':>12}{'goal':>8}")
-        for label, goal in (("unsecured", 15.0), ("secured", 21.0)):
-            print(f"{label:<12}{base[label]:>20.1f}{now[label]:>12.1f}{goal:>8.0f}  "
-                  f"{'ok' if now[label] <= goal else 'MISS'}")
-        print("what they carry, bytes per delivered message (P, W, K, T, A, C: the envelope's "
-              "parts; msg head: H, id, length and run bytes; N, age: reliability heads):")
-        print(f"{'':<22}" + "".join(f"{k:>9}" for k in PARTS))
-        for label in ("unsecured", "secured"):
-            for which, figures in (("baseline", base), ("this build", now)):
-                split = figures.get(label + " parts")
-                if split is not None:
-                    print(f"{label + ', ' + which:<22}" + "".join(f"{split.get(k, 0):>9.2f}" for k in PARTS))
-        print()
+        base, now = baseline(Path(__file__).resolve(), ROOT, args.baseline, s), as_deployed(s)
+        print_table0(args.baseline, base, now)
 
     print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions); "
           f"wire format 2 sealed {'per packet (PacketSeal)' if PacketSeal else 'per message (LinkGuard)'}")

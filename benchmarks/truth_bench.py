@@ -3,6 +3,7 @@
 docs/wire-format.md sections 15.5 and 15.7), on simulated time.
 
     .venv/bin/python benchmarks/truth_bench.py
+    .venv/bin/python benchmarks/truth_bench.py --processes [--holds 10,44,64,130] [--domains 71,72,73,74]
 
 Both sides run the real Link, reliability and (sealed rows) per-packet seal code over the
 emulator's core (`uwgen.emulator.duplex`): 64 B every 0.5 s, 4800 bit/s, 300 m. Simulated
@@ -22,11 +23,23 @@ time, so a 130 s hold costs nothing; no timing is scaled.
    lost_on_link + in_flight + unacknowledged + unknown).
 4. Clock offsets: the receiver's clock off by d: when its peer's offset is first measured,
    the figure +- error, commands delivered after that and refused (reason).
+
+--processes: the delay series and the SIGKILL cases with real `uwgen bridge` processes over the
+emulator (benchmarks/truth_processes.py; real time, about 15 minutes): per hold, path and link
+(sealed and unsealed networks run side by side, each on two ROS domains), a service call
+(timeout 4 s) and a goal (accept_timeout 4 s) made while everything reaching the vehicle
+(request path) or the surface (response path) for 5 s is held H s; per cell what ran on the
+vehicle (late: after the deadline; double), what the caller was told, what the calling bridge
+learnt afterwards. Then the vehicle's bridge is SIGKILLed mid-goal (a 6 s goal) and started
+again at once and after 10 s. The mixed manifest row is `uwgen build`'s answer.
 """
 from __future__ import annotations
 
+import argparse
 import itertools
 import sys
+import tempfile
+import threading
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -229,5 +242,70 @@ def main() -> int:
     return 0
 
 
+def processes(holds: list[float], domains: list[int]) -> int:
+    import truth_processes as tp
+    root = Path(tempfile.mkdtemp(prefix="truth-processes-"))
+    rows: dict[str, list] = {"unsealed": [], "sealed": []}
+    kills: dict[str, list] = {"unsealed": [], "sealed": []}
+    errors: list[str] = []
+
+    def series(link: str, pair: tuple[int, int]) -> None:
+        try:
+            with tp.Network(root / link, sealed=link == "sealed", domains=pair) as net:
+                net.ready()
+                ident = 1
+                for hold in holds:
+                    for path in ("request", "response"):
+                        rows[link].append(tp.delay_cell(net, ident, hold, path, settle=10.0))
+                        ident += 1
+                net.vehicle.goal_seconds = 6.0
+                for down in (0.0, 10.0):
+                    kills[link].append(tp.kill_cell(net, 100 + int(down), down))
+        except Exception as exc:  # noqa: BLE001 - reported in the table
+            errors.append(f"{link}: {exc!r}")
+
+    threads = [threading.Thread(target=series, args=(link, (domains[2 * i], domains[2 * i + 1])))
+               for i, link in enumerate(("unsealed", "sealed"))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    print("Delay series with real bridge processes (call timeout 4 s, goal accept_timeout 4 s;")
+    print("everything reaching the vehicle (request) or the surface (response) for 5 s held H s)")
+    print(f"{'hold s':>6} {'path':>8} {'link':>8} | {'late':>4} {'double':>6} | {'call ran':>8} "
+          f"{'caller told':>12} {'bridge learnt':>20} | {'goal ran':>8} {'caller told':>11} | match")
+    for link in ("unsealed", "sealed"):
+        for c in rows[link]:
+            learnt = ",".join(f"{k}" for k in c.learnt) or "-"
+            print(f"{c.hold:>6g} {c.path:>8} {link:>8} | {c.late():>4} {c.double():>6} | "
+                  f"{len(c.call_ran):>8} {c.call_told:>12} {learnt:>20} | {len(c.goal_ran):>8} "
+                  f"{c.goal_told:>11} | {'yes' if c.matches() else 'NO'}")
+    code, error = tp.mixed_build(root / "mixed")
+    print(f"{'any':>6} {'any':>8} {'mixed':>8} | uwgen build exit {code}: {error}")
+    print()
+    print("SIGKILL of the vehicle's bridge mid-goal (a 6 s goal), started again after D s")
+    print(f"{'D s':>4} {'link':>8} | {'running when killed':>19} {'ran':>3} {'caller told':>11} "
+          f"{'left running unsupervised':>25}")
+    for link in ("unsealed", "sealed"):
+        for k in kills[link]:
+            print(f"{k['down']:>4g} {link:>8} | {str(k['running when killed']):>19} {k['ran']:>3} "
+                  f"{k['told']:>11} {k['left running']:>25}")
+    for e in errors:
+        print("ERROR", e)
+    print(f"(logs and status files in {root})")
+    return 1 if errors else 0
+
+
 if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--processes", action="store_true",
+                        help="the delay series and SIGKILL cases with real bridge processes")
+    parser.add_argument("--holds", default="10,44,64,130", help="hold seconds (--processes)")
+    parser.add_argument("--domains", default="71,72,73,74",
+                        help="four ROS domain ids: unsealed surface, vehicle, sealed surface, vehicle")
+    a = parser.parse_args()
+    if a.processes:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        sys.exit(processes([float(h) for h in a.holds.split(",")],
+                           [int(d) for d in a.domains.split(",")]))
     sys.exit(main())

@@ -74,6 +74,7 @@ class SideBudget:
     unlimited: list[str] = field(default_factory=list)   # entries with no rate
     schema: float = 0.0                   # bytes per second of periodic schema announcements (included above)
     limited_by: str = "period"            # what sets the capacity: the link's "period" or the modem's "bit rate"
+    thinned: list[str] = field(default_factory=list)     # latest-only topics counted below their rate
 
     @property
     def fits(self) -> bool:
@@ -108,6 +109,7 @@ class Analysis:
                            "worst-case traffic is unbounded")
             for name in b.unlimited:
                 out.append(f"side {b.side}: {name} has no rate limit; it can take the whole link")
+            out += [f"side {b.side}: {line}" for line in b.thinned]
         return out
 
 
@@ -169,7 +171,8 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
     for side in manifest.sides.values():
         cap, limit = capacity_under_mac(manifest, side,
                                         *capacity(side.link.max_read_length, side.link.period, bitrate))
-        typical, worst, unlimited = schema, schema, []
+        typical, worst, unlimited, thinned = schema, schema, [], []
+        packets = cap / side.link.max_read_length      # the most packets a second the side sends
         for e in entries:
             if e.sender not in (side.name, "*") or (e.sender == "*" and _server_of(manifest, e) == side.name):
                 continue
@@ -178,10 +181,21 @@ def analyze(manifest: Manifest, lookup, bitrate: float = DEFAULT_BITRATE) -> Ana
             if e.rate is None:
                 unlimited.append(f"{e.kind} {e.name}")
                 continue
+            rate = e.rate
+            latest = e.kind == "feedback" or (e.kind == "topic"
+                                               and manifest.entry(e.id).policy.queue == "latest")
+            if latest and rate > packets:
+                # A latest-only queue (a topic's, every action's feedback) keeps the newest
+                # message alone, so it never leaves more often than its side sends packets:
+                # the rest are superseded, by design.
+                thinned.append(f"{e.kind} {e.name} (latest) counted at {packets:.2f}/s of its {rate:g}/s: "
+                               f"{side.name} sends at most {packets:.2f} packets/s and a latest "
+                               "queue sends only the newest message")
+                rate = packets
             frame = e.configured.frame
-            typical += e.rate * frame.typical
-            worst = None if worst is None or frame.max is None else worst + e.rate * frame.max
-        budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema, limit))
+            typical += rate * frame.typical
+            worst = None if worst is None or frame.max is None else worst + rate * frame.max
+        budgets.append(SideBudget(side.name, cap, typical, worst, unlimited, schema, limit, thinned))
     seal = _secured(wire, tag)
     sealed = (seal.typical, seal.max) if manifest.protected() else (0, 0)
     control = control_costs(manifest, bitrate, wire, sealed)

@@ -123,12 +123,12 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
     security=SecurityPlan(key_file='keys/demo.key', senders={'surface': 1, 'vehicle': 2}, modes={4: 'encrypt', 5: 'sign', 6: 'sign', 20: 'encrypt', 21: 'encrypt', 30: 'encrypt', 249: 'sign'}, tag_bytes=8, seal_fingerprints={}),
-    mac=MacConfig(mode='turns', bitrate=4800.0, range=300.0, frame=1.0, guard=0.05, slots=(), max_packet_per_slot=1, queue_size=10, weights=(), leader='surface', packets=(('surface', 2), ('vehicle', 1))),
+    mac=MacConfig(mode='turns', bitrate=4800.0, range=300.0, frame=1.0, guard=0.05, slots=(), max_packet_per_slot=1, queue_size=10, weights=(), leader='surface', packets=(('surface', 2), ('vehicle', 2))),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "6df371868d3a2c9a",
+    "manifest": "ca9a83a0659b7696",
     "sources": {
         "share/builtin_interfaces/msg/Time.msg": "dc5a01ddde3aecff",
         "share/geometry_msgs/msg/Twist.msg": "ed471ef861f65af9",
@@ -153,7 +153,7 @@ TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="packed",
-        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0, strict=False, reliable=False),
+        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=2.0, priority=10, repair=0, strict=False, reliable=False),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=VARIANTS["t4"],
         fingerprint=bytes.fromhex("3ade524e")),

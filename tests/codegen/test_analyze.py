@@ -29,6 +29,7 @@ sides:
   vehicle: {port: 4001}
 topics:
   - name: /cmd_vel
+    queue: fifo
     id: 4
     type: geometry_msgs/msg/Twist
     publisher: surface
@@ -116,12 +117,26 @@ def test_the_budget_under_turns_is_each_sides_turn_per_round(demo):
     assert manifest.mac.mode == "turns"
     surface, vehicle = (next(b for b in a.budgets if b.side == s) for s in ("surface", "vehicle"))
     assert surface.limited_by == vehicle.limited_by == "turns"
-    # one round: the surface's 2 and the vehicle's 1 packet, 1.05 periods apart, and the
+    # one round: the surface's 2 and the vehicle's 2 packets, 1.05 periods apart, and the
     # vehicle's turn round trip (twice: a period tick, 68 bytes at 4800 bit/s, 300 m, listen)
-    cycle = 3 * 0.21 + 2 * (0.2 + 68 * 8 / 4800 + 0.2 + 0.05)
+    cycle = 4 * 0.21 + 2 * (0.2 + 68 * 8 / 4800 + 0.2 + 0.05)
     assert surface.capacity == pytest.approx(2 * 64 / cycle)
-    assert vehicle.capacity == pytest.approx(64 / cycle)
-    assert any("limited by its turns" in w for w in a.warnings())
+    assert vehicle.capacity == pytest.approx(2 * 64 / cycle)
+    assert any("side surface: topic /turtle1/cmd_vel (latest) counted at" in w for w in a.warnings())
+
+
+def test_a_latest_topic_is_counted_at_most_once_a_packet_its_side_sends(demo):
+    manifest, a = demo
+    surface = next(b for b in a.budgets if b.side == "surface")
+    cmd_vel = next(e for e in a.entries if e.name == "/turtle1/cmd_vel")
+    packets = surface.capacity / manifest.sides["surface"].link.max_read_length
+    assert cmd_vel.rate == 5 and packets < 5
+    # under turns the surface sends about 1.1 packets a second, and cmd_vel's latest queue
+    # supersedes the rest: the budget counts what can leave, and says so
+    assert surface.typical == pytest.approx(surface.schema + packets * cmd_vel.configured.frame.typical)
+    assert any("/turtle1/cmd_vel (latest) counted at" in line for line in surface.thinned)
+    unthinned = analyze(replace(manifest, mac=MacConfig()), InterfaceLibrary([SAMPLES]).get, 4800.0)
+    assert not any(b.thinned for b in unthinned.budgets)      # 5 packets/s: nothing superseded
 
 
 def test_mac_warnings_name_the_guard_and_the_deadline_that_cannot_fit(tmp_path):
@@ -164,7 +179,7 @@ def test_a_broken_manifest_is_a_located_error(tmp_path):
     (tmp_path / "uwgen.yaml").write_text(TIGHT.replace("rate: 5", "rate: 5\n    fields: {linear.w: {static: 0}}"))
     res = run_cli("-m", tmp_path / "uwgen.yaml")
     assert res.returncode == 2
-    assert "uwgen.yaml:12:14:" in res.stderr and "has no field 'w'" in res.stderr
+    assert "uwgen.yaml:13:14:" in res.stderr and "has no field 'w'" in res.stderr
 
 
 def test_air_time_counts_desert_packet_overhead():
@@ -201,6 +216,7 @@ sides:
   vehicle: {port: 4001, link: {max_read_length: 64, period: 0.2}}
 topics:
   - name: /depth
+    queue: fifo
     id: 4
     type: std_msgs/msg/Float64
     publisher: surface
@@ -285,8 +301,9 @@ def test_a_fleet_gets_a_budget_per_vehicle_and_the_surface_pays_for_every_vehicl
     rows = {b.side: b for b in a.budgets}
     assert list(rows) == ["surface", "auv1", "auv2", "auv3"]
     one = {e.name: e for e in a.entries}
-    cmd = sum(one[f"/auv{n}/turtle1/cmd_vel"].rate * one[f"/auv{n}/turtle1/cmd_vel"].configured.frame.typical
-              for n in (1, 2, 3))
+    packets = rows["surface"].capacity / manifest.sides["surface"].link.max_read_length
+    cmd = sum(min(packets, one[f"/auv{n}/turtle1/cmd_vel"].rate)        # latest: once a packet at most
+              * one[f"/auv{n}/turtle1/cmd_vel"].configured.frame.typical for n in (1, 2, 3))
     pose = one["/auv1/turtle1/pose"]
     # the surface sends three vehicles' commands; a vehicle sends its own pose, never another's
     assert rows["surface"].typical > cmd > 0

@@ -79,7 +79,7 @@ def test_every_number_out_of_range_is_a_located_error(tmp_path, lib, replacement
             assert replacement in ("1e-300", "1e300") and key in ("min", "max"), (key, line)
 
 
-@pytest.mark.parametrize("key", ["ttl: 1.0", "rate: 5", "period: 0.2", "timeout: 10",
+@pytest.mark.parametrize("key", ["ttl: 2.0", "rate: 5", "period: 0.2", "timeout: 10",
                                  "min: -2", "max: 2", "result_timeout: 60"])
 def test_a_400_digit_number_is_a_located_error_in_build_and_analyze(tmp_path, capsys, key):
     path = tmp_path / "uwgen.yaml"

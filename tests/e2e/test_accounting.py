@@ -57,7 +57,10 @@ def test_counters_of_a_lossy_run_add_up_exactly(e2e_package):
     with lossy_network(e2e_package, per=0.2) as (emu, (surface, vehicle), bridges):
         cmd_pub = surface.node("op").create_publisher(Twist, "/cmd_vel", 10)
         log_pub = vehicle.node("sim").create_publisher(String, "/log", 10)
-        wait_for(lambda: all(b.link.stats()["connected"] for b in bridges.values())
+        # up: connected, and each has measured the other's clock (before that a cmd_vel of
+        # ttl 2 s is refused stale at the link: docs/seams.md section 8)
+        wait_for(lambda: all(b.link.stats()["connected"] and b.reliability.offsets.peers()
+                             for b in bridges.values())
                  and cmd_pub.get_subscription_count() and log_pub.get_subscription_count(),
                  what="bridges up")
         published_cmd, published_log = 80, 40

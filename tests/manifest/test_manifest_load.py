@@ -21,7 +21,7 @@ def test_demo_manifest_is_exactly_the_contract():
         "surface": ("127.0.0.1", 4000, link), "vehicle": ("127.0.0.1", 4001, link)}
     topics = [(t.name, t.id, t.type_name, t.publisher, t.policy, t.profile) for t in m.topics]
     assert topics == [
-        ("/turtle1/cmd_vel", 4, "geometry_msgs/msg/Twist", "surface", LinkPolicy(5.0, "latest", 1, 1.0, 10), "packed"),
+        ("/turtle1/cmd_vel", 4, "geometry_msgs/msg/Twist", "surface", LinkPolicy(5.0, "latest", 1, 2.0, 10), "packed"),
         ("/turtle1/pose", 5, "turtlesim/msg/Pose", "vehicle", LinkPolicy(2.0, "latest", 1, 2.0, 5), "packed"),
         ("/vehicle/battery", 6, "sensor_msgs/msg/BatteryState", "vehicle", LinkPolicy(0.2, "latest", 1, 10.0, 1), "native"),
         ("/vehicle/log", 7, "std_msgs/msg/String", "vehicle", LinkPolicy(None, "fifo", 8, 60.0, 0), "native"),

@@ -84,3 +84,19 @@ def test_a_replayed_or_forged_packet_is_refused_whatever_the_offset():
         assert v.receive(data) == [twist(2.0)]
         assert v.receive(data) == [] and v.receive(first) == []     # replays
         assert v.stats()["replay"] == 2
+
+
+def test_a_peer_far_behind_at_start_is_named_with_the_figure_at_its_first_packet(caplog):
+    import logging
+    s, v, _, _ = pair(-30.0, None)
+    with caplog.at_level(logging.WARNING, logger="uwgen.security"):
+        assert v.receive(s.send(twist(1.0))) == [] and v.receive(s.send(twist(2.0))) == []
+    assert v.stats()["before_start"] == 2
+    told = [r.getMessage() for r in caplog.records if "before_start" in r.getMessage()
+            and "stamped" in r.getMessage()]
+    assert len(told) == 1 and "stamped 30.0 s behind our clock" in told[0] and "GPS or NTP" in told[0]
+    s, v, _, _ = pair(-2.0, None)                    # within the tolerance: a packet on its way
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="uwgen.security"):
+        v.receive(s.send(twist(1.0)))
+    assert not [r for r in caplog.records if "stamped" in r.getMessage()]

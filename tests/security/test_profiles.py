@@ -21,6 +21,7 @@ topics:
     type: geometry_msgs/msg/Twist
     publisher: surface
     rate: 2
+    queue: fifo        # every message leaves (a latest topic is counted once a packet)
     profile: packed
     fields:
       linear.x: {min: -2, max: 2, precision: 2}

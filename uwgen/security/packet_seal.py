@@ -92,6 +92,7 @@ class PacketSeal(SideSeal):
         self.requests = control.SyncRequests(ASK_GAP)
         self._told_length: set[int] = set()     # peers whose other tag length was logged
         self._told_time: set[int] = set()       # peers whose refused time T was logged
+        self._told_before: set[int] = set()     # peers whose far T before our start was logged
         self._offset_of = None                  # sender -> measured clock offset (use_offsets)
 
     def use_offsets(self, offset_of) -> None:
@@ -206,6 +207,8 @@ class PacketSeal(SideSeal):
         if isinstance(got, str):
             if got == "stale" and e.sync is not None:
                 self._tell_time(e)
+            if got == "before_start":
+                self._tell_before(e)
             if got == "unsynced" or got == "before_start" and self._nearly_started(e.time):
                 self.requests.want(e.sender, self.clock.now())
             if got == "bad_tag" and e.sync is not None and self._other_length(data, e.sender):
@@ -218,10 +221,9 @@ class PacketSeal(SideSeal):
         return got
 
     def _nearly_started(self, time24: int) -> bool:
-        """Whether a packet refused `before_start` was stamped less than `ASK_BEFORE` s before
-        this side started: a peer whose clock is behind by d looks so until d has passed; its
-        answer to a sync request, sealed a round trip later, then passes at once (the clock
-        exchange needs its K and T)."""
+        """Whether a packet refused `before_start` was stamped under `ASK_BEFORE` s before our
+        start (a peer whose clock is behind looks so until it passes our start): its answer to
+        a sync request, sealed a round trip later, then passes (the clock exchange needs it)."""
         return self.receiver.started - sent_at(time24, self.wall.now()) < ASK_BEFORE
 
     def _offset(self, sender: int):
@@ -267,6 +269,21 @@ class PacketSeal(SideSeal):
                   "GPS or NTP; if only some are, packets are being held back or replayed",
                   self.name, e.sender, self.config.peers.get(e.sender, "?"), abs(apparent),
                   "behind" if apparent > 0 else "ahead of", self.freshness.tolerance)
+
+    def _tell_before(self, e: env.Envelope) -> None:
+        """A packet refused `before_start` stamped further behind than the tolerance: its
+        sender's clock may be that far behind; said once per sender, with the figure."""
+        behind = self.freshness.age(e.time, self.wall.now())
+        if e.sender in self._told_before or behind <= self.freshness.tolerance:
+            return
+        self._told_before.add(e.sender)
+        log.warning("[%s] sender %d (%s): a packet of a new epoch stamped %.1f s behind our clock, "
+                    "before this side started, was refused (counted before_start): a recording, "
+                    "a packet held since before our start, or that sender's clock is about %.0f s "
+                    "behind ours; if its clock, it is heard and its offset measured once its "
+                    "stamps pass our start, and its commands refused (clock_offset) until both "
+                    "clocks are set from GPS or NTP", self.name, e.sender,
+                    self.config.peers.get(e.sender, "?"), behind, behind)
 
     def _other_length(self, data: bytes, sender: int) -> bool:
         """Whether sync packet `data` verifies at another tag length (logged once per peer)."""

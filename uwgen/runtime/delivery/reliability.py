@@ -38,7 +38,7 @@ from dataclasses import asdict
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
 from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD, SHORT_OVERHEAD
-from uwgen.runtime.delivery.freshness import stamp
+from uwgen.runtime.delivery.freshness import MAX_AGE, TICKS_PER_SECOND, stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.packets import PacketHooks, message_measure
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
@@ -101,7 +101,8 @@ class Reliability:
         self.deadlines = {k: (DEFAULT_DEADLINE if t is None else t) for k, t in reliable.items()}
         self.max_ages = dict(max_ages)
         self.heads = Heads(numbered=frozenset(wire_id(k) for k in reliable),
-                           aged=frozenset(max_ages))
+                           aged=frozenset(max_ages),
+                           lone=frozenset(i for i, age in max_ages.items() if age <= MAX_AGE))
         self.ack_delay = ack_delay if ack_delay is not None else max(1.0, 4 * period)
         self.ack_interval = ack_interval if ack_interval is not None else max(2.0, 8 * period)
         # The retransmission timer's first value and floor are the MAC's (docs/seams.md
@@ -137,7 +138,8 @@ class Reliability:
                            overhead=OVERHEAD, next_overhead=self.next_overhead,
                            part_room=self.part_room, carrying=self.carrying, resend=self.resend,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
-                           head_room=self.head_room, admit=self.admit, stats=self.stats,
+                           head_room=self.head_room, admit=self.admit,
+                           shape=self.shape, unshape=self.heads.with_age, stats=self.stats,
                            **numbering)
 
     def number(self) -> int:
@@ -161,6 +163,12 @@ class Reliability:
     def part_room(self, key: int) -> int:
         """T (3 bytes, once a packet) for a message of an entry with a max age."""
         return env.TIME_LEN if wire_id(key) in self.max_ages else 0
+
+    def shape(self, envelope: env.Envelope) -> env.Envelope:
+        """The packet as it leaves: a lone message with a max age gives T its publication
+        time and leaves its age item out (wire-format.md section 14.3; `Heads.with_age` puts it
+        back at the receiver)."""
+        return self.heads.without_age(envelope, TICKS_PER_SECOND)
 
     def head_room(self, key: int) -> int:
         return self.heads.room(wire_id(key))

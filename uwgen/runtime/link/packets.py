@@ -87,6 +87,10 @@ class PacketHooks:
     part_room: Callable[[int], int] | None = None
     admit: Callable[[bytes, float], bytes | None] | None = None
     stats: Callable[[], dict] | None = None
+    # the envelope as it leaves, before the seal, and as it arrives, after the seal's check
+    # (one age item a packet left out, wire-format.md section 14.3); with the message heads
+    shape: Callable[[env.Envelope], env.Envelope] | None = None
+    unshape: Callable[[env.Envelope], env.Envelope] | None = None
 
 
 def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
@@ -140,7 +144,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
         return sum(h.next_overhead(now) if h.next_overhead is not None else h.overhead
                    for h in given)
 
-    header = _one(given, ("stamp", "head_room", "admit"), "give message heads")
+    header = _one(given, ("stamp", "head_room", "admit", "shape", "unshape"), "give message heads")
     resender = _one(given, ("resend",), "re-send messages")
     carriers = [h.carrying for h in given if h.carrying is not None]
     askers = [h.ack_only for h in given if h.ack_only is not None]
@@ -178,6 +182,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
                        ack_only=ack_only if askers else None,
                        next_time=next_time if timers else None,
                        stamp=header.stamp, head_room=header.head_room, admit=header.admit,
+                       shape=header.shape, unshape=header.unshape,
                        part_room=part_room if roomers else None,
                        stats=stats if reporters else None)
 
@@ -295,6 +300,8 @@ class Packer:
         try:
             envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, env.ordered(messages),
                                     **(h.parts(now) if h.parts is not None else {}))
+            if h.shape is not None:
+                envelope = h.shape(envelope)
             data = h.seal(envelope) if h.seal is not None else envelope.encode()
         except env.EnvelopeError as e:
             log_count(log, logging.ERROR, self.counters.inc("refused_payloads", len(picked)),
@@ -336,6 +343,8 @@ class Unpacker:
             except env.EnvelopeError as e:
                 return self._bad(data, e)
         c.inc("packets_received")
+        if self.hooks.unshape is not None:
+            envelope = self.hooks.unshape(envelope)
         if self.hooks.received is not None:
             self.hooks.received(envelope, now)
         out = []

@@ -13,13 +13,20 @@ and the schema fingerprint makes sure they agree):
   4.5 h; larger ages are sent as 65535). The packet's T is when it was built, so the
   message was published at T - age.
 
-N comes first when an entry has both. This module is pure: bytes and numbers in and out.
+N comes first when an entry has both.
+
+One age item a packet is not sent (wire-format.md section 14.3): on a packet with T but no K, no
+A part and no fragment, carrying exactly one whole message of an entry with a max age, T is
+that message's publication time (the build time less its age) and its age item is left out:
+`without_age` makes that packet from the usual one as it leaves, `with_age` gives a received
+one its age item back (0: T is the publication time), so everything after reads the same head
+and judges the same age. This module is pure: bytes and numbers in and out.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
-from uwgen.runtime.wire.envelope import EnvelopeError, Message, from_v1, to_v1
+from uwgen.runtime.wire.envelope import FRAGMENT, TIME_LEN, Envelope, EnvelopeError, Message, from_v1, to_v1
 
 AGE_UNIT = 0.25               # seconds per unit of the age item
 MAX_AGE_UNITS = 0xFFFF        # a 3-byte CBOR item at most
@@ -71,6 +78,9 @@ class Heads:
 
     numbered: frozenset[int] = frozenset()
     aged: frozenset[int] = frozenset()
+    # the aged ids whose age may ride in T (section 14.3): those whose max age is at most the
+    # seal's default, which a sealed packet's T is checked against (None: every aged id)
+    lone: frozenset[int] | None = None
     _next: dict[int, int] = field(default_factory=dict)
 
     def room(self, ident: int) -> int:
@@ -107,3 +117,53 @@ class Heads:
         if m.id in self.aged:
             age, pos = decode_age(m.body, pos)
         return Received(to_v1(Message(m.kind, m.id, m.body[pos:])), number, age)
+
+    # -- one age item a packet left out (section 14.3) ----------------------------------------
+
+    def lone_aged(self, envelope: Envelope) -> int | None:
+        """The index of the packet's one whole message with a max age when its T stands for
+        that message's publication: T, no K, no A part, no fragment and exactly one such
+        message, of an id in `lone`; else None (T is the build time and every such message
+        has its age item)."""
+        if envelope.time is None or envelope.sync is not None or envelope.ack is not None:
+            return None
+        found = None
+        for k, m in enumerate(envelope.messages):
+            if m.kind == FRAGMENT:
+                return None
+            if m.id in self.aged:
+                if found is not None:
+                    return None
+                found = k
+        if found is not None and self.lone is not None and envelope.messages[found].id not in self.lone:
+            return None
+        return found
+
+    def without_age(self, envelope: Envelope, ticks_per_second: int) -> Envelope:
+        """The envelope as it is sent: for a lone aged message (`lone_aged`), its age item
+        left out and T moved back by that age (T's ticks of 1/`ticks_per_second` s)."""
+        k = self.lone_aged(envelope)
+        if k is None:
+            return envelope
+        m = envelope.messages[k]
+        pos = 1 if m.id in self.numbered else 0
+        try:
+            age, end = decode_age(m.body, pos)
+        except HeadError:
+            return envelope                  # not a head of ours: sent as it is
+        time = (envelope.time - round(age * ticks_per_second)) % (1 << 8 * TIME_LEN)
+        messages = list(envelope.messages)
+        messages[k] = Message(m.kind, m.id, m.body[:pos] + m.body[end:])
+        return replace(envelope, messages=tuple(messages), time=time)
+
+    def with_age(self, envelope: Envelope) -> Envelope:
+        """A received envelope with its lone aged message's age item back: 0, since T is
+        that message's publication time."""
+        k = self.lone_aged(envelope)
+        if k is None:
+            return envelope
+        m = envelope.messages[k]
+        pos = min(len(m.body), 1 if m.id in self.numbered else 0)
+        messages = list(envelope.messages)
+        messages[k] = Message(m.kind, m.id, m.body[:pos] + encode_age(0.0) + m.body[pos:])
+        return replace(envelope, messages=tuple(messages))
