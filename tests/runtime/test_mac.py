@@ -80,15 +80,6 @@ def test_the_leader_ends_its_turn_at_its_first_packet_without_messages():
     assert write(lead, 0.21) == bytes([0x22, 2])
 
 
-def test_the_leader_gives_notice_when_nothing_more_waits_and_then_grants_whatever_comes():
-    lead, _ = pair()
-    lead.carries = True
-    lead.backlog = lambda now: False                 # this packet empties its queue
-    assert write(lead, 0.0) == bytes([0x22, 0])      # so the next one grants: notice now
-    lead.backlog = lambda now: True                  # something came meanwhile: it rides,
-    assert write(lead, 0.21) == bytes([0x22, 2])     # and the grant goes as announced
-
-
 def test_a_follower_writes_at_most_the_packets_granted():
     _, follower = pair()
     follower.backlog = lambda now: True

@@ -19,9 +19,9 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   packets, the last carrying C item 3 (end of turn); the leader takes the turn back when it
   hears the end, or when its timer (from measured turn round trips) runs out: the miss is
   counted and the next side is granted, so a lost grant or answer costs one timeout and a
-  side that starts late or restarts answers the next grant naming it. The packet before the
-  leader's last gives notice of the grant (`2S 00`) when the leader knows it is (its count
-  reached next, or nothing more waiting): a follower that heard it and lost the grant takes its turn all the same once the grant's packet has ended. Needs no change inside
+  side that starts late or restarts answers the next grant naming it. The packet before a
+  full turn's last gives notice of the grant (`2S 00`): a follower that heard it and lost the
+  grant takes its turn all the same once the grant's packet has ended. Needs no change inside
   DESERT and no clock agreement: every timer starts from an event this side saw.
   `settled_by` tells delivery that a peer's answer was built after all of this side's packets
   of the turn before it had arrived or been lost (a report there names their loss at once).
@@ -233,7 +233,6 @@ class TurnMac(Mac):
         self._heard_in_wait = 0
         self._turn_until = INF            # follower: a turn not used by then is dropped
         self._notice_at = INF             # follower: its turn starts then if the grant is lost
-        self._noticed = False             # leader: this turn's notice has left: the next grants
         self._last_end: float | None = None   # follower: when it last wrote its turn's end
         self.counts = {k: 0 for k in ("turns", "grants_sent", "grants_heard", "ends_heard",
                                       "missed", "recovered", "dropped_turns", "not_mine",
@@ -277,7 +276,6 @@ class TurnMac(Mac):
 
     def _own_turn(self) -> None:
         self._holding, self._granted, self._sent = True, self.my_packets, 0
-        self._noticed = False
 
     # -- what each packet carries ---------------------------------------------------------
 
@@ -288,14 +286,11 @@ class TurnMac(Mac):
         # The leader keeps its turn while its packets carry messages (a command stream
         # offered at the link's pace fills it); a follower while more is queued.
         more = self.carries if self.leading else self.backlog(now)
-        if self._sent < self._granted and more and not self._noticed:
+        if self._sent < self._granted and more:
             self._closing = None
-            if self.leading and self.followers and (self._sent == self._granted - 1
-                                                    or not self.backlog(now)):
-                # the next packet is the last (the count is reached, or nothing more waits):
-                # tell its follower now, so one lost packet does not lose the follower's
-                # whole turn (rule 1, the notice); the next packet grants, whatever comes
-                self._noticed = True
+            if self.leading and self.followers and self._sent == self._granted - 1:
+                # the next packet is the last: tell its follower now, so one lost packet
+                # does not lose the follower's whole turn (rule 1, the notice)
                 sid, _ = self.followers[self._next % len(self.followers)]
                 return encode_items([MacItem(TURN_GRANT, sid, 0)])
             return b""
