@@ -14,6 +14,10 @@ secured), so acknowledgements and the clock offset's exchange flow; air bytes pe
 message against a baseline commit's code (`--baseline`, `main` for the branch's start), and
 what they carry part by part (DESERT, frame, P, W, K, T, A, C, message heads, the reliability
 heads N and age, tag, body; docs/wire-format.md section 14.3). Goals: 15 unsecured, 21 secured.
+Table 0b, the same mix as the demo runs it: under its manifest's MAC (turns: the surface grants
+each side 2 packets a turn; the emulator's core carries the packets, envelope_turns), beside
+the row without a MAC above, same run: per delivered message and part by part (C: the MAC's
+grants and ends), messages delivered per topic, refused stale, the MAC's turns.
 
 Table 1, the demo's mix, secured as the demo is (docs/demo.md): cmd_vel published at 10 Hz
 (encrypted, packed, rate 5), pose at 10 Hz (signed, packed, rate 2), battery at 1 Hz (signed,
@@ -52,15 +56,10 @@ from uwgen.bridge.schema import encode_announcements
 from uwgen.manifest.model import LinkConfig, LinkPolicy
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.wire import envelope
-from uwgen.runtime.wire.framing import FrameDecoder
-
-try:            # wire format 3's short frame (it reads long frames too)
-    from uwgen.runtime.wire.framing import ShortFrameDecoder
-except ImportError:     # a baseline build (--baseline): the long frame only
-    ShortFrameDecoder = FrameDecoder
 from uwgen.runtime.link.link import Link
 
-from envelope_parts import DESERT_HEADER, SimWall, air_parts, baseline, counting_heads, print_table0
+from envelope_parts import DESERT_HEADER, SimWall, air_parts, baseline, breakdown, counting_heads, print_table0
+from envelope_turns import mac_kw, merge, outcome, print_turns, run_on_core
 from uwgen.security.guard import GuardConfig, LinkGuard
 
 try:            # the per-packet seal (wire-format 12.2): what a bridge uses on wire format 2 links
@@ -88,11 +87,13 @@ class Pair:
 
     def __init__(self, wire: int, src: str = "a", dst: str = "b", *, secure_dir: Path | None = None,
                  packed: frozenset[int] = frozenset(), fragment_id: int | None = 250,
-                 tag_bytes: int = envelope.TAG_LEN, bridge: bool = False):
+                 tag_bytes: int = envelope.TAG_LEN, bridge: bool = False, turns: bool = False):
         """`bridge`: the demo's sides with the hooks a bridge gives its link (reliability,
         joined with the seal when secured: uwgen.bridge.node), both of them sending (`run`
         carries each side's writes to the other, so acknowledgements and the clock offset's
-        exchange flow as between real bridges); their wall clock follows the simulation's."""
+        exchange flow as between real bridges); their wall clock follows the simulation's.
+        `turns`: each side with the demo manifest's MAC, through the emulator's core
+        (envelope_turns)."""
         self.clock = ManualClock()
         self.two_way = bridge and wire == 2
         wall = SimWall(self.clock)
@@ -101,10 +102,11 @@ class Pair:
         self.air = 0
         self.packets = 0
         self.written = 0
+        self.macs, self.rel, self.seals = {}, {}, {}
         kw = dict(config=CONFIG, clock=self.clock, fragment_id=fragment_id, rng=random.Random(1))
         if wire == 2:
             kw.update(wire_format=2, packed_ids=packed)
-        guards, seals = {}, {}
+        guards, seals = {}, self.seals
         if secure_dir is not None:
             for side, other in ((src, dst), (dst, src)):
                 cfg = GuardConfig("demo", SENDERS[side], {SENDERS[other]: other}, MODES,
@@ -124,21 +126,27 @@ class Pair:
         if bridge and wire == 2:
             from uwgen.bridge.plan import BridgePlan
             from uwgen.bridge.reliability import reliability_for
-            from uwgen.runtime.link.packets import join_hooks
+            try:
+                from uwgen.runtime.link.hooks import join_hooks
+            except ImportError:     # a baseline build (--baseline): in the packer's module
+                from uwgen.runtime.link.packets import join_hooks
             for side in (src, dst):
                 plan = BridgePlan.from_package(demo, side)
                 seal = hooks.get(side)
-                rel = reliability_for(plan, CONFIG, wall,   # T on the wall clock, as the seal's
-                                      other_overhead=seal.overhead if seal is not None else 0)
+                over = seal.overhead if seal is not None else 0
+                rel = self.rel[side] = reliability_for(   # T on the wall clock, as the seal's
+                    plan, CONFIG, wall, **(mac_kw(self, plan, side, CONFIG, over) if turns
+                                           else {"other_overhead": over}))
                 hooks[side] = join_hooks(rel.hooks(), seal)
                 hooks[side] = counting_heads(self, hooks[side])
         self.returned: list[bytes] = []     # what the sender receives (two_way)
-        self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}),
+        macs = {side: {"mac": m} for side, m in self.macs.items()}
+        self.sender = Link(name=src, **({"guard": guards[src]} if guards else {}), **macs.get(src, {}),
                            **({"hooks": hooks[src]} if src in hooks else {}), **kw_src,
                            **({"on_payload": self.returned.append} if self.two_way else {}))
         if self.two_way:
             kw = dict(kw, sender_id=SENDERS.get(dst, 0))
-        self.receiver = Link(name=dst, on_payload=self.delivered.append,
+        self.receiver = Link(name=dst, on_payload=self.delivered.append, **macs.get(dst, {}),
                              **({"guard": guards[dst]} if guards else {}),
                              **({"hooks": hooks[dst]} if dst in hooks else {}), **kw)
         self.wire, self.tag_bytes = wire, tag_bytes
@@ -155,36 +163,16 @@ class Pair:
             self.receiver.guard.unprotect = counted
 
     def breakdown(self) -> dict[str, int]:
-        """Air bytes by what they carry: DESERT's header, frames, packet heads (P, W and
-        parts; wire format 2), message heads (kind and id items; H, id and length bytes),
-        security (what protection added) and bodies (the rest: seq, handles, fields)."""
-        out = dict.fromkeys(("DESERT", "frame", "packet head", "message head", "security", "body"), 0)
-        out["DESERT"] = DESERT_HEADER * len(self.batches)
-        out["security"] = self.security
-        for batch in self.batches:
-            frames = (ShortFrameDecoder() if self.wire == 2 else FrameDecoder()).feed(batch)
-            out["frame"] += len(batch) - sum(map(len, frames))
-            for f in frames:
-                if self.wire == 2:
-                    e = envelope.decode(f, self.tag_bytes)
-                    tag = len(e.tag) if e.sealed else 0            # the per-packet seal's
-                    out["packet head"] += e.head_size() - tag
-                    out["security"] += tag
-                    bodies = sum(len(m.body) for m in e.messages)
-                    out["message head"] += len(f) - e.head_size() - bodies
-                    out["body"] += bodies
-                else:
-                    m = envelope.from_v1(f)
-                    out["message head"] += len(f) - len(m.body)
-                    out["body"] += len(m.body)
-        out["body"] -= self.security
-        return out
+        """Air bytes by what they carry (table 1: envelope_parts.breakdown)."""
+        return breakdown(self.batches, self.wire, self.tag_bytes, self.security)
 
     def parts(self) -> dict[str, int]:
         """Air bytes of wire format 2+ by part (table 0's breakdown: envelope_parts.air_parts)."""
         return air_parts(self.batches, self.tag_bytes, self.message_items)
 
     def run(self, seconds: float, before_write=None) -> None:
+        if self.macs:
+            return run_on_core(self, seconds, before_write, CONFIG)
         conn, rx = self.sender.connection, self.receiver.connection
         box = conn.outbox
         ways = [(conn, rx)] + ([(rx, conn)] if self.two_way else [])
@@ -229,18 +217,20 @@ def battery(k: int) -> BatteryState:
 
 
 def demo_mix(wire: int, seconds: float, tmp: Path | None,
-             tag_bytes: int = envelope.TAG_LEN, bridge: bool = False) -> tuple[int, int, dict[str, int]]:
+             tag_bytes: int = envelope.TAG_LEN, bridge: bool = False, turns: bool = False,
+             seen: dict | None = None) -> tuple[int, int, dict[str, int]]:
     """Air bytes, delivered messages and the air bytes' breakdown of both directions of the
     demo's traffic (`tmp` None: unsecured). `bridge`: with a bridge's reliability hooks, both
     directions on one pair of links at once, as between real bridges (each side's packets
-    carry the acknowledgements of the other's); else each direction alone."""
+    carry the acknowledgements of the other's); else each direction alone. `turns`: under
+    the demo manifest's MAC; `seen`: filled with envelope_turns.outcome (and packets)."""
     air = delivered = 0
     parts: dict[str, int] = {}
     packed = frozenset(i for i, c in {**demo.TOPICS, **demo.SERVICES}.items() if c.profile == "packed")
     ways = [("surface", "vehicle")] if bridge and wire == 2 else [("surface", "vehicle"), ("vehicle", "surface")]
     for src, dst in ways:
         pair = Pair(wire, src, dst, secure_dir=tmp, packed=packed, tag_bytes=tag_bytes,
-                    bridge=bridge)
+                    bridge=bridge, turns=turns)
         sides = [(pair.sender, src)] + ([(pair.receiver, dst)] if pair.two_way else [])
         events = sorted((e for link, side in sides for e in load(pair, link, side, seconds)),
                         key=lambda e: e[0])
@@ -255,6 +245,8 @@ def demo_mix(wire: int, seconds: float, tmp: Path | None,
 
         pair.run(seconds, offers)
         air += pair.air
+        if seen is not None:
+            merge(seen, {**outcome(pair), "packets": pair.packets})
         delivered += sum(1 for p in pair.delivered + pair.returned
                          if p[1] != 249 and not p.startswith(b"\x00\x18\xf9"))
         for k, v in (pair.parts() if bridge else pair.breakdown()).items():
@@ -364,15 +356,21 @@ def fragments(wire: int, size: int, repair: int = 0) -> tuple[int, int, bool]:
     return pair.packets, pair.written, pair.delivered == [payload]
 
 
-def as_deployed(seconds: float) -> dict[str, float]:
+def as_deployed(seconds: float, turns: bool = False, detail: bool = False) -> dict[str, float]:
     """Air bytes per delivered message of the demo's mix as the bridges send it (their
-    reliability hooks, the per-packet seal with the 8-byte tag when secured)."""
+    reliability hooks, the per-packet seal with the 8-byte tag when secured); `turns`: under
+    the demo manifest's MAC; `detail`: with messages, packets and envelope_turns.outcome."""
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         for label, secure in (("unsecured", None), ("secured", Path(tmp))):
-            air, n, parts = demo_mix(2, seconds, secure, envelope.TAG_LEN, bridge=True)
+            seen = {} if detail else None
+            air, n, parts = demo_mix(2, seconds, secure, envelope.TAG_LEN, bridge=True,
+                                     turns=turns, seen=seen)
             out[label] = air / n
             out[label + " parts"] = {k: v / n for k, v in parts.items()}
+            if detail:
+                out[label + " messages"], out[label + " packets"] = n, seen.pop("packets")
+                out[label + " outcome"] = seen
     return out
 
 
@@ -389,8 +387,9 @@ def main() -> None:
         print(json.dumps(as_deployed(s)))
         return
     if args.baseline != "none":
-        base, now = baseline(Path(__file__).resolve(), ROOT, args.baseline, s), as_deployed(s)
+        base, now = baseline(Path(__file__).resolve(), ROOT, args.baseline, s), as_deployed(s, detail=True)
         print_table0(args.baseline, base, now)
+        print_turns({"no MAC": now, "turns": as_deployed(s, turns=True, detail=True)}, s)
 
     print("Table 1: the demo's mix, secured: air bytes per delivered message (both directions); "
           f"wire format 2 sealed {'per packet (PacketSeal)' if PacketSeal else 'per message (LinkGuard)'}")

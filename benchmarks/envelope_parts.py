@@ -2,7 +2,8 @@
 
 `air_parts` splits the air bytes of wire format 2+ packets by part (docs/wire-format.md
 section 14.3), `baseline` runs the same table on another commit's code, `print_table0` prints
-both; `SimWall` is the wall clock the bridges' hooks stamp T with, following the simulation.
+both; `SimWall` is the wall clock the bridges' hooks stamp T with, following the simulation;
+`breakdown` splits table 1's air bytes (frames, packet and message heads, security, bodies).
 """
 from __future__ import annotations
 
@@ -17,10 +18,12 @@ from pathlib import Path
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.wire import envelope
 
+from uwgen.runtime.wire.framing import FrameDecoder
+
 try:            # wire format 3's short frame (it reads long frames too)
     from uwgen.runtime.wire.framing import ShortFrameDecoder
 except ImportError:     # a baseline build: the long frame only
-    from uwgen.runtime.wire.framing import FrameDecoder as ShortFrameDecoder
+    ShortFrameDecoder = FrameDecoder
 
 DESERT_HEADER = 4
 PARTS = ("DESERT", "frame", "P", "W", "K", "T", "A", "C", "msg head", "N, age", "tag", "body")
@@ -103,6 +106,31 @@ def baseline(script: Path, root: Path, rev: str, seconds: float) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def breakdown(batches: list[bytes], wire: int, tag_bytes: int, security: int) -> dict[str, int]:
+    """Air bytes by what they carry: DESERT's header, frames, packet heads (P, W and
+    parts; wire format 2), message heads (kind and id items; H, id and length bytes),
+    security (what protection added) and bodies (the rest: seq, handles, fields)."""
+    out = dict.fromkeys(("DESERT", "frame", "packet head", "message head", "security", "body"), 0)
+    out["DESERT"] = DESERT_HEADER * len(batches)
+    out["security"] = security
+    for batch in batches:
+        frames = (ShortFrameDecoder() if wire == 2 else FrameDecoder()).feed(batch)
+        out["frame"] += len(batch) - sum(map(len, frames))
+        for f in frames:
+            if wire == 2:
+                e = envelope.decode(f, tag_bytes)
+                tag = len(e.tag) if e.sealed else 0            # the per-packet seal's
+                out["packet head"] += e.head_size() - tag
+                out["security"] += tag
+                bodies = sum(len(m.body) for m in e.messages)
+                out["message head"] += len(f) - e.head_size() - bodies
+                out["body"] += bodies
+            else:
+                m = envelope.from_v1(f)
+                out["message head"] += len(f) - len(m.body)
+                out["body"] += len(m.body)
+    out["body"] -= security
+    return out
 
 
 def print_table0(rev: str, base: dict, now: dict) -> None:

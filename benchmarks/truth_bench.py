@@ -50,7 +50,7 @@ from uwgen.manifest.model import LinkPolicy                               # noqa
 from uwgen.runtime.clock import ManualClock                               # noqa: E402
 from uwgen.runtime.delivery import staleness                              # noqa: E402
 from uwgen.runtime.delivery.reliability import Reliability                # noqa: E402
-from uwgen.runtime.link.packets import join_hooks                         # noqa: E402
+from uwgen.runtime.link.hooks import join_hooks                         # noqa: E402
 from uwgen.security.guard import GuardConfig                              # noqa: E402
 from uwgen.security.packet_seal import PacketSeal                         # noqa: E402
 

@@ -21,10 +21,10 @@ from uwgen.codegen.ir import IRBuilder, variant_name
 from uwgen.manifest.model import DEFAULT_TAG_BYTES, NATIVE, PACKED, RMW_DESERT, Manifest, takes_part
 from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
 from uwgen.runtime.wire.envelope import VERSION as ENVELOPE_VERSION
-from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD, SHORT_OVERHEAD
 from uwgen.security.packet_seal import max_overhead
 
-PACKET_ALONE = FRAME_OVERHEAD + ENVELOPE_HEAD   # an envelope link: frame, P and W around one message
+PACKET_ALONE = SHORT_OVERHEAD + ENVELOPE_HEAD   # an envelope link: the short frame, P and W around one message
 DEFAULT_BITRATE = 4800.0    # bit/s of DESERT's default modem settings used by the emulator
 
 

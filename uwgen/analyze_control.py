@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 from uwgen.manifest.model import RMW_DESERT, Manifest, takes_part
 from uwgen.runtime.wire.envelope import HEAD as ENVELOPE_HEAD, v1_message_size
-from uwgen.runtime.wire.framing import MAX_PAYLOAD, OVERHEAD as FRAME_OVERHEAD
+from uwgen.runtime.wire.framing import MAX_PAYLOAD, OVERHEAD as FRAME_OVERHEAD, SHORT_OVERHEAD
 from uwgen.runtime.link.packets import envelope_room
 
 DESERT_PACKET_OVERHEAD = 4   # bytes DESERT adds per packet (wire format section 1)
@@ -115,7 +115,7 @@ def control_costs(manifest: Manifest, bitrate: float, wire: int,
             for k, p in enumerate(payloads, 1):
                 what = f"schema announcement {k}/{len(payloads)}"
                 if wire != 1:
-                    written = FRAME_OVERHEAD + ENVELOPE_HEAD + v1_message_size(p, last=True) + typical
+                    written = SHORT_OVERHEAD + ENVELOPE_HEAD + v1_message_size(p, last=True) + typical
                     sc.items.append(ControlItem(what, len(p), written, 1, air_time(written, 1, bitrate)))
                 else:
                     sc.items.append(_frame_item(what, p + bytes(typical), mrl, bitrate))

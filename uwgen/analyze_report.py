@@ -16,7 +16,7 @@ def format_analysis(a: Analysis, max_read_length: dict[str, int]) -> str:
              f"at {a.bitrate:g} bit/s"]
     if a.wire_format != 1:
         lines.append(f"wire format {a.wire_format}: payload = the message in its packet's envelope (header H, no kind "
-                     "and id items); frame = that message alone in a packet (+ 4 frame, + 3 P and W); "
+                     "and id items); frame = that message alone in a packet (+ 1 short frame, + 3 P and W); "
                      "messages sharing a packet pay 1 length byte each instead")
     if a.tag_bytes is not None:
         lines.append(f"secure link: one {a.tag_bytes}-byte tag per packet (security tag_bytes; "

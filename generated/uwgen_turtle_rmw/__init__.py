@@ -121,14 +121,14 @@ TOPICS = {
     4: TopicCodec(
         id=4, name="/turtle1/cmd_vel", type_name="geometry_msgs/msg/Twist",
         publisher="surface", profile="rmw_desert",
-        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0, strict=False, reliable=False),
+        policy=LinkPolicy(rate=5.0, queue='latest', depth=1, ttl=1.0, priority=10, repair=0, strict=False, reliable=False, cut=True),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("geometry_msgs/msg/Twist", "rmw_desert")],
         fingerprint=bytes.fromhex("06253889")),
     5: TopicCodec(
         id=5, name="/turtle1/pose", type_name="turtlesim/msg/Pose",
         publisher="vehicle", profile="rmw_desert",
-        policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0, strict=False, reliable=False),
+        policy=LinkPolicy(rate=1.0, queue='latest', depth=1, ttl=2.0, priority=5, repair=0, strict=False, reliable=False, cut=True),
         qos=Qos(reliability='reliable', durability='volatile', depth=10),
         codec=CODECS[("turtlesim/msg/Pose", "rmw_desert")],
         fingerprint=bytes.fromhex("e397c0c7")),
@@ -138,7 +138,7 @@ SERVICES = {
     6: ServiceCodec(
         id=6, name="/turtle1/teleport_absolute", type_name="turtlesim/srv/TeleportAbsolute",
         server="vehicle", timeout=10.0, profile="rmw_desert",
-        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0, strict=False, reliable=False),
+        policy=LinkPolicy(rate=None, queue='fifo', depth=4, ttl=None, priority=0, repair=0, strict=False, reliable=False, cut=True),
         request=CODECS[("turtlesim/srv/TeleportAbsolute_Request", "rmw_desert")],
         response=CODECS[("turtlesim/srv/TeleportAbsolute_Response", "rmw_desert")],
         ros_import=("turtlesim.srv", "TeleportAbsolute"),

@@ -98,16 +98,16 @@ def test_demo_budget_fits_but_warns_about_entries_without_rate(demo):
     lib = InterfaceLibrary([SAMPLES], installed=True)
     a = analyze(replace(manifest, mac=MacConfig()), lib.get, 4800.0)
     surface = next(b for b in a.budgets if b.side == "surface")
-    # 5 cmd_vel messages of 6 bytes per second, each alone in a packet (+ 4 frame, + 3 P and
-    # W: 13), each packet 8 bytes more sealed (the tag, wire format section 12.2), plus the
+    # 5 cmd_vel messages of 6 bytes per second, each alone in a packet (+ 1 short frame, + 3 P
+    # and W: 10), each packet 8 bytes more sealed (the tag, wire format section 12.2), plus the
     # schema announcement of the 7 ids every 600 s. Its 47 bytes (00 18 F9 00, then id + 44 +
     # 4 bytes each, id 30 taking 2 bytes) would not leave whole in one sealed 64-byte packet
     # (room 58, up to 23 of it the seal's: 35), so it is split as the bridge splits it:
     # payloads of 34 and 17 bytes, messages of 33 and 16 behind H 00 F9, + 7 alone, + 8
-    # sealed: 48 and 31. The action's goals have no rate: warned about below.
+    # sealed: 45 and 28. The action's goals have no rate: warned about below.
     assert a.wire_format == 4          # the envelope of wire format section 14
-    assert surface.schema == pytest.approx((48 + 31) / 600)
-    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (13 + 8) + (48 + 31) / 600)
+    assert surface.schema == pytest.approx((45 + 28) / 600)
+    assert surface.capacity == 320.0 and surface.typical == pytest.approx(5 * (10 + 8) + (45 + 28) / 600)
     assert any("/vehicle/log has no rate limit" in w for w in a.warnings())
     assert not any("cannot fit" in w for w in a.warnings())
 
@@ -161,7 +161,7 @@ def test_traffic_that_cannot_fit_is_a_clear_warning_and_strict_fails(tmp_path):
     (tmp_path / "uwgen.yaml").write_text(TIGHT_AT_FLOOR)
     res = run_cli("-m", tmp_path / "uwgen.yaml", "--strict")
     assert res.returncode == 1, res.stderr
-    assert "WARNING: side surface: configured traffic needs 310.0 B/s" in res.stdout   # 5/s x 62-byte packets
+    assert "WARNING: side surface: configured traffic needs 295.0 B/s" in res.stdout   # 5/s x 59-byte packets
     assert "DOES NOT FIT" in res.stdout
 
 
@@ -226,15 +226,15 @@ topics:
 
 def test_capacity_is_limited_by_the_bit_rate_as_well_as_by_the_period(tmp_path):
     # 64 B every 0.2 s is 320 B/s, but a 200 bit/s modem carries 25 B/s, 64 of every 68
-    # of them payload (DESERT adds 4 bytes per packet): 23.5 B/s. Five 17-byte packets a
-    # second (wire format 2: a 15-byte frame's message, 1 byte shorter, + 3 bytes of P and W;
-    # each 0.84 s on the air) cannot fit.
+    # of them payload (DESERT adds 4 bytes per packet): 23.5 B/s. Five 14-byte packets a
+    # second (wire format 4: the 10-byte message, 3 bytes of P and W and the 1-byte short
+    # frame; each 0.72 s on the air) cannot fit.
     (tmp_path / "uwgen.yaml").write_text(SLOW_MODEM)
     res = subprocess.run([str(UWGEN), "analyze", "-m", str(tmp_path / "uwgen.yaml"), "--bitrate", "200",
                           "--strict"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 1, res.stdout + res.stderr
     surface = next(line.split() for line in res.stdout.splitlines() if line.startswith("  surface "))
-    assert surface == ["surface", "23.5", "bit", "rate", "85.0", "85.0", "DOES", "NOT", "FIT"]
+    assert surface == ["surface", "23.5", "bit", "rate", "70.0", "70.0", "DOES", "NOT", "FIT"]
     assert "200 bit/s" in res.stdout
     fast = subprocess.run([str(UWGEN), "analyze", "-m", str(tmp_path / "uwgen.yaml"), "--strict"],
                           capture_output=True, text=True, timeout=60)

@@ -51,9 +51,12 @@ def run_two_way(package, mac: MacConfig, seconds: float = 6.0, distance: float =
         surface.node("op").create_subscription(String, "/log", logs.append, 10)
         cmd_pub = surface.node("op_pub").create_publisher(Twist, "/cmd_vel", 10)
         log_pub = vehicle.node("sim_pub").create_publisher(String, "/log", 10)
-        wait_for(lambda: all(b.link.stats()["connected"] for b in bridges.values())
+        # up, and each has measured the other's clock (docs/seams.md section 8): a command
+        # with a max age under the clock tolerance is refused before that exchange
+        wait_for(lambda: all(b.link.stats()["connected"] and b.reliability.offsets.peers()
+                             for b in bridges.values())
                  and cmd_pub.get_subscription_count() and log_pub.get_subscription_count(),
-                 what="bridges up")
+                 timeout=30.0, what="bridges up and clocks measured")
         end = time.monotonic() + seconds
         k = 0
         while time.monotonic() < end:          # both sides offer more than the link carries

@@ -227,3 +227,33 @@ def test_strict_must_be_a_boolean(tmp_path):
         topics:
           - {name: /alarm, id: 3, type: std_msgs/msg/String, publisher: surface, strict: 1}
         """)
+
+
+def test_cut_is_on_unless_a_topic_or_the_defaults_turn_it_off(tmp_path):
+    m = load_text(tmp_path, SIDES + """
+        defaults: {cut: false}
+        topics:
+          - {name: /a, id: 3, type: std_msgs/msg/String, publisher: surface, cut: true}
+          - {name: /b, id: 4, type: std_msgs/msg/String, publisher: surface}
+        """)
+    assert [t.policy.cut for t in m.topics] == [True, False]
+    assert load_text(tmp_path, SIDES + """
+        topics:
+          - {name: /b, id: 4, type: std_msgs/msg/String, publisher: surface}
+        """).topics[0].policy.cut
+
+
+def test_cut_is_a_boolean_and_a_topics_key_only(tmp_path):
+    import pytest
+    from uwgen.manifest.loader import ManifestError
+    with pytest.raises(ManifestError, match=r"cut of .* must be true or false"):
+        load_text(tmp_path, SIDES + """
+        topics:
+          - {name: /a, id: 3, type: std_msgs/msg/String, publisher: surface, cut: 2}
+        """)
+    with pytest.raises(ManifestError, match=r"cut") as e:     # a service has a timeout
+        load_text(tmp_path, SIDES + """
+        services:
+          - {name: /s, id: 5, type: std_srvs/srv/Trigger, server: surface, cut: true}
+        """)
+    assert e.value.where.line > 0

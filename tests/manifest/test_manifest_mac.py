@@ -74,7 +74,7 @@ def test_turns_on_a_wire_format_1_network_is_refused(tmp_path):
         topics:
           - {name: /chatter, id: 3, type: std_msgs/msg/String, publisher: surface, profile: rmw_desert}
         """)
-    assert "wire format 2" in error.message and error.where.line == 6
+    assert "wire format 4" in error.message and error.where.line == 6
 
 
 def test_a_mac_given_on_the_command_line_reads_as_the_manifests():

@@ -44,7 +44,7 @@ RMW = HEAD.replace("security: off}", "security: off, profile: rmw_desert}")
 def test_a_wire_format_1_link_refuses_a_short_tag_where_it_is_written(tmp_path):
     err = error_of(tmp_path, RMW.replace("tag_bytes: 6", "tag_bytes: 4"))
     assert (err.where.line, err.where.column) == (2, 63)
-    assert "tag_bytes 4 applies to wire format 2 links only" in err.message
+    assert "tag_bytes 4 applies to wire format 4 links only" in err.message
     assert "/raw (line 8) is in profile rmw_desert" in err.message
     assert "8-byte tag" in err.message
 

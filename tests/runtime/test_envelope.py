@@ -7,8 +7,8 @@ from dataclasses import replace
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from uwgen.runtime.wire.envelope import (FRAGMENT, Envelope, EnvelopeError, Message, Sync, decode,
-                                         from_v1, ordered, to_v1)
+from uwgen.runtime.wire.envelope import (CUT_HEAD, CUT_TAIL, FRAGMENT, Envelope, EnvelopeError,
+                                         Message, Sync, decode, from_v1, ordered, to_v1)
 
 
 def test_one_message_envelope_is_p_w_h_body():
@@ -131,7 +131,16 @@ grouped = st.builds(
     tag=st.none() | st.binary(min_size=8, max_size=8))
 
 
-@given(envelopes | grouped)
+tails = st.builds(lambda b: Message(CUT_TAIL, 0, b), st.binary(min_size=1, max_size=20))
+heads = st.builds(lambda k, i, b: Message(CUT_HEAD | k, i, b), st.sampled_from([0, 2, 3, 7]),
+                  st.integers(1, 255), st.binary(min_size=1, max_size=20))
+with_cuts = st.builds(                      # cut parts (section 14.2) among the messages
+    lambda e, tail, head, at: replace(e, messages=(*e.messages[:at], *tail, *e.messages[at:],
+                                                   *head)),
+    envelopes, st.lists(tails, max_size=1), st.lists(heads, max_size=1), st.integers(0, 6))
+
+
+@given(envelopes | grouped | with_cuts)
 @settings(max_examples=400)
 def test_every_envelope_decodes_to_itself_in_blocks(env):
     got = decode(env.encode())
@@ -184,7 +193,7 @@ def test_decoder_is_total_and_what_it_accepts_has_one_encoding(data):
     assert env.encode() == data
 
 
-@given(envelopes, st.data())
+@given(envelopes | with_cuts, st.data())
 @settings(max_examples=300)
 def test_a_damaged_envelope_is_refused_or_reencodes_exactly(env, data):
     raw = bytearray(env.encode())

@@ -9,7 +9,7 @@ from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer, message_measure
 from uwgen.runtime.link.scheduler import LinkScheduler
 from uwgen.runtime.stats import Counters
 from uwgen.runtime.wire import envelope
-from uwgen.runtime.wire.framing import OVERHEAD
+from uwgen.runtime.wire.framing import SHORT_OVERHEAD as OVERHEAD   # the short frame's LEN
 
 
 def link(max_ages: dict[int, float], reliable=None, mrl: int = 64):
@@ -35,9 +35,9 @@ def test_a_packet_without_timed_messages_or_a_due_ack_keeps_no_room_for_them():
     fill(s, 4)
     data = packer.next_packet(0.0)
     e = envelope.decode(data)
-    # 64 - 4 (frame) - 3 (P, W) = 57 bytes: a run of 13 4-byte bodies (3 bytes of head)
-    assert len(e.messages) == 13 and e.time is None and e.ack is None
-    assert len(data) + OVERHEAD == 62             # 11 messages while 9 bytes were kept free
+    # 64 - 1 (frame) - 3 (P, W) = 60 bytes: a run of 14 4-byte bodies (3 bytes of head)
+    assert len(e.messages) == 14 and e.time is None and e.ack is None
+    assert len(data) + OVERHEAD == 63             # 11 messages while 9 bytes were kept free
 
 
 def test_a_timed_message_brings_its_t_and_the_packet_still_fits():
@@ -64,4 +64,4 @@ def test_an_ack_that_is_due_gets_its_room_and_the_packet_still_fits():
     assert e.ack and len(data) + OVERHEAD <= 64
     assert rel.next_overhead(0.1) == 0          # reported: nothing due on the next packet
     e = envelope.decode(packer.next_packet(0.1))
-    assert e.ack is None and len(e.messages) == 13
+    assert e.ack is None and len(e.messages) == 14

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from uwgen.runtime.wire import envelope
-from uwgen.runtime.link.packets import PacketHooks, join_hooks
+from uwgen.runtime.link.hooks import PacketHooks, join_hooks
 
 
 def test_parts_of_joined_hooks_are_merged_and_overheads_added():
@@ -69,9 +69,9 @@ def test_the_packer_uses_the_sealers_number_and_leaves_the_room_it_asks_for():
     class Queue:
         items = [(4, bytes((0, 4)) + bytes(20)) for _ in range(5)]
 
-        def next_payload(self, now, budget=None, exclude=None, *, fill=False, **_):
-            if not self.items or (budget is not None and 23 > budget):
-                return None
+        def next_payload(self, now, budget=None, exclude=None, *, fill=False, cut=None, **_):
+            if not self.items or (budget is not None and 23 > budget) or cut is not None:
+                return None                 # (nothing is cut: whole messages only)
             return self.items.pop(0)
     sent = []
     hooks = PacketHooks(number=lambda: 4096 + 3, overhead=30, next_overhead=lambda now: 0,

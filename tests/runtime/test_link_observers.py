@@ -6,7 +6,7 @@ import random
 from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.linksim import LinkSim
 from uwgen.manifest.model import LinkPolicy
-from uwgen.runtime.link.packets import PacketHooks
+from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.wire.framing import encode_frame
 
 

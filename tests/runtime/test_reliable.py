@@ -166,3 +166,32 @@ def test_command_timer_never_fires_before_the_answer_could_come_back():
     assert far.rto >= 4.9                             # never below the least round trip
     turns = command_rtt(10.0, 0.2, round_trip=0.5, turn_gap=3.0)
     assert turns.rto == 3.2                           # a period and the turn gap
+
+
+@pytest.mark.parametrize("arrives, delivered, lost", [
+    ({0, 1, 2}, 1, 0),          # head and tail arrived: the message did
+    ({1, 2}, 0, 1),             # the head's packet lost
+    ({0, 2}, 0, 1),             # the tail's packet lost: the head arrived alone
+])
+def test_a_cut_message_is_delivered_only_when_both_of_its_packets_arrived(arrives, delivered, lost):
+    # wire-format.md 14.2: the message cut at packet 0's end is finished at packet 1's head
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(4, "whole", None), Sent(7, "cut", None)], 0.0)
+    s.cut(0)
+    s.sent(1, [Sent(4, "after", None)], 0.2)
+    s.sent(2, [Sent(4, "last", None)], 0.4)
+    exchange(s, r, [0, 1, 2], arrives, 1.0)
+    s.acked(r.ack_for(SURFACE, 3.0), 4.0)
+    assert (s.entry(7).sent, s.entry(7).delivered, s.entry(7).lost_on_link) == (1, delivered, lost)
+    assert s.entry(4).delivered == len(arrives) and s.in_flight() == {}
+
+
+def test_a_message_moved_whole_to_the_next_packet_shares_that_packets_fate():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(4, "a", None), Sent(7, "moved", None)], 0.0)
+    s.cut(0, moved=True)
+    s.sent(1, [Sent(4, "b", None)], 0.2)
+    s.sent(2, [Sent(4, "c", None)], 0.4)
+    exchange(s, r, [0, 1, 2], {1, 2}, 1.0)          # packet 0 lost, packet 1 (the message) arrived
+    s.acked(r.ack_for(SURFACE, 3.0), 4.0)
+    assert (s.entry(7).sent, s.entry(7).delivered, s.entry(7).lost_on_link) == (1, 1, 0)

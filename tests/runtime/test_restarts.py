@@ -14,7 +14,7 @@ from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.delivery.reliability import Reliability
-from uwgen.runtime.link.packets import join_hooks
+from uwgen.runtime.link.hooks import join_hooks
 from uwgen.security.packet_seal import PacketSeal
 
 from runtime.test_reliability_link import BEST_EFFORT, RELIABLE, Wall, closes

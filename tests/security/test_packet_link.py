@@ -11,7 +11,7 @@ from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.wire.framing import ShortFrameDecoder
 from uwgen.runtime.link.link import Link
-from uwgen.runtime.link.packets import join_hooks
+from uwgen.runtime.link.hooks import join_hooks
 from uwgen.security.packet_seal import PacketSeal
 
 from .helpers import KEY, WALL0, config, twist

@@ -5,7 +5,7 @@ from __future__ import annotations
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.wire.codec import pack_items
-from uwgen.runtime.link.packets import PacketHooks, join_hooks
+from uwgen.runtime.link.hooks import PacketHooks, join_hooks
 from uwgen.security.guard import SYNC_EVERY
 from uwgen.security.packet_seal import MAX_OVERHEAD, PacketSeal
 

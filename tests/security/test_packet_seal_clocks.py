@@ -6,7 +6,7 @@ from __future__ import annotations
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.delivery.clock_offset import Offset
 from uwgen.runtime.delivery.freshness import stamp
-from uwgen.runtime.link.packets import PacketHooks, join_hooks
+from uwgen.runtime.link.hooks import PacketHooks, join_hooks
 
 from .helpers import WALL0, twist
 from .packets import surface, vehicle

@@ -28,7 +28,9 @@ class Queue:
     def __init__(self, items):
         self.items = list(items)
 
-    def next_payload(self, now, budget=None, exclude=None, *, fill=False, **_):
+    def next_payload(self, now, budget=None, exclude=None, *, fill=False, cut=None, **_):
+        if cut is not None:           # fragments are never cut (wire-format.md section 14.2)
+            return None
         if not self.items or (budget is not None and env.v1_message_size(self.items[0][1]) > budget):
             return None
         return self.items.pop(0)

@@ -47,7 +47,7 @@ from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
 from uwgen.bridge.wiring import Wiring, qos_profile
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.link.mac import mac_for
-from uwgen.runtime.link.packets import join_hooks
+from uwgen.runtime.link.hooks import join_hooks
 
 __all__ = ["BridgeNode", "BRIDGE_NODE_PREFIX", "default_link_factory", "node_name_for",
            "qos_profile"]

@@ -57,7 +57,9 @@ DEFAULTS_KEYS = (*POLICY_KEYS, "qos")
 TOPIC_KEYS = ("name", "id", "type", "publisher", *POLICY_KEYS, "qos", "profile", "fields", "security",
               "reliability")
 LINK_RELIABILITY = ("best_effort", "reliable")
-SERVICE_KEYS = ("name", "id", "type", "server", "timeout", *POLICY_KEYS, "profile",
+# `cut` is a topic's: a service's messages have a max age (its timeout), and those are never cut
+SERVICE_KEYS = ("name", "id", "type", "server", "timeout",
+                *(k for k in POLICY_KEYS if k != "cut"), "profile",
                 "request_fields", "response_fields", "security")
 
 

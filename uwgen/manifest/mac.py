@@ -143,9 +143,10 @@ def _packets(r: Reader, fields: dict, sides: dict[str, Side]) -> tuple[tuple[str
 
 
 def check_turns_wire(r: Reader, node: yaml.Node, config: MacConfig, uses_rmw_desert: bool) -> None:
-    """Turn-taking needs the C part of wire format 2: refused on a wire format 1 network."""
+    """Turn-taking needs the C part of the envelope (wire format 4): refused on a wire format 1
+    network."""
     if config.mode == "turns" and uses_rmw_desert:
-        raise r.error(node, "mac mode turns needs wire format 2 (its grants are C items), but an "
+        raise r.error(node, "mac mode turns needs wire format 4 (its grants are C items), but an "
                       "entry in profile rmw_desert keeps this network on wire format 1: use "
                       "mode tdma or none")
 

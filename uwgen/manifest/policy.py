@@ -1,4 +1,4 @@
-"""Link policies (rate, queue, depth, ttl, priority, repair, strict) and ROS QoS of manifest
+"""Link policies (rate, queue, depth, ttl, priority, repair, strict, cut) and ROS QoS of manifest
 entries, each key falling back to `defaults:` and then to the model's defaults."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import yaml
 from uwgen.manifest.model import DURABILITY, FIFO_DEFAULT_DEPTH, QUEUE_KINDS, RELIABILITY, LinkPolicy, Qos
 from uwgen.manifest.nodes import Reader
 
-POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair", "strict")
+POLICY_KEYS = ("rate", "queue", "depth", "ttl", "priority", "repair", "strict", "cut")
 QOS_KEYS = ("reliability", "durability", "depth")
 MAX_REPAIR = 32            # repair fragments per message (wire format section 11)
 
@@ -25,10 +25,13 @@ def read_policy(r: Reader, entries: dict, defaults: dict, base: LinkPolicy, labe
         return None, False
 
     rate, ttl, priority, queue = base.rate, base.ttl, base.priority, base.queue
-    repair, strict = base.repair, base.strict
+    repair, strict, cut = base.repair, base.strict, base.cut
     node, _ = pick("strict")
     if node is not None:
         strict = r.boolean(node, f"strict of {label}")
+    node, _ = pick("cut")
+    if node is not None:
+        cut = r.boolean(node, f"cut of {label}")
     node, _ = pick("repair")
     if node is not None:
         repair = r.integer(node, f"repair of {label}", 0, MAX_REPAIR)
@@ -58,7 +61,7 @@ def read_policy(r: Reader, entries: dict, defaults: dict, base: LinkPolicy, labe
         if depth_node is not None:
             depth = r.integer(depth_node, f"depth of {label}", 1)
     return LinkPolicy(rate=rate, queue=queue, depth=depth, ttl=ttl, priority=priority, repair=repair,
-                      strict=strict)
+                      strict=strict, cut=cut)
 
 
 def read_qos(r: Reader, node: yaml.Node, base: Qos) -> Qos:

@@ -118,6 +118,6 @@ class SecurityCheck:
             return
         first = next(e for e in (*manifest.topics, *manifest.services) if e.profile == RMW_DESERT)
         raise self.r.error(self.tag_node, f"security tag_bytes {manifest.security.tag_bytes} applies "
-                           f"to wire format 2 links only, and {first.name} (line {first.where.line}) "
+                           f"to wire format 4 links only, and {first.name} (line {first.where.line}) "
                            f"is in profile rmw_desert, so this link speaks wire format 1, whose "
                            f"per-payload seal has an 8-byte tag: remove tag_bytes (or give 8)")

@@ -10,6 +10,6 @@
                                   re-sends of reliable entries, staleness and freshness
 
 wire imports nothing of link or delivery; link imports wire; delivery plugs into the link
-through its packet hooks (`uwgen.runtime.link.packets.PacketHooks`).
+through its packet hooks (`uwgen.runtime.link.hooks.PacketHooks`).
 tests/structure/test_imports.py holds the order.
 """

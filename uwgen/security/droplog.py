@@ -27,7 +27,7 @@ WHY = {
     "unknown_sender": "a sender id no side of the manifest has",
     "reflected": "this side's own sender id (a frame sent back to us)",
     "unsynced": "no epoch of this sender yet; waiting for one of its sync frames",
-    "unprotected": "not protected, but the manifest protects this id (wire format 2: a packet "
+    "unprotected": "not protected, but the manifest protects this id (an envelope link: a packet "
                    "without a tag on a secured link)",
     "truncated": "too short to be a protected payload",
     "malformed": "no readable header (kind, id, seq), or a sync part (K) without its time (T)",

@@ -47,7 +47,7 @@ class LinkGuard(SideSeal):
                  epoch_numbers: int = EPOCH_NUMBERS, summary_period: float = SUMMARY_PERIOD):
         if config.tag_bytes != wire.TAG_BYTES:
             raise SecurityError(f"the per-payload seal of wire format 1 has an {wire.TAG_BYTES}-byte "
-                                f"tag, not {config.tag_bytes} (tag_bytes is for wire format 2 links)")
+                                f"tag, not {config.tag_bytes} (tag_bytes is for envelope links, wire format 4)")
         super().__init__(master, config, clock=clock, wall=wall, name=name, window=window,
                          lock=lock, epoch_source=epoch_source, epoch_numbers=epoch_numbers,
                          summary_period=summary_period)

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import SYSTEM_CLOCK, WALL_CLOCK, Clock
 from uwgen.runtime.delivery.freshness import sent_at, stamp
-from uwgen.runtime.link.packets import PacketHooks
+from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.stats import log_count
 from uwgen.security import control, packetwire, taglength, wire
 from uwgen.security.droplog import SUMMARY_PERIOD, log

@@ -15,7 +15,7 @@ CARRIED = {
     'codec': ('uwgen.runtime.wire.codec', '4978fbc6b356b179'),
     'typed_arrays': ('uwgen.runtime.wire.typed_arrays', 'a7a4d7c2bb1ee58e'),
     'columns': ('uwgen.runtime.wire.columns', '58f6da582c99cb9e'),
-    'model': ('uwgen.manifest.model', 'e969a9f468da2739'),
+    'model': ('uwgen.manifest.model', '87d239fd70893b57'),
     'framing': ('uwgen.runtime.wire.framing', 'acfb905f49ffe931'),
     'bits': ('uwgen.runtime.wire.bits', '39059f7b8ccf3421'),
     'rosclasses': ('uwgen.runtime.wire.rosclasses', '2b344e10ce05559c'),

@@ -50,6 +50,9 @@ class LinkPolicy:
     strict: bool = False        # served before every non-strict entry whenever it has a message
     reliable: bool = False      # acknowledged and re-sent until its ttl (topics with
                                 # `reliability: reliable`; wire format 15); never rmw_desert
+    cut: bool = True            # a message that does not fit the rest of a packet may be cut
+                                # and finished in the next (wire format 14.2; never a reliable
+                                # entry or one with a max age)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Reliable delivery wired into a wire format 2 link (docs/wire-format.md section 15).
 
 `Reliability(...).hooks()` is reliability's `PacketHooks` (docs/seams.md section 5); the
-bridge joins it with the seal's (`packets.join_hooks`) and passes it to `Link(hooks=)`. It
+bridge joins it with the seal's (`hooks.join_hooks`) and passes it to `Link(hooks=)`. It
 drives the pure engine `uwgen.runtime.delivery.reliable.ReliableLink`:
 
 - sending: every packet's messages are told to the engine (`sent`), with the deadline of
@@ -40,7 +40,8 @@ from uwgen.runtime.clock import WALL_CLOCK, Clock
 from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.delivery.freshness import MAX_AGE, TICKS_PER_SECOND, stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
-from uwgen.runtime.link.packets import PacketHooks, message_measure
+from uwgen.runtime.link.hooks import PacketHooks
+from uwgen.runtime.link.packets import message_measure
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
 from uwgen.runtime.delivery.reliable import REPORT_KEY, ReliableLink, RttEstimator, Sent
 from uwgen.runtime.delivery.judge import AgeJudge
@@ -137,6 +138,7 @@ class Reliability:
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
                            overhead=OVERHEAD, next_overhead=self.next_overhead,
                            part_room=self.part_room, carrying=self.carrying, resend=self.resend,
+                           cut=self.cut,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
                            head_room=self.head_room, admit=self.admit,
                            shape=self.shape, unshape=self.heads.with_age, stats=self.stats,
@@ -241,6 +243,12 @@ class Reliability:
             else:
                 to |= self.destinations.get(wire_id(m.key), self._everyone)
         return to
+
+    def cut(self, number: int, moved: bool = False) -> None:
+        """Packet `number`'s last message was cut (or, `moved`, goes whole in the next packet):
+        the ledger waits for the next packet's fate too (wire-format.md section 14.2)."""
+        with self._lock:
+            self.engine.cut(number, moved)
 
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:

@@ -20,7 +20,7 @@ the A part's bytes are `uwgen.runtime.delivery.reports`.
 from __future__ import annotations
 
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Iterable
 
 from uwgen.runtime.delivery.receiving import (DELIVERED_MEMORY, RECEIVED_WINDOW,  # noqa: F401
@@ -30,6 +30,7 @@ from uwgen.runtime.delivery.reports import (DELAY_UNIT, MAX_BITMAP, MAX_DELAY_UN
                                             decode_reports, encode_reports, unwrap)
 
 LOSS_THRESHOLD = 1               # a packet is lost once one later packet is acknowledged
+FATES_KEPT = 256                 # settled packets whose fate a cut message's head may ask
                                  # (one acoustic path: no reordering; see wire-format 15)
 MESSAGE_MOD = 256                # the reliable head's message number N is one byte
 REPORT_KEY = -1                  # Sent.key of an acknowledgement a packet carried (ref: what
@@ -89,6 +90,7 @@ class Sent:
     key: int
     ref: Any
     deadline: float | None          # None: best effort
+    tail: int | None = None         # a cut message: the packet its tail rides in (14.2)
 
 
 @dataclass
@@ -137,6 +139,10 @@ class ReliableLink(Receiving):
         self.timer_resends = 0                         # reliable messages whose timer ran out
         self.bad_acks = 0
         self.confirmed: list[Any] = []                 # refs of our reports the peer received
+        # the fate of recently settled packets (True: acknowledged), for the tails of cut
+        # messages whose head's packet settles after them
+        self._fates: OrderedDict[int, bool] = OrderedDict()
+        self._moved: Sent | None = None     # a message the next packet carries whole (cut)
 
     def entry(self, key: int) -> EntryLedger:
         return self.ledger.setdefault(key, EntryLedger())
@@ -151,6 +157,8 @@ class ReliableLink(Receiving):
             if m.key != REPORT_KEY:
                 self.entry(m.key).sent += 1
         waiting = None if to is None else set(to)
+        if self._moved is not None:         # counted sent with the packet it was taken for
+            messages, self._moved = [*messages, self._moved], None
         self.outstanding[number] = _Packet(number, now, list(messages), waiting=waiting)
         self.largest_sent = number
 
@@ -218,11 +226,44 @@ class ReliableLink(Receiving):
         for m in packet.messages:
             self._again(m, now, fast=True)
 
+    def cut(self, number: int, moved: bool = False) -> None:
+        """Packet `number`'s last message was cut (wire format 14.2): it reached the peer only
+        if the next packet, which carries its tail, did too. `moved`: it went whole in the
+        next packet instead, whose fate alone is its own."""
+        packet = self.outstanding.get(number)
+        mine = [m for m in packet.messages if m.key != REPORT_KEY] if packet is not None else []
+        if not mine:
+            return
+        if moved:
+            packet.messages.remove(mine[-1])
+            self._moved = replace(mine[-1], tail=None)
+        else:
+            mine[-1].tail = number + 1
+
+    def _settled(self, number: int, arrived: bool) -> None:
+        self._fates[number] = arrived
+        while len(self._fates) > FATES_KEPT:
+            self._fates.popitem(last=False)
+
     def _delivered_packet(self, packet: _Packet) -> None:
+        self._settled(packet.number, True)
         for m in packet.messages:
             if m.key == REPORT_KEY:
                 self.confirmed.append(m.ref)
                 continue
+            if m.tail is not None:
+                # the head arrived; the message did if its tail did
+                tail = self.outstanding.get(m.tail)
+                if tail is not None:
+                    tail.messages.append(replace(m, tail=None))
+                    continue
+                fate = self._fates.get(m.tail)
+                if fate is None:
+                    self.entry(m.key).unacknowledged += 1
+                    continue
+                if not fate:
+                    self.entry(m.key).lost_on_link += 1
+                    continue
             self.entry(m.key).delivered += 1
         if packet.timed_out:
             self.spurious += 1
@@ -235,6 +276,7 @@ class ReliableLink(Receiving):
             packet.fate_unknown = True
 
     def _lost(self, packet: _Packet, now: float) -> None:
+        self._settled(packet.number, False)
         for m in packet.messages:
             if m.key == REPORT_KEY:
                 continue

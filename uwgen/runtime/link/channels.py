@@ -151,6 +151,7 @@ class Channel:
     turn: int = 0                                # the scheduler's serve count when last served
     passed_in: int | None = None                 # the packet whose tail passed it over, since
                                                  # it was last served (see `_pick`)
+    cuttable: bool = False                       # its messages may be cut across two packets
 
     @property
     def priority(self) -> int:

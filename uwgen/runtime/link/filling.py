@@ -16,6 +16,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from uwgen.runtime.wire.cuts import TAIL_HEAD
+from uwgen.runtime.wire.envelope import (CUT_HEAD, EnvelopeError, Message, encode_messages,
+                                         from_v1)
+
+CUT_MIN = 3       # bytes of body a cut head carries at least: a cut costs 2 bytes of heads more
+                  # than the whole message (63 and H' where H was, 64 and a length byte where
+                  # its length byte was), so a smaller head hardly pays for the second packet
+                  # the message then needs
+
 
 def reachable(sizes: Sequence[int], budget: int) -> int:
     """Bit set of the totals (at most `budget`) that some subset of `sizes` adds up to."""
@@ -44,3 +53,29 @@ def first_keeping_best(sizes: Sequence[int], budget: int) -> int | None:
         if reachable([*sizes[:i], *sizes[i + 1:]], budget - s) >> (target - s) & 1:
             return i
     return None
+
+
+def cut_point(messages: Sequence[Message], message: Message, limit: int, room: int) -> int | None:
+    """Where to cut `message` so that its head ends a packet already holding `messages`
+    (`limit`: the bytes of messages the packet holds) and its tail starts a packet of `room`
+    (its H and length byte counted, as a packet's room counts messages): the head's body
+    length, or None when the head would carry less than CUT_MIN bytes, the tail nothing, or
+    the tail would not fit (docs/wire-format.md section 14.2)."""
+    base = len(encode_messages([*messages, Message(CUT_HEAD | message.kind, message.id, b"")]))
+    first = limit - base
+    if first < CUT_MIN or first >= len(message.body):
+        return None
+    if TAIL_HEAD + len(message.body) - first > room:
+        return None
+    return first
+
+
+def added(messages: Sequence[Message], payload: bytes) -> int:
+    """The bytes a wire format 1 `payload` adds to a packet holding `messages`, as encoded: its
+    header, body and the length byte the message before it gains, or its body alone when it
+    joins a run (what the scheduler compares with the room left)."""
+    try:
+        m = from_v1(payload)
+    except EnvelopeError:
+        return len(payload) + 1
+    return len(encode_messages([*messages, m])) - len(encode_messages(messages))

@@ -17,7 +17,7 @@ Envelope links (`wire_format=2` here, links of profiles native and packed; they 
 envelope's wire format, `envelope.VERSION`, which `stats()` reports): each write is one frame
 holding one envelope of several messages (uwgen.runtime.link.packets, envelope; wire format section
 14); profile-`packed` payloads (ids in `packed_ids`) travel without their byte string's head.
-`hooks` (packets.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
+`hooks` (hooks.PacketHooks) are the seams of reliability and the per-packet seal. Wire format 1
 (the default, and what rmw_desert-profile links use) writes one frame per payload.
 
 Observers (`link.observers`): callables told of every packet written and read, with what became
@@ -44,8 +44,8 @@ from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.wire.framing import LONG, MAX_FRAME, MAX_PAYLOAD, SHORT
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
 from uwgen.runtime.link.mac import Mac
-from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, PacketHooks, Unpacker,
-                                        envelope_check, envelope_room, join_hooks,
+from uwgen.runtime.link.hooks import PacketHooks, join_hooks
+from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, Unpacker, envelope_check, envelope_room,
                                         message_measure)
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.probation import reconnect_cap
@@ -238,9 +238,9 @@ class Link:
         return lambda key: (protect(key) if protect else 0) + (head(key) if head else 0)
 
     def _next_ready(self, now: float) -> float | None:
-        """When the packer will next have something: a queued message, or what the hooks
-        want (an acknowledgement that must go alone, a message to send again)."""
-        times = [t for t in (self.scheduler.next_ready_time(now),
+        """When the packer will next have something: a queued message, a cut message's tail
+        (`Packer.tail_at`), or what the hooks want (an ack that must go alone, a re-send)."""
+        times = [t for t in (self.scheduler.next_ready_time(now), self.packer.tail_at(now),
                              self.hooks.next_time(now) if self.hooks.next_time else None)
                  if t is not None]
         return min(times) if times else None
@@ -250,7 +250,7 @@ class Link:
         (the MAC keeps the turn for it: a stream offered at the link's pace fills the turn)."""
         pacer = self.connection.pacer
         horizon = now + pacer.period * (1.0 + pacer.margin)
-        times = [self.scheduler.next_ready_time(now),
+        times = [self.scheduler.next_ready_time(now), self.packer and self.packer.tail_at(now),
                  hooks.next_time(now) if hooks.next_time is not None else None]
         return any(t is not None and t <= horizon for t in times)
 

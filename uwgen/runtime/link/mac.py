@@ -34,8 +34,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from uwgen.manifest.model import LinkConfig, MacConfig
-from uwgen.runtime.link.packets import PacketHooks
+from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN, PACKET_HEADER
+from uwgen.runtime.wire import envelope as env
 
 TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255);
                         # `2S 00`: notice that the leader's next packet grants S its turn
@@ -408,5 +409,5 @@ def mac_for(config: MacConfig | None, side: str, senders: dict[str, int],
     if config.mode == "tdma":
         return TdmaMac(config, side, link)
     if wire_format != 2:
-        raise ValueError("mac mode turns needs wire format 2 (its grants are C items)")
+        raise ValueError(f"mac mode turns needs an envelope link, wire format {env.VERSION} (its grants are C items)")
     return TurnMac(config, side, senders, link)

@@ -1,11 +1,12 @@
-"""Packets of wire format 2: one envelope per DESERT write, filled from the link scheduler.
+"""Packets of wire format 4: one envelope per DESERT write, filled from the link scheduler.
 
 `Packer.next_packet(now)` is called by the connection when it may write; it pulls messages from
-the scheduler while they fit one packet (`max_read_length` minus the frame's 4 bytes, P, W and
-whatever the hooks add), builds the envelope at that moment (so a seal is never older than the
-packet), and tells the hooks which messages went in which packet number. `Unpacker.feed(payload)`
-opens one received frame's envelope and returns its messages as wire format 1 payloads, for the
-link's fragment, security and dispatch layers, which are unchanged.
+the scheduler while they fit one packet (`max_read_length` minus the frame, P, W and what the
+hooks add), may end it with a cut message's head (wire-format.md 14.2), builds the envelope at
+that moment (so a seal is never older than the packet), and tells the hooks which messages went
+in which packet number. `Unpacker.feed(payload)` opens one received frame's envelope, joins cut
+messages and returns its messages as wire format 1 payloads, for the link's fragment, security
+and dispatch layers, which are unchanged.
 
 The seams of reliability and the seal (docs/seams.md section 5) are the `PacketHooks`:
 
@@ -26,7 +27,9 @@ The seams of reliability and the seal (docs/seams.md section 5) are the `PacketH
 
 Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"):
 
-- `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`;
+- `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`
+  (the cut tail a packet starts with is among them, as `64 body`: it takes room, but it is
+  in no `sent` list: its message went with the packet of its head);
 - `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
   `message_measure`, or None: served before the scheduler's messages;
 - `ack_only(now)` -> True when a packet must leave even without messages (an acknowledgement
@@ -52,7 +55,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from uwgen.runtime.link.filling import added, cut_point
+from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.wire import envelope as env
+from uwgen.runtime.wire.cuts import Joiner, cut
 from uwgen.runtime.wire.framing import MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.stats import Counters, log_count
 
@@ -61,138 +67,9 @@ OLD_ENVELOPES = (2, 3)      # envelope versions of earlier builds: counted versi
 OLD_SHORT_BITS = 3 << 5     # P of wire format 3, the first to use the short frame
 
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
-                   "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind", "refused_payloads", "opened_none",
-                   "ack_only_sent")
-
-
-@dataclass
-class PacketHooks:
-    """What reliability (wire-format.md section 15) and the per-packet seal (section 12.2) plug
-    into; all optional."""
-
-    parts: Callable[[float], dict] | None = None
-    seal: Callable[[env.Envelope], bytes] | None = None
-    open: Callable[[bytes], env.Envelope | None] | None = None
-    sent: Callable[[int, list[tuple[int, bytes]], float], None] | None = None
-    received: Callable[[env.Envelope, float], None] | None = None
-    overhead: int = 0
-    next_overhead: Callable[[float], int] | None = None
-    number: Callable[[], int] | None = None
-    carrying: Callable[[list[tuple[int, bytes]], float], None] | None = None
-    resend: Callable[[float, int], tuple[int, bytes] | None] | None = None
-    ack_only: Callable[[float], bool] | None = None
-    next_time: Callable[[float], float | None] | None = None
-    stamp: Callable[[int, bytes, float, float], bytes] | None = None
-    head_room: Callable[[int], int] | None = None
-    part_room: Callable[[int], int] | None = None
-    admit: Callable[[bytes, float], bytes | None] | None = None
-    stats: Callable[[], dict] | None = None
-    # the envelope as it leaves, before the seal, and as it arrives, after the seal's check
-    # (one age item a packet left out, wire-format.md section 14.3); with the message heads
-    shape: Callable[[env.Envelope], env.Envelope] | None = None
-    unshape: Callable[[env.Envelope], env.Envelope] | None = None
-
-
-def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
-    """One `PacketHooks` from several (reliability's and the seal's, docs/seams.md section 5).
-
-    `parts` are merged in order; C (`control`) items of several hooks are joined (the seal's
-    sync request, the MAC's grants and ends). T (`time`) may come from both (each stamps its own wall clock
-    as the packet is built, so they may differ by a tick): the first one given is kept. Any other
-    part two hooks give must have the same value, otherwise building the packet fails with
-    EnvelopeError.
-    At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise); its
-    `number` numbers the packets. `sent`, `received` and `carrying` are called in order;
-    `overhead` is the sum (an upper bound: a part two hooks both give is counted twice),
-    `next_overhead` the sum of each hook's (its `overhead` when it gives none). Likewise at most
-    one hook may give the message heads (`stamp`, `head_room`, `admit`) and at most one
-    `resend`; `ack_only` is any hook's, `next_time` the earliest, `stats` the union of the
-    hooks' dicts, `part_room` the sum."""
-    given = [h for h in hooks if h is not None]
-    sealers = [h for h in given if h.seal is not None or h.open is not None or h.number is not None]
-    if len(sealers) > 1:
-        raise ValueError("at most one of the joined hooks may seal and open packets")
-    sealer = sealers[0] if sealers else PacketHooks()
-    makers = [h.parts for h in given if h.parts is not None]
-    senders = [h.sent for h in given if h.sent is not None]
-    receivers = [h.received for h in given if h.received is not None]
-
-    def parts(now: float) -> dict:
-        out: dict = {}
-        for make in makers:
-            for name, value in make(now).items():
-                if name == "time" and name in out:
-                    continue
-                if name == "control" and name in out:
-                    out[name] = out[name] + value     # C items of the seal and of the MAC
-                    continue
-                if name in out and out[name] != value:
-                    raise env.EnvelopeError(f"two hooks give the envelope's {name} part "
-                                            f"different values ({out[name]!r}, {value!r})")
-                out[name] = value
-        return out
-
-    def sent(number: int, picked: list[tuple[int, bytes]], now: float) -> None:
-        for tell in senders:
-            tell(number, picked, now)
-
-    def received(envelope: env.Envelope, now: float) -> None:
-        for tell in receivers:
-            tell(envelope, now)
-
-    def next_overhead(now: float) -> int:
-        return sum(h.next_overhead(now) if h.next_overhead is not None else h.overhead
-                   for h in given)
-
-    header = _one(given, ("stamp", "head_room", "admit", "shape", "unshape"), "give message heads")
-    resender = _one(given, ("resend",), "re-send messages")
-    carriers = [h.carrying for h in given if h.carrying is not None]
-    askers = [h.ack_only for h in given if h.ack_only is not None]
-    timers = [h.next_time for h in given if h.next_time is not None]
-    reporters = [h.stats for h in given if h.stats is not None]
-    roomers = [h.part_room for h in given if h.part_room is not None]
-
-    def part_room(key: int) -> int:
-        return sum(room(key) for room in roomers)
-
-    def carrying(picked: list[tuple[int, bytes]], now: float) -> None:
-        for tell in carriers:
-            tell(picked, now)
-
-    def ack_only(now: float) -> bool:
-        return any(ask(now) for ask in askers)
-
-    def next_time(now: float) -> float | None:
-        times = [t for when in timers if (t := when(now)) is not None]
-        return min(times) if times else None
-
-    def stats() -> dict:
-        out: dict = {}
-        for report in reporters:
-            out.update(report())
-        return out
-
-    return PacketHooks(parts=parts if makers else None, seal=sealer.seal, open=sealer.open,
-                       sent=sent if senders else None, received=received if receivers else None,
-                       overhead=sum(h.overhead for h in given),
-                       next_overhead=(next_overhead if any(h.next_overhead is not None for h in given)
-                                      else None),
-                       number=sealer.number,
-                       carrying=carrying if carriers else None, resend=resender.resend,
-                       ack_only=ack_only if askers else None,
-                       next_time=next_time if timers else None,
-                       stamp=header.stamp, head_room=header.head_room, admit=header.admit,
-                       shape=header.shape, unshape=header.unshape,
-                       part_room=part_room if roomers else None,
-                       stats=stats if reporters else None)
-
-
-def _one(hooks: list[PacketHooks], names: tuple[str, ...], what: str) -> PacketHooks:
-    """The one hook that gives any of `names` (an empty PacketHooks when none does)."""
-    found = [h for h in hooks if any(getattr(h, n) is not None for n in names)]
-    if len(found) > 1:
-        raise ValueError(f"at most one of the joined hooks may {what}")
-    return found[0] if found else PacketHooks()
+                   "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind",
+                   "refused_payloads", "opened_none", "ack_only_sent",
+                   "cut_sent", "cut_dropped", "cut_joined", "cut_orphan")
 
 
 def envelope_room(max_read_length: int, overhead: int = 0) -> int:
@@ -204,10 +81,9 @@ def envelope_room(max_read_length: int, overhead: int = 0) -> int:
 
 
 def envelope_check(payload: bytes) -> bool:
-    """Whether `payload` decodes as an envelope (a sealed one with any tag length a link may
-    have): what the short frame's decoder asks of a start before it takes it. An envelope of
-    wire format 3 is taken when it would decode with this build's version bits (3 is 4 without
-    cut messages), so that the unpacker counts and logs its sender (`version_3`)."""
+    """Whether `payload` decodes as an envelope (sealed, with any tag length a link may have):
+    what the short frame's decoder asks of a start. One of wire format 3 is taken when it would
+    decode as 4 (3 is 4 without cuts), so that the unpacker counts its sender (`version_3`)."""
     if payload and payload[0] & env.VERSION_MASK == OLD_SHORT_BITS:
         payload = bytes((payload[0] & ~env.VERSION_MASK & 0xFF | env.VERSION_BITS,)) + payload[1:]
     for tag_len in env.TAG_LENGTHS:
@@ -246,6 +122,10 @@ class Packer:
         self.counters = counters
         self.name = name
         self.number = 0                     # the next packet's number (full count)
+        self.first: env.Message | None = None   # the cut tail the next packet starts with
+        self._cut_of: int | None = None         # the packet `first` was cut at (self.number)
+        self._moved = False                     # `first` is a whole message, not a tail
+        self.first_key = 0                       # and its channel
 
     def next_packet(self, now: float) -> bytes | None:
         picked: list[tuple[int, bytes]] = []
@@ -255,7 +135,17 @@ class Packer:
         charged = 0               # bytes of parts the picked messages bring (part_room)
         if h.next_overhead is not None:
             room = envelope_room(self.max_read_length, h.next_overhead(now))
-        budget = room
+        carried: list[tuple[int, bytes]] = []   # what `carrying` is told takes room
+        if self.first is not None:          # the rest of the message cut at the last packet's end
+            first, self.first = self.first, None
+            if first.size(last=False) <= room:
+                messages.append(first)
+                carried.append((self.first_key, env.to_v1(first)))
+            else:
+                log_count(log, logging.ERROR, self.counters.inc("cut_dropped"), "[%s] the rest "
+                          "of a cut message (%d bytes) does not fit the next packet (its parts "
+                          "took the room): the message is lost", self.name, len(first.body))
+        budget = room - len(env.encode_messages(messages)) - 1 if messages else room
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         # A message that brings a part (T) fits only with that part: the scheduler counts
         # `extra(key)` into each channel's next size; a re-sent one is offered the room less
@@ -268,8 +158,9 @@ class Packer:
         sources = [] if h.resend is None else [
             lambda room: h.resend(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0))]
         sources.append(lambda room: self.scheduler.next_payload(
-            now, room if picked else None, fill=True, packet=self.number,
-            extra=extra if roomy is not None else None))
+            now, room if messages else None, fill=True, packet=self.number,
+            extra=extra if roomy is not None else None,
+            measure=lambda payload: added(messages, payload)))
         for source in sources:
             while budget > 1:
                 got = source(budget)
@@ -291,11 +182,14 @@ class Packer:
                 # what the messages take as encoded (a message joining a run costs its body
                 # alone), counted as `message_measure` counts: each with a length byte
                 budget = room - charged - len(env.encode_messages(messages)) - 1
+        cut_at = self.number
+        if messages and budget > 1:
+            self._cut_last(now, messages, picked, room - charged - 1)
         if not messages:
             if h.ack_only is None or not h.ack_only(now):
                 return None
         if h.carrying is not None:
-            h.carrying(picked, now)
+            h.carrying(carried + picked, now)
         number = h.number() if h.number is not None else self.number
         try:
             envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, env.ordered(messages),
@@ -310,12 +204,52 @@ class Packer:
             return None
         if h.sent is not None:
             h.sent(number, picked, now)
+        if h.cut is not None and self.first is not None and self._cut_of == cut_at:
+            h.cut(number, moved=self._moved)    # the ledger waits for the tail's packet too
         self.number = number + 1
         self.counters.inc("packets_sent")
         self.counters.inc("messages_sent", len(messages))
         if not messages:
             self.counters.inc("ack_only_sent")
         return data
+
+    def tail_at(self, now: float) -> float | None:
+        """Now when the last packet ended with a cut message's head (its tail must go next,
+        even when every queue is empty), else None."""
+        return now if self.first is not None else None
+
+    def _cut_last(self, now: float, messages: list[env.Message], picked: list[tuple[int, bytes]],
+                  limit: int) -> None:
+        """End the packet with the head of the first message in claim order of a cuttable
+        channel that brings no part (T: an entry with a max age is judged by the packet that
+        carries it) and whose cut is worth it (`filling.cut_point`; `limit`: the bytes of
+        messages the packet holds); its tail starts the next packet (wire format 14.2)."""
+        roomy = self.hooks.part_room
+
+        def accept(key: int, payload: bytes) -> bool:
+            if roomy is not None and roomy(key):
+                return False
+            try:
+                m = env.from_v1(payload)
+            except env.EnvelopeError:
+                return False
+            return cut_point(messages, m, limit, self.room) is not None
+
+        got = self.scheduler.next_payload(now, fill=False, packet=self.number, cut=accept)
+        if got is None:
+            return
+        key, payload = got
+        picked.append((key, payload))
+        m = env.from_v1(payload)
+        at = cut_point(messages, m, limit, self.room)
+        self.first_key = key
+        if at is None:        # its head changed as it was taken: it goes whole, first, next time
+            self.first, self._cut_of, self._moved = m, self.number, True
+            return
+        self._cut_of, self._moved = self.number, False
+        head, self.first = cut(m, at)
+        messages.append(head)
+        self.counters.inc("cut_sent")
 
 
 class Unpacker:
@@ -325,6 +259,7 @@ class Unpacker:
         self.hooks = hooks or PacketHooks()
         self.counters = counters
         self.name = name
+        self.joiner = Joiner()
 
     def feed(self, data: bytes, now: float) -> list[bytes]:
         """The messages of one frame's payload, as wire format 1 payloads (kind, id, body)."""
@@ -348,7 +283,16 @@ class Unpacker:
         if self.hooks.received is not None:
             self.hooks.received(envelope, now)
         out = []
-        for m in envelope.messages:
+        joiner = self.joiner
+        orphans = joiner.orphans
+        messages = joiner.feed(envelope)
+        c.inc("cut_joined", joiner.joined - c["cut_joined"])
+        if joiner.orphans > orphans:
+            log_count(log, logging.WARNING, c.inc("cut_orphan", joiner.orphans - orphans),
+                      "[%s] dropped a part of a cut message from sender %d that cannot be "
+                      "joined (the packet with its other part was lost)", self.name,
+                      envelope.sender)
+        for m in messages:
             if m.kind not in env.KIND_CODES and m.kind != env.FRAGMENT:
                 log_count(log, logging.WARNING, c.inc("unknown_kind"),
                           "[%s] dropped a message of kind %d (id %d) from sender %d: this build "

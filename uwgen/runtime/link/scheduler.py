@@ -106,6 +106,9 @@ class LinkScheduler:
         if policy.repair and (self.splitter is None or whole):
             raise ValueError(f"channel {key}: repair fragments need fragments (a fragment_id) "
                              "and a channel that may be fragmented")
+        # a message may be cut across two packets (wire format 14.2): never a reliable one
+        # (re-sent whole) nor one that must reach an rmw_desert peer whole
+        ch.cuttable = policy.cut and not policy.reliable and not whole
         if self.splitter is not None and not whole:
             ch.split_over = min(self.fec_over, MAX_PAYLOAD)
             if self._max_message_for is not None:
@@ -148,7 +151,9 @@ class LinkScheduler:
     def next_payload(self, now: float | None = None, max_size: int | None = None,
                      exclude: int | None = None, *, fill: bool = False,
                      packet: int | None = None,
-                     extra: Callable[[int], int] | None = None) -> tuple[int, bytes] | None:
+                     extra: Callable[[int], int] | None = None,
+                     cut: Callable[[int, bytes], bool] | None = None,
+                     measure: Callable[[bytes], int] | None = None) -> tuple[int, bytes] | None:
         """The payload (at most 255 bytes) to send now, with its channel key; None if none may go.
 
         With `max_size` (the room left in a packet-aligned write), only a channel whose next
@@ -166,13 +171,18 @@ class LinkScheduler:
         counted into its size. Filling from the start would let message sizes decide
         shares (measured: the priority-10 topic of envelope_bench's table 3 fell from 0.18 to
         0.15 of the link); the tail alone costs it nothing measurable.
+        `cut(key, payload)`: the message will be cut to end the packet (wire format 14.2):
+        only a cuttable channel whose next message is whole (not a fragment, not one to be
+        split) and that `cut` accepts is served, in claim order. `measure` (with `max_size`):
+        what a payload adds to the packet being filled, instead of the scheduler's own measure
+        (a packer knows that a message joining a run costs its body alone).
         """
         now = self.clock.now() if now is None else now
         with self._lock:
             self._expire(now)
             while True:
                 ch = self._pick(now, max_size, exclude, fill and max_size is not None, packet,
-                                extra)
+                                extra, cut, measure)
                 if ch is None:
                     return None
                 if self._seal_head(ch, now):   # sealed now, as it leaves (or nothing to seal)
@@ -210,7 +220,9 @@ class LinkScheduler:
 
     def _pick(self, now: float, max_size: int | None = None, exclude: int | None = None,
               fill: bool = False, packet: int | None = None,
-              extra: Callable[[int], int] | None = None) -> Channel | None:
+              extra: Callable[[int], int] | None = None,
+              cut: Callable[[int, bytes], bool] | None = None,
+              measure: Callable[[bytes], int] | None = None) -> Channel | None:
         """The channel to serve: a ready strict channel of the highest priority (in turns among
         equals), else the ready channel with the earliest claim (see `claim`); with `fill`, the
         first in claim order whose message keeps the best fill of `max_size` reachable."""
@@ -227,9 +239,11 @@ class LinkScheduler:
                     ch.queue[0].rate_held = True
                     ch.counters.inc("rate_limited")
                 continue
-            size = (self._next_size(ch) + (extra(ch.key) if extra is not None else 0)
+            size = (self._next_size(ch, measure) + (extra(ch.key) if extra is not None else 0)
                     if max_size is not None else 0)
             if max_size is not None and size > max_size:
+                continue
+            if cut is not None and not self._cuttable(ch, cut):
                 continue
             if ch.policy.strict:
                 if not strict or ch.priority == strict[0].priority:
@@ -274,6 +288,14 @@ class LinkScheduler:
         chosen.turn = self._turns        # equal claims: the one served longest ago goes first
         return chosen
 
+    def _cuttable(self, ch: Channel, cut: Callable[[int, bytes], bool]) -> bool:
+        """Whether the channel's next message may be cut now (see `next_payload`)."""
+        if not ch.cuttable or ch.in_progress is not None:
+            return False
+        msg = ch.queue[0]
+        extra = self.overhead(ch.key) if self.overhead is not None and not msg.sealed else 0
+        return len(msg.payload) + extra <= ch.split_over and cut(ch.key, msg.payload)
+
     def claim(self, ch: Channel) -> float:
         """When a channel is due in virtual time (start-time fair queuing): each message served
         moves its channel's claim 1 / weight later, weight = priority + 1 (priorities below 0
@@ -306,17 +328,19 @@ class LinkScheduler:
                       "[%s] %s: message dropped, cannot be protected: %s", self.name, ch.name, exc)
             return False
 
-    def _next_size(self, ch: Channel) -> int:
+    def _next_size(self, ch: Channel, measure: Callable[[bytes], int] | None = None) -> int:
         """Length of the payload `_take` would return for this channel (a message about to be
-        split: its first fragment, at most one packet's worth)."""
+        split: its first fragment, at most one packet's worth), as `measure` (default: the
+        scheduler's) counts it."""
+        measure = measure or self.measure
         if ch.in_progress is not None:
-            return self.measure(ch.in_progress[0])
+            return measure(ch.in_progress[0])
         msg = ch.queue[0]
         n = len(msg.payload)
         extra = self.overhead(ch.key) if self.overhead is not None and not msg.sealed else 0
         if n + extra > ch.split_over:
             return self.fec_over
-        return self.measure(msg.payload) + extra   # the most sealing it (as it leaves) may add
+        return measure(msg.payload) + extra   # the most sealing it (as it leaves) may add
 
     def _take(self, ch: Channel, now: float) -> bytes:
         c = ch.counters

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 from uwgen.manifest.model import DEFAULT_TAG_BYTES, TAG_BYTES
 from uwgen.runtime.wire.messages import (  # noqa: F401 (this module's interface)
-    CODE_KINDS, ESCAPE_CODE, FRAGMENT, H_FRAGMENT, H_LENGTH, H_RUN, KIND_CODES, MAX_BODY, RUN_MAX,
+    CODE_KINDS, CUT_HEAD, CUT_TAIL, ESCAPE_CODE, FRAGMENT, H_CUT_HEAD, H_CUT_TAIL, H_FRAGMENT,
+    H_LENGTH, H_RUN, KIND_CODES, MAX_BODY, RUN_MAX,
     RUN_MIN, SHORT_IDS, EnvelopeError, Message, blocks, decode_messages, encode_messages,
     is_fragment_message, messages_size, ordered)
 from uwgen.runtime.wire.v1payload import (  # noqa: F401 (this module's interface)

@@ -22,6 +22,14 @@ first message appears (a fragment is its own block); a block of 3 or more is a r
 a longer one is cut), smaller ones are single messages. Each entry's order is kept, which is all
 a receiver relies on (a FIFO topic, fragments of a transfer, numbers of a reliable entry). Every envelope has one encoding: the
 decoder refuses bytes that the encoder would have grouped otherwise.
+
+**Cut messages** (wire format 4, docs/wire-format.md section 14.2): a message that does not fit
+the rest of a packet may be cut in two. Its first part ends the packet as a **cut head**,
+`63 | H' | part` (always the last message: no length), H' its header without L; the rest starts
+the same sender's next packet as a **cut tail**, `64 | [len] | part` (H 0x64, 0xE4 with L;
+always the first message; no id: the head said it). A `Message` of a cut head has kind
+`CUT_HEAD | kind` and the message's id; a cut tail has kind `CUT_TAIL` and id 0
+(uwgen.runtime.wire.cuts joins them).
 """
 from __future__ import annotations
 
@@ -36,6 +44,10 @@ SHORT_IDS = 31              # ids 1..31 fit in H
 FRAGMENT = 0x100            # Message.kind of a fragment message (never a wire kind; its id is 0)
 H_FRAGMENT = (ESCAPE_CODE << 5) | 1     # 0x61: H of a fragment message (fragment.py has its body)
 H_RUN = (ESCAPE_CODE << 5) | 2          # 0x62: H of a run of messages that share one head
+H_CUT_HEAD = (ESCAPE_CODE << 5) | 3     # 0x63: the first part of a cut message (last, no length)
+H_CUT_TAIL = (ESCAPE_CODE << 5) | 4     # 0x64: the rest of a cut message (first; no id)
+CUT_HEAD = 0x200            # Message.kind of a cut head: CUT_HEAD | the message's kind
+CUT_TAIL = 0x400            # Message.kind of a cut tail (its id is 0)
 RUN_MIN = 3                 # fewer messages cost no more alone (2 singles = a run of 2)
 RUN_MAX = 255
 
@@ -61,12 +73,19 @@ class Message:
     id: int
     body: bytes
 
+    @property
+    def cut(self) -> bool:
+        """Whether this is a part of a cut message (a cut head or a cut tail)."""
+        return bool(self.kind & (CUT_HEAD | CUT_TAIL))
+
     def header(self) -> bytes:
         """H (and the escape bytes), without the length flag."""
-        if self.kind == FRAGMENT:
+        if self.kind in (FRAGMENT, CUT_TAIL):
             if self.id != 0:
-                raise EnvelopeError(f"a fragment message has no id, got {self.id}")
-            return bytes((H_FRAGMENT,))
+                raise EnvelopeError(f"a fragment or cut tail has no id, got {self.id}")
+            return bytes((H_FRAGMENT if self.kind == FRAGMENT else H_CUT_TAIL,))
+        if self.kind & CUT_HEAD:
+            return bytes((H_CUT_HEAD,)) + Message(self.kind & ~CUT_HEAD, self.id, b"").header()
         if not 1 <= self.id <= 255:
             raise EnvelopeError(f"message id must be 1..255, got {self.id}")
         code = KIND_CODES.get(self.kind)
@@ -84,11 +103,13 @@ class Message:
 
 
 def is_fragment_message(m: Message, fragment_id: int | None) -> bool:
-    """Whether `m` carries a fragment: a fragment message (H 61), or a topic message on the
-    manifest's `fragment_id` (fragments in wire format 1's form, which a receiver still takes).
-    What a fragment carries is known only once reassembled: a seal that decides per id treats
-    it like the most protected id."""
-    return m.kind == FRAGMENT or (fragment_id is not None and m.kind == 0 and m.id == fragment_id)
+    """Whether `m` carries a part of a message whose id it does not say: a fragment message
+    (H 61), a topic message on the manifest's `fragment_id` (fragments in wire format 1's form,
+    which a receiver still takes), or a cut tail (H 64). What such a part carries is known only
+    once reassembled or joined: a seal that decides per id treats it like the most protected
+    id (a cut head says its id and is treated as that id)."""
+    return (m.kind in (FRAGMENT, CUT_TAIL)
+            or (fragment_id is not None and m.kind == 0 and m.id == fragment_id))
 
 
 
@@ -96,10 +117,15 @@ def blocks(messages: tuple[Message, ...] | list[Message]) -> list[list[Message]]
     """The envelope's blocks, in the encoder's order: consecutive messages of one entry (kind
     and id) with bodies of one length form a block, placed where its first message appears
     among the blocks (a message of another length starts the entry's next block; runs are
-    cut at RUN_MAX); a fragment is its own block. Each entry's order is kept."""
+    cut at RUN_MAX); a fragment and a part of a cut message are blocks of their own, a cut
+    tail first and a cut head last. Each entry's order is kept."""
     out: list[list[Message]] = []
     current: dict[tuple[int, int], list[Message]] = {}
+    tail = [[m] for m in messages if m.kind == CUT_TAIL]
+    head = [[m] for m in messages if m.kind & CUT_HEAD]
     for m in messages:
+        if m.cut:
+            continue
         if m.kind == FRAGMENT:
             out.append([m])
             continue
@@ -109,7 +135,9 @@ def blocks(messages: tuple[Message, ...] | list[Message]) -> list[list[Message]]
             block = current[entry] = []
             out.append(block)
         block.append(m)
-    return out
+    if len(tail) > 1 or len(head) > 1:
+        raise EnvelopeError("an envelope carries at most one cut tail and one cut head")
+    return tail + out + head
 
 
 def ordered(messages: tuple[Message, ...] | list[Message]) -> tuple[Message, ...]:
@@ -161,13 +189,48 @@ def decode_messages(b: bytes, pos: int, end: int) -> tuple[Message, ...]:
     while pos < end:
         if b[pos] & 0x7F == H_RUN:
             pos = _run(b, pos, end, out)
+        elif b[pos] & 0x7F in (H_CUT_HEAD, H_CUT_TAIL):
+            m, pos = _cut(b, pos, end, len(out))
+            out.append(m)
         else:
             m, pos = _message(b, pos, end, len(out))
             out.append(m)
     if encode_messages(out) != b[start:end]:
         raise EnvelopeError("messages not in their one encoding (blocks of one kind, id and "
-                            "body length, in order of first appearance; runs of 3 or more)")
+                            "body length, in order of first appearance; runs of 3 or more; "
+                            "a cut tail first, a cut head last)")
     return tuple(out)
+
+
+def _cut(b: bytes, pos: int, end: int, index: int) -> tuple[Message, int]:
+    """A cut head (`63 H' part`, the last message) or a cut tail (`64 [len] part`, the first);
+    each part at least one byte."""
+    h = b[pos]
+    pos += 1
+    if h & 0x7F == H_CUT_TAIL:
+        if index:
+            raise EnvelopeError(f"message {index}: a cut tail is always the first message")
+        if h & H_LENGTH:
+            if pos >= end:
+                raise EnvelopeError(f"message {index}: envelope ends before its length")
+            size = b[pos]
+            pos += 1
+            if pos + size >= end:
+                raise EnvelopeError(f"message {index}: a cut tail of {size} bytes with a length "
+                                    "must be followed by another message")
+        else:
+            size = end - pos
+        if not size:
+            raise EnvelopeError(f"message {index}: a cut tail of no bytes")
+        return Message(CUT_TAIL, 0, b[pos:pos + size]), pos + size
+    if h & H_LENGTH:
+        raise EnvelopeError(f"message {index}: a cut head is the last message (no length)")
+    if pos >= end or b[pos] & H_LENGTH or b[pos] in (H_FRAGMENT, H_RUN, H_CUT_HEAD, H_CUT_TAIL):
+        raise EnvelopeError(f"message {index}: a cut head's header is not a message's")
+    kind, ident, pos = _header(b, pos, end, index)
+    if pos >= end:
+        raise EnvelopeError(f"message {index}: a cut head of no bytes")
+    return Message(CUT_HEAD | kind, ident, b[pos:end]), end
 
 
 def _run(b: bytes, pos: int, end: int, out: list[Message]) -> int:
@@ -176,7 +239,7 @@ def _run(b: bytes, pos: int, end: int, out: list[Message]) -> int:
     pos += 1
     if pos >= end:
         raise EnvelopeError(f"message {index}: envelope ends inside a run's head")
-    if b[pos] & H_LENGTH or b[pos] in (H_FRAGMENT, H_RUN):
+    if b[pos] & H_LENGTH or b[pos] in (H_FRAGMENT, H_RUN, H_CUT_HEAD, H_CUT_TAIL):
         raise EnvelopeError(f"message {index}: a run's header {b[pos]:02X} is not a message's")
     kind, ident, pos = _header(b, pos, end, index)
     if pos >= end:
@@ -215,7 +278,8 @@ def _header(b: bytes, pos: int, end: int, index: int) -> tuple[int, int, int]:
     if code == ESCAPE_CODE:
         if low:
             raise EnvelopeError(f"message {index}: escape code with id bits {low} (0: an escaped "
-                                "kind, 1: a fragment, 2: a run; others reserved)")
+                                "kind, 1: a fragment, 2: a run, 3 and 4: a cut head and tail "
+                                "where they may be; others reserved)")
         if pos + 2 > end:
             raise EnvelopeError(f"message {index}: envelope ends inside its escaped header")
         kind, ident = b[pos], b[pos + 1]

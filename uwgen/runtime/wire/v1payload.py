@@ -7,15 +7,18 @@ uwgen.runtime.wire.envelope re-exports these.
 """
 from __future__ import annotations
 
-from uwgen.runtime.wire.messages import FRAGMENT, H_FRAGMENT, EnvelopeError, Message
+from uwgen.runtime.wire.messages import (CUT_TAIL, FRAGMENT, H_CUT_TAIL, H_FRAGMENT, EnvelopeError,
+                                         Message)
 
 
 def from_v1(payload: bytes | bytearray | memoryview) -> Message:
     """The message of a wire format 1 payload: its CBOR kind and id items become H, the rest is
     the body. EnvelopeError when the payload does not start with a kind below 24 and an id."""
     b = bytes(payload)
-    if b[:1] == bytes((H_FRAGMENT,)):        # a fragment message (wire format 2's own form)
+    if b[:1] == bytes((H_FRAGMENT,)):        # a fragment message (the envelope's own form)
         return Message(FRAGMENT, 0, b[1:])
+    if b[:1] == bytes((H_CUT_TAIL,)):        # a cut tail, as the packer tells its hooks of it
+        return Message(CUT_TAIL, 0, b[1:])
     if len(b) < 2 or b[0] >= 24:
         raise EnvelopeError("payload does not start with a CBOR kind below 24")
     kind = b[0]
@@ -32,9 +35,14 @@ def from_v1(payload: bytes | bytearray | memoryview) -> Message:
 
 def to_v1(message: Message) -> bytes:
     """The wire format 1 payload of a message: CBOR kind and id, then the body. A fragment
-    message stays as it is in the envelope (H 0x61, then its body): only fragment.py reads it."""
+    message stays as it is in the envelope (H 0x61, then its body): only fragment.py reads it;
+    so does a cut tail (H 0x64), which only the packer's hooks see (they measure packets)."""
     if message.kind == FRAGMENT:
         return bytes((H_FRAGMENT,)) + message.body
+    if message.kind == CUT_TAIL:             # (H 0x64, then its body: the packer's hooks count it)
+        return bytes((H_CUT_TAIL,)) + message.body
+    if message.cut:
+        raise EnvelopeError("a cut head is no payload until it is joined")
     k, i = message.kind, message.id
     head = bytes((k,)) if k < 24 else bytes((0x18, k))
     head += bytes((i,)) if i < 24 else bytes((0x18, i))
