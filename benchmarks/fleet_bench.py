@@ -101,15 +101,21 @@ OMIT = "{" + ", ".join(f"{f}: {{omit: true}}" for f in (
 
 def mac_section(mode: str, nodes: int, surface_weight: int = 1, surface_packets: int = 3) -> str:
     """The manifest's mac: for `nodes` sides. TDMA: a guard of one packet's air time plus the
-    longest delay (across the circle), a vehicle's ON window one in which SLOT_PACKETS
-    packets start, the surface's slot `surface_weight` vehicle slots long (its window drains
-    as many more: max_packet_per_slot follows it). Turns: `surface_packets` a surface turn."""
+    longest delay (across the circle), and a frame of `nodes` slots in each of which
+    SLOT_PACKETS packets start a period apart; with `surface_weight` the same frame is shared
+    by weight, the surface's slot that many times a vehicle's (a vehicle's ON window still
+    starts SLOT_PACKETS packets back to back, as DESERT sends what waits in its queue;
+    max_packet_per_slot and queue_size follow the surface's). Turns: `surface_packets` a
+    surface turn."""
     common = f"bitrate: {BITRATE:g}, range: {2 * RADIUS:g}"
     if mode == "tdma":
         air = (MRL + HEADER) * 8 / BITRATE
         guard = round(air + 2 * RADIUS / SOUND + 0.02, 3)
         slot = guard + (SLOT_PACKETS - 1) * max(air, PERIOD) + 0.02
-        frame = (nodes - 1 + surface_weight) * slot
+        frame = nodes * slot
+        if surface_weight != 1 and frame / (nodes - 1 + surface_weight) - guard \
+                < (SLOT_PACKETS - 1) * air + 0.01:
+            frame = (nodes - 1 + surface_weight) * (guard + (SLOT_PACKETS - 1) * air + 0.01)
         weights = f", weights: {{surface: {surface_weight}}}" if surface_weight != 1 else ""
         return (f"{{mode: tdma, frame: {frame:.3f}, guard: {guard}, "
                 f"max_packet_per_slot: {SLOT_PACKETS * surface_weight}, queue_size: "

@@ -52,6 +52,7 @@ def test_mode_none_always_allows():
 def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
     lead, follower = pair()
     lead.carries = True                              # its packets carry messages
+    lead.backlog = lambda now: True                  # and more waits after each
     assert write(lead, 0.0) == b""
     assert write(lead, 0.21) == bytes([0x22, 0])     # the second: notice of the grant to come
     grant = write(lead, 0.42)                        # the third packet carries the grant
@@ -73,6 +74,7 @@ def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
 def test_the_leader_ends_its_turn_at_its_first_packet_without_messages():
     lead, _ = pair()
     lead.carries = True
+    lead.backlog = lambda now: True
     assert write(lead, 0.0) == b""
     lead.carries = False                             # nothing more: the grant goes alone
     assert write(lead, 0.21) == bytes([0x22, 2])
@@ -180,6 +182,7 @@ def test_an_end_lost_after_the_answer_costs_two_intervals_not_a_timeout():
 def test_the_leader_gives_notice_of_its_grant_on_the_packet_before_it():
     lead, _ = pair()
     lead.carries = True
+    lead.backlog = lambda now: True                  # a full turn: the count ends it
     items = [write(lead, t) for t in (0.0, 0.21, 0.42)]
     assert items == [b"", bytes([0x22, 0]), bytes([0x22, 2])]
     assert decode_items(items[1]) == [MacItem(TURN_GRANT, 2, 0)]
@@ -190,7 +193,7 @@ def test_a_follower_that_heard_the_notice_but_lost_the_grant_takes_its_turn_afte
     _, follower = pair()
     follower.backlog = lambda now: True
     follower.heard(1, bytes([0x22, 0]), 1.0)
-    start = 1.0 + follower.interval + follower.air + 0.05      # the grant's packet has ended
+    start = 1.0 + follower.interval + 0.2 + follower.air + 0.05   # the grant's packet has ended
     assert follower.next_write_at(1.1) == pytest.approx(start)
     assert follower.next_write_at(start) == -math.inf and follower.counts["turns_from_notice"] == 1
     assert write(follower, start) == b""

@@ -218,6 +218,7 @@ class TurnMac(Mac):
         self.leading = side == config.leader
         self.my_packets = config.turn_packets(side)
         self.air = air_time(link.max_read_length, config.bitrate)
+        self.period = link.period
         self.interval = max(link.period * (1 + margin), self.air)
         self.followers = [(senders[s], config.turn_packets(s)) for s in senders if s != config.leader]
         # A turn's round trip besides its packets: the grant's and the end's trips across the
@@ -290,7 +291,7 @@ class TurnMac(Mac):
             self._closing = None
             if self.leading and self.followers and self._sent == self._granted - 1:
                 # the next packet is the last: tell its follower now, so one lost packet
-                # does not lose the follower's whole turn (rule 2, the notice)
+                # does not lose the follower's whole turn (rule 1, the notice)
                 sid, _ = self.followers[self._next % len(self.followers)]
                 return encode_items([MacItem(TURN_GRANT, sid, 0)])
             return b""
@@ -347,8 +348,9 @@ class TurnMac(Mac):
             if item.count == 0:                 # a notice: the grant comes on the next packet
                 if item.sender == self.me and not self._holding:
                     self.counts["notices_heard"] += 1
-                    # that packet ends within an interval and its air time (and the listen)
-                    self._notice_at = now + self.interval + self.air + LISTEN
+                    # that packet ends within an interval, DESERT's period tick (a write
+                    # that just missed one waits for the next), its air time and the listen
+                    self._notice_at = now + self.interval + self.period + self.air + LISTEN
                 continue
             self._notice_at = INF
             if item.sender != self.me:
