@@ -93,16 +93,6 @@ class FrameDecoder:
         self._keep(src, pos)
         return out
 
-    def _short_frame_at(self, src: bytes | bytearray, pos: int) -> bool:
-        """Whether a short frame of LEN 0x99 starts at `pos` although a long frame seems to:
-        an envelope of 153 bytes whose P is 0x99 (version 4 with S, K and C), complete and
-        accepted by `check`; it is preferred, since a long frame comes only from a peer of
-        another wire format, whose packets are refused anyway."""
-        end = pos + 1 + SYNC_BYTE
-        return (self.check is not None and end <= len(src)
-                and src[pos + 1] & ENVELOPE_MASK == ENVELOPE_BITS
-                and bool(self.check(bytes(src[pos + 1:end]))))
-
     def flush(self) -> list[bytes]:
         """Give up the incomplete frame at the head of the buffer, hunt through what is left, empty it.
 

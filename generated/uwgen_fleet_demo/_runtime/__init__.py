@@ -16,7 +16,7 @@ CARRIED = {
     'typed_arrays': ('uwgen.runtime.wire.typed_arrays', 'a7a4d7c2bb1ee58e'),
     'columns': ('uwgen.runtime.wire.columns', '58f6da582c99cb9e'),
     'model': ('uwgen.manifest.model', '87d239fd70893b57'),
-    'framing': ('uwgen.runtime.wire.framing', 'acfb905f49ffe931'),
+    'framing': ('uwgen.runtime.wire.framing', '247284eaf9bcc0b5'),
     'bits': ('uwgen.runtime.wire.bits', '39059f7b8ccf3421'),
     'rosclasses': ('uwgen.runtime.wire.rosclasses', '2b344e10ce05559c'),
     'table': ('uwgen.runtime.wire.table', 'b34328e4837a5928'),
