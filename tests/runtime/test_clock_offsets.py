@@ -182,3 +182,16 @@ def test_the_probes_at_start_measure_both_clocks_before_any_command_and_then_sto
     quiet, _ = duplex(max_ages={7: 30.0, 9: MAX_AGE})          # without: no packet at all
     quiet.run(20.0)
     assert quiet.links["a"].stats()["packets"]["packets_sent"] == 0
+
+
+def test_a_stepped_clock_is_measured_anew_not_averaged_with_its_past():
+    # samples agree on 0 s; then the peer's clock is stepped 20 s ahead: the first sample
+    # whose range does not meet the estimate's replaces the kept ones at once
+    offsets, wall = ClockOffsets(), 1_790_000_000.0
+    for n in range(4):                                # our packet n; its report 1 s later
+        offsets.built(n, wall + 10 * n)
+        o = offsets.reported(2, n, 0, stamp(wall + 10 * n + 0.5), wall + 10 * n + 1.0)
+    assert abs(o.offset) < 0.2
+    offsets.built(4, wall + 40)
+    o = offsets.reported(2, 4, 0, stamp(wall + 40.5 + 20.0), wall + 41.0)
+    assert abs(o.offset - 20.0) < 0.2 and o.samples == 5

@@ -100,3 +100,14 @@ def test_a_peer_far_behind_at_start_is_named_with_the_figure_at_its_first_packet
     with caplog.at_level(logging.WARNING, logger="uwgen.security"):
         v.receive(s.send(twist(1.0)))
     assert not [r for r in caplog.records if "stamped" in r.getMessage()]
+
+
+def test_a_clock_stepped_ahead_after_its_offset_was_measured_is_heard_again():
+    # measured in step (offset 0), then the surface's clock is set 20 s ahead (GPS, NTP):
+    # its packets pass the seal, so reliability can measure the new offset (never locked out)
+    s, v, s_wall, v_wall = pair(0.0, Offset(0.0, 0.4, 0.8, 3))
+    later(s_wall, v_wall)
+    assert v.receive(s.send(twist(1.0))) == [twist(1.0)]
+    s_wall.advance(20.0)
+    assert v.receive(s.send(twist(2.0))) == [twist(2.0)]
+    assert v.receive(s.send(twist(3.0))) == [twist(3.0)] and v.stats()["stale"] == 0

@@ -243,16 +243,17 @@ class PacketSeal(SideSeal):
 
     def _time_ok(self, e: env.Envelope, max_age: float) -> bool:
         """Whether the packet's T is fresh: sealed at most `max_age` plus the tolerance ago.
-        With the sender's offset measured, T is read on our clock (the offset taken off) and
-        may be ahead by the tolerance; before it is, with the link's reliability judging
-        commands, T may be ahead by up to the link's default max age, so a peer whose clock
-        is ahead is heard and measured (a time ahead never lets a held or recorded packet in:
-        holding makes T older, and T is under the tag). Never more than `max_age` plus the
+        With the sender's offset measured, T is read on our clock (the offset taken off); with
+        the link's reliability judging commands, T may be ahead by up to the link's default
+        max age, measured or not, so a peer whose clock is ahead, or was stepped ahead, is
+        heard and measured (holding a packet makes T older, and T is under the tag). Never more than `max_age` plus the
         tolerance old, whatever the offset."""
         o = self._offset(e.sender)
         wall = self.wall.now() + (o.offset if o is not None else 0.0)
         age = self.freshness.age(e.time, wall)
-        ahead = (self.freshness.tolerance if o is not None or self._offset_of is None
+        # judged by reliability (`use_offsets`), measured or not: a clock stepped ahead after
+        # it was measured is heard and measured again, never locked out
+        ahead = (self.freshness.tolerance if self._offset_of is None
                  else max(self.freshness.tolerance, self.config.max_age))
         return -ahead <= age <= max_age + self.freshness.tolerance
 

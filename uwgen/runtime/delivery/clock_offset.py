@@ -91,6 +91,9 @@ class ClockOffsets:
         if wall < t1:
             return None                      # our own clock stepped back: not an exchange
         kept = self._samples.setdefault(peer, deque(maxlen=self.keep))
+        now = self.of(peer)
+        if now is not None and abs(offset - now.offset) > error + now.error:
+            kept.clear()        # the ranges do not meet: a clock was stepped; measure anew
         kept.append((delay, offset, error))
         self._counts[peer] = self._counts.get(peer, 0) + 1
         return self.of(peer)

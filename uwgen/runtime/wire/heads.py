@@ -121,23 +121,20 @@ class Heads:
     # -- one age item a packet left out (section 14.3) ----------------------------------------
 
     def lone_aged(self, envelope: Envelope) -> int | None:
-        """The index of the packet's one whole message with a max age when its T stands for
-        that message's publication: T, no K, no A part, no fragment and exactly one such
-        message, of an id in `lone`; else None (T is the build time and every such message
-        has its age item)."""
-        if envelope.time is None or envelope.sync is not None or envelope.ack is not None:
+        """The index of the packet's one message when its T stands for that message's
+        publication: T, no K, no A part, and one message alone, whole, of an id in `aged` and
+        `lone`; else None (T is the build time and every message with a max age has its age
+        item)."""
+        # One message and nothing else: the rule reads only what both sides see in the
+        # packet, never which ids the reader knows to be aged (a fleet vehicle knows only its
+        # own entries, and two aged messages of two vehicles would look lone to each).
+        if (envelope.time is None or envelope.sync is not None or envelope.ack is not None
+                or len(envelope.messages) != 1):
             return None
-        found = None
-        for k, m in enumerate(envelope.messages):
-            if m.kind == FRAGMENT:
-                return None
-            if m.id in self.aged:
-                if found is not None:
-                    return None
-                found = k
-        if found is not None and self.lone is not None and envelope.messages[found].id not in self.lone:
+        m = envelope.messages[0]
+        if m.kind == FRAGMENT or m.id not in self.aged or (self.lone is not None and m.id not in self.lone):
             return None
-        return found
+        return 0
 
     def without_age(self, envelope: Envelope, ticks_per_second: int) -> Envelope:
         """The envelope as it is sent: for a lone aged message (`lone_aged`), its age item
