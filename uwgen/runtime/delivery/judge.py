@@ -11,7 +11,7 @@ from typing import Any
 from uwgen.runtime.clock import Clock
 from uwgen.runtime.delivery.clock_offset import ClockOffsets
 from uwgen.runtime.delivery.reliable import DELAY_UNIT, AckError, decode_reports, unwrap
-from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, Staleness
+from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, UNMEASURED, Staleness
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.reliability")
@@ -21,11 +21,12 @@ class AgeJudge:
     """One side's judgement of its peers' commands' ages."""
 
     def __init__(self, me: int, name: str, wall: Clock, counters: Counters,
-                 max_ages: dict[int, float], peer_names: dict[int, str] | None = None):
+                 max_ages: dict[int, float], peer_names: dict[int, str] | None = None,
+                 measured_only: bool = False):
         self.sender, self.name, self.wall, self.counters = me, name, wall, counters
         self.max_ages = max_ages
         self.peer_names = dict(peer_names or {})
-        self.staleness = Staleness()
+        self.staleness = Staleness(measured_only=measured_only)
         self.offsets = ClockOffsets()
         self.stale_by_id: dict[int, int] = {}
         self._offset_told: set[int] = set()
@@ -91,6 +92,12 @@ class AgeJudge:
                       "from GPS or NTP (counted clock_offset)", self.name, ident, self.who(peer),
                       abs(o.offset), "ahead of" if o.offset > 0 else "behind", o.error,
                       self.staleness.tolerance)
+        elif verdict.refused == UNMEASURED:
+            log_count(log, logging.WARNING, n,
+                      "[%s] refused a message of id %d from %s: that sender's clock offset is "
+                      "not measured yet (the exchange at start), so its age cannot be bounded "
+                      "(age item %.1f s, max age %.1f s; counted unmeasured)",
+                      self.name, ident, self.who(peer), age, max_age)
         elif verdict.refused == UNEXPLAINED:
             log_count(log, logging.WARNING, n,
                       "[%s] refused a message of id %d from %s: its packet's time says "

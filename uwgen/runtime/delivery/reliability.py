@@ -50,7 +50,7 @@ from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.reliability")
 
-COUNTERS = ("stale", "clock_offset", "unexplained_delay", "offset_samples", "bad_heads", "bad_acks", "untimed", "restarts_seen",
+COUNTERS = ("stale", "clock_offset", "unexplained_delay", "unmeasured", "offset_samples", "bad_heads", "bad_acks", "untimed", "restarts_seen",
             "duplicate_packets")
 DEFAULT_DEADLINE = 120.0          # seconds: a reliable entry without a ttl
 FORGET_AFTER = 2048               # packets: older ones cannot be named unambiguously (12 bits)
@@ -118,7 +118,8 @@ class Reliability:
         self.clock_exchange = clock_exchange          # probe and answer at start (the bridge's)
         self.counters = Counters(COUNTERS)
         # commands' ages, with each peer's clock offset measured from exchanges (judge.py)
-        self.judge = AgeJudge(sender, name, wall, self.counters, self.max_ages, peer_names)
+        self.judge = AgeJudge(sender, name, wall, self.counters, self.max_ages, peer_names,
+                              measured_only=clock_exchange)
         self.offsets, self.stale_by_id = self.judge.offsets, self.judge.stale_by_id
         self.first_offset_at = self.judge.first_offset_at
         self._lock = threading.Lock()

@@ -22,6 +22,9 @@ deadline whatever the offset's error and however long a packet was held:
   [-tolerance, tolerance + max_transit] cannot be told from an offset and the message is
   refused (`unexplained_delay`), never judged by its age item alone; otherwise it is refused
   `stale` when age + 1/4 s + max(0, transit + tolerance) > max age;
+  On a link whose sides measure each other at start (`measured_only`, the bridges' probes),
+  a message with a max age is refused `unmeasured` until its sender's offset is measured:
+  the clocks' agreement is then not assumed, since nothing enforces it;
 - the packet has no T: judged by its age item alone (counted `untimed` by the caller).
 
 Pure: clocks and offsets are passed in.
@@ -37,6 +40,7 @@ from uwgen.runtime.wire.heads import AGE_UNIT
 MAX_TRANSIT = 10.0        # seconds: DESERT's queue, one acoustic packet, and margin
 
 STALE, CLOCK_OFFSET, UNEXPLAINED = "stale", "clock_offset", "unexplained_delay"
+UNMEASURED = "unmeasured"   # no offset yet, on a link whose sides measure each other at start
 
 
 @dataclass
@@ -55,6 +59,10 @@ class Verdict:
 class Staleness:
     tolerance: float = CLOCK_TOLERANCE
     max_transit: float = MAX_TRANSIT
+    # the sides exchange times at start (the bridges' probes): until a peer's offset is
+    # measured, nothing bounds it (a clock 60 s ahead makes a 56 s old recording look 4 s
+    # early), so a message with a max age is refused (`unmeasured`) rather than trusted
+    measured_only: bool = False
 
     def judge(self, time24: int | None, age: float, max_age: float, wall: float,
               offset: Offset | None = None) -> Verdict:
@@ -69,6 +77,8 @@ class Staleness:
                 return Verdict(CLOCK_OFFSET, most, transit, offset)
             return Verdict(STALE if most > max_age else None, most, transit, offset)
         most = age + AGE_UNIT + max(apparent + self.tolerance, 0.0)
+        if self.measured_only:
+            return Verdict(UNMEASURED, most, apparent)
         if not -self.tolerance <= apparent <= self.tolerance + self.max_transit:
             return Verdict(UNEXPLAINED, most, apparent)
         return Verdict(STALE if most > max_age else None, most, apparent)
