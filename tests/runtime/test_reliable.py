@@ -195,3 +195,20 @@ def test_a_message_moved_whole_to_the_next_packet_shares_that_packets_fate():
     exchange(s, r, [0, 1, 2], {1, 2}, 1.0)          # packet 0 lost, packet 1 (the message) arrived
     s.acked(r.ack_for(SURFACE, 3.0), 4.0)
     assert (s.entry(7).sent, s.entry(7).delivered, s.entry(7).lost_on_link) == (1, 1, 0)
+
+
+def test_a_copy_sent_again_carries_the_messages_age_now_not_its_first():
+    # a reliable message with a max age, published at 0 and first sent at 0.5 s (age item
+    # 0.5 s), is lost; its copy at 4.9 s must say 4.75 s (quarter seconds, rounded down), or
+    # the receiver would judge it 4.4 s younger than it is
+    from uwgen.runtime.delivery.reliability import Reliability
+    from uwgen.runtime.wire.envelope import from_v1
+    from uwgen.runtime.wire.heads import decode_age
+    r = Reliability(1, period=0.2, reliable={9: 5.0}, max_ages={9: 5.0})
+    stamped = r.stamp(9, bytes((0, 9, 0xF5)), 0.0, 0.5)
+    assert decode_age(from_v1(stamped).body, 1)[0] == 0.5
+    r.sent(0, [(9, stamped)], 0.5)
+    key, copy = r.resend(4.9, 64)                  # no report came: the timer gives it back
+    m = from_v1(copy)
+    assert key == 9 and m.body[0] == from_v1(stamped).body[0]          # the same N
+    assert decode_age(m.body, 1)[0] == 4.75 and m.body[-1] == 0xF5

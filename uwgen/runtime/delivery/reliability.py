@@ -258,11 +258,22 @@ class Reliability:
                 if m.deadline is not None and m.deadline <= now:
                     self._queue.remove(m)
                     self.engine.entry(m.key).expired += 1
-                elif message_measure(m.ref) <= room:
+                    continue
+                payload = self._aged(m, now)
+                if message_measure(payload) <= room:
                     self._queue.remove(m)
-                    self._resending[id(m.ref)] = m
-                    return m.key, m.ref
+                    self._resending[id(payload)] = m
+                    return m.key, payload
             return None
+
+    def _aged(self, m: Sent, now: float) -> bytes:
+        """The copy to send again, its age item rewritten to the message's age now (its
+        deadline less the entry's re-send window is its publication time, section 15.4): the
+        age it left with the first time would make it look younger than it is."""
+        window = self.deadlines.get(m.key)
+        if m.deadline is None or window is None:
+            return m.ref
+        return self.heads.aged_again(m.ref, now - (m.deadline - window))
 
     def ack_only(self, now: float) -> bool:
         with self._lock:

@@ -101,6 +101,16 @@ class Heads:
             return payload, None
         return to_v1(Message(m.kind, m.id, head + m.body)), number
 
+    def aged_again(self, payload: bytes, age: float) -> bytes:
+        """`payload` as `add` stamped it, with its age item rewritten to `age` (a copy sent
+        again is as old as the message, not as it was when first sent); N is kept."""
+        m = from_v1(payload)
+        if m.id not in self.aged:
+            return payload
+        pos = 1 if m.id in self.numbered else 0
+        _, end = decode_age(m.body, pos)
+        return to_v1(Message(m.kind, m.id, m.body[:pos] + encode_age(age) + m.body[end:]))
+
     def take(self, payload: bytes) -> Received:
         """The head of a received payload read and taken off (HeadError when malformed)."""
         try:
