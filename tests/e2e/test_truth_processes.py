@@ -7,6 +7,7 @@ at once leaves no goal unsupervised and the caller gets the real outcome."""
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -42,7 +43,14 @@ def test_a_server_side_bridge_killed_mid_goal_and_started_at_once_leaves_nothing
         net.ready()
         got = kill_cell(net, 3, down=0.0)
         tail = net.tail()
-        adopted = net.status("vehicle").get("actions", {}).get("/fib", {})
+
+        def adopted() -> dict:       # the status file is written now and then: wait for it
+            return net.status("vehicle").get("actions", {}).get("/fib", {})
+        deadline = time.monotonic() + 15.0
+        while (time.monotonic() < deadline and adopted().get("orphans_adopted", 0)
+               + adopted().get("orphans_finished", 0) == 0):
+            time.sleep(0.5)
+        adopted = adopted()
     assert got["running when killed"] and got["ran"] == 1, (got, tail)
     assert got["told"] == "succeeded" and got["left running"] == 0, (got, tail)
     assert adopted.get("orphans_adopted", 0) + adopted.get("orphans_finished", 0) == 1, adopted
