@@ -45,8 +45,8 @@ def counting_heads(pair, hooks):
     sent (wire-format.md section 14.3; a build without unshape has none)."""
     admit, unshape = hooks.admit, getattr(hooks, "unshape", None)
 
-    def counted_admit(payload: bytes, now: float) -> bytes | None:
-        out = admit(payload, now)
+    def counted_admit(payload: bytes, now: float, **kw) -> bytes | None:
+        out = admit(payload, now, **kw)
         pair.message_items += len(payload) - (len(out) if out is not None else len(payload))
         return out
 

@@ -212,3 +212,30 @@ def test_a_copy_sent_again_carries_the_messages_age_now_not_its_first():
     m = from_v1(copy)
     assert key == 9 and m.body[0] == from_v1(stamped).body[0]          # the same N
     assert decode_age(m.body, 1)[0] == 4.75 and m.body[-1] == 0xF5
+
+
+def test_a_reassembled_message_is_judged_by_its_first_fragments_packet_time():
+    # its age item was written with its first fragment: judged by the T of the last
+    # fragment's packet it would look younger by all the time its fragments took
+    from uwgen.runtime.delivery.freshness import stamp
+    from uwgen.runtime.delivery.reliability import Reliability
+    from uwgen.runtime.wire import envelope as env
+    from uwgen.runtime.wire.heads import encode_age
+
+    class Wall:
+        t = 1_790_000_000.0
+
+        def now(self):
+            return self.t
+    wall = Wall()
+    whole = bytes((0, 9)) + encode_age(0.0) + b"\xf5"            # max age 30 s, age item 0
+
+    def receive(transfer):
+        r = Reliability(2, period=0.2, reliable={}, max_ages={9: 30.0}, wall=wall)
+        first = env.Message(env.FRAGMENT, 0, bytes((7, 0, 2)) + b"ab")
+        last = env.Message(env.FRAGMENT, 0, bytes((7, 1, 2)) + b"cd")
+        r.received(env.Envelope(1, 0, (first,), time=stamp(wall.t - 40.0)), 0.0)  # 40 s ago
+        r.received(env.Envelope(1, 1, (last,), time=stamp(wall.t - 0.5)), 0.0)
+        return r.admit(whole, 0.0) if transfer is None else r.admit(whole, 0.0, transfer=transfer)
+    assert receive(None) == bytes((0, 9, 0xF5))    # by the last packet's T: 0.5 s old, taken
+    assert receive(7) is None                      # by the first's: 40 s, past its 30 s

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import asdict
 
@@ -54,6 +54,7 @@ COUNTERS = ("stale", "clock_offset", "unexplained_delay", "unmeasured", "offset_
             "duplicate_packets")
 DEFAULT_DEADLINE = 120.0          # seconds: a reliable entry without a ttl
 FORGET_AFTER = 2048               # packets: older ones cannot be named unambiguously (12 bits)
+TRANSFERS_KEPT = 64              # fragmented messages whose first packet time is kept
 # T, and an A part of one report (acks.A_ROOM): the most the hooks add to a packet.
 OVERHEAD = env.TIME_LEN + A_ROOM
 PROBES, PROBE_EVERY = 10, 1.0     # packets with T alone while no peer's offset is known
@@ -131,6 +132,7 @@ class Reliability:
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
         self._rx: tuple[int, bytes, int | None] | None = None
+        self._transfer_t: OrderedDict[tuple[int, bytes, int], int] = OrderedDict()
 
     def hooks(self) -> PacketHooks:
         # Unsealed: this side numbers the packets (K names its epoch). K is not in `overhead`
@@ -343,6 +345,16 @@ class Reliability:
                               "or names packets never sent: %s", self.name, self.judge.who(peer),
                               envelope.ack.hex(" "))
             self._rx = (peer, epoch, envelope.time)
+            if envelope.time is not None:
+                for m in envelope.messages:
+                    if m.kind == env.FRAGMENT and m.body:
+                        # a fragmented message's age item was written with its first fragment:
+                        # it is judged by the T of the oldest packet of its transfer seen
+                        key = (peer, epoch, m.body[0])
+                        first = self._transfer_t.get(key)
+                        self._transfer_t[key] = envelope.time if first is None else min(first, envelope.time)
+                        while len(self._transfer_t) > TRANSFERS_KEPT:
+                            self._transfer_t.popitem(last=False)
 
     def _epoch(self, envelope: env.Envelope) -> bytes:
         """The sender's epoch (epoch.PeerEpochs), acting on a stand-in named or a restart."""
@@ -367,7 +379,8 @@ class Reliability:
             self.send_epoch.peer_restarted()
         self.engine.peer_restarted()
 
-    def admit(self, payload: bytes, now: float) -> bytes | None:
+    def admit(self, payload: bytes, now: float, transfer: int | None = None) -> bytes | None:
+        """`transfer`: the payload was reassembled from that transfer's fragments."""
         with self._lock:
             try:
                 got = self.heads.take(payload)
@@ -378,6 +391,8 @@ class Reliability:
                 return None
             ident = env.from_v1(got.payload).id if got.number is not None or got.age is not None else None
             peer, epoch, time24 = self._rx if self._rx is not None else (-1, b"", None)
+            if transfer is not None:
+                time24 = self._transfer_t.pop((peer, epoch, transfer), time24)
             if got.number is not None and not self.engine.deliver_once(peer, epoch, ident, got.number):
                 return None
             if got.age is not None and self.judge.refuses(ident, peer, time24, got.age):

@@ -154,9 +154,8 @@ class Link:
 
     def add_channel(self, key: int, policy: LinkPolicy, name: str | None = None, *,
                     whole: bool = False) -> None:
-        """One channel per topic/service id; `name` (e.g. the topic) only makes logs clearer.
-        `whole`: never fragmented (rmw_desert entries and beacons); other payloads longer than
-        a packet are fragmented when the link has a fragment_id."""
+        """One channel per topic/service id (`name`, e.g. the topic, for logs). `whole`: never
+        fragmented (rmw_desert entries, beacons); longer payloads are, given a fragment_id."""
         if key == self.fragment_id:
             raise ValueError(f"[{self.name}] channel {key} is the reserved fragment_id")
         self.scheduler.add_channel(key, policy, name=f"channel {key} ({name})" if name else None,
@@ -272,6 +271,7 @@ class Link:
             self._on_frame(payload)
 
     def _on_frame(self, payload: bytes) -> None:
+        by: dict = {}                   # reassembled: {"transfer": t} (61 t index count ...)
         if self.reassembler is not None and is_fragment(payload, self.fragment_id,
                                                          compact=self.wire_format == 2):
             self.watch.fragment = True
@@ -282,14 +282,14 @@ class Link:
                 self.counters.inc("nested_fragments")    # never sent by uwgen: refuse to recurse
                 self.watch.drop = "nested_fragment"
                 return
-            payload = whole
+            payload, by = whole, ({"transfer": payload[1]} if self.wire_format == 2 else {})
         if self.guard is not None:
             payload = self.guard.unprotect(payload)
             if payload is None:
                 self.watch.drop = "security"
                 return                                   # counted by the guard
         if self.wire_format == 2 and self.hooks.admit is not None:
-            payload = self.hooks.admit(payload, self.clock.now())
+            payload = self.hooks.admit(payload, self.clock.now(), **by)
             if payload is None:
                 self.watch.drop = "not_admitted"
                 return                                   # a copy, or stale: counted by the hook
