@@ -22,7 +22,6 @@ import contextlib
 import json
 import logging
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -33,7 +32,8 @@ from uwgen.commands.options import old_spelling
 from uwgen.emulator.from_manifest import with_mac
 from uwgen.manifest.model import MacConfig
 from uwgen.emulator.physics import DEFAULT_PHY, PHYS, phy
-from uwgen.demo.processes import DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, network_key
+from uwgen.demo.processes import (DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, failures,
+                                  network_key, stop_all)
 
 HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
 
@@ -348,11 +348,11 @@ def run(args: argparse.Namespace) -> int:
                 print(f"uwgen demo: the operator did not finish in {args.timeout:g} s; stopping",
                       file=sys.stderr)
         finally:
-            codes = {p.name: p.stop() for p in reversed(procs)}
+            codes = stop_all(procs)
             counters = emu.all_counters()
     (out / "emulator.json").write_text(json.dumps({"nodes": counters, "ports": ports}, indent=1))
     elapsed = time.monotonic() - t0
-    crashed = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
+    crashed = failures(codes)
     report = build_report(out)
     report.sizes = frame_sizes(DEMO_MANIFEST, [ROOT / "msg_samples"])
     print()

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import signal
 import subprocess
 import sys
 import time
@@ -133,7 +132,8 @@ def scenario(start: float, end: float, duration: float, wind: float, seed: int,
 def run(args: argparse.Namespace) -> int:
     import contextlib
 
-    from uwgen.demo.processes import GENERATED, PACKAGE, Proc, _env, domains, network_key
+    from uwgen.demo.processes import (GENERATED, PACKAGE, Proc, _env, domains, failures, network_key,
+                                      stop_all)
     from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.records import read_records
     from uwgen.demo.report import POSE_KEY_STEPS
@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
             except subprocess.TimeoutExpired:
                 pass
         finally:
-            codes = {p.name: p.stop() for p in reversed(procs)}
+            codes = stop_all(procs)
             counters = emu.all_counters()
     (out / "emulator.json").write_text(json.dumps({"nodes": counters, "ports": ports}, indent=1))
 
@@ -226,7 +226,7 @@ def run(args: argparse.Namespace) -> int:
     if args.docs:
         plot(curves, GENERATED.parent / "docs" / "drive-away.png", title)
         print("plot: docs/drive-away.png")
-    crashed = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
+    crashed = failures(codes)
     if crashed:
         print(f"uwgen demo: processes ended badly: {crashed} (see their logs)", file=sys.stderr)
         return 1

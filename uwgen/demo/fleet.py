@@ -20,13 +20,12 @@ import argparse
 import contextlib
 import json
 import math
-import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-from uwgen.demo.processes import GENERATED, ROOT, Proc, _env, domains, network_key
+from uwgen.demo.processes import GENERATED, ROOT, Proc, _env, domains, failures, network_key, stop_all
 from uwgen.demo.vehicle import CMD_TIMEOUT
 
 PACKAGE = "uwgen_fleet_demo"
@@ -151,7 +150,7 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path, mac_text) -> int:
                     print(f"uwgen demo: {op.name} did not finish in {args.timeout:g} s; stopping",
                           file=sys.stderr)
         finally:
-            codes = {p.name: p.stop() for p in reversed(procs)}
+            codes = stop_all(procs)
             counters = emu.all_counters()
     (out / "emulator.json").write_text(json.dumps({"nodes": counters}, indent=1))
     elapsed = time.monotonic() - t0
@@ -162,7 +161,7 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path, mac_text) -> int:
         plot_paths(report, out / f"demo-path-{v}.png",
                    f"uwgen demo, {v} of {len(names)}: {args.distance:g} m, PER {args.per:g}, mac {mac.mode}")
     print(f"plots: {out}/demo-path-auv*.png\nrun took {elapsed:.0f} s; logs in {out}")
-    crashed = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
+    crashed = failures(codes)
     if crashed:
         print(f"uwgen demo: processes ended badly: {crashed} (see their logs)", file=sys.stderr)
         return 1

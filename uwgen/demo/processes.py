@@ -74,6 +74,16 @@ class Proc:
         return self.proc.returncode
 
 
+def stop_all(procs: list[Proc]) -> dict[str, int]:
+    """Stop `procs`, the last started first: name -> exit code."""
+    return {p.name: p.stop() for p in reversed(procs)}
+
+
+def failures(codes: dict[str, int]) -> dict[str, int]:
+    """Those that ended other than cleanly or on our SIGINT (130: Python's exit on it)."""
+    return {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT, 130)}
+
+
 def _strip(line: str) -> str:
     line = line.rstrip()
     # "[INFO] [1700000000.123] [operator]: text" -> "text" (rclpy's console format)
