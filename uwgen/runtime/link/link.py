@@ -6,7 +6,8 @@
     link.offer(4, payload)        # an unframed payload from a generated codec
     link.start(); ...; link.stop()
 
-Outgoing: `offer()` queues a payload on its channel (policy applies there); the connection pulls
+Outgoing: `offer()` queues a payload on its channel (policy applies there), `withdraw()` takes
+one back that has not started to leave; the connection pulls
 payloads when the pacer allows a write, and payloads over 255 bytes leave as fragments (if the
 manifest reserves a fragment_id; otherwise they are refused, counted too_large and logged).
 Incoming: frames are decoded, fragments reassembled, and `on_payload` receives each complete payload
@@ -90,8 +91,7 @@ class Link:
         mac_hooks = self.mac.hooks() if wire_format == 2 else None
         self.hooks = join_hooks(own_hooks, mac_hooks) if mac_hooks is not None else own_hooks
         self.mac.backlog = lambda now: self._backlog(now, own_hooks)
-        self.name = name
-        self.clock = clock
+        self.name, self.clock = name, clock
         self.fragment_id = fragment_id
         self._on_payload = on_payload
         self.guard = guard
@@ -132,6 +132,7 @@ class Link:
             overhead=self._overhead_for(guard) if v2 else (guard.overhead if guard is not None else None),
             measure=message_measure if v2 else len,
             stamp=self.hooks.stamp if v2 else None)
+        self.withdraw = self.scheduler.withdraw   # (key, payload) -> taken back before it left
         self.packer: Packer | None = None
         self.unpacker: Unpacker | None = None
         if v2:
@@ -177,10 +178,6 @@ class Link:
         if ok:
             self.connection.wake()
         return ok
-
-    def withdraw(self, key: int, payload: bytes) -> bool:
-        """Take back a queued payload not yet sent (LinkScheduler.withdraw); False if none waits."""
-        return self.scheduler.withdraw(key, payload)
 
     def whole_payload(self, key: int | None = None) -> int:
         """The longest payload of channel `key` that leaves whole in one packet, protection
