@@ -185,10 +185,10 @@ def test_malformed_acks_and_heads_are_counted_and_logged_never_crash(caplog):
     sim, rel = duplex(max_ages={7: 30.0, 9: 2.0})
     b = sim.links["b"]
     with caplog.at_level(logging.WARNING, logger="uwgen.link.reliability"):
-        for _ in range(3):
-            b._on_packet(envelope.Envelope(1, 0, (envelope.Message(0, 7, b""),),
+        for number in range(3):
+            b._on_packet(envelope.Envelope(1, number, (envelope.Message(0, 7, b""),),
                                            ack=b"\x20\x00").encode())
-        b._on_packet(envelope.Envelope(1, 1, (envelope.Message(2, 9, b"\x19"),)).encode())
+        b._on_packet(envelope.Envelope(1, 3, (envelope.Message(2, 9, b"\x19"),)).encode())
     assert rel["b"].counters["bad_acks"] == 3 and rel["b"].counters["bad_heads"] == 4
     assert sim.received["b"] == []
     assert caplog.text.count("malformed") == 2          # throttled: first of each only
