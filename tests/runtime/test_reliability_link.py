@@ -159,6 +159,17 @@ def test_a_transit_that_cannot_be_told_from_an_offset_is_refused_never_judged_by
     assert "from sender 1: its packet's time says it took 60." in caplog.text
 
 
+def test_a_message_with_a_max_age_on_a_packet_without_time_is_refused_untimed(caplog):
+    # an age item alone bounds no hold: a packet held an hour carries the same age 0
+    sim, rel = duplex(max_ages={7: 30.0, 9: 8.0})
+    b = sim.links["b"]
+    with caplog.at_level(logging.WARNING, logger="uwgen.link.reliability"):
+        b._on_packet(envelope.Envelope(1, 0, (envelope.Message(2, 9, b"\x00\x01\xf5"),)).encode())
+    assert sim.received["b"] == []
+    assert rel["b"].counters["untimed"] == 1 and rel["b"].stale_by_id == {9: 1}
+    assert "has no time (T)" in caplog.text
+
+
 def test_time_goes_only_on_packets_carrying_a_message_with_a_max_age():
     sim, _ = duplex(max_ages={9: 5.0})
     a = sim.links["a"]
