@@ -33,7 +33,7 @@ import logging
 import threading
 from collections import OrderedDict, deque
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
@@ -79,7 +79,8 @@ class Reliability:
                  epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0,
                  clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
-                 settled_by: Callable[[int, float], float | None] | None = None):
+                 settled_by: Callable[[int, float], float | None] | None = None,
+                 copies: int = 1):
         self.sender, self.name, self.wall = sender, name, wall
         # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
         # peer or been lost before the peer's packet heard now was built (turns: the peer
@@ -128,6 +129,7 @@ class Reliability:
         self._timed = False                           # the packet being built needs T
         self._queue: deque[Sent] = deque()            # lost reliable messages to send again
         self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
+        self.engine.spare.limit = copies              # copies in spare room (copies.py)
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
@@ -141,7 +143,7 @@ class Reliability:
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
                            overhead=OVERHEAD, next_overhead=self.next_overhead,
                            part_room=self.part_room, carrying=self.carrying, resend=self.resend,
-                           cut=self.cut,
+                           copy=self.copy, cut=self.cut,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
                            head_room=self.head_room, admit=self.admit,
                            shape=self.shape, unshape=self.heads.with_age, stats=self.stats,
@@ -224,9 +226,12 @@ class Reliability:
         with self._lock:
             messages = []
             for key, payload in picked:
-                again = self._resending.pop(id(payload), None)
-                deadline = again.deadline if again is not None else self._deadline_of.get(key)
-                messages.append(Sent(key, payload, deadline))
+                m = self._resending.pop(id(payload), None)   # a copy: its message's identity
+                if m is None:
+                    deadline = self._deadline_of.get(key)
+                    m = Sent(key, None, deadline, ident=None if deadline is None
+                             else self.engine.spare.new_ident())
+                messages.append(replace(m, ref=payload, tail=None))
             self._resending.clear()
             messages += self.acks.carried()      # its reports: confirmed once it is acked
             self.engine.sent(number, messages, now, self._to(messages))
@@ -256,6 +261,8 @@ class Reliability:
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:
             self._queue.extend(self.engine.due(now))
+            if self._queue:                   # not those a copy sent in spare room delivered since
+                self._queue = deque(m for m in self._queue if not self.engine.spare.delivered(m.ident))
             for m in list(self._queue):
                 if m.deadline is not None and m.deadline <= now:
                     self._queue.remove(m)
@@ -267,6 +274,18 @@ class Reliability:
                     self._resending[id(payload)] = m
                     return m.key, payload
             return None
+
+    def copy(self, now: float, room: int) -> tuple[int, bytes] | None:
+        """A copy of a reliable message on its way, for the room a packet that leaves anyway
+        has left after its messages (uwgen.runtime.delivery.copies)."""
+        with self._lock:
+            def fits(m: Sent) -> bytes | None:
+                payload = self._aged(m, now)
+                return payload if message_measure(payload) <= room else None
+            got = self.engine.spare.pick(self.engine.outstanding.values(), now, fits)
+            if got is not None:
+                self._resending[id(got[1])] = got[0]
+            return None if got is None else (got[0].key, got[1])
 
     def _aged(self, m: Sent, now: float) -> bytes:
         """The copy to send again, its age item rewritten to the message's age now (its
@@ -425,5 +444,6 @@ class Reliability:
                                     "spurious_resends": self.engine.spurious,
                                     "fast_resends": self.engine.fast_resends,
                                     "timer_resends": self.engine.timer_resends,
+                                    "copies": self.engine.spare.sent,
                                     "clock_offsets": {p: o.as_dict() for p, o in
                                                       self.offsets.peers().items()}}}
