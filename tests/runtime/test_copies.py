@@ -160,3 +160,19 @@ def test_without_loss_measured_no_copy_is_sent():
     assert rel["a"].engine.spare.loss() < COPY_LOSS
     assert sum(ks.count(0) for ks in carried) == 1
     assert rel["a"].stats()["reliability"]["copies"] == 0
+
+
+def test_under_turns_a_copy_never_keeps_the_leaders_turn():
+    from tests.runtime.test_fast_resend import mission_copies, offer_missions, turns_pair
+    sim, rel, written = turns_pair(cmd_every=1000.0)        # a quiet surface: missions only
+    sim.drop("surface", *range(1, 1 + int(COPY_LOSS * LOSS_WINDOW) + 1))   # loss measured
+    offer_missions(sim, 3, every=5.0, start=20.0)
+    sim.run(40.0)
+    assert rel["surface"].engine.spare.loss() >= COPY_LOSS
+    surface = sim.links["surface"].mac
+    for k in range(3):
+        (t, n), = mission_copies(written, k)                 # one copy: nothing rode with it
+        after = [keys for when, number, keys in written["surface"] if number == n + 1]
+        assert after == [[]]                                 # the next packet: the grant alone
+    assert rel["surface"].stats()["reliability"]["copies"] == 0
+    assert surface.counts["grants_sent"] > 10
