@@ -107,7 +107,8 @@ class Reliability:
                            aged=frozenset(max_ages),
                            lone=frozenset(i for i, age in max_ages.items() if age <= MAX_AGE))
         self.ack_delay = ack_delay if ack_delay is not None else max(1.0, 4 * period)
-        self.ack_interval = ack_interval if ack_interval is not None else max(2.0, 8 * period)
+        self.ack_interval = (ack_interval if ack_interval is not None   # news: every 2nd
+                             else max(2.0, 8 * period, 2 * turn_gap))     # MAC round (15.2)
         # The retransmission timer's first value and floor are the MAC's (docs/seams.md
         # section 6): a reply may wait `turn_gap` for the peer's turn, besides a period.
         first = max(2.0, 8 * period) + turn_gap
