@@ -11,7 +11,7 @@ from typing import Any
 from uwgen.runtime.clock import Clock
 from uwgen.runtime.delivery.clock_offset import ClockOffsets
 from uwgen.runtime.delivery.reliable import DELAY_UNIT, AckError, decode_reports, unwrap
-from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, UNMEASURED, Staleness
+from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, UNMEASURED, UNTIMED, Staleness
 from uwgen.runtime.stats import Counters, log_count
 
 log = logging.getLogger("uwgen.link.reliability")
@@ -76,8 +76,6 @@ class AgeJudge:
                         got.offset, got.error, self.staleness.tolerance)
 
     def refuses(self, ident: int, peer: int, time24: int | None, age: float) -> bool:
-        if time24 is None:
-            self.counters.inc("untimed")
         max_age = self.max_ages[ident]
         verdict = self.staleness.judge(time24, age, max_age, self.wall.now(), self.offsets.of(peer))
         if verdict.refused is None:
@@ -97,6 +95,12 @@ class AgeJudge:
                       "[%s] refused a message of id %d from %s: that sender's clock offset is "
                       "not measured yet (the exchange at start), so its age cannot be bounded "
                       "(age item %.1f s, max age %.1f s; counted unmeasured)",
+                      self.name, ident, self.who(peer), age, max_age)
+        elif verdict.refused == UNTIMED:
+            log_count(log, logging.WARNING, n,
+                      "[%s] refused a message of id %d from %s: its packet has no time (T), so "
+                      "how long it was held cannot be bounded (age item %.1f s, max age %.1f s); "
+                      "a uwgen sender stamps T on every such packet (counted untimed)",
                       self.name, ident, self.who(peer), age, max_age)
         elif verdict.refused == UNEXPLAINED:
             log_count(log, logging.WARNING, n,

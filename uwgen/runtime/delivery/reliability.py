@@ -333,7 +333,11 @@ class Reliability:
 
     # -- receiving ------------------------------------------------------------------------
 
-    def received(self, envelope: env.Envelope, now: float) -> None:
+    def received(self, envelope: env.Envelope, now: float) -> bool:
+        """Takes what `envelope` tells (its number, K, T, A). False: a repeat of a packet
+        received (counted `duplicate_packets`), of which nothing is taken: not its report, not
+        its T as a clock sample (a copy DESERT's MAC sent again left when the first did), and
+        its messages are not delivered (the unpacker drops them)."""
         with self._lock:
             peer = envelope.sender
             epoch = self._epoch(envelope)
@@ -346,7 +350,8 @@ class Reliability:
                 or envelope.ack is not None and self._timed_reports < CLOCK_REPLIES)
             if not self.engine.received(peer, epoch, envelope.number, now, eliciting or clock):
                 self.counters.inc("duplicate_packets")
-            elif clock and not eliciting:
+                return False
+            if clock and not eliciting:
                 r = self.engine._current(peer)
                 if r is not None and r.eliciting_since is not None:
                     r.eliciting_since = min(r.eliciting_since, now - self.ack_delay)
@@ -375,6 +380,7 @@ class Reliability:
                         self._transfer_t[key] = envelope.time if first is None else min(first, envelope.time)
                         while len(self._transfer_t) > TRANSFERS_KEPT:
                             self._transfer_t.popitem(last=False)
+            return True
 
     def _epoch(self, envelope: env.Envelope) -> bytes:
         """The sender's epoch (epoch.PeerEpochs), acting on a stand-in named or a restart."""

@@ -1,7 +1,9 @@
 """The hooks a packet's parts come from (docs/seams.md sections 5 and 9): what reliability
 (wire-format.md section 15), the per-packet seal (section 12.2) and the MAC (section 16) plug
 into the packer and the unpacker (uwgen/runtime/link/packets.py), and `join_hooks`, which makes
-one set of hooks from several.
+one set of hooks from several. A `received` hook that answers False (reliability's, for a packet
+number already received: DESERT delivered the packet twice) stops the packet: the hooks after
+it (the MAC's grants) and the messages never see it.
 """
 from __future__ import annotations
 
@@ -20,7 +22,8 @@ class PacketHooks:
     seal: Callable[[env.Envelope], bytes] | None = None
     open: Callable[[bytes], env.Envelope | None] | None = None
     sent: Callable[[int, list[tuple[int, bytes]], float], None] | None = None
-    received: Callable[[env.Envelope, float], None] | None = None
+    # told every envelope accepted; False: a repeat of a packet received, dropped whole
+    received: Callable[[env.Envelope, float], bool | None] | None = None
     overhead: int = 0
     next_overhead: Callable[[float], int] | None = None
     number: Callable[[], int] | None = None
@@ -52,7 +55,8 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     part two hooks give must have the same value, otherwise building the packet fails with
     EnvelopeError.
     At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise); its
-    `number` numbers the packets. `sent`, `received`, `carrying` and `cut` are called in order;
+    `number` numbers the packets. `sent`, `received`, `carrying` and `cut` are called in order
+    (`received` until one answers False: the packet is a repeat, and so is the joined answer);
     `overhead` is the sum (an upper bound: a part two hooks both give is counted twice),
     `next_overhead` the sum of each hook's (its `overhead` when it gives none). Likewise at most
     one hook may give the message heads (`stamp`, `head_room`, `admit`) and at most one
@@ -86,9 +90,11 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
         for tell in senders:
             tell(number, picked, now)
 
-    def received(envelope: env.Envelope, now: float) -> None:
+    def received(envelope: env.Envelope, now: float) -> bool:
         for tell in receivers:
-            tell(envelope, now)
+            if tell(envelope, now) is False:
+                return False        # a repeat: the hooks after this one never see it
+        return True
 
     def next_overhead(now: float) -> int:
         return sum(h.next_overhead(now) if h.next_overhead is not None else h.overhead

@@ -23,7 +23,8 @@ The seams of reliability and the seal (docs/seams.md section 5) are the `PacketH
   without it the bytes are decoded with `envelope.decode`;
 - `sent(number, [(channel key, payload), ...], now)` after each packet is built, with the
   sender's full packet number (not reduced mod 4096);
-- `received(envelope, now)` for every envelope accepted, before its messages are delivered.
+- `received(envelope, now)` for every envelope accepted, before its messages are delivered;
+  False: a repeat of a packet received, whose messages are dropped (counted `repeated_packets`).
 
 Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"):
 
@@ -71,7 +72,7 @@ OLD_SHORT_BITS = 3 << 5     # P of wire format 3, the first to use the short fra
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
                    "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind",
                    "refused_payloads", "opened_none", "ack_only_sent",
-                   "cut_sent", "cut_dropped", "cut_joined", "cut_orphan")
+                   "cut_sent", "cut_dropped", "cut_joined", "cut_orphan", "repeated_packets")
 
 
 def envelope_room(max_read_length: int, overhead: int = 0) -> int:
@@ -291,8 +292,13 @@ class Unpacker:
         c.inc("packets_received")
         if self.hooks.unshape is not None:
             envelope = self.hooks.unshape(envelope)
-        if self.hooks.received is not None:
-            self.hooks.received(envelope, now)
+        if self.hooks.received is not None and self.hooks.received(envelope, now) is False:
+            # a packet number already received: DESERT delivered the packet twice (an ARQ MAC
+            # whose ack was lost sends it again); its messages were delivered with the first
+            log_count(log, logging.INFO, c.inc("repeated_packets"),
+                      "[%s] dropped a repeat of packet %d from sender %d (received before)",
+                      self.name, envelope.number, envelope.sender)
+            return []
         out = []
         joiner = self.joiner
         orphans = joiner.orphans
