@@ -43,7 +43,8 @@ from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.packets import message_measure
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
-from uwgen.runtime.delivery.reliable import REPORT_KEY, ReliableLink, RttEstimator, Sent
+from uwgen.runtime.delivery.reliable import (REPORT_KEY, ReliableLink, RttEstimator, Sent,
+                                             packet_peers, wire_id)
 from uwgen.runtime.delivery.judge import AgeJudge
 from uwgen.runtime.delivery.epoch import PeerEpochs, SendEpoch
 from uwgen.runtime.stats import Counters, log_count
@@ -61,11 +62,6 @@ PROBES, PROBE_EVERY = 10, 1.0     # packets with T alone while no peer's offset 
 CLOCK_REPLIES = 2                 # reports with T answered at a start (the clock exchange)
 TIMED_REPORTS = 4                 # first packets with an A part that carry T (per peer epoch),
 TIMED_REPORT_EVERY = 30.0         # then one every this many seconds: the peer's clock offset
-
-
-def wire_id(key: int) -> int:
-    """The wire id of a link channel key (an action's feedback channel is 256 + id)."""
-    return key - 256 if key >= 256 else key
 
 
 class Reliability:
@@ -235,23 +231,11 @@ class Reliability:
                 messages.append(replace(m, ref=payload, tail=None))
             self._resending.clear()
             messages += self.acks.carried()      # its reports: confirmed once it is acked
-            self.engine.sent(number, messages, now, self._to(messages))
+            self.engine.sent(number, messages, now,
+                             packet_peers(messages, self.destinations, self._everyone))
             self.offsets.built(number, self.wall.now())
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
-
-    def _to(self, messages: list[Sent]) -> set[int] | None:
-        """The peers a packet must reach: those its messages are for, and those its reports
-        are about (None without destinations: two sides)."""
-        if self.destinations is None:
-            return None
-        to: set[int] = set()
-        for m in messages:
-            if m.key == REPORT_KEY:
-                to.add(m.ref[0])
-            else:
-                to |= self.destinations.get(wire_id(m.key), self._everyone)
-        return to
 
     def cut(self, number: int, moved: bool = False) -> None:
         """Packet `number`'s last message was cut (or, `moved`, goes whole in the next packet):

@@ -95,6 +95,27 @@ class Sent:
     ident: int | None = None        # a reliable message: the same for all its copies (copies.py)
 
 
+def wire_id(key: int) -> int:
+    """The wire id of a link channel key (an action's feedback channel is 256 + id)."""
+    return key - 256 if key >= 256 else key
+
+
+def packet_peers(messages: list[Sent], destinations: dict[int, frozenset[int]] | None,
+                 everyone: frozenset[int]) -> set[int] | None:
+    """The peers a packet must reach: those its messages are for (`destinations`: wire id ->
+    peers; `everyone` for an id not in it), and those its reports are about (None without
+    destinations: two sides, the first report settles it)."""
+    if destinations is None:
+        return None
+    to: set[int] = set()
+    for m in messages:
+        if m.key == REPORT_KEY:
+            to.add(m.ref[0])
+        else:
+            to |= destinations.get(wire_id(m.key), everyone)
+    return to
+
+
 @dataclass
 class EntryLedger:
     """Per entry (link key), on the sending side; all counts are messages."""
