@@ -15,12 +15,14 @@ from __future__ import annotations
 
 from collections import OrderedDict, deque
 from collections.abc import Callable, Iterable
+from itertools import islice
 from typing import Any
 
 COPY_LOSS = 0.05        # measured loss from which copies go in spare room
 LOSS_WINDOW = 64        # settled packets the measured loss is counted over
 DONE_KEPT = 1024        # reliable messages known delivered, remembered
 COPIED_KEPT = 2048      # messages copied, remembered (those never settled are forgotten)
+SCAN = 32               # the most recent packets on their way a copy is looked for in
 
 
 class Copies:
@@ -85,13 +87,13 @@ class Copies:
 
     def pick(self, packets: Any, now: float,
              fits: Callable[[Any], bytes | None]) -> tuple[Any, bytes] | None:
-        """The copy to put in spare room, or None: a reliable message on its way (the most
-        recently sent first), not known delivered, with fewer than `limit` copies since it
+        """The copy to put in spare room, or None: a reliable message on its way (in the SCAN
+        most recently sent packets, the newest first), not known delivered, with fewer than `limit` copies since it
         last went again and its deadline ahead, whose copy `fits` (the copy's bytes, or None)
         the room; only once the measured loss is COPY_LOSS or more."""
         if self.limit <= 0 or self.loss() < COPY_LOSS:
             return None
-        for packet in reversed(packets):
+        for packet in islice(reversed(packets), SCAN):
             if packet.timed_out:
                 continue
             for m in packet.messages:
