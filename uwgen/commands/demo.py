@@ -32,8 +32,8 @@ from uwgen.commands.options import old_spelling
 from uwgen.emulator.from_manifest import with_mac
 from uwgen.manifest.model import MacConfig
 from uwgen.emulator.physics import DEFAULT_PHY, PHYS, phy
-from uwgen.demo.processes import (DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, failures,
-                                  network_key, stop_all)
+from uwgen.demo.processes import (DEMO_MANIFEST, GENERATED, PACKAGE, ROOT, Proc, _env, domains, ended_early,
+                                  failures, network_key, stop_all, wait_for)
 
 HELP = "run the demo: operator and vehicle simulator talking through two bridges over an emulated acoustic link"
 
@@ -343,7 +343,9 @@ def run(args: argparse.Namespace) -> int:
                                          "--laps", str(args.laps)], senv, out, not quiet)
             procs.append(operator)
             try:
-                operator.proc.wait(args.timeout)
+                dead = wait_for([operator], args.timeout, procs[:-1])
+                if dead is not None:
+                    print(ended_early(dead), file=sys.stderr)
             except subprocess.TimeoutExpired:
                 print(f"uwgen demo: the operator did not finish in {args.timeout:g} s; stopping",
                       file=sys.stderr)

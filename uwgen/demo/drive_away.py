@@ -132,8 +132,8 @@ def scenario(start: float, end: float, duration: float, wind: float, seed: int,
 def run(args: argparse.Namespace) -> int:
     import contextlib
 
-    from uwgen.demo.processes import (GENERATED, PACKAGE, Proc, _env, domains, failures, network_key,
-                                      stop_all)
+    from uwgen.demo.processes import (GENERATED, PACKAGE, Proc, _env, domains, ended_early, failures,
+                                      network_key, stop_all, wait_for)
     from uwgen.typesupport import BuildError, ensure_interfaces
     from uwgen.demo.records import read_records
     from uwgen.demo.report import POSE_KEY_STEPS
@@ -194,7 +194,9 @@ def run(args: argparse.Namespace) -> int:
                             senv, out, not args.quiet)
             procs.append(operator)
             try:
-                operator.proc.wait(HOLD + duration + 15.0)
+                dead = wait_for([operator], HOLD + duration + 15.0, procs[:-1])
+                if dead is not None:
+                    print(ended_early(dead), file=sys.stderr)
             except subprocess.TimeoutExpired:
                 pass
         finally:

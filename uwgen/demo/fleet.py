@@ -25,7 +25,8 @@ import sys
 import time
 from pathlib import Path
 
-from uwgen.demo.processes import GENERATED, ROOT, Proc, _env, domains, failures, network_key, stop_all
+from uwgen.demo.processes import (GENERATED, ROOT, Proc, _env, domains, ended_early, failures,
+                                  network_key, stop_all, wait_for)
 from uwgen.demo.vehicle import CMD_TIMEOUT
 
 PACKAGE = "uwgen_fleet_demo"
@@ -142,13 +143,15 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path, mac_text) -> int:
                     envs["surface"], out, not quiet)
                 procs.append(op)
                 operators.append(op)
-            end = time.monotonic() + max(args.timeout, MIN_TIMEOUT)
-            for op in operators:
-                try:
-                    op.proc.wait(max(1.0, end - time.monotonic()))
-                except subprocess.TimeoutExpired:
-                    print(f"uwgen demo: {op.name} did not finish in {args.timeout:g} s; stopping",
-                          file=sys.stderr)
+            try:
+                dead = wait_for(operators, max(args.timeout, MIN_TIMEOUT),
+                                [p for p in procs if p not in operators])
+                if dead is not None:
+                    print(ended_early(dead), file=sys.stderr)
+            except subprocess.TimeoutExpired:
+                late = ", ".join(op.name for op in operators if op.proc.poll() is None)
+                print(f"uwgen demo: {late} did not finish in {args.timeout:g} s; stopping",
+                      file=sys.stderr)
         finally:
             codes = stop_all(procs)
             counters = emu.all_counters()

@@ -1,7 +1,9 @@
 """The demo's processes: where its package and manifest are, its ROS domains, and a child
-process whose output goes to a log file and (filtered) to the console.
+process whose output goes to a log file and (filtered) to the console, and `wait_for`, which
+waits for the operators while watching the processes that must run throughout.
 
-Shared by the demo (`uwgen.commands.demo`) and its drive-away variant (`uwgen.demo.drive_away`).
+Shared by the demo (`uwgen.commands.demo`), its drive-away variant (`uwgen.demo.drive_away`)
+and the fleet demo (`uwgen.demo.fleet`).
 """
 from __future__ import annotations
 
@@ -11,6 +13,8 @@ import signal
 import subprocess
 import sys
 import threading
+import time
+from collections import deque
 from pathlib import Path
 
 from uwgen import tether
@@ -72,6 +76,41 @@ class Proc:
         self._thread.join(timeout=2)
         self._fh.close()
         return self.proc.returncode
+
+
+    def last_line(self) -> str:
+        """The last non-empty line it wrote (what a process that exits says last: its error)."""
+        try:
+            with self.logfile.open(encoding="utf-8", errors="replace") as fh:
+                tail = deque((ln.strip() for ln in fh if ln.strip()), maxlen=1)
+        except OSError:
+            return ""
+        return _strip(tail[0]) if tail else ""
+
+
+def wait_for(waited: list[Proc], timeout: float, watched: list[Proc],
+             poll: float = 0.2) -> Proc | None:
+    """Waits up to `timeout` s for every process of `waited` (the operators) to end, watching
+    `watched` (bridges, vehicles), which must run until the demo stops them: the first of those
+    that ends returns at once (None: all ran throughout). subprocess.TimeoutExpired when
+    `waited` have not all ended by then."""
+    end = time.monotonic() + timeout
+    while True:
+        for p in watched:
+            if p.proc.poll() is not None:
+                return p
+        if all(w.proc.poll() is not None for w in waited):
+            return None
+        if time.monotonic() >= end:
+            raise subprocess.TimeoutExpired([w.name for w in waited], timeout)
+        time.sleep(poll)
+
+
+def ended_early(p: Proc) -> str:
+    """The line telling that `p`, which should have run throughout, ended."""
+    said = p.last_line()
+    return (f"uwgen demo: {p.name} ended early (exit {p.proc.returncode})"
+            + (f": {said}" if said else "") + f"; stopping (its log: {p.logfile})")
 
 
 def stop_all(procs: list[Proc]) -> dict[str, int]:

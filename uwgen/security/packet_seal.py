@@ -196,14 +196,20 @@ class PacketSeal(SideSeal):
         if e.sync is not None and e.time is None:
             return drop("malformed", None, e.sender)
         max_age = self._max_age(e.messages)
-        if e.time is not None and not self._time_ok(e, max_age):
-            self._tell_time(e)
-            return drop("stale", None, e.sender)
         numbering = Numbering(e.sender, e.number, NUMBER_BITS,
                               None if e.sync is None else (e.sync.high << NUMBER_BITS) | e.number,
                               None if e.sync is None else wire.Sync(e.sync.epoch, e.time))
-        got = self.receiver.admit(numbering, max_age, lambda aead, seq: packetwire.open_envelope(
-            aead, e, seq, self._encrypts, self._fingerprint), time_checked=True)
+
+        def verify(aead, seq: int):
+            return packetwire.open_envelope(aead, e, seq, self._encrypts, self._fingerprint)
+        if e.time is not None and not self._time_ok(e, max_age):
+            # refused for its time before its tag is checked; what is said of the sender's
+            # clock is said of its own packets only (a forgery must not use that line up)
+            if not self.receiver.authentic(numbering, verify):
+                return drop("bad_tag", None, e.sender)
+            self._tell_time(e)
+            return drop("stale", None, e.sender)
+        got = self.receiver.admit(numbering, max_age, verify, time_checked=True)
         if isinstance(got, str):
             if got == "stale" and e.sync is not None:
                 self._tell_time(e)

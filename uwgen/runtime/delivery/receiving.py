@@ -27,6 +27,7 @@ class PeerReceipts:
                                                     # the packet lost may have carried a reliable
                                                     # message, so the next packet leaving reports
     duplicates: int = 0
+    too_old: int = 0                                # numbers below the window: taken, not recorded
     gaps: int = 0                                   # numbers that left the window unreceived
 
 
@@ -42,9 +43,12 @@ class Receiving:
 
     def received(self, peer: int, epoch: bytes, number: int, now: float,
                  eliciting: bool) -> bool:
-        """Packet `number` (mod 4096) from (peer, epoch) arrived. False: a duplicate packet
-        (counted; its messages must not be delivered). `eliciting`: it carries a reliable
-        message, so the peer waits for an ack of it."""
+        """Packet `number` (mod 4096) from (peer, epoch) arrived. False: a repeat of a packet
+        received (DESERT delivered it twice; counted `duplicates`): nothing of it is taken, its
+        messages must not be delivered. `eliciting`: it carries a reliable message, so the peer
+        waits for an ack of it. A number further below the largest than the window remembers
+        cannot be told from a new one after a long loss (numbers are 12 bits): it is counted
+        `too_old` and taken, never dropped on a guess."""
         r = self.receipts.get((peer, epoch))
         if r is None:
             # A new epoch is a restarted peer: everything known about the old one goes.
@@ -56,8 +60,8 @@ class Receiving:
             r.duplicates += 1
             return False
         if r.largest is not None and n < r.largest - RECEIVED_WINDOW:
-            r.duplicates += 1                   # too old to tell: treated as a repeat
-            return False
+            r.too_old += 1                      # too old to tell: not remembered, not acked
+            return True
         if r.largest is None or n > r.largest:
             if r.largest is not None:
                 r.got.add(r.largest)

@@ -25,7 +25,9 @@ deadline whatever the offset's error and however long a packet was held:
   On a link whose sides measure each other at start (`measured_only`, the bridges' probes),
   a message with a max age is refused `unmeasured` until its sender's offset is measured:
   the clocks' agreement is then not assumed, since nothing enforces it;
-- the packet has no T: judged by its age item alone (counted `untimed` by the caller).
+- the packet has no T: refused (`untimed`). A sender stamps T on every packet carrying a
+  message with a max age (wire-format.md section 15.5), so such a packet was not built by
+  one, and an age item alone bounds nothing: a packet held for an hour says the same age.
 
 Pure: clocks and offsets are passed in.
 """
@@ -41,11 +43,12 @@ MAX_TRANSIT = 10.0        # seconds: DESERT's queue, one acoustic packet, and ma
 
 STALE, CLOCK_OFFSET, UNEXPLAINED = "stale", "clock_offset", "unexplained_delay"
 UNMEASURED = "unmeasured"   # no offset yet, on a link whose sides measure each other at start
+UNTIMED = "untimed"         # no T on the packet: nothing bounds the hold
 
 
 @dataclass
 class Verdict:
-    refused: str | None           # None: taken; else STALE, CLOCK_OFFSET or UNEXPLAINED
+    refused: str | None           # None: taken; else the reason (STALE, CLOCK_OFFSET, ...)
     age: float                    # the most the message can be old (seconds)
     transit: float | None = None  # the packet's transit as judged (offset taken off when known)
     offset: Offset | None = None  # the sender's measured offset used
@@ -66,9 +69,9 @@ class Staleness:
 
     def judge(self, time24: int | None, age: float, max_age: float, wall: float,
               offset: Offset | None = None) -> Verdict:
-        """`time24`: the packet's T (None: judged by `age` alone); `offset`: the sender's."""
+        """`time24`: the packet's T (None: refused, module doc); `offset`: the sender's."""
         if time24 is None:
-            return Verdict(STALE if age > max_age + self.tolerance else None, age)
+            return Verdict(UNTIMED, float("inf"))
         apparent = Freshness(self.tolerance).age(time24, wall)
         if offset is not None:
             transit = apparent + offset.offset

@@ -1,7 +1,9 @@
 """The hooks a packet's parts come from (docs/seams.md sections 5 and 9): what reliability
 (wire-format.md section 15), the per-packet seal (section 12.2) and the MAC (section 16) plug
 into the packer and the unpacker (uwgen/runtime/link/packets.py), and `join_hooks`, which makes
-one set of hooks from several.
+one set of hooks from several. A `received` hook that answers False (reliability's, for a packet
+number already received: DESERT delivered the packet twice) stops the packet: the hooks after
+it (the MAC's grants) and the messages never see it.
 """
 from __future__ import annotations
 
@@ -20,7 +22,8 @@ class PacketHooks:
     seal: Callable[[env.Envelope], bytes] | None = None
     open: Callable[[bytes], env.Envelope | None] | None = None
     sent: Callable[[int, list[tuple[int, bytes]], float], None] | None = None
-    received: Callable[[env.Envelope, float], None] | None = None
+    # told every envelope accepted; False: a repeat of a packet received, dropped whole
+    received: Callable[[env.Envelope, float], bool | None] | None = None
     overhead: int = 0
     next_overhead: Callable[[float], int] | None = None
     number: Callable[[], int] | None = None
@@ -29,6 +32,7 @@ class PacketHooks:
     # the message goes whole in the next packet): wire-format.md section 14.2
     cut: Callable[..., None] | None = None
     resend: Callable[[float, int], tuple[int, bytes] | None] | None = None
+    copy: Callable[[float, int], tuple[int, bytes] | None] | None = None
     ack_only: Callable[[float], bool] | None = None
     next_time: Callable[[float], float | None] | None = None
     stamp: Callable[[int, bytes, float, float], bytes] | None = None
@@ -51,11 +55,12 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     part two hooks give must have the same value, otherwise building the packet fails with
     EnvelopeError.
     At most one hook may `seal` and `open` (the same one, or neither: ValueError otherwise); its
-    `number` numbers the packets. `sent`, `received`, `carrying` and `cut` are called in order;
+    `number` numbers the packets. `sent`, `received`, `carrying` and `cut` are called in order
+    (`received` until one answers False: the packet is a repeat, and so is the joined answer);
     `overhead` is the sum (an upper bound: a part two hooks both give is counted twice),
     `next_overhead` the sum of each hook's (its `overhead` when it gives none). Likewise at most
     one hook may give the message heads (`stamp`, `head_room`, `admit`) and at most one
-    `resend`; `ack_only` is any hook's, `next_time` the earliest, `stats` the union of the
+    `resend` and `copy`; `ack_only` is any hook's, `next_time` the earliest, `stats` the union of the
     hooks' dicts, `part_room` the sum."""
     given = [h for h in hooks if h is not None]
     sealers = [h for h in given if h.seal is not None or h.open is not None or h.number is not None]
@@ -85,16 +90,18 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
         for tell in senders:
             tell(number, picked, now)
 
-    def received(envelope: env.Envelope, now: float) -> None:
+    def received(envelope: env.Envelope, now: float) -> bool:
         for tell in receivers:
-            tell(envelope, now)
+            if tell(envelope, now) is False:
+                return False        # a repeat: the hooks after this one never see it
+        return True
 
     def next_overhead(now: float) -> int:
         return sum(h.next_overhead(now) if h.next_overhead is not None else h.overhead
                    for h in given)
 
     header = _one(given, ("stamp", "head_room", "admit", "shape", "unshape"), "give message heads")
-    resender = _one(given, ("resend",), "re-send messages")
+    resender = _one(given, ("resend", "copy"), "re-send messages")
     carriers = [h.carrying for h in given if h.carrying is not None]
     cutters = [h.cut for h in given if h.cut is not None]
     askers = [h.ack_only for h in given if h.ack_only is not None]
@@ -132,7 +139,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
                        next_overhead=(next_overhead if any(h.next_overhead is not None for h in given)
                                       else None),
                        number=sealer.number,
-                       carrying=carrying if carriers else None, resend=resender.resend,
+                       carrying=carrying if carriers else None, resend=resender.resend, copy=resender.copy,
                        cut=cut if cutters else None,
                        ack_only=ack_only if askers else None,
                        next_time=next_time if timers else None,

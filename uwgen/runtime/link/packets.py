@@ -23,7 +23,8 @@ The seams of reliability and the seal (docs/seams.md section 5) are the `PacketH
   without it the bytes are decoded with `envelope.decode`;
 - `sent(number, [(channel key, payload), ...], now)` after each packet is built, with the
   sender's full packet number (not reduced mod 4096);
-- `received(envelope, now)` for every envelope accepted, before its messages are delivered.
+- `received(envelope, now)` for every envelope accepted, before its messages are delivered;
+  False: a repeat of a packet received, whose messages are dropped (counted `repeated_packets`).
 
 Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"):
 
@@ -32,6 +33,8 @@ Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"
   in no `sent` list: its message went with the packet of its head);
 - `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
   `message_measure`, or None: served before the scheduler's messages;
+- `copy(now, room)` -> the same for a copy of a message not acknowledged yet, asked only for
+  the room a packet that carries messages anyway has left after them (never displacing one);
 - `ack_only(now)` -> True when a packet must leave even without messages (an acknowledgement
   is due): the packer then builds one with only the hooks' parts;
 - `next_time(now)` -> when one of the above will next want a packet (None: never), so the
@@ -69,7 +72,7 @@ OLD_SHORT_BITS = 3 << 5     # P of wire format 3, the first to use the short fra
 PACKET_COUNTERS = ("packets_sent", "messages_sent", "packets_received", "messages_received",
                    "bad_envelopes", "version_1", "version_2", "version_3", "unknown_kind",
                    "refused_payloads", "opened_none", "ack_only_sent",
-                   "cut_sent", "cut_dropped", "cut_joined", "cut_orphan")
+                   "cut_sent", "cut_dropped", "cut_joined", "cut_orphan", "repeated_packets")
 
 
 def envelope_room(max_read_length: int, overhead: int = 0) -> int:
@@ -161,11 +164,12 @@ class Packer:
             now, room if messages else None, fill=True, packet=self.number,
             extra=extra if roomy is not None else None,
             measure=lambda payload: added(messages, payload)))
-        for source in sources:
+        def fill(source) -> None:
+            nonlocal budget, charged
             while budget > 1:
                 got = source(budget)
                 if got is None:
-                    break
+                    return
                 key, payload = got
                 try:
                     messages.append(env.from_v1(payload))
@@ -182,9 +186,17 @@ class Packer:
                 # what the messages take as encoded (a message joining a run costs its body
                 # alone), counted as `message_measure` counts: each with a length byte
                 budget = room - charged - len(env.encode_messages(messages)) - 1
+
+        for source in sources:
+            fill(source)
         cut_at = self.number
         if messages and budget > 1:
             self._cut_last(now, messages, picked, room - charged - 1)
+        cut_now = self.first is not None and self._cut_of == cut_at
+        if h.copy is not None and picked and budget > 1 and not cut_now:
+            # room left in a packet that leaves anyway: copies of messages not acknowledged
+            # yet (wire-format.md section 15.6), after every fresh message and cut head
+            fill(lambda room: h.copy(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0)))
         if not messages:
             if h.ack_only is None or not h.ack_only(now):
                 return None
@@ -280,8 +292,13 @@ class Unpacker:
         c.inc("packets_received")
         if self.hooks.unshape is not None:
             envelope = self.hooks.unshape(envelope)
-        if self.hooks.received is not None:
-            self.hooks.received(envelope, now)
+        if self.hooks.received is not None and self.hooks.received(envelope, now) is False:
+            # a packet number already received: DESERT delivered the packet twice (an ARQ MAC
+            # whose ack was lost sends it again); its messages were delivered with the first
+            log_count(log, logging.INFO, c.inc("repeated_packets"),
+                      "[%s] dropped a repeat of packet %d from sender %d (received before)",
+                      self.name, envelope.number, envelope.sender)
+            return []
         out = []
         joiner = self.joiner
         orphans = joiner.orphans
