@@ -107,3 +107,11 @@ def test_without_a_mac_the_bridge_keeps_the_commands_copies(demo):
     plan = dataclasses.replace(BridgePlan.from_package(demo, "surface"), mac=None)
     assert reliable_commands(plan) == {}
     assert 20 not in reliability_for(plan, LinkConfig(64, 0.2)).heads.numbered
+
+
+def test_on_a_wire_format_1_link_the_bridge_keeps_the_copies_whatever_the_mac(demo):
+    plan = BridgePlan.from_package(demo, "surface")
+    rmw_topic = dataclasses.replace(plan.topics[0], profile="rmw_desert")
+    plan = dataclasses.replace(plan, outgoing_topics=[rmw_topic, *plan.outgoing_topics[1:]])
+    assert plan.wire_format == 1 and plan.mac.mode == "turns"
+    assert reliable_commands(plan) == {}

@@ -31,8 +31,8 @@ def reliable_commands(plan: BridgePlan) -> dict[int, float]:
     name a lost packet in the peer's next turn, so each lost request, goal, answer or result
     goes again in this side's next turn, and only what was lost; on a link without one the
     bridge's copies carry them (uwgen.bridge.copies)."""
-    if plan.mac is None or plan.mac.mode == "none":
-        return {}
+    if plan.mac is None or plan.mac.mode == "none" or plan.wire_format != 2:
+        return {}               # (wire format 1 has no reliable messages: the bridge re-sends)
     out = {s.id: float(s.timeout) for s in plan.services if getattr(s, "timeout", None)}
     out.update({a.id: float(a.accept_timeout) for a in (*plan.offered_actions, *plan.served_actions)})
     return out
