@@ -10,7 +10,11 @@ Per rate and mode it prints: calls and goals that succeeded within their timeout
 real result (the server's own response / Fibonacci sequence), duplicate executions at the
 real server (a request or goal run more than once), and the air time spent on retries and
 acknowledgements (copies of requests, goals, results and answers; result acknowledgements
-and requests; 4 bytes of framing each) as a share of all bytes the two sides wrote.
+and requests; 4 bytes of framing each; under a MAC the link's own re-sends and copies of
+command messages, told by their number N; a copy taken back before it left counts nothing)
+as a share of all bytes the two sides wrote. `--trace FILE` writes a JSON line per command
+payload offered and delivered, per packet written (its messages) and per MAC item heard,
+and each side's counters at the end: where a failed call or goal lost its time.
 
 Modes: `retries` is this build; `reference` is the same build with the commands' retries off
 (no request copies, no result copies, no result acknowledgements or requests; goals are
