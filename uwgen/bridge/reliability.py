@@ -88,6 +88,9 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
     clock = wall if hasattr(wall, "now") else _Wall(wall)
     return Reliability(plan.sender_id, period=link.period,
                        reliable=reliable_topics(plan) | reliable_commands(plan),
+                       # commands are re-sent as their losses are reported, never copied in
+                       # spare room (wire-format.md section 15.6)
+                       copied=frozenset(reliable_topics(plan)),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
                        max_read_length=link.max_read_length, other_overhead=other_overhead,
                        turn_gap=turn_gap, settled_by=settled_by,
