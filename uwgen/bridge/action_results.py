@@ -31,7 +31,7 @@ class Unacked:
 
     payload: bytes
     first_sent: float
-    next_send: Due                # copies.py: after this side's turn, or an RTO
+    next_send: Due                # copies.py: an RTO, or past the deadline the link re-sends to
     until: float                  # no copy after this: the client side may reuse the handle
     sends: int = 1
 

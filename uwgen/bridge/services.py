@@ -53,7 +53,8 @@ RECENT_REPLIES = 32   # answered requests per service whose response is kept for
 @dataclass
 class Outgoing:
     """A request sent and not yet answered (calling side): sent again when its copy is due
-    (uwgen.bridge.copies: after the turn that carried it, or after an RTO)."""
+    (uwgen.bridge.copies: after an RTO; under a MAC the link re-sends it, the bridge only
+    past its deadline)."""
 
     payload: bytes
     first_sent: float
