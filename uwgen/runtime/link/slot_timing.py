@@ -17,15 +17,19 @@ within one ON window plus that error, less than a frame, so the earliest is the 
 the largest gap between them around the circle of the frame. Packets older than `memory`
 are forgotten: a side that has heard nothing for that long knows no phase.
 
-`SlotTimer` places this side's writes for its ON window [open, close): DESERT's
-uwApplication moves one packet from the socket to the MAC per `period`, a write waiting up
-to a period for that tick, and the link writes one packet per `interval` (its pacer). The
-window's writes start at `open - period - lead`, so the first packet waits in the MAC queue
-only for the window to open and the others join it one tick after they are written, or
-earlier when the slot's `capacity` packets written one interval apart would not all reach
-the MAC `lead` before `close`, with `lead` to spare for a late thread (they then wait
-queued for the window, at most `capacity` of them). Writes end at `close - lead - period`: a
-later one could miss the window and wait a whole frame. Every packet is built as it is written, so it is the freshest it can be.
+`SlotTimer` places this side's writes for its slot: from `open` (the slot's start) to
+`close`, the end of its send window (`send_window`: a packet started later would reach the
+far side after the next slot has begun). DESERT's uwApplication moves one packet from the
+socket to the MAC per `period`, a write waiting up to a period for that tick, and the link
+writes one packet per `interval` (its pacer). The window's writes start at `open - period -
+lead`, so the first packet waits in the MAC queue only for the slot to open and the others
+join it one tick after they are written, or earlier when the slot's `capacity` packets
+written one interval apart would not all reach the MAC `lead` before `close`, with `lead`
+to spare for a late thread (they then wait queued for the slot, at most `capacity` of
+them). Writes end at `close - lead - period`: a later one could miss the window and wait a
+whole frame. Every packet is built as it is written, so it is the freshest it can be. A
+frame's writes are counted from the end of the window before (also those made while no
+phase was known), so whatever DESERT's queue held drains before more is written.
 """
 from __future__ import annotations
 
