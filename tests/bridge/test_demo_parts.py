@@ -391,3 +391,11 @@ def test_a_fleet_vehicle_that_did_not_follow_is_named_with_why():
     assert vehicle_problems(report) == [
         "no pose reached the surface", "every call of /auv2/vehicle/set_pen failed",
         "the reported path is not within 0.5 m of the square"]
+
+
+def test_the_mac_the_demo_gives_its_bridges_is_the_manifests_weights_and_all():
+    from uwgen.commands.demo import mac_text
+    from uwgen.manifest.mac import mac_from_text, mac_of_file
+    fleet = mac_of_file(Path(__file__).resolve().parents[2] / "msg_samples" / "fleet" / "uwgen.yaml")
+    assert fleet.weights                                   # the surface's longer slot
+    assert mac_from_text(mac_text(fleet), list(fleet.slots)) == fleet
