@@ -143,3 +143,9 @@ def test_without_senders_on_the_wire_a_packet_comes_from_the_only_other_side():
     mac.arrived(None, arrival(10.0, 0.5))                    # no sender, size not known: a full packet
     assert mac.phase.start(10.9) == pytest.approx(0.0)
     assert mac.next_write_at(10.5) > 10.5
+
+
+def test_a_tdma_link_writes_in_bursts_a_frame_apart_and_says_so():
+    from uwgen.runtime.link.mac import Mac
+    assert TdmaMac(TWO, "surface", LINK).burst == TWO.frame      # the scheduler's rate buckets
+    assert Mac().burst == 0.0

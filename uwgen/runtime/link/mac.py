@@ -95,6 +95,7 @@ class Mac:
 
     mode = "none"
     overhead = 0                         # most bytes the MAC adds to a packet (C part included)
+    burst = 0.0                          # s between write windows: rate limits hold over it
 
     def __init__(self):
         self.backlog: Callable[[float], bool] = lambda now: False   # set by the Link
@@ -163,6 +164,7 @@ class TdmaMac(Mac):
                  anonymous: bool = False):
         super().__init__()
         self.config = config
+        self.burst = config.frame            # one write window a frame
         self.capacity = tdma_capacity(config, link, side)
         self.max_bytes = link.max_read_length
         ids = {s: i for s, i in (senders or {}).items() if s in config.slots}
