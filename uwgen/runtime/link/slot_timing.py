@@ -9,10 +9,10 @@ hears: a packet from side S reaches the bridge at
 
 and the manifest gives every slot's start, the air time (its bytes and `bitrate`) and the
 longest propagation (`range`). `FramePhase` takes each heard packet's frame start assuming
-it left first in its window over the whole range: never later than the true start, and
-late only by its place in the window, so over recent packets the earliest estimate is the
-frame's start (early by at most `range - distance` over the speed of sound: packets then
-wait that much longer in DESERT, they never miss the window). The estimates of a frame lie
+it left first in its window over the whole range: late by its place in the window, early by
+at most `range - distance` over the speed of sound, so over recent packets the earliest
+estimate is the frame's start, or a little before it (packets then wait that much longer in
+DESERT, they never miss the window). The estimates of a frame lie
 within one ON window plus that error, less than a frame, so the earliest is the one after
 the largest gap between them around the circle of the frame. Packets older than `memory`
 are forgotten: a side that has heard nothing for that long knows no phase.
