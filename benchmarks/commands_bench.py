@@ -312,14 +312,15 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
                                     other_overhead=macs[side].overhead,
                                     turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by)
         hooks = r.hooks()
-        resend = hooks.resend
 
-        def counted(now, room):
-            got = resend(now, room)
-            if got is not None:
-                repair["resent"] += message_measure(got[1])
-            return got
-        hooks.resend = counted
+        def counted(source):                # re-sends and copies in spare room: repair bytes
+            def count(now, room):
+                got = source(now, room)
+                if got is not None:
+                    repair["resent"] += message_measure(got[1])
+                return got
+            return count
+        hooks.resend, hooks.copy = counted(hooks.resend), counted(hooks.copy)
         return hooks
     sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,
                     clock=clock, step=0.025,

@@ -118,12 +118,12 @@ MANIFEST = ManifestInfo(
     schema_period=600.0,
     schema_digest=SCHEMA_DIGEST,
     security=SecurityPlan(key_file='../keys/demo.key', senders={'auv1': 2, 'auv2': 3, 'auv3': 4, 'surface': 1}, modes={10: 'encrypt', 11: 'sign', 12: 'encrypt', 13: 'encrypt', 14: 'encrypt', 20: 'encrypt', 21: 'sign', 22: 'encrypt', 23: 'encrypt', 24: 'encrypt', 30: 'encrypt', 31: 'sign', 32: 'encrypt', 33: 'encrypt', 34: 'encrypt', 249: 'sign'}, tag_bytes=8, seal_fingerprints={}),
-    mac=MacConfig(mode='tdma', bitrate=4800.0, range=300.0, frame=3.7, guard=0.34, slots=('surface', 'auv1', 'auv2', 'auv3'), max_packet_per_slot=6, queue_size=10, weights=(('surface', 2),), leader='', packets=()),
+    mac=MacConfig(mode='tdma', bitrate=4800.0, range=300.0, frame=3.1, guard=0.34, slots=('surface', 'auv1', 'auv2', 'auv3'), max_packet_per_slot=3, queue_size=10, weights=(), leader='', packets=()),
 )
 
 # What this package was built from: `uwgen bridge -m MANIFEST` refuses it once these change.
 BUILT_FROM = {
-    "manifest": "aa7270a43db0c9ce",
+    "manifest": "9a2544efb71b8bea",
     "sources": {
         "../turtlesim/action/RotateAbsolute.action": "f559ab5b32a954b2",
         "../turtlesim/msg/Color.msg": "9cd63f14c0afc12d",

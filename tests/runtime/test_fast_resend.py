@@ -195,3 +195,20 @@ def test_a_lost_grant_is_carried_by_its_notice_and_a_message_in_it_goes_again_ne
     assert [p[2] for _, p in sim.received["vehicle"] if p[1] == MISSION] == [0]
     for side in SENDERS:
         assert sim.core.counters(side)["lost_collision"] == 0
+
+
+def test_under_a_mac_news_of_best_effort_packets_is_reported_every_two_rounds_a_gap_at_once():
+    def policy(turn_gap: float) -> Reliability:
+        r = Reliability(VEHICLE, period=0.2, reliable={}, max_ages={}, turn_gap=turn_gap)
+        r.engine.received(SURFACE, EPOCH, 0, 0.0, eliciting=False)
+        r.acks.heard(SURFACE, True, 0.0)
+        assert r.acks.a_part({SURFACE: EPOCH}, 0.1)               # the first report
+        r.engine.received(SURFACE, EPOCH, 1, 1.0, eliciting=False)
+        r.acks.heard(SURFACE, True, 1.0)
+        return r
+    assert policy(0.0).acks.due({SURFACE: EPOCH}, 3.0)            # no MAC: every 2 s
+    r = policy(2.9)                                               # a round of turns of 2.9 s
+    assert not r.acks.due({SURFACE: EPOCH}, 3.0)
+    assert r.acks.due({SURFACE: EPOCH}, 0.1 + 2 * 2.9)
+    r.engine.received(SURFACE, EPOCH, 3, 3.5, eliciting=False)    # 2 is missing
+    assert r.acks.due({SURFACE: EPOCH}, 3.5)

@@ -3,6 +3,8 @@
 nothing a forger or a replayer sends gets in any more than before."""
 from __future__ import annotations
 
+import logging
+
 from uwgen.runtime.clock import ManualClock
 from uwgen.runtime.delivery.clock_offset import Offset
 from uwgen.runtime.delivery.freshness import stamp
@@ -111,3 +113,19 @@ def test_a_clock_stepped_ahead_after_its_offset_was_measured_is_heard_again():
     s_wall.advance(20.0)
     assert v.receive(s.send(twist(2.0))) == [twist(2.0)]
     assert v.receive(s.send(twist(3.0))) == [twist(3.0)] and v.stats()["stale"] == 0
+
+
+def test_a_forged_packet_stamped_long_ago_is_counted_bad_tag_and_says_nothing_of_the_clock(caplog):
+    # the clock line is said once per sender: a forgery refused for its time must not use it up
+    s, v, s_wall, v_wall = pair(0.0, None)
+    assert v.receive(s.send(twist(1.0))) == [twist(1.0)]
+    held = s.send(twist(2.0))
+    forged = held[:-1] + bytes([held[-1] ^ 0x01])          # the tag's last byte changed
+    v_wall.advance(300.0)
+    with caplog.at_level(logging.ERROR, logger="uwgen.security"):
+        assert v.receive(forged) == []
+        assert v.stats()["bad_tag"] == 1 and v.stats()["stale"] == 0
+        assert "stamped" not in caplog.text
+        assert v.receive(held) == []                        # the real one, held 300 s
+    assert v.stats()["stale"] == 1
+    assert "a packet stamped 300.0 s behind our clock was refused" in caplog.text

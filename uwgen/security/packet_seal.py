@@ -37,6 +37,7 @@ from uwgen.runtime.delivery.freshness import sent_at, stamp
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.stats import log_count
 from uwgen.security import control, packetwire, taglength, wire
+from uwgen.security.clock_notes import ClockNotes
 from uwgen.security.droplog import SUMMARY_PERIOD, log
 from uwgen.security.epochs import EPOCH_NUMBERS
 from uwgen.security.errors import SecurityError
@@ -91,8 +92,7 @@ class PacketSeal(SideSeal):
         self._current: tuple[int, bytes, object] | None = None    # (seq, epoch, aead) being built
         self.requests = control.SyncRequests(ASK_GAP)
         self._told_length: set[int] = set()     # peers whose other tag length was logged
-        self._told_time: set[int] = set()       # peers whose refused time T was logged
-        self._told_before: set[int] = set()     # peers whose far T before our start was logged
+        self.clock_notes = ClockNotes(name, config.peers, self.freshness, self.wall)
         self._offset_of = None                  # sender -> measured clock offset (use_offsets)
 
     def use_offsets(self, offset_of) -> None:
@@ -196,19 +196,25 @@ class PacketSeal(SideSeal):
         if e.sync is not None and e.time is None:
             return drop("malformed", None, e.sender)
         max_age = self._max_age(e.messages)
-        if e.time is not None and not self._time_ok(e, max_age):
-            self._tell_time(e)
-            return drop("stale", None, e.sender)
         numbering = Numbering(e.sender, e.number, NUMBER_BITS,
                               None if e.sync is None else (e.sync.high << NUMBER_BITS) | e.number,
                               None if e.sync is None else wire.Sync(e.sync.epoch, e.time))
-        got = self.receiver.admit(numbering, max_age, lambda aead, seq: packetwire.open_envelope(
-            aead, e, seq, self._encrypts, self._fingerprint), time_checked=True)
+
+        def verify(aead, seq: int):
+            return packetwire.open_envelope(aead, e, seq, self._encrypts, self._fingerprint)
+        if e.time is not None and not self._time_ok(e, max_age):
+            # refused for its time before its tag is checked; what is said of the sender's
+            # clock is said of its own packets only (a forgery must not use that line up)
+            if not self.receiver.authentic(numbering, verify):
+                return drop("bad_tag", None, e.sender)
+            self.clock_notes.time_refused(e)
+            return drop("stale", None, e.sender)
+        got = self.receiver.admit(numbering, max_age, verify, time_checked=True)
         if isinstance(got, str):
             if got == "stale" and e.sync is not None:
-                self._tell_time(e)
+                self.clock_notes.time_refused(e)
             if got == "before_start":
-                self._tell_before(e)
+                self.clock_notes.before_start(e)
             if got == "unsynced" or got == "before_start" and self._nearly_started(e.time):
                 self.requests.want(e.sender, self.clock.now())
             if got == "bad_tag" and e.sync is not None and self._other_length(data, e.sender):
@@ -256,35 +262,6 @@ class PacketSeal(SideSeal):
         ahead = (self.freshness.tolerance if self._offset_of is None
                  else max(self.freshness.tolerance, self.config.max_age))
         return -ahead <= age <= max_age + self.freshness.tolerance
-
-    def _tell_time(self, e: env.Envelope) -> None:
-        """A packet refused for its time T: say by how much, once per sender (a clock set
-        wrong shows as every packet off by the same figure; a held packet as one late one)."""
-        if e.sender in self._told_time:
-            return
-        self._told_time.add(e.sender)
-        apparent = self.freshness.age(e.time, self.wall.now())
-        log.error("[%s] sender %d (%s): a packet stamped %.1f s %s our clock was refused "
-                  "(counted stale). If every packet of that sender is refused so, its clock and "
-                  "ours disagree by about that much, beyond the %.0f s tolerance: set both from "
-                  "GPS or NTP; if only some are, packets are being held back or replayed",
-                  self.name, e.sender, self.config.peers.get(e.sender, "?"), abs(apparent),
-                  "behind" if apparent > 0 else "ahead of", self.freshness.tolerance)
-
-    def _tell_before(self, e: env.Envelope) -> None:
-        """A packet refused `before_start` stamped further behind than the tolerance: its
-        sender's clock may be that far behind; said once per sender, with the figure."""
-        behind = self.freshness.age(e.time, self.wall.now())
-        if e.sender in self._told_before or behind <= self.freshness.tolerance:
-            return
-        self._told_before.add(e.sender)
-        log.warning("[%s] sender %d (%s): a packet of a new epoch stamped %.1f s behind our clock, "
-                    "before this side started, was refused (counted before_start): a recording, "
-                    "a packet held since before our start, or that sender's clock is about %.0f s "
-                    "behind ours; if its clock, it is heard and its offset measured once its "
-                    "stamps pass our start, and its commands refused (clock_offset) until both "
-                    "clocks are set from GPS or NTP", self.name, e.sender,
-                    self.config.peers.get(e.sender, "?"), behind, behind)
 
     def _other_length(self, data: bytes, sender: int) -> bool:
         """Whether sync packet `data` verifies at another tag length (logged once per peer)."""

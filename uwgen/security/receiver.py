@@ -110,6 +110,19 @@ class Receiver:
             window, shadowed = entry.shadow, True      # a sync frame of the real sender
         return self._take(peer, entry, window, seq, max_age, got, shadowed)
 
+    def authentic(self, n: Numbering, verify: Callable[[Any, int], Any]) -> bool:
+        """Whether the frame's tag verifies under an epoch of its sender, taking nothing (no
+        window moves): for a frame refused before its tag was checked (its time), so that
+        what is said about its sender's clock is said of the sender's own frames only."""
+        peer = self._peers[n.sender]
+        if n.sync is not None:
+            entry = peer.get(n.sync.epoch) or peer.retired(n.sync.epoch)
+            aead = entry.aead if entry is not None else self._aead_for(n.sender, n.sync.epoch)
+            return verify(aead, n.full) is not None
+        return any(verify(entry.aead, window.reconstruct(n.partial, n.bits)) is not None
+                   for entry in peer.recent() for window in (entry.window, entry.shadow)
+                   if window is not None)
+
     def _take(self, peer: PeerEpochs, entry: PeerEpoch, window: ReplayWindow, seq: int,
               max_age: float, got: Any, shadowed: bool) -> Any:
         """The replay and overtaken checks in `window` (the epoch's, or its shadow), then take."""

@@ -75,6 +75,32 @@ class AgeJudge:
                         "%.0f s tolerance, its commands are taken again", self.name, self.who(peer),
                         got.offset, got.error, self.staleness.tolerance)
 
+    def _why(self, verdict, age: float, max_age: float) -> str:
+        """Why `verdict` refused a message whose age item is `age` (the log line's reason)."""
+        o, tolerance = verdict.offset, self.staleness.tolerance
+        items = f"age item {age:.1f} s, max age {max_age:.1f} s"
+        if verdict.refused == CLOCK_OFFSET:
+            side = "ahead of" if o.offset > 0 else "behind"
+            return (f"that sender's clock is {abs(o.offset):.1f} s {side} "
+                    f"ours (+-{o.error:.2f} s), beyond the {tolerance:.0f} s tolerance. Set both clocks "
+                    "from GPS or NTP")
+        if verdict.refused == UNMEASURED:
+            return ("that sender's clock offset is not measured yet (the exchange at start), so its "
+                    f"age cannot be bounded ({items})")
+        if verdict.refused == UNTIMED:
+            return (f"its packet has no time (T), so how long it was held cannot be bounded ({items}); "
+                    "a uwgen sender stamps T on every such packet")
+        if verdict.refused == UNEXPLAINED:
+            return (f"its packet's time says it took {verdict.transit:.1f} s on the way, outside "
+                    f"[-{tolerance:.0f}, {tolerance + self.staleness.max_transit:.0f}] s, and that "
+                    "sender's clock offset is not measured yet, so a delay cannot be told from an "
+                    f"offset ({items})")
+        how = (f"clock offset {o.offset:+.2f} +-{o.error:.2f} s measured" if o is not None else
+               f"clock offset not measured yet (tolerance {tolerance:.0f} s)")
+        how = f"transit {verdict.transit:.1f} s, {how}"
+        return (f"it may be {verdict.age:.1f} s old (age item {age:.1f} s, {how}), "
+                f"its max age is {max_age:.1f} s")
+
     def refuses(self, ident: int, peer: int, time24: int | None, age: float) -> bool:
         max_age = self.max_ages[ident]
         verdict = self.staleness.judge(time24, age, max_age, self.wall.now(), self.offsets.of(peer))
@@ -82,42 +108,6 @@ class AgeJudge:
             return False
         self.stale_by_id[ident] = self.stale_by_id.get(ident, 0) + 1
         n = self.counters.inc(verdict.refused)
-        o = verdict.offset
-        if verdict.refused == CLOCK_OFFSET:
-            log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: that sender's clock is "
-                      "%.1f s %s ours (+-%.2f s), beyond the %.0f s tolerance. Set both clocks "
-                      "from GPS or NTP (counted clock_offset)", self.name, ident, self.who(peer),
-                      abs(o.offset), "ahead of" if o.offset > 0 else "behind", o.error,
-                      self.staleness.tolerance)
-        elif verdict.refused == UNMEASURED:
-            log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: that sender's clock offset is "
-                      "not measured yet (the exchange at start), so its age cannot be bounded "
-                      "(age item %.1f s, max age %.1f s; counted unmeasured)",
-                      self.name, ident, self.who(peer), age, max_age)
-        elif verdict.refused == UNTIMED:
-            log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: its packet has no time (T), so "
-                      "how long it was held cannot be bounded (age item %.1f s, max age %.1f s); "
-                      "a uwgen sender stamps T on every such packet (counted untimed)",
-                      self.name, ident, self.who(peer), age, max_age)
-        elif verdict.refused == UNEXPLAINED:
-            log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: its packet's time says "
-                      "it took %.1f s on the way, outside [-%.0f, %.0f] s, and that sender's "
-                      "clock offset is not measured yet, so a delay cannot be told from an "
-                      "offset (age item %.1f s, max age %.1f s; counted unexplained_delay)",
-                      self.name, ident, self.who(peer), verdict.transit, self.staleness.tolerance,
-                      self.staleness.tolerance + self.staleness.max_transit, age, max_age)
-        else:
-            how = ("transit %.1f s, clock offset %+.2f +-%.2f s measured" % (
-                       verdict.transit, o.offset, o.error) if o is not None else
-                   "transit %.1f s, clock offset not measured yet (tolerance %.0f s)" % (
-                       verdict.transit or 0.0, self.staleness.tolerance)
-                   if verdict.transit is not None else "no packet time")
-            log_count(log, logging.WARNING, n,
-                      "[%s] refused a message of id %d from %s: it may be %.1f s old (age item "
-                      "%.1f s, %s), its max age is %.1f s (counted stale)", self.name, ident,
-                      self.who(peer), verdict.age, age, how, max_age)
+        log_count(log, logging.WARNING, n, "[%s] refused a message of id %d from %s: %s (counted %s)",
+                  self.name, ident, self.who(peer), self._why(verdict, age, max_age), verdict.refused)
         return True

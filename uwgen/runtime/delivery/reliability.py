@@ -33,7 +33,7 @@ import logging
 import threading
 from collections import OrderedDict, deque
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
@@ -43,7 +43,8 @@ from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.packets import message_measure
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
-from uwgen.runtime.delivery.reliable import REPORT_KEY, ReliableLink, RttEstimator, Sent
+from uwgen.runtime.delivery.reliable import (REPORT_KEY, ReliableLink, RttEstimator, Sent,
+                                             packet_peers, wire_id)
 from uwgen.runtime.delivery.judge import AgeJudge
 from uwgen.runtime.delivery.epoch import PeerEpochs, SendEpoch
 from uwgen.runtime.stats import Counters, log_count
@@ -63,11 +64,6 @@ TIMED_REPORTS = 4                 # first packets with an A part that carry T (p
 TIMED_REPORT_EVERY = 30.0         # then one every this many seconds: the peer's clock offset
 
 
-def wire_id(key: int) -> int:
-    """The wire id of a link channel key (an action's feedback channel is 256 + id)."""
-    return key - 256 if key >= 256 else key
-
-
 class Reliability:
     """One side's reliability on one link (see the module docstring)."""
 
@@ -79,7 +75,8 @@ class Reliability:
                  epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0,
                  clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
-                 settled_by: Callable[[int, float], float | None] | None = None):
+                 settled_by: Callable[[int, float], float | None] | None = None,
+                 copies: int = 1):
         self.sender, self.name, self.wall = sender, name, wall
         # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
         # peer or been lost before the peer's packet heard now was built (turns: the peer
@@ -106,7 +103,8 @@ class Reliability:
                            aged=frozenset(max_ages),
                            lone=frozenset(i for i, age in max_ages.items() if age <= MAX_AGE))
         self.ack_delay = ack_delay if ack_delay is not None else max(1.0, 4 * period)
-        self.ack_interval = ack_interval if ack_interval is not None else max(2.0, 8 * period)
+        self.ack_interval = (ack_interval if ack_interval is not None   # news: every 2nd
+                             else max(2.0, 8 * period, 2 * turn_gap))     # MAC round (15.2)
         # The retransmission timer's first value and floor are the MAC's (docs/seams.md
         # section 6): a reply may wait `turn_gap` for the peer's turn, besides a period.
         first = max(2.0, 8 * period) + turn_gap
@@ -128,6 +126,7 @@ class Reliability:
         self._timed = False                           # the packet being built needs T
         self._queue: deque[Sent] = deque()            # lost reliable messages to send again
         self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
+        self.engine.spare.limit = copies              # copies in spare room (copies.py)
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
@@ -141,7 +140,7 @@ class Reliability:
         return PacketHooks(parts=self.parts, sent=self.sent, received=self.received,
                            overhead=OVERHEAD, next_overhead=self.next_overhead,
                            part_room=self.part_room, carrying=self.carrying, resend=self.resend,
-                           cut=self.cut,
+                           copy=self.copy, cut=self.cut,
                            ack_only=self.ack_only, next_time=self.next_time, stamp=self.stamp,
                            head_room=self.head_room, admit=self.admit,
                            shape=self.shape, unshape=self.heads.with_age, stats=self.stats,
@@ -224,28 +223,19 @@ class Reliability:
         with self._lock:
             messages = []
             for key, payload in picked:
-                again = self._resending.pop(id(payload), None)
-                deadline = again.deadline if again is not None else self._deadline_of.get(key)
-                messages.append(Sent(key, payload, deadline))
+                m = self._resending.pop(id(payload), None)   # a copy: its message's identity
+                if m is None:
+                    deadline = self._deadline_of.get(key)
+                    m = Sent(key, None, deadline, ident=None if deadline is None
+                             else self.engine.spare.new_ident())
+                messages.append(replace(m, ref=payload, tail=None))
             self._resending.clear()
             messages += self.acks.carried()      # its reports: confirmed once it is acked
-            self.engine.sent(number, messages, now, self._to(messages))
+            self.engine.sent(number, messages, now,
+                             packet_peers(messages, self.destinations, self._everyone))
             self.offsets.built(number, self.wall.now())
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
-
-    def _to(self, messages: list[Sent]) -> set[int] | None:
-        """The peers a packet must reach: those its messages are for, and those its reports
-        are about (None without destinations: two sides)."""
-        if self.destinations is None:
-            return None
-        to: set[int] = set()
-        for m in messages:
-            if m.key == REPORT_KEY:
-                to.add(m.ref[0])
-            else:
-                to |= self.destinations.get(wire_id(m.key), self._everyone)
-        return to
 
     def cut(self, number: int, moved: bool = False) -> None:
         """Packet `number`'s last message was cut (or, `moved`, goes whole in the next packet):
@@ -256,6 +246,8 @@ class Reliability:
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:
             self._queue.extend(self.engine.due(now))
+            if self._queue:                   # not those a copy sent in spare room delivered since
+                self._queue = deque(m for m in self._queue if not self.engine.spare.delivered(m.ident))
             for m in list(self._queue):
                 if m.deadline is not None and m.deadline <= now:
                     self._queue.remove(m)
@@ -267,6 +259,18 @@ class Reliability:
                     self._resending[id(payload)] = m
                     return m.key, payload
             return None
+
+    def copy(self, now: float, room: int) -> tuple[int, bytes] | None:
+        """A copy of a reliable message on its way, for the room a packet that leaves anyway
+        has left after its messages (uwgen.runtime.delivery.copies)."""
+        with self._lock:
+            def fits(m: Sent) -> bytes | None:
+                payload = self._aged(m, now)
+                return payload if message_measure(payload) <= room else None
+            got = self.engine.spare.pick(self.engine.outstanding.values(), now, fits)
+            if got is not None:
+                self._resending[id(got[1])] = got[0]
+            return None if got is None else (got[0].key, got[1])
 
     def _aged(self, m: Sent, now: float) -> bytes:
         """The copy to send again, its age item rewritten to the message's age now (its
@@ -431,5 +435,6 @@ class Reliability:
                                     "spurious_resends": self.engine.spurious,
                                     "fast_resends": self.engine.fast_resends,
                                     "timer_resends": self.engine.timer_resends,
+                                    "copies": self.engine.spare.sent,
                                     "clock_offsets": {p: o.as_dict() for p, o in
                                                       self.offsets.peers().items()}}}

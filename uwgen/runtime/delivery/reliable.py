@@ -23,6 +23,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, replace
 from typing import Any, Iterable
 
+from uwgen.runtime.delivery.copies import Copies
 from uwgen.runtime.delivery.receiving import (DELIVERED_MEMORY, RECEIVED_WINDOW,  # noqa: F401
                                               PeerReceipts, Receiving)
 from uwgen.runtime.delivery.reports import (DELAY_UNIT, MAX_BITMAP, MAX_DELAY_UNITS,  # noqa: F401
@@ -91,6 +92,28 @@ class Sent:
     ref: Any
     deadline: float | None          # None: best effort
     tail: int | None = None         # a cut message: the packet its tail rides in (14.2)
+    ident: int | None = None        # a reliable message: the same for all its copies (copies.py)
+
+
+def wire_id(key: int) -> int:
+    """The wire id of a link channel key (an action's feedback channel is 256 + id)."""
+    return key - 256 if key >= 256 else key
+
+
+def packet_peers(messages: list[Sent], destinations: dict[int, frozenset[int]] | None,
+                 everyone: frozenset[int]) -> set[int] | None:
+    """The peers a packet must reach: those its messages are for (`destinations`: wire id ->
+    peers; `everyone` for an id not in it), and those its reports are about (None without
+    destinations: two sides, the first report settles it)."""
+    if destinations is None:
+        return None
+    to: set[int] = set()
+    for m in messages:
+        if m.key == REPORT_KEY:
+            to.add(m.ref[0])
+        else:
+            to |= destinations.get(wire_id(m.key), everyone)
+    return to
 
 
 @dataclass
@@ -143,6 +166,7 @@ class ReliableLink(Receiving):
         # messages whose head's packet settles after them
         self._fates: OrderedDict[int, bool] = OrderedDict()
         self._moved: Sent | None = None     # a message the next packet carries whole (cut)
+        self.spare = Copies()               # copies of reliable messages, the measured loss
 
     def entry(self, key: int) -> EntryLedger:
         return self.ledger.setdefault(key, EntryLedger())
@@ -156,6 +180,7 @@ class ReliableLink(Receiving):
         for m in messages:
             if m.key != REPORT_KEY:
                 self.entry(m.key).sent += 1
+        self.spare.went(messages)
         waiting = None if to is None else set(to)
         if self._moved is not None:         # counted sent with the packet it was taken for
             messages, self._moved = [*messages, self._moved], None
@@ -196,6 +221,7 @@ class ReliableLink(Receiving):
                 if packet.waiting:
                     continue                    # other peers have yet to acknowledge it
             del self.outstanding[packet.number]
+            self.spare.gone(packet)
             self._delivered_packet(packet)
         if newest is not None and newest.number == largest and not newest.timed_out:
             self.rtt.sample(now - newest.at - min(report.delay, now - newest.at))
@@ -222,6 +248,7 @@ class ReliableLink(Receiving):
         copy is `spurious` and delivered once)."""
         if packet.timed_out or all(m.deadline is None for m in packet.messages):
             return
+        self.spare.gone(packet)
         packet.timed_out = True
         for m in packet.messages:
             self._again(m, now, fast=True)
@@ -241,6 +268,7 @@ class ReliableLink(Receiving):
             mine[-1].tail = number + 1
 
     def _settled(self, number: int, arrived: bool) -> None:
+        self.spare.settled(arrived)
         self._fates[number] = arrived
         while len(self._fates) > FATES_KEPT:
             self._fates.popitem(last=False)
@@ -251,6 +279,7 @@ class ReliableLink(Receiving):
             if m.key == REPORT_KEY:
                 self.confirmed.append(m.ref)
                 continue
+            self.spare.arrived(m)
             if m.tail is not None:
                 # the head arrived; the message did if its tail did
                 tail = self.outstanding.get(m.tail)
@@ -277,6 +306,7 @@ class ReliableLink(Receiving):
 
     def _lost(self, packet: _Packet, now: float) -> None:
         self._settled(packet.number, False)
+        self.spare.gone(packet)
         for m in packet.messages:
             if m.key == REPORT_KEY:
                 continue
@@ -288,8 +318,8 @@ class ReliableLink(Receiving):
                 self._again(m, now, fast=True)
 
     def _again(self, m: Sent, now: float, fast: bool = False) -> None:
-        if m.deadline is None:
-            return
+        if m.deadline is None or not self.spare.needed(m):
+            return                          # best effort, or another copy arrived or is on its way
         if m.deadline <= now:
             self.entry(m.key).expired += 1
             return
@@ -308,6 +338,7 @@ class ReliableLink(Receiving):
             if packet.timed_out or now - packet.at < self.rtt.rto + self.ack_delay:
                 continue
             if any(m.deadline is not None for m in packet.messages):
+                self.spare.gone(packet)
                 packet.timed_out = True
                 self.rtt.backoff()
                 for m in packet.messages:
@@ -344,6 +375,7 @@ class ReliableLink(Receiving):
             if number >= below:
                 break
             del self.outstanding[number]
+            self.spare.gone(packet)
             for m in packet.messages:
                 if m.key != REPORT_KEY:
                     self.entry(m.key).unacknowledged += 1

@@ -32,6 +32,7 @@ class PacketHooks:
     # the message goes whole in the next packet): wire-format.md section 14.2
     cut: Callable[..., None] | None = None
     resend: Callable[[float, int], tuple[int, bytes] | None] | None = None
+    copy: Callable[[float, int], tuple[int, bytes] | None] | None = None
     ack_only: Callable[[float], bool] | None = None
     next_time: Callable[[float], float | None] | None = None
     stamp: Callable[[int, bytes, float, float], bytes] | None = None
@@ -59,7 +60,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     `overhead` is the sum (an upper bound: a part two hooks both give is counted twice),
     `next_overhead` the sum of each hook's (its `overhead` when it gives none). Likewise at most
     one hook may give the message heads (`stamp`, `head_room`, `admit`) and at most one
-    `resend`; `ack_only` is any hook's, `next_time` the earliest, `stats` the union of the
+    `resend` and `copy`; `ack_only` is any hook's, `next_time` the earliest, `stats` the union of the
     hooks' dicts, `part_room` the sum."""
     given = [h for h in hooks if h is not None]
     sealers = [h for h in given if h.seal is not None or h.open is not None or h.number is not None]
@@ -100,7 +101,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
                    for h in given)
 
     header = _one(given, ("stamp", "head_room", "admit", "shape", "unshape"), "give message heads")
-    resender = _one(given, ("resend",), "re-send messages")
+    resender = _one(given, ("resend", "copy"), "re-send messages")
     carriers = [h.carrying for h in given if h.carrying is not None]
     cutters = [h.cut for h in given if h.cut is not None]
     askers = [h.ack_only for h in given if h.ack_only is not None]
@@ -138,7 +139,7 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
                        next_overhead=(next_overhead if any(h.next_overhead is not None for h in given)
                                       else None),
                        number=sealer.number,
-                       carrying=carrying if carriers else None, resend=resender.resend,
+                       carrying=carrying if carriers else None, resend=resender.resend, copy=resender.copy,
                        cut=cut if cutters else None,
                        ack_only=ack_only if askers else None,
                        next_time=next_time if timers else None,

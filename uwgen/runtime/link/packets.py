@@ -33,6 +33,8 @@ Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"
   in no `sent` list: its message went with the packet of its head);
 - `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
   `message_measure`, or None: served before the scheduler's messages;
+- `copy(now, room)` -> the same for a copy of a message not acknowledged yet, asked only for
+  the room a packet that carries messages anyway has left after them (never displacing one);
 - `ack_only(now)` -> True when a packet must leave even without messages (an acknowledgement
   is due): the packer then builds one with only the hooks' parts;
 - `next_time(now)` -> when one of the above will next want a packet (None: never), so the
@@ -162,11 +164,12 @@ class Packer:
             now, room if messages else None, fill=True, packet=self.number,
             extra=extra if roomy is not None else None,
             measure=lambda payload: added(messages, payload)))
-        for source in sources:
+        def fill(source) -> None:
+            nonlocal budget, charged
             while budget > 1:
                 got = source(budget)
                 if got is None:
-                    break
+                    return
                 key, payload = got
                 try:
                     messages.append(env.from_v1(payload))
@@ -183,9 +186,17 @@ class Packer:
                 # what the messages take as encoded (a message joining a run costs its body
                 # alone), counted as `message_measure` counts: each with a length byte
                 budget = room - charged - len(env.encode_messages(messages)) - 1
+
+        for source in sources:
+            fill(source)
         cut_at = self.number
         if messages and budget > 1:
             self._cut_last(now, messages, picked, room - charged - 1)
+        cut_now = self.first is not None and self._cut_of == cut_at
+        if h.copy is not None and picked and budget > 1 and not cut_now:
+            # room left in a packet that leaves anyway: copies of messages not acknowledged
+            # yet (wire-format.md section 15.6), after every fresh message and cut head
+            fill(lambda room: h.copy(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0)))
         if not messages:
             if h.ack_only is None or not h.ack_only(now):
                 return None

@@ -1,0 +1,178 @@
+"""Copies in spare room (docs/wire-format.md section 15.6): once the measured loss is above 1
+packet in 20, a reliable message not acknowledged yet also rides in the room a later packet,
+which leaves anyway with fresh messages, has left; a lost copy is sent again only when no
+other copy is on its way or has arrived; the receiver delivers it once and the ledger counts
+every copy. Every time is explicit (the engine) or a ManualClock (the packer, the links)."""
+from __future__ import annotations
+
+from uwgen.emulator import NodeSpec, Scenario
+from uwgen.emulator.duplex import DuplexSim
+from uwgen.manifest.model import LinkPolicy
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.delivery.copies import COPY_LOSS, LOSS_WINDOW
+from uwgen.runtime.delivery.reliability import Reliability
+from uwgen.runtime.delivery.reliable import ReliableLink, RttEstimator, Sent
+from uwgen.runtime.link.hooks import PacketHooks
+from uwgen.runtime.link.packets import PACKET_COUNTERS, Packer
+from uwgen.runtime.stats import Counters
+from uwgen.runtime.wire import envelope
+
+SURFACE, VEHICLE = 1, 2
+EPOCH = b"\x01" * 6
+
+
+def engine(me: int) -> ReliableLink:
+    return ReliableLink(me, RttEstimator(6.0, 1.0, 60.0, 0.5), ack_delay=2.0, bitmap_bytes=1)
+
+
+# -- the engine (explicit times) ------------------------------------------------------------
+
+def test_a_lost_copy_is_not_sent_again_when_another_copy_arrived():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(8, "mission", 30.0, ident=0)], 0.0)               # lost
+    s.sent(1, [Sent(4, "cmd", None), Sent(8, "mission", 30.0, ident=0)], 0.2)   # its copy
+    r.received(SURFACE, EPOCH, 1, 0.9, eliciting=True)
+    s.acked(r.ack_for(SURFACE, 1.0), 1.7)
+    assert s.due(1.7) == [] and s.fast_resends == 0
+    assert (s.ledger[8].sent, s.ledger[8].delivered, s.ledger[8].lost_on_link) == (2, 1, 1)
+
+
+def test_a_lost_copy_waits_for_the_fate_of_the_other_one_on_its_way():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(8, "mission", 30.0, ident=0)], 0.0)               # lost
+    s.sent(1, [Sent(4, "cmd", None)], 0.2)
+    s.sent(2, [Sent(8, "mission", 30.0, ident=0)], 0.4)               # its copy: lost too
+    r.received(SURFACE, EPOCH, 1, 0.9, eliciting=False)
+    s.acked(r.ack_for(SURFACE, 1.0), 1.7)                              # 0 lost, 2 unknown yet
+    assert s.due(1.7) == []
+    r.received(SURFACE, EPOCH, 3, 2.0, eliciting=False)
+    s.sent(3, [Sent(4, "cmd", None)], 1.8)
+    s.acked(r.ack_for(SURFACE, 2.1), 2.8)                              # 2 lost: none left
+    assert [m.ref for m in s.due(2.8)] == ["mission"] and s.fast_resends == 1
+
+
+def test_the_measured_loss_counts_the_last_packets_the_peer_reported():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    for n in range(LOSS_WINDOW):
+        s.sent(n, [Sent(4, "cmd", None)], 0.1 * n)
+        if n % 8:                                                      # 1 in 8 lost
+            r.received(SURFACE, EPOCH, n, 0.1 * n + 0.7, eliciting=False)
+    assert s.spare.loss() == 0.0                                             # nothing reported yet
+    s.acked(r.ack_for(SURFACE, 10.0, nbytes=LOSS_WINDOW // 8), 10.5)
+    assert s.spare.loss() == LOSS_WINDOW // 8 / LOSS_WINDOW
+
+
+# -- the packer: copies only in room a packet leaves with anyway ----------------------------
+
+class Queue:
+    def __init__(self, items):
+        self.items = list(items)
+
+    def next_payload(self, now, budget=None, exclude=None, *, fill=False, cut=None, **_):
+        if not self.items or cut is not None or (budget is not None and len(self.items[0]) > budget):
+            return None
+        return self.items.pop(0)
+
+
+def packer(fresh, copies):
+    asked = []
+
+    def copy(now, room):
+        asked.append(room)
+        return copies.pop(0) if copies else None
+    hooks = PacketHooks(copy=copy, ack_only=lambda now: True)
+    return Packer(Queue(fresh), sender=1, max_read_length=64, hooks=hooks,
+                  counters=Counters(PACKET_COUNTERS)), asked
+
+
+def test_a_copy_fills_the_room_left_after_the_fresh_messages():
+    p, asked = packer([(4, bytes((0, 4)) + bytes(20))], [(8, bytes((0, 8)) + bytes(20))])
+    out = envelope.decode(p.next_packet(0.0))
+    assert [m.id for m in out.messages] == [4, 8]                      # fresh first, then the copy
+    assert asked and asked[0] < 64
+
+
+def test_a_copy_never_makes_a_packet_of_its_own():
+    p, asked = packer([], [(8, bytes((0, 8)) + bytes(20))])
+    out = envelope.decode(p.next_packet(0.0))                          # leaves for its A part
+    assert not out.messages and asked == []
+
+
+# -- two links (a ManualClock) --------------------------------------------------------------
+
+RELIABLE = LinkPolicy(queue="fifo", depth=20, ttl=30.0, reliable=True)
+BEST_EFFORT = LinkPolicy(queue="fifo", depth=100, ttl=30.0)
+
+
+def duplex():
+    scen = Scenario(nodes=[NodeSpec("a", position=(0, 0, 0), dest="b"),
+                           NodeSpec("b", position=(300, 0, 0), dest="a")],
+                    period=0.5, max_read_length=64, bitrate=4800.0)
+    clock = ManualClock()
+    rel = {}
+
+    def hooks_for(side):
+        rel[side] = Reliability(1 if side == "a" else 2, period=0.5, reliable={7: 30.0},
+                                max_ages={7: 30.0}, wall=clock, name=side, max_read_length=64)
+        return rel[side].hooks()
+    sim = DuplexSim(scen, ("a", "b"), hooks_for=hooks_for, wire_format=2, clock=clock)
+    carried = []                                   # a's packets: the reliable messages in each
+    sent = sim.links["a"].hooks.sent
+
+    def spy(number, picked, now):
+        carried.append([rel["a"].heads.take(p).payload[2] for k, p in picked if k == 7])
+        return sent(number, picked, now)
+    sim.links["a"].hooks.sent = spy
+    a, b = sim.links["a"], sim.links["b"]
+    a.add_channel(7, RELIABLE)
+    a.add_channel(4, BEST_EFFORT)
+    b.add_channel(5, BEST_EFFORT)
+    for i in range(60):                            # a steady best-effort stream both ways
+        sim.at(0.5 * i, lambda i=i: a.offer(4, bytes((0, 4, i)) + bytes(8)))
+        sim.at(0.5 * i + 0.2, lambda i=i: b.offer(5, bytes((0, 5, i)) + bytes(8)))
+    return sim, rel, carried
+
+
+def reliable_at(sim, at: float, k: int = 0):
+    sim.at(at, lambda: sim.links["a"].offer(7, bytes((0, 7, k)) + bytes(10)))
+
+
+def test_with_loss_measured_a_reliable_message_rides_again_in_spare_room_and_arrives_once():
+    sim, rel, carried = duplex()
+    lost = int(COPY_LOSS * LOSS_WINDOW) + 1
+    sim.drop("a", *range(2, 2 + lost))             # early best-effort packets: loss measured
+    reliable_at(sim, 15.0)
+    sim.run(40.0)
+    assert rel["a"].engine.spare.loss() >= COPY_LOSS
+    assert sum(ks.count(0) for ks in carried) == 2                     # the message and a copy
+    assert [p[2] for _, p in sim.received["b"] if p[1] == 7] == [0]    # delivered once
+    stats = rel["a"].stats()
+    assert stats["reliability"]["copies"] == 1 and stats["reliability"]["fast_resends"] == 0
+    row = stats["ledger"][7]
+    assert (row["sent"], row["delivered"], row["in_flight"]) == (2, 2, 0)
+    assert rel["b"].stats()["ledger"][7]["duplicates"] == 1
+
+
+def test_without_loss_measured_no_copy_is_sent():
+    sim, rel, carried = duplex()
+    reliable_at(sim, 15.0)
+    sim.run(40.0)
+    assert rel["a"].engine.spare.loss() < COPY_LOSS
+    assert sum(ks.count(0) for ks in carried) == 1
+    assert rel["a"].stats()["reliability"]["copies"] == 0
+
+
+def test_under_turns_a_copy_never_keeps_the_leaders_turn():
+    from tests.runtime.test_fast_resend import mission_copies, offer_missions, turns_pair
+    sim, rel, written = turns_pair(cmd_every=1000.0)        # a quiet surface: missions only
+    sim.drop("surface", *range(1, 1 + int(COPY_LOSS * LOSS_WINDOW) + 1))   # loss measured
+    offer_missions(sim, 3, every=5.0, start=20.0)
+    sim.run(40.0)
+    assert rel["surface"].engine.spare.loss() >= COPY_LOSS
+    surface = sim.links["surface"].mac
+    for k in range(3):
+        (t, n), = mission_copies(written, k)                 # one copy: nothing rode with it
+        after = [keys for when, number, keys in written["surface"] if number == n + 1]
+        assert after == [[]]                                 # the next packet: the grant alone
+    assert rel["surface"].stats()["reliability"]["copies"] == 0
+    assert surface.counts["grants_sent"] > 10
