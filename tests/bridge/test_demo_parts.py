@@ -395,7 +395,9 @@ def test_a_fleet_vehicle_that_did_not_follow_is_named_with_why():
 
 def test_the_mac_the_demo_gives_its_bridges_is_the_manifests_weights_and_all():
     from uwgen.commands.demo import mac_text
-    from uwgen.manifest.mac import mac_from_text, mac_of_file
-    fleet = mac_of_file(Path(__file__).resolve().parents[2] / "msg_samples" / "fleet" / "uwgen.yaml")
-    assert fleet.weights                                   # the surface's longer slot
-    assert mac_from_text(mac_text(fleet), list(fleet.slots)) == fleet
+    from uwgen.manifest.mac import mac_from_text
+    from uwgen.manifest.model import MacConfig
+    weighted = MacConfig(mode="tdma", frame=3.7, guard=0.34, slots=("surface", "auv1", "auv2"),
+                         max_packet_per_slot=6, queue_size=10, weights=(("surface", 2),),
+                         range=300)                  # the surface's slot twice as long
+    assert mac_from_text(mac_text(weighted), list(weighted.slots)) == weighted
