@@ -34,7 +34,7 @@ MANIFEST = ROOT / "msg_samples" / "fleet" / "uwgen.yaml"
 MAX_VEHICLES = 3             # the vehicles msg_samples/fleet/uwgen.yaml declares
 FOLLOW_TOLERANCE = 0.5       # metres between the reported path and the commanded square
 SQUARE_GAP = 2.0             # metres between two vehicles' squares
-TDMA_LAG = 0.6               # frames of commands the pilot counts on top of a pose (lag)
+TDMA_LAG = 0.5               # frames of commands the pilot counts on top of a pose (lag)
 BITRATE = 4800.0
 MRL = 64
 SPREAD = math.radians(20)    # the vehicles' bearings from the surface, this far apart
@@ -180,10 +180,10 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path, mac_text) -> int:
 
 def lag(mac, vehicles: int) -> float:
     """Seconds of commands the pilot counts on top of a pose (operator.Pilot): about one round
-    of turns under turns; under TDMA 0.6 of a frame. The bridges time their writes to their
+    of turns under turns; under TDMA half a frame. The bridges time their writes to their
     slots, so a vehicle's pose, sent in its own slot, already shows some of the commands of
     the surface's slot before it (all of them for the vehicles whose slots come last): a whole
-    frame counted them twice, and the pilot turned back and forth at a corner. 0.6 frame
+    frame counted them twice, and the pilot turned back and forth at a corner. Half a frame
     finishes the square wherever the vehicle's slot is (tests/bridge/test_demo_parts.py)."""
     if mac.mode == "tdma":
         return TDMA_LAG * mac.frame
