@@ -26,7 +26,9 @@ mode), `turns` the surface granting each vehicle its turn in order over stock CS
 It prints one row per network (the fleet and the two-side reference): telemetry and commands
 delivered (unique messages received over published), calls ok within their timeout with the
 real response, goals ok with the real result, packets lost to collisions and to PER at the
-emulator, and the most bytes waiting in any DESERT node's queue. Goal (docs: fleets): on the
+emulator, the most bytes waiting in any DESERT node's queue, the MAC queue's high mark
+(packets) and the packets' transit in DESERT (written to delivered; the worst node's p50
+and p95). Goal (docs: fleets): on the
 fleet at 10 % PER, telemetry >= 0.95 x (1 - PER), calls and goals >= 0.99.
 """
 from __future__ import annotations
@@ -275,6 +277,9 @@ def run(vehicles: int, args, base_domain: int) -> dict:
         "per_lost": sum(c["lost_per"] for c in counters.values()),
         "sent": sum(c["packets_sent"] for c in counters.values()),
         "queue": max(c["max_queue_bytes"] for c in counters.values()),
+        "mac_queue": max(c.get("max_mac_queue", 0) for c in counters.values()),
+        "transit": "/".join(str(max(c.get(f"transit_{q}_ms", 0) for c in counters.values()))
+                            for q in ("p50", "p95")),
         "time": elapsed, "mac": mac, "period": period, "links": link_stats, "emulator": counters,
     }
 
@@ -304,13 +309,15 @@ def main() -> int:
           f"{args.every * args.cmd_every:g} s), "
           f"{args.calls} calls, {args.goals} goals")
     head = (f"{'network':<22}{'telemetry':>10}{'commands':>10}{'calls ok':>14}{'goals ok':>14}"
-            f"{'collided':>10}{'PER lost':>10}{'packets':>9}{'max queue B':>12}{'time s':>8}")
+            f"{'collided':>10}{'PER lost':>10}{'packets':>9}{'max queue B':>12}{'MAC queue':>10}"
+            f"{'transit p50/p95 ms':>20}{'time s':>8}")
     print(head)
     for r in rows:
         calls = f"{r['calls'][0]}/{r['calls'][1]} {r['calls'][0] / max(1, r['calls'][1]):.2f}"
         goals = f"{r['goals'][0]}/{r['goals'][1]} {r['goals'][0] / max(1, r['goals'][1]):.2f}"
         print(f"{r['network']:<22}{r['telemetry']:>10.3f}{r['cmd']:>10.3f}{calls:>14}{goals:>14}"
-              f"{r['collision']:>10}{r['per_lost']:>10}{r['sent']:>9}{r['queue']:>12}{r['time']:>8.0f}")
+              f"{r['collision']:>10}{r['per_lost']:>10}{r['sent']:>9}{r['queue']:>12}{r['mac_queue']:>10}"
+              f"{r['transit']:>20}{r['time']:>8.0f}")
     fleet = rows[-1]
     print("  (first row: the two-side reference, same workload per vehicle, same run; "
           f"fleet's mac: {fleet['mac']})")

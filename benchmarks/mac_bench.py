@@ -61,6 +61,8 @@ def run_demo(label: str, extra: list[str], per: float, seed: int, domain: int) -
         "collisions": sum(n.get("lost_collision", 0) for n in nodes.values()),
         "sent": sum(n.get("packets_sent", 0) for n in nodes.values()),
         "max_mac_queue": max((n.get("max_mac_queue", 0) for n in nodes.values()), default=0),
+        "transit": " / ".join(str(max((n.get(f"transit_{q}_ms", 0) for n in nodes.values()), default=0))
+                              for q in ("p50", "p95")),
         "queue_drops": sum(n.get("dropped_queue_full", 0) for n in nodes.values()),
         "stale": reliability.get("stale", 0), "errors": errors,
         "path": float(path[1]) if path else float("nan"),
@@ -81,15 +83,15 @@ def main() -> int:
     jobs = [(ROWS[int(i)], float(per), int(seed)) for per in args.per.split(",")
             for seed in args.seeds.split(",") for i in args.rows.split(",")]
     print("| row | PER | seed | collisions / packets sent | DESERT MAC queue max | queue-full drops "
-          "| stale commands | cmd_vel p50 / p95 (ms) | exit | ERROR lines | path max (m) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "| stale commands | transit p50 / p95 (ms) | cmd_vel p50 / p95 (ms) | exit | ERROR lines | path max (m) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     with ThreadPoolExecutor(args.jobs) as pool:
         futures = [pool.submit(run_demo, label, extra, per, seed, base + 2 * (k % args.jobs))
                    for k, ((label, extra), per, seed) in enumerate(jobs)]
         for f in futures:
             r = f.result()
             print(f"| {r['label']} | {r['per']:g} | {r['seed']} | {r['collisions']} / {r['sent']} | "
-                  f"{r['max_mac_queue']} | {r['queue_drops']} | {r['stale']} | {r['cmd']} | {r['rc']}{' (' + r['why'] + ')' if r['rc'] else ''} | "
+                  f"{r['max_mac_queue']} | {r['queue_drops']} | {r['stale']} | {r['transit']} | {r['cmd']} | {r['rc']}{' (' + r['why'] + ')' if r['rc'] else ''} | "
                   f"{r['errors']} | {r['path']:.2f} |", flush=True)
     return 0
 

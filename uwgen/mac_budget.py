@@ -33,7 +33,7 @@ def capacity_under_mac(manifest: Manifest, side: Side, capacity: float, limit: s
 
 def mac_shares(manifest: Manifest) -> list[str]:
     """Each side's share of the channel under the MAC, a line per side (none: nothing)."""
-    from uwgen.runtime.link.mac import tdma_capacity
+    from uwgen.runtime.link.slot_timing import send_window, tdma_capacity
 
     mac = manifest.mac
     if mac.mode == "tdma":
@@ -43,9 +43,12 @@ def mac_shares(manifest: Manifest) -> list[str]:
             side = manifest.sides[name]
             start, length = mac.slot_start(name), mac.slot_length(name)
             weight = f", weight {mac.weight(name)}" if mac.weights else ""
+            window = send_window(mac, side.link, name)
+            sends = (f", packets start by {window:.3f} s to end before the next slot"
+                     if window < length - mac.guard - 1e-9 else "")
             out.append(f"  {name:<12} slot {start:.3f}-{start + length:.3f} s{weight}, ON "
-                       f"{length - mac.guard:.3f} s: {tdma_capacity(mac, side.link, name)} packets "
-                       "a frame")
+                       f"{length - mac.guard:.3f} s{sends}: {tdma_capacity(mac, side.link, name)} "
+                       "packets a frame")
         return out
     if mac.mode == "turns":
         cycle = turn_cycle(manifest)
@@ -89,7 +92,8 @@ def mac_warnings(manifest: Manifest) -> list[str]:
         if mac.guard < overrun:
             out.append(f"mac tdma: guard {mac.guard:g} s is shorter than a {longest.max_read_length}-byte "
                        f"packet's air time plus the {mac.range:g} m range ({overrun:.3f} s): a packet "
-                       "DESERT starts at the end of a slot's ON window runs into the next slot")
+                       "DESERT starts at the end of a slot's ON window runs into the next slot, so "
+                       "a side writes only what starts early enough")
     rt = round_trip(mac, longest.period, longest.max_read_length, list(manifest.sides))
     deadlines = [(f"service {s.name}", "timeout", s.timeout) for s in manifest.services]
     deadlines += [(f"action {a.name}", "accept_timeout", a.accept_timeout)

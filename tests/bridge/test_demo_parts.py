@@ -391,3 +391,60 @@ def test_a_fleet_vehicle_that_did_not_follow_is_named_with_why():
     assert vehicle_problems(report) == [
         "no pose reached the surface", "every call of /auv2/vehicle/set_pen failed",
         "the reported path is not within 0.5 m of the square"]
+
+
+def test_the_mac_the_demo_gives_its_bridges_is_the_manifests_weights_and_all():
+    from uwgen.commands.demo import mac_text
+    from uwgen.manifest.mac import mac_from_text
+    from uwgen.manifest.model import MacConfig
+    weighted = MacConfig(mode="tdma", frame=3.7, guard=0.34, slots=("surface", "auv1", "auv2"),
+                         max_packet_per_slot=6, queue_size=10, weights=(("surface", 2),),
+                         range=300)                  # the surface's slot twice as long
+    assert mac_from_text(mac_text(weighted), list(weighted.slots)) == weighted
+
+
+def fly_tdma(pilot, sim, seed, frame, pose_at, surface_at=0.3, writes=3, spacing=0.2,
+             transit=0.3, loss=0.1, until=400.0):
+    """The pilot and the vehicle over TDMA with writes timed to the slots (the fleet demo):
+    in each frame the surface's slot carries the pilot's latest command at each of its
+    `writes`, the vehicle's slot its pose at `pose_at` s into the frame. Returns the path."""
+    rng = random.Random(seed)
+    cmds, poses, path, last = [], [], [], None
+    t, step = 0.0, 0.02
+    while t < until and not pilot.done:
+        if round(t / step) % 5 == 0:                       # 10 Hz operator
+            last = pilot.command(t)
+            if last is None:
+                break
+        phase = t % frame
+        if last is not None and any(abs(phase - (surface_at + i * spacing)) < step / 2
+                                    for i in range(writes)) and rng.random() > loss:
+            cmds.append((t + transit, last))
+        if abs(phase - pose_at) < step / 2 and rng.random() > loss:
+            poses.append((t + transit, (sim.x, sim.y, sim.theta)))
+        while cmds and cmds[0][0] <= t:
+            sim.command(*cmds.pop(0)[1], now=t)
+        while poses and poses[0][0] <= t:
+            pilot.observe(*poses.pop(0)[1], t)
+        sim.step(t, step)
+        path.append((sim.x, sim.y))
+        t += step
+    return path
+
+
+@pytest.mark.parametrize("pose_at", [0.9, 1.6, 2.4])
+@pytest.mark.parametrize("seed", [1, 4, 7])
+def test_pilot_finishes_the_square_over_tdma_wherever_the_vehicles_slot_is(seed, pose_at):
+    # the fleet demo's pilot settings: a 3.1 s frame, commands counted as fleet.lag says; a
+    # vehicle whose slot comes late sends a pose that already shows the frame's commands
+    from types import SimpleNamespace
+
+    from uwgen.demo.fleet import lag
+    frame = 3.1
+    wps = square_waypoints((2.0, 2.0), 1.0)
+    sim = VehicleSim(2.0, 2.0, 0.0)
+    pilot = Pilot(wps, speed=0.3, turn=0.5, lag=lag(SimpleNamespace(mode="tdma", frame=frame), 3),
+                  share=min(1.0, CMD_TIMEOUT / frame))
+    path = fly_tdma(pilot, sim, seed, frame, pose_at)
+    assert pilot.done, f"stuck at waypoint {pilot.index}"
+    assert max(deviations([(2.0, 2.0), *wps], path)) < 0.5

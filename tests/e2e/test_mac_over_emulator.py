@@ -82,6 +82,8 @@ def test_two_way_traffic_loses_nothing_to_collisions(e2e_package, mode):
             assert counters[node]["dropped_queue_full"] == 0
             assert counters[node]["max_mac_queue"] <= 4
             assert stats[node]["mac"]["capacity_per_frame"] == 2
+            # each heard the other's slot and timed its writes to its own
+            assert stats[node]["mac"]["timed_writes"] > 0
     else:
         assert stats["surface"]["mac"]["ends_heard"] >= 2
         grants = stats["vehicle"]["mac"]["grants_heard"]

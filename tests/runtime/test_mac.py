@@ -148,7 +148,7 @@ def test_tdma_writes_at_most_a_slots_capacity_per_frame():
     # frame 1 s, 2 slots, guard 0.35: ON 0.15 s; a 64-byte packet takes 0.113 s, and DESERT
     # starts packets anywhere in ON: 2 a frame.
     config = MacConfig(mode="tdma", frame=1.0, guard=0.35, slots=("surface", "vehicle"),
-                       max_packet_per_slot=1000)
+                       max_packet_per_slot=1000, range=300)
     assert tdma_capacity(config, LINK) == 2
     mac = TdmaMac(config, "surface", LINK)
     assert mac.next_write_at(0.0) == -math.inf
@@ -165,9 +165,13 @@ def test_tdma_writes_at_most_a_slots_capacity_per_frame():
     ({"max_packet_per_slot": 1}, 1),              # DESERT's default
     ({"guard": 0.05, "max_packet_per_slot": 1000}, 4),   # ON 0.45 s: 4 starts of 0.113 s
     ({"guard": 0.05, "max_packet_per_slot": 1000, "queue_size": 3}, 3),
+    # the guard is shorter than a packet and the range's delay (0.2 s): a packet must start
+    # by 0.5 - 0.113 - 0.2 s to end before the next slot: 2, not 4
+    ({"guard": 0.05, "max_packet_per_slot": 1000, "range": 300}, 2),
+    ({"guard": 0.05, "range": 2000}, 1),                # not even one fits: the first goes
 ])
 def test_tdma_capacity_follows_desert_settings(kw, capacity):
-    config = MacConfig(mode="tdma", frame=1.0, slots=("a", "b"), **kw)
+    config = MacConfig(mode="tdma", frame=1.0, slots=("a", "b"), **{"range": 30, **kw})
     assert tdma_capacity(config, LINK) == capacity
 
 
@@ -229,7 +233,8 @@ def test_a_weighted_tdma_slot_drains_more_packets_a_frame():
     # frame 3 s over 3 sides, the surface weighted 4 of 6: its slot is 2 s (ON 1.8 s), the
     # others 0.5 s (ON 0.3 s); 64-byte packets take 0.113 s, one per 0.2 s period
     config = MacConfig(mode="tdma", frame=3.0, guard=0.2, slots=("surface", "auv1", "auv2"),
-                       max_packet_per_slot=1000, queue_size=100, weights=(("surface", 4),))
+                       max_packet_per_slot=1000, queue_size=100, weights=(("surface", 4),),
+                       range=100)
     assert tdma_capacity(config, LINK, "surface") == 15      # by the period: 3 s / 0.2 s
     assert tdma_capacity(config, LINK, "auv1") == 3          # floor(0.3 / 0.113) + 1
     assert TdmaMac(config, "surface", LINK).capacity == 15

@@ -107,6 +107,23 @@ def test_next_ready_time_reports_when_the_rate_allows():
     assert s.next_ready_time(0.1) == pytest.approx(0.5)
 
 
+def test_a_link_writing_once_a_frame_lets_a_rate_limited_channel_spend_the_frames_worth():
+    # TDMA: the link writes only in its slot, once a 3.7 s frame; a 1/s channel may send
+    # 3.7 a frame on average, so its slot's writes (0.21 s apart) carry them, not one
+    s = LinkScheduler(ManualClock(), burst=3.7)
+    s.add_channel(4, LinkPolicy(queue="fifo", depth=100, rate=1))
+    for n in range(20):
+        s.offer(4, msg(4, n))
+    sent = [t for t in (10.0, 10.21, 10.42, 10.63, 10.84) if s.next_payload(t) is not None]
+    assert sent == [10.0, 10.21, 10.42, 10.63]          # 3.7 tokens, then 0.33 + 0.84 s of refill
+    assert s.next_ready_time(10.84) == pytest.approx(10.63 + 0.67 + 0.0, abs=0.01)
+    plain = LinkScheduler(ManualClock())                  # no burst: one per second, as before
+    plain.add_channel(4, LinkPolicy(queue="fifo", depth=100, rate=1))
+    plain.offer(4, msg(4, 0))
+    plain.offer(4, msg(4, 1))
+    assert [plain.next_payload(t) is not None for t in (10.0, 10.21)] == [True, False]
+
+
 # -- ttl -----------------------------------------------------------------------------------------
 
 def test_message_older_than_ttl_is_dropped_never_sent():

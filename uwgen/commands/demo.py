@@ -156,6 +156,8 @@ def mac_text(mac) -> str:
     if mac.mode == "tdma":
         keys.update(frame=mac.frame, guard=mac.guard, slots="[" + ", ".join(mac.slots) + "]",
                     max_packet_per_slot=mac.max_packet_per_slot, queue_size=mac.queue_size)
+        if mac.weights:
+            keys["weights"] = "{" + ", ".join(f"{s}: {w}" for s, w in mac.weights) + "}"
     if mac.mode == "turns":
         keys["leader"] = mac.leader
         if mac.packets:

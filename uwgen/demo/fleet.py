@@ -34,6 +34,7 @@ MANIFEST = ROOT / "msg_samples" / "fleet" / "uwgen.yaml"
 MAX_VEHICLES = 3             # the vehicles msg_samples/fleet/uwgen.yaml declares
 FOLLOW_TOLERANCE = 0.5       # metres between the reported path and the commanded square
 SQUARE_GAP = 2.0             # metres between two vehicles' squares
+TDMA_LAG = 0.5               # frames of commands the pilot counts on top of a pose (lag)
 BITRATE = 4800.0
 MRL = 64
 SPREAD = math.radians(20)    # the vehicles' bearings from the surface, this far apart
@@ -178,10 +179,14 @@ def run(args: argparse.Namespace, say, quiet: bool, out: Path, mac_text) -> int:
 
 
 def lag(mac, vehicles: int) -> float:
-    """Seconds the pilot expects a pose and a command to take: about one frame (or one round
-    of turns) under a MAC."""
+    """Seconds of commands the pilot counts on top of a pose (operator.Pilot): about one round
+    of turns under turns; under TDMA half a frame. The bridges time their writes to their
+    slots, so a vehicle's pose, sent in its own slot, already shows some of the commands of
+    the surface's slot before it (all of them for the vehicles whose slots come last): a whole
+    frame counted them twice, and the pilot turned back and forth at a corner. Half a frame
+    finishes the square wherever the vehicle's slot is (tests/bridge/test_demo_parts.py)."""
     if mac.mode == "tdma":
-        return mac.frame
+        return TDMA_LAG * mac.frame
     if mac.mode == "turns":
         return 1.0 + 0.8 * vehicles
     return 1.0

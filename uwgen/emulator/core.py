@@ -115,6 +115,7 @@ class _Node:
     period: float
     max_read_length: int
     origin: float                               # tick grid: origin + k * period
+    mac_origin: float                           # TDMA frames: from when DESERT started (no phase)
     app_queue: deque = field(default_factory=deque)
     mac_queue: deque = field(default_factory=deque)
     queue_bytes: int = 0                        # waiting inside the node (not yet on the air)
@@ -129,6 +130,7 @@ class _Node:
     slot_sent: int = 0                          # ...and how many packets it started there
     slot_frame_next: int = 0
     max_mac_queue: int = 0
+    transits: deque = field(default_factory=lambda: deque(maxlen=50_000))   # its packets' delivered - queued
     counters: Counters = field(default_factory=lambda: Counters(NODE_COUNTERS))
 
 
@@ -243,9 +245,12 @@ class EmulatorCore:
     # ------------------------------------------------------------------ outputs
     def counters(self, node: str) -> dict[str, int]:
         n = self._node(node)
+        ms = sorted(n.transits)
+        pick = (lambda q: round(1000 * ms[min(len(ms) - 1, int(q * len(ms)))])) if ms else (lambda q: 0)
         return {**n.counters.as_dict(), "queue_bytes": n.queue_bytes,
                 "max_queue_bytes": n.max_queue_bytes, "max_mac_queue": n.max_mac_queue,
-                "client_connected": int(n.client)}
+                "client_connected": int(n.client), "transit_p50_ms": pick(0.5),
+                "transit_p95_ms": pick(0.95), "transit_max_ms": pick(1.0)}
 
     def all_counters(self) -> dict[str, dict[str, int]]:
         return {name: self.counters(name) for name in self._order}
@@ -255,7 +260,8 @@ class EmulatorCore:
         """`spec`'s node as DESERT starts it at `start`: idle, empty queues, no client."""
         s = self.scenario
         return _Node(name=spec.name, dest=s.dest_of(spec.name), period=s.period_of(spec.name),
-                     max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase)
+                     max_read_length=s.max_read_length_of(spec.name), origin=start + spec.phase,
+                     mac_origin=start)
 
     def _node(self, name: str) -> _Node:
         try:
@@ -320,7 +326,7 @@ class EmulatorCore:
         s = self.scenario
         if s.tdma is not None:
             start, n.slot_frame_next = tdma.next_start(
-                s.tdma, s.tdma_slots(), s.slot_of(n.name), n.origin, t, n.slot_frame, n.slot_sent)
+                s.tdma, s.tdma_slots(), s.slot_of(n.name), n.mac_origin, t, n.slot_frame, n.slot_sent)
             if start > t:
                 n.mac_state = _WAITING
                 self._push(start, _MAC, n)
@@ -442,6 +448,7 @@ class EmulatorCore:
             return
         r.counters.inc("packets_delivered")
         r.counters.inc("bytes_delivered", len(pkt.data))
+        self._nodes[pkt.source].transits.append(t - pkt.queued_at)
         self._pending.append(Delivery(r.name, pkt.data, t, pkt.source, pkt.queued_at,
                                       pkt.sent_at, pkt.offset, pkt.uid))
 

@@ -2,7 +2,8 @@
 
 Each channel (one topic, service or action id) has a LinkPolicy, turned into small policy
 objects: a queue discipline (`latest` keeps only the newest message, `fifo` keeps `depth` and
-drops the oldest), a rate limit (a token bucket of depth 1) and an expiry (`ttl`). Add new
+drops the oldest), a rate limit (a token bucket, of depth 1 unless the link writes in bursts)
+and an expiry (`ttl`). Add new
 kinds here, not if-chains in the scheduler.
 """
 from __future__ import annotations
@@ -79,20 +80,29 @@ class Unlimited:
 
 
 class TokenBucket:
-    """At most `rate` messages per second, no bursts: a bucket of one token refilled at `rate`."""
+    """At most `rate` messages per second: a bucket of `depth` tokens refilled at `rate`.
+    Depth 1 (the default): no bursts, messages at least 1 / rate apart. A link that may
+    write only in a slot once a frame (TDMA) gives its channels a frame's worth of depth
+    (`rate_for`'s `burst`), so the rate holds on average over the frame and its slot
+    carries what the rest of the frame saved, each message built fresh in the slot."""
 
-    def __init__(self, rate: float):
+    def __init__(self, rate: float, depth: float = 1.0):
         if rate <= 0:
             raise ValueError(f"rate must be positive, got {rate}")
         self.interval = 1.0 / rate
-        self._next = float("-inf")
+        self.depth = max(1.0, depth)
+        self._tokens, self._at = self.depth, float("-inf")
+
+    def _level(self, now: float) -> float:
+        return min(self.depth, self._tokens + (now - self._at) / self.interval)
 
     def ready_at(self, now: float) -> float:
         # Within a nanosecond counts as on time: 0.4 + 0.2 must not miss a poll at 0.6.
-        return now if now >= self._next - 1e-9 else self._next
+        missing = 1.0 - self._level(now)
+        return now if missing * self.interval <= 1e-9 else now + missing * self.interval
 
     def took(self, now: float) -> None:
-        self._next = now + self.interval
+        self._tokens, self._at = max(0.0, self._level(now) - 1.0), now
 
 
 class Expiry(Protocol):
@@ -124,8 +134,11 @@ def queue_for(policy: LinkPolicy) -> QueueDiscipline:
     return kinds[policy.queue](policy)
 
 
-def rate_for(policy: LinkPolicy) -> RateLimit:
-    return Unlimited() if policy.rate is None else TokenBucket(policy.rate)
+def rate_for(policy: LinkPolicy, burst: float = 0.0) -> RateLimit:
+    """The policy's rate limit; `burst`: seconds between the link's write windows (a TDMA
+    frame), whose worth of messages the bucket holds (0: none, depth 1)."""
+    return (Unlimited() if policy.rate is None
+            else TokenBucket(policy.rate, max(1.0, policy.rate * burst)))
 
 
 def expiry_for(policy: LinkPolicy) -> Expiry:

@@ -319,6 +319,9 @@ class DesertConnection:
     def _deliver(self, payloads: list[bytes]) -> None:
         for p in payloads:
             self.counters.inc("frames_received")
+            # one frame a packet (wire format 2): its bytes as DESERT sent them; else not known
+            self.mac.arrived(len(p) + self.framing.overhead if self.outbox.one_frame else None,
+                             self.clock.now())
             try:
                 self._on_frame(p)
             except Exception:

@@ -131,7 +131,7 @@ class Link:
             protect=guard.protect if guard is not None else None,
             overhead=self._overhead_for(guard) if v2 else (guard.overhead if guard is not None else None),
             measure=message_measure if v2 else len,
-            stamp=self.hooks.stamp if v2 else None)
+            stamp=self.hooks.stamp if v2 else None, burst=self.mac.burst)
         self.withdraw = self.scheduler.withdraw   # (key, payload) -> taken back before it left
         self.packer: Packer | None = None
         self.unpacker: Unpacker | None = None

@@ -10,10 +10,14 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
 
 - `Mac` (mode `none`): always allows; DESERT's own MAC decides (stock CSMA-ALOHA: packets of
   two sides may collide).
-- `TdmaMac`: DESERT runs UW/TDMA. The bridge cannot see DESERT's slot boundaries (no clock is
-  shared with DESERT), so it writes at most the packets one slot drains in any one frame:
-  DESERT's queues then never hold more than a slot's worth, whatever the slot sizes, and a
-  message waits at most about a frame in them (queueing is bounded, never read as an offset).
+- `TdmaMac`: DESERT runs UW/TDMA. It writes at most the packets its slot drains per frame
+  (`tdma_capacity`), so DESERT's queues never hold more than a slot's worth. It learns the
+  frame's phase from the packets it hears and writes each frame's packets so that they reach
+  DESERT's MAC just before its ON window opens (uwgen.runtime.link.slot_timing): a message
+  then waits in DESERT about one period, not up to a frame. Until it has heard a packet (or
+  after hearing none for `MEMORY_FRAMES` frames) it writes at most `capacity` in any one
+  frame, whenever: a message then waits up to about a frame (bounded, never growing, so
+  queueing is never read as a clock offset).
 - `TurnMac` (mode `turns`): the leader grants the turn to one side at a time (C item 2, to
   whom and how many packets); that side writes after hearing the grant, at most that many
   packets, the last carrying C item 3 (end of turn); the leader takes the turn back when it
@@ -29,13 +33,13 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN, PACKET_HEADER
+from uwgen.runtime.link.slot_timing import FramePhase, SlotTimer, tdma_capacity
 from uwgen.runtime.wire import envelope as env
 
 TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255);
@@ -91,6 +95,7 @@ class Mac:
 
     mode = "none"
     overhead = 0                         # most bytes the MAC adds to a packet (C part included)
+    burst = 0.0                          # s between write windows: rate limits hold over it
 
     def __init__(self):
         self.backlog: Callable[[float], bool] = lambda now: False   # set by the Link
@@ -101,6 +106,9 @@ class Mac:
 
     def wrote(self, now: float, nbytes: int) -> None:
         pass
+
+    def arrived(self, nbytes: int | None, now: float) -> None:
+        """A packet of `nbytes` (None: not known) arrived; `heard` follows (wire format 2)."""
 
     def heard(self, sender: int, control: bytes, now: float) -> None:
         pass
@@ -145,44 +153,54 @@ class Mac:
 
 
 class TdmaMac(Mac):
-    """DESERT's UW/TDMA underneath: at most `capacity` writes in any one frame (module doc)."""
+    """DESERT's UW/TDMA underneath (module doc). `senders`: side -> sender id, for every side
+    (the frame's phase is learned from what they send); `anonymous`: packets carry no sender
+    (wire format 1), so a packet heard comes from the only other side, if there is one."""
 
     mode = "tdma"
 
     def __init__(self, config: MacConfig, side: str, link: LinkConfig,
-                 margin: float = DEFAULT_MARGIN):
+                 margin: float = DEFAULT_MARGIN, senders: dict[str, int] | None = None,
+                 anonymous: bool = False):
         super().__init__()
         self.config = config
+        self.burst = config.frame            # one write window a frame
         self.capacity = tdma_capacity(config, link, side)
-        self.window = config.frame * (1.0 + margin)
-        self._writes: deque[float] = deque()
-        self.deferred = 0
+        self.max_bytes = link.max_read_length
+        ids = {s: i for s, i in (senders or {}).items() if s in config.slots}
+        self.phase = FramePhase(config, {i: config.slot_start(s) for s, i in ids.items()})
+        others = [i for s, i in ids.items() if s != side]
+        self._anonymous = others[0] if anonymous and len(others) == 1 else None
+        self.timer = SlotTimer(config, side, link, self.capacity, link.period * (1.0 + margin),
+                               config.frame * (1.0 + margin))
+        self._arrived: tuple[int, float] | None = None     # the packet being opened: (bytes, when)
 
     def next_write_at(self, now: float) -> float:
-        while self._writes and self._writes[0] + self.window <= now:
-            self._writes.popleft()
-        if len(self._writes) < self.capacity:
-            return -INF
-        return self._writes[0] + self.window
+        return self.timer.next_write_at(self.phase.start(now), now)
 
     def wrote(self, now: float, nbytes: int) -> None:
-        self._writes.append(now)
+        self.timer.wrote(self.phase.start(now), now)
+
+    def arrived(self, nbytes: int | None, now: float) -> None:
+        size = self.max_bytes if nbytes is None else nbytes
+        if self._anonymous is not None:
+            self.phase.heard(self._anonymous, size, now)
+        else:
+            self._arrived = (size, now)
+
+    def heard(self, sender: int, control: bytes, now: float) -> None:
+        size, at = self._arrived if self._arrived is not None else (self.max_bytes, now)
+        self._arrived = None
+        self.phase.heard(sender, size, at)
+
+    def hooks(self) -> PacketHooks | None:
+        return PacketHooks(received=self._received)
 
     def turn_gap(self) -> float:
         return self.config.frame
 
     def stats(self) -> dict:
-        return {"mode": self.mode, "capacity_per_frame": self.capacity, "frame": self.config.frame}
-
-
-def tdma_capacity(config: MacConfig, link: LinkConfig, side: str | None = None) -> int:
-    """Packets `side`'s slot drains per frame (None: the shortest slot's): DESERT starts a
-    packet anywhere in the ON window (slot - guard) while `max_packet_per_slot` allows, one
-    after the other, and uwApplication feeds its MAC one packet per `period`; at least one."""
-    on = (config.slot if side is None else config.slot_length(side)) - config.guard
-    by_window = math.floor(on / air_time(link.max_read_length, config.bitrate)) + 1
-    by_period = max(1, math.floor(config.frame / link.period))
-    return max(1, min(config.max_packet_per_slot, by_window, by_period, config.queue_size))
+        return {"mode": self.mode, "capacity_per_frame": self.capacity, "timed_writes": self.timer.timed}
 
 
 class _RoundTrip:
@@ -407,7 +425,7 @@ def mac_for(config: MacConfig | None, side: str, senders: dict[str, int],
     if config is None or config.mode == "none":
         return Mac()
     if config.mode == "tdma":
-        return TdmaMac(config, side, link)
+        return TdmaMac(config, side, link, senders=senders, anonymous=wire_format != 2)
     if wire_format != 2:
         raise ValueError(f"mac mode turns needs an envelope link, wire format {env.VERSION} (its grants are C items)")
     return TurnMac(config, side, senders, link)

@@ -6,7 +6,8 @@ channel (one topic or service id) has a LinkPolicy, turned into small policy obj
 
 - a queue discipline: `latest` keeps only the newest message (a newer one supersedes the waiting
   one), `fifo` keeps `depth` messages and drops the OLDEST on overflow;
-- a rate limit: at most `rate` messages per second leave the channel (a token bucket of depth 1);
+- a rate limit: at most `rate` messages per second leave the channel (a token bucket of depth 1,
+  or a frame's worth under TDMA: `burst`);
 - a time-to-live: a message older than `ttl` when it would be sent is dropped, never sent stale;
 - a priority and no starvation: each message served moves its channel's claim 1 / (priority
   + 1) later in virtual time and the earliest claim goes next (see `claim`), so under
@@ -74,8 +75,10 @@ class LinkScheduler:
                  max_message: int = MAX_PAYLOAD, name: str = "link",
                  fec_over: int = MAX_PAYLOAD, max_message_for: Callable[[int], int] | None = None,
                  protect: Protect | None = None, overhead: Callable[[int], int] | None = None,
-                 measure: Callable[[bytes], int] = len, stamp: Stamp | None = None):
+                 measure: Callable[[bytes], int] = len, stamp: Stamp | None = None,
+                 burst: float = 0.0):
         self.clock = clock
+        self.burst = burst             # s between the link's write windows (rate buckets' depth)
         self.stamp = stamp             # (key, payload, born, now) -> payload with its head
         self.measure = measure         # what a payload costs in the room `next_payload` fills
         self.splitter = splitter
@@ -102,7 +105,7 @@ class LinkScheduler:
         if key in self._channels:
             raise ValueError(f"channel {key} already added")
         ch = Channel(key=key, policy=policy, name=name or f"channel {key}", queue_kind=queue_for(policy),
-                     rate=rate_for(policy), expiry=expiry_for(policy), max_message=self.max_message)
+                     rate=rate_for(policy, self.burst), expiry=expiry_for(policy), max_message=self.max_message)
         if policy.repair and (self.splitter is None or whole):
             raise ValueError(f"channel {key}: repair fragments need fragments (a fragment_id) "
                              "and a channel that may be fragmented")

@@ -1,0 +1,151 @@
+"""TDMA writes timed to this side's slot (uwgen.runtime.link.slot_timing, TdmaMac): the
+frame's phase learned from packets heard, writes placed before the ON window, and the rate
+limit when no phase is known; explicit times (sans-IO, the link's clock)."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from uwgen.manifest.model import LinkConfig, MacConfig
+from uwgen.runtime.link.mac import TdmaMac, mac_for
+from uwgen.runtime.link.slot_timing import LEAD, FramePhase, send_window
+
+LINK = LinkConfig(max_read_length=64, period=0.2)
+# frame 1 s, 2 slots of 0.5 s, guard 0.25: surface ON [0, 0.25), vehicle ON [0.5, 0.75)
+TWO = MacConfig(mode="tdma", frame=1.0, guard=0.25, slots=("surface", "vehicle"),
+                max_packet_per_slot=1000, range=300)
+SENDERS = {"surface": 1, "vehicle": 2}
+AIR = (64 + 4) * 8 / 4800          # a full packet's air time
+DELAY = 300 / 1500                 # propagation over the range
+
+
+def arrival(origin: float, slot_start: float, place: float = 0.0, delay: float = DELAY,
+            nbytes: int = 64) -> float:
+    """When a packet sent `place` s into a slot starting at `slot_start` reaches the bridge."""
+    return origin + slot_start + place + (nbytes + 4) * 8 / 4800 + delay
+
+
+def hear(mac: TdmaMac, sender: int, at: float, nbytes: int = 64) -> None:
+    mac.arrived(nbytes, at)
+    mac.heard(sender, b"", at)
+
+
+def test_the_frame_phase_is_learned_from_a_packet_heard():
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    assert phase.start(0.0) is None
+    phase.heard(2, 40, arrival(7.3, 0.5, nbytes=40))        # frames start at 7.3 + k
+    assert phase.start(9.0) == pytest.approx(0.3)
+
+
+def test_the_earliest_packet_of_a_slot_sets_the_phase_not_a_late_one():
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase.heard(2, 64, arrival(10.3, 0.5, place=0.2))        # late in the window
+    phase.heard(2, 64, arrival(11.3, 0.5, place=0.0))        # first in the window
+    phase.heard(2, 64, arrival(12.3, 0.5, place=0.1))
+    assert phase.start(13.0) == pytest.approx(0.3)
+
+
+def test_the_phase_wraps_around_the_frame():
+    # frames start at 0.95 (mod 1): marks land at 0.95 and at 0.05 (0.1 s into the window)
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase.heard(2, 64, arrival(3.95, 0.5, place=0.1))
+    phase.heard(2, 64, arrival(4.95, 0.5))
+    assert phase.start(6.0) == pytest.approx(0.95)
+
+
+def test_a_peer_nearer_than_the_range_makes_the_phase_early_never_late():
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase.heard(2, 64, arrival(5.3, 0.5, delay=30 / 1500))   # 30 m away, range 300 m
+    assert phase.start(6.0) == pytest.approx(0.3 - (300 - 30) / 1500)
+
+
+def test_the_phase_is_taken_from_every_sides_slot():
+    three = MacConfig(mode="tdma", frame=3.0, guard=0.2, slots=("surface", "auv1", "auv2"),
+                      weights=(("surface", 2),), range=300)
+    phase = FramePhase(three, {1: 0.0, 2: 1.5, 3: 2.25})
+    phase.heard(3, 64, arrival(20.4, 2.25))                  # auv1 silent: auv2 is enough
+    assert phase.start(21.0) == pytest.approx(20.4 % 3.0)
+    phase.heard(1, 64, arrival(23.4, 0.0, place=0.5))        # the surface's, later in its slot
+    assert phase.start(24.0) == pytest.approx(20.4 % 3.0)
+
+
+def test_a_guard_shorter_than_a_packet_and_the_range_shortens_the_send_window():
+    # ON is 0.25 s, but a packet starting after 0.5 - 0.113 - 0.2 s reaches the far side
+    # after the vehicle's slot has begun (half duplex: lost): 2 packets a slot, not 3
+    assert send_window(TWO, LINK, "surface") == pytest.approx(0.5 - AIR - DELAY)
+    assert TdmaMac(TWO, "surface", LINK).capacity == 2
+
+
+def test_nothing_heard_keeps_tdma_to_its_rate_limit():
+    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
+    for t in (0.33, 0.54):                                   # any phase: only the count holds
+        assert mac.next_write_at(t) == -math.inf
+        mac.wrote(t, 64)
+    assert mac.next_write_at(0.8) == pytest.approx(0.33 + 1.05)
+    assert mac.stats()["timed_writes"] == 0
+
+
+def test_writes_land_before_the_on_window_opens():
+    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
+    hear(mac, 2, arrival(10.0, 0.5))                         # frames start at 10 + k
+    # surface ON opens at 11.0: the first write goes a period and the lead before it, or
+    # earlier so that the slot's 2 packets one interval apart all reach the MAC (a period
+    # after their write) by the send window's close, with the lead to spare twice
+    close = 11.0 + send_window(TWO, LINK, "surface")
+    begin = min(11.0 - 0.2 - LEAD, close - 0.2 - LEAD - 0.21 - LEAD)
+    assert mac.next_write_at(10.3) == pytest.approx(begin)
+    t = mac.next_write_at(10.3)
+    for _ in range(2):
+        assert mac.next_write_at(t) == -math.inf
+        mac.wrote(t, 64)
+        assert t + 0.2 <= close - LEAD                       # in the MAC before the window closes
+        t += 0.21
+    assert mac.next_write_at(t) == pytest.approx(begin + 1.0)   # full: the next frame's
+    assert mac.stats()["timed_writes"] == 2
+
+
+def test_writes_made_before_the_phase_was_known_count_in_the_first_window():
+    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
+    mac.wrote(10.2, 64)                                      # rate only: may wait for 11.0's ON
+    hear(mac, 2, arrival(10.0, 0.5))
+    begin = mac.next_write_at(10.3)
+    mac.wrote(begin, 64)
+    assert mac.next_write_at(begin + 0.21) == pytest.approx(begin + 1.0)
+
+
+def test_a_write_offered_late_in_the_window_still_goes_until_the_window_ends():
+    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
+    hear(mac, 2, arrival(10.0, 0.5))
+    end = 11.0 + send_window(TWO, LINK, "surface") - LEAD - 0.2
+    assert mac.next_write_at(end - 0.01) == -math.inf
+    assert mac.next_write_at(end + 0.01) > 11.5              # too late for this ON: next frame
+
+
+def test_a_peer_silent_for_long_returns_tdma_to_its_rate_limit():
+    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
+    hear(mac, 2, arrival(10.0, 0.5))
+    assert mac.next_write_at(10.5) > 10.5                    # timed: waits for its window
+    silent = 10.0 + 0.5 + AIR + DELAY + 10 * TWO.frame + 0.01
+    assert mac.next_write_at(silent) == -math.inf            # phase forgotten: rate only
+    mac.wrote(silent, 64)
+    assert mac.stats()["timed_writes"] == 0
+
+
+def test_a_packet_from_a_sender_without_a_slot_teaches_nothing():
+    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
+    hear(mac, 9, 10.0)
+    assert mac.phase.start(10.1) is None and mac.phase.ignored == 1
+
+
+def test_without_senders_on_the_wire_a_packet_comes_from_the_only_other_side():
+    mac = mac_for(TWO, "surface", SENDERS, LINK, wire_format=1)
+    mac.arrived(None, arrival(10.0, 0.5))                    # no sender, size not known: a full packet
+    assert mac.phase.start(10.9) == pytest.approx(0.0)
+    assert mac.next_write_at(10.5) > 10.5
+
+
+def test_a_tdma_link_writes_in_bursts_a_frame_apart_and_says_so():
+    from uwgen.runtime.link.mac import Mac
+    assert TdmaMac(TWO, "surface", LINK).burst == TWO.frame      # the scheduler's rate buckets
+    assert Mac().burst == 0.0

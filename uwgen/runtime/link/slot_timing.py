@@ -1,0 +1,144 @@
+"""When a TDMA side's writes must reach DESERT (docs/seams.md section 7; docs/emulator.md,
+MACs): the frame's phase learned from packets heard, and the write window of this side's slot.
+Sans-IO: every call carries `now` (the link's clock).
+
+DESERT's UW/TDMA shares no clock with the bridge, but its schedule shows in what the bridge
+hears: a packet from side S reaches the bridge at
+
+    frame start + S's slot start + its place in S's ON window + air time + propagation
+
+and the manifest gives every slot's start, the air time (its bytes and `bitrate`) and the
+longest propagation (`range`). `FramePhase` takes each heard packet's frame start assuming
+it left first in its window over the whole range: late by its place in the window, early by
+at most `range - distance` over the speed of sound, so over recent packets the earliest
+estimate is the frame's start, or a little before it (packets then wait that much longer in
+DESERT, they never miss the window). The estimates of a frame lie
+within one ON window plus that error, less than a frame, so the earliest is the one after
+the largest gap between them around the circle of the frame. Packets older than `memory`
+are forgotten: a side that has heard nothing for that long knows no phase.
+
+`SlotTimer` places this side's writes for its slot: from `open` (the slot's start) to
+`close`, the end of its send window (`send_window`: a packet started later would reach the
+far side after the next slot has begun). DESERT's uwApplication moves one packet from the
+socket to the MAC per `period`, a write waiting up to a period for that tick, and the link
+writes one packet per `interval` (its pacer). The window's writes start at `open - period -
+lead`, so the first packet waits in the MAC queue only for the slot to open and the others
+join it one tick after they are written, or earlier when the slot's `capacity` packets
+written one interval apart would not all reach the MAC `lead` before `close`, with `lead`
+to spare for a late thread (they then wait queued for the slot, at most `capacity` of
+them). Writes end at `close - lead - period`: a later one could miss the window and wait a
+whole frame. Every packet is built as it is written, so it is the freshest it can be. A
+frame's writes are counted from the end of the window before (also those made while no
+phase was known), so whatever DESERT's queue held drains before more is written.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from uwgen.manifest.model import LinkConfig, MacConfig
+from uwgen.runtime.link.pacing import PACKET_HEADER
+
+LEAD = 0.05           # s: writes reach DESERT's MAC this long before they must (clock and thread jitter)
+MEMORY_FRAMES = 10    # frames after which a heard packet no longer counts
+KEEP = 64             # the most recent packets the phase is taken from
+
+
+class FramePhase:
+    """The start of DESERT's TDMA frame in the link's clock, from packets heard (module doc).
+    `slot_starts`: sender id -> seconds from the frame's start to its slot's start."""
+
+    def __init__(self, config: MacConfig, slot_starts: dict[int, float],
+                 memory: float | None = None):
+        self.frame = config.frame
+        self.bitrate = config.bitrate
+        self.delay = config.delay                   # propagation over the whole range
+        self.slot_starts = dict(slot_starts)
+        self.memory = memory if memory is not None else MEMORY_FRAMES * config.frame
+        self._heard: deque[tuple[float, float]] = deque(maxlen=KEEP)   # (when heard, estimate)
+        self.ignored = 0                            # packets from a sender without a slot
+
+    def heard(self, sender: int, nbytes: int, now: float) -> None:
+        """A packet of `nbytes` (as DESERT sent it, before its header) from `sender` arrived now."""
+        start = self.slot_starts.get(sender)
+        if start is None:
+            self.ignored += 1
+            return
+        air = (nbytes + PACKET_HEADER) * 8 / self.bitrate
+        self._heard.append((now, (now - air - self.delay - start) % self.frame))
+
+    def start(self, now: float) -> float | None:
+        """A time (mod `frame`, in [0, frame)) at which a frame starts; None when nothing was
+        heard in the last `memory` seconds."""
+        while self._heard and self._heard[0][0] < now - self.memory:
+            self._heard.popleft()
+        if not self._heard:
+            return None
+        marks = sorted(r for _, r in self._heard)
+        # the earliest: the mark after the largest gap around the frame's circle
+        gaps = [(marks[0] + self.frame - marks[-1], 0)]
+        gaps += [(marks[i] - marks[i - 1], i) for i in range(1, len(marks))]
+        return marks[max(gaps)[1]]
+
+
+class SlotTimer:
+    """When `side` may write (module doc): at most `capacity` writes in any `window` seconds
+    (a frame and the pacer's margin) while the frame's start is not known (`origin` None);
+    else in its slot's write windows, at most `capacity` writes since the window before
+    ended (a write made before the phase was known counts: its packet may still wait)."""
+
+    def __init__(self, config: MacConfig, side: str, link: LinkConfig, capacity: int,
+                 interval: float, window: float, lead: float = LEAD):
+        self.frame, self.capacity, self.window = config.frame, capacity, window
+        self.open_at = config.slot_start(side)              # from the frame's start
+        close = self.open_at + send_window(config, link, side)
+        self.end = close - lead - link.period               # last write of a frame's window
+        first = min(self.open_at - link.period - lead, self.end - (capacity - 1) * interval - lead)
+        self.begin = max(first, self.end - self.frame + 1e-6)   # windows never overlap
+        self._writes: deque[float] = deque()
+        self.timed = 0                      # writes placed in a window
+
+    def next_write_at(self, origin: float | None, now: float) -> float:
+        """-inf: now; else when this side may write next."""
+        while self._writes and self._writes[0] + max(self.window, self.frame) <= now:
+            self._writes.popleft()
+        if origin is None:
+            recent = [w for w in self._writes if w + self.window > now]
+            return -math.inf if len(recent) < self.capacity else recent[-self.capacity] + self.window
+        begin, end = self.writes_window(origin, now)
+        if sum(1 for w in self._writes if w > end - self.frame) >= self.capacity:
+            begin += self.frame
+        return -math.inf if begin <= now else begin
+
+    def wrote(self, origin: float | None, now: float) -> None:
+        self._writes.append(now)
+        self.timed += origin is not None
+
+    def writes_window(self, origin: float, now: float) -> tuple[float, float]:
+        """(begin, end) of the first write window that ends after `now`."""
+        base = origin + self.end
+        k = (now - base) // self.frame + 1
+        end = base + k * self.frame
+        return end - (self.end - self.begin), end
+
+
+def send_window(config: MacConfig, link: LinkConfig, side: str | None = None) -> float:
+    """Seconds from the start of `side`'s slot (None: the shortest slot) in which a packet
+    may start and still reach every side before the next slot begins: DESERT starts one
+    anywhere in ON (slot - guard) and lets it run past, so a guard shorter than a packet's
+    air time plus the range's delay leaves only slot - air - delay; 0 when not even that
+    (the slot's first packet then runs over; `uwgen analyze` warns)."""
+    slot = config.slot if side is None else config.slot_length(side)
+    air = (link.max_read_length + PACKET_HEADER) * 8 / config.bitrate
+    return max(0.0, min(slot - config.guard, slot - air - config.delay))
+
+
+def tdma_capacity(config: MacConfig, link: LinkConfig, side: str | None = None) -> int:
+    """Packets `side`'s slot drains per frame (None: the shortest slot's): DESERT starts
+    them one after the other from the window's opening, each in the send window (while
+    `max_packet_per_slot` allows), and uwApplication feeds its MAC one packet per `period`;
+    at least one."""
+    air = (link.max_read_length + PACKET_HEADER) * 8 / config.bitrate
+    by_window = math.floor(send_window(config, link, side) / air) + 1
+    by_period = max(1, math.floor(config.frame / link.period))
+    return max(1, min(config.max_packet_per_slot, by_window, by_period, config.queue_size))
