@@ -29,7 +29,9 @@ def vehicle_env():
 @pytest.mark.parametrize("delay", [0.0, 0.05, 0.5])
 def test_the_vehicle_simulator_exits_0_on_sigint(vehicle_env, tmp_path, delay):
     record = tmp_path / "vehicle.jsonl"
-    proc = tether.popen([sys.executable, "-m", "uwgen.demo.vehicle", "--record", str(record)],
+    # no bridge listens here: publish at once instead of waiting for one
+    proc = tether.popen([sys.executable, "-m", "uwgen.demo.vehicle", "--record", str(record),
+                         "--listen-wait", "0"],
                         env=vehicle_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = []
     try:

@@ -71,6 +71,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--record", type=Path, help="write events as JSON lines here")
     parser.add_argument("--log-every", type=float, default=15.0, help="seconds between status log lines")
     parser.add_argument("--namespace", default="", help="the vehicle's namespace (a fleet's, e.g. /auv1)")
+    parser.add_argument("--listen-wait", type=float, default=LISTEN_WAIT,
+                        help="seconds at most to wait for the bridge's subscriptions before publishing")
     args, ros_args = parser.parse_known_args(argv)
 
     import rclpy
@@ -196,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
                  cancel_callback=lambda goal_handle: CancelResponse.ACCEPT)
     # Publish once the bridge listens (bounded): what is published before its subscription
     # matched reaches nobody, and the report's counts would start with a gap.
-    deadline = time.monotonic() + LISTEN_WAIT
+    deadline = time.monotonic() + args.listen_wait
     while (min(p.get_subscription_count() for p in (pose_pub, battery_pub, log_pub)) == 0
            and time.monotonic() < deadline and not stop.is_set()):
         rclpy.spin_once(node, timeout_sec=0.05)
