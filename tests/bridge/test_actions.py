@@ -64,9 +64,11 @@ def fib_server(node, results: list, delay: float = 0.0):
     return ActionServer(node, Fibonacci, "/fib", execute)
 
 
-def send_goal(client, order=3):
+def send_goal(client, order=3, timeout=25.0):
+    # a goal nobody answers is rejected after result_timeout and the link's asking (a few s);
+    # the bound only matters when it fails, and a loaded machine has needed more than 10 s
     future = client.send_goal_async(Fibonacci.Goal(order=order))
-    wait_for(future.done, what="the goal's answer")
+    wait_for(future.done, timeout=timeout, what="the goal's answer")
     return future.result()
 
 
