@@ -10,11 +10,7 @@ Per rate and mode it prints: calls and goals that succeeded within their timeout
 real result (the server's own response / Fibonacci sequence), duplicate executions at the
 real server (a request or goal run more than once), and the air time spent on retries and
 acknowledgements (copies of requests, goals, results and answers; result acknowledgements
-and requests; 4 bytes of framing each; under a MAC the link's own re-sends and copies of
-command messages, told by their number N; a copy taken back before it left counts nothing)
-as a share of all bytes the two sides wrote. `--trace FILE` writes a JSON line per command
-payload offered and delivered, per packet written (its messages) and per MAC item heard,
-and each side's counters at the end: where a failed call or goal lost its time.
+and requests; 4 bytes of framing each) as a share of all bytes the two sides wrote.
 
 Modes: `retries` is this build; `reference` is the same build with the commands' retries off
 (no request copies, no result copies, no result acknowledgements or requests; goals are
@@ -157,7 +153,6 @@ class Overhead:
 
     def __init__(self, bridge: BridgeNode, retries: bool):
         self.bytes = 0
-        self.parts: dict[str, int] = {}      # what the bytes were (--trace)
         self.seen: set[tuple[int, bytes]] = set()
         send = bridge.wiring.send
 
@@ -168,96 +163,12 @@ class Overhead:
                     return True                     # reference: no result status at all
                 if status or (key, payload) in self.seen:
                     self.bytes += len(payload) + OVERHEAD
-                    what = f"{key}:{payload[0]}:{'status' if status else 'copy'}"
-                    self.parts[what] = self.parts.get(what, 0) + len(payload) + OVERHEAD
                 self.seen.add((key, payload))
             return send(key, payload, **kw)
         bridge.wiring.send = counted
-        withdraw = getattr(bridge.link, "withdraw", None)
-
-        def withdrawn(key: int, payload: bytes) -> bool:   # taken back before it left: no air time
-            taken = withdraw(key, payload)
-            if taken and key in COMMAND_IDS and (key, payload) in self.seen:
-                self.bytes -= len(payload) + OVERHEAD
-                what = f"{key}:{payload[0]}:withdrawn"
-                self.parts[what] = self.parts.get(what, 0) - len(payload) - OVERHEAD
-            return taken
-        if withdraw is not None:
-            bridge.link.withdraw = withdrawn
-        # The link's own re-sends of command messages (wire-format 15.6: under a MAC the link
-        # re-sends them): a message already sent with the same number N is a retry.
-        heads = bridge.reliability.heads if bridge.reliability is not None else None
-        take, numbers = bridge.link.connection.outbox.take, set()
-
-        def spied(now, pull, fit=None):
-            batch = take(now, pull, fit)
-            for frame in ShortFrameDecoder().feed(batch or b""):
-                for m in heads.with_age(envelope.decode(frame)).messages:
-                    if m.id not in COMMAND_IDS:
-                        continue
-                    got = heads.take(envelope.to_v1(m))
-                    if got.number is None:
-                        continue
-                    if (m.id, got.number, got.payload) in numbers:
-                        self.bytes += message_measure(envelope.to_v1(m))
-                        what = f"{m.id}:{m.kind}:link resend"
-                        self.parts[what] = self.parts.get(what, 0) + message_measure(envelope.to_v1(m))
-                    numbers.add((m.id, got.number, got.payload))
-            return batch
-        if heads is not None:
-            bridge.link.connection.outbox.take = spied
         if not retries:
             bridge.standins.rtt.clear()                                  # no request copies
             bridge.action_servers._resend_results = lambda ident, now: None   # no result copies
-
-
-TRACE = None     # --trace: a file of JSON lines, one per command payload and packet write
-
-
-def trace(side: str, bridge: BridgeNode) -> None:
-    """Write down when each command payload was offered and arrived, and each packet write
-    (with the MAC's turn counters): where a failed call or goal lost its time."""
-    import json
-    out = TRACE
-
-    def put(**row):
-        out.write(json.dumps({"t": round(time.monotonic(), 3), "side": side, **row}) + "\n")
-    send, put_in, wrote = bridge.wiring.send, bridge.inbox.put, bridge.mac.wrote
-
-    def sending(key, payload, **kw):
-        ok = send(key, payload, **kw)
-        if key in COMMAND_IDS:
-            put(ev="offer", key=key, p=payload.hex(), ok=ok)
-        return ok
-
-    def arriving(payload):
-        if len(payload) > 1 and payload[1] in COMMAND_IDS:
-            put(ev="in", key=payload[1], p=bytes(payload).hex())
-        return put_in(payload)
-
-    def writing(now, nbytes, *a):
-        put(ev="write", n=nbytes, holding=bool(getattr(bridge.mac, "_holding", True)),
-            closing=str(getattr(bridge.mac, "_closing", None)))
-        return wrote(now, nbytes, *a)
-    bridge.wiring.send, bridge.inbox.put, bridge.mac.wrote = sending, arriving, writing
-    heard = bridge.mac.heard
-
-    def hearing(sender, control, now):
-        heard(sender, control, now)
-        if control:
-            put(ev="heard", c=bytes(control).hex(), counts=dict(getattr(bridge.mac, "counts", {})),
-                holding=bool(getattr(bridge.mac, "_holding", True)))
-    bridge.mac.heard = hearing
-    take = bridge.link.connection.outbox.take
-
-    def taking(now, pull, fit=None):
-        batch = take(now, pull, fit)
-        for frame in ShortFrameDecoder().feed(batch or b""):
-            e = envelope.decode(frame)
-            put(ev="packet", no=e.number, ack=e.ack is not None,
-                m=[envelope.to_v1(m)[:5].hex() for m in e.messages])
-        return batch
-    bridge.link.connection.outbox.take = taking
 
 
 def scenario(per: float, seed: int, mac: str) -> Scenario:
@@ -284,8 +195,6 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
                 side.executor.add_node(node)
                 bridges[name] = node
                 overhead[name] = Overhead(node, retries)
-                if TRACE is not None:
-                    trace(name, node)
 
             def serve(req, resp):
                 executed["calls"].append(req.int32_value)
@@ -349,17 +258,6 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             written = sum(b.link.stats()["connection"]["bytes_sent"] for b in bridges.values())
             extra = sum(o.bytes for o in overhead.values())
             collisions = sum(c["lost_collision"] for c in emu.all_counters().values())
-            if TRACE is not None:
-                import json
-                for name, b in bridges.items():
-                    TRACE.write(json.dumps({"t": time.monotonic(), "side": name, "ev": "end",
-                                            "overhead": overhead[name].parts, "written": written,
-                                            "mac": b.mac.stats(),
-                                            "engine": [b.reliability.engine.fast_resends,
-                                                       b.reliability.engine.timer_resends],
-                                            "services": {k: vars(v) for k, v in b.service_counters.items()},
-                                            "actions": {k: vars(v) for k, v in b.action_counters.items()}})
-                                + "\n")
         finally:
             surface.close()
             vehicle.close()
@@ -563,11 +461,7 @@ def main() -> int:
     ap.add_argument("--mac", default="none",
                     help="comma-separated MACs to run (none, tdma, turns; see MACS); the first "
                          "row of each rate is the reference")
-    ap.add_argument("--trace", help="write a JSON line per command payload and packet write here")
     args = ap.parse_args()
-    global TRACE
-    if args.trace:
-        TRACE = open(args.trace, "w", buffering=1)
     macs = args.mac.split(",")
     unknown = [m for m in macs if m not in MACS]
     if unknown:

@@ -176,15 +176,3 @@ def test_under_turns_a_copy_never_keeps_the_leaders_turn():
         assert after == [[]]                                 # the next packet: the grant alone
     assert rel["surface"].stats()["reliability"]["copies"] == 0
     assert surface.counts["grants_sent"] > 10
-
-
-def test_only_the_keys_named_copied_are_copied_in_spare_room():
-    rel = Reliability(SURFACE, period=0.2, reliable={7: 30.0, 20: 12.0}, max_ages={},
-                      copied=frozenset({7}))
-    for n in range(LOSS_WINDOW):                       # a lossy link: copies are due
-        rel.engine.spare.settled(n % 4 != 0)
-    new = rel.engine.spare.new_ident
-    rel.engine.sent(0, [Sent(20, bytes.fromhex("02140500"), 12.0, ident=new()),
-                        Sent(7, bytes.fromhex("000701"), 30.0, ident=new())], 0.0)
-    assert rel.copy(1.0, 60) == (7, bytes.fromhex("000701"))
-    assert rel.copy(1.1, 60) is None                   # the command is not copied

@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Any
 
 from rclpy.task import Future
 
-from uwgen.bridge.copies import SENT, Due
 from uwgen.runtime.wire.table import ABORTED, ACCEPTED, REJECTED, RESULTS
 
 if TYPE_CHECKING:
@@ -36,11 +35,9 @@ class GoalState:
     early_feedback: Any = None                    # feedback that came before the goal handle
     payload: bytes = b""                          # the goal as sent (sent again unchanged)
     sends: int = 1
-    next_send: Due = field(default_factory=lambda: Due(float("inf")))
-                                                  # when to send it again while unanswered
-                                                  # (copies.py; none until it is first sent:
-                                                  # the expiry timer may run while the goal is
-                                                  # being encoded)
+    next_send: float = float("inf")               # when to send it again while unanswered (none
+                                                  # until it is first sent: the expiry timer
+                                                  # may run while the goal is being encoded)
     next_query: float = 0.0                       # accepted, no result: when to ask for it
     sent_at: float = 0.0                          # when the goal first left
     asking: bool = False                          # unanswered past accept_timeout: asking
@@ -75,9 +72,6 @@ class GoalAnswers:
         if handle not in self.handles[ident]:
             counters.other_sides += 1       # an answer or result for another client side
             return
-        waiting = table.get(ident, handle)
-        if waiting is not None and waiting.token.payload:
-            self.w.copies.forget(waiting.token.payload)     # answered: no copy to take back
         if code in RESULTS:
             # Acknowledged whatever became of it: a copy means our last ack was lost.
             if self.w.send(ident, codec.encode_result_status(handle, received=True)):
@@ -210,15 +204,13 @@ class GoalAnswers:
                                               else codec.accept_timeout)
                     counters.result_queries += 1
                     self.w.send(ident, codec.encode_result_status(state.handle, received=False))
-                copies = self.w.copies
-                if not state.answer.done() and not state.asking \
-                        and copies.is_due(state.next_send, now):
+                if not state.answer.done() and not state.asking and state.next_send <= now:
                     rtt = self.rtt[ident]
-                    if copies.send(ident, state.payload) == SENT:
-                        rtt.backoff()
-                        state.sends += 1
-                        counters.goal_resends += 1
-                    state.next_send = copies.due(now, rtt)
+                    rtt.backoff()
+                    state.sends += 1
+                    state.next_send = now + rtt.rto
+                    counters.goal_resends += 1
+                    self.w.send(ident, state.payload)
         for state in list(self._states.values()):
             if state.cancel is not None and not state.cancel.done() and state.cancel_deadline <= now:
                 codec = self.offered[state.ident]

@@ -16,7 +16,6 @@ from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from uwgen.bridge.copies import Copies, Due
 from uwgen.runtime.delivery.reliable import RttEstimator
 
 RECENT_RESULTS = 8        # finished goals per action whose result is kept for a repeated goal
@@ -31,7 +30,7 @@ class Unacked:
 
     payload: bytes
     first_sent: float
-    next_send: Due                # copies.py: an RTO, or past the deadline the link re-sends to
+    next_send: float
     until: float                  # no copy after this: the client side may reuse the handle
     sends: int = 1
 
@@ -48,10 +47,9 @@ class Finished:
 class ResultBook:
     """The results of one action: recent ones by handle, unacknowledged ones to send again."""
 
-    def __init__(self, accept_timeout: float, rtt: RttEstimator, copies: Copies | None = None):
+    def __init__(self, accept_timeout: float, rtt: RttEstimator):
         self.accept_timeout = accept_timeout
         self.rtt = rtt
-        self.copies = copies or Copies(lambda key, payload: False, lambda key, payload: False)
         self.recent: OrderedDict[int, Finished] = OrderedDict()
         self.unacked: dict[int, Unacked] = {}
 
@@ -61,15 +59,13 @@ class ResultBook:
         self.recent.move_to_end(handle)
         while len(self.recent) > RECENT_RESULTS:
             self.recent.popitem(last=False)
-        self.unacked[handle] = Unacked(result, now, self.copies.due(now, self.rtt),
-                                       now + 2 * self.accept_timeout)
+        self.unacked[handle] = Unacked(result, now, now + self.rtt.rto, now + 2 * self.accept_timeout)
 
     def acknowledged(self, handle: int, now: float) -> bool:
         """The client side has the result: stop sending it. False if nothing waited for it."""
         unacked = self.unacked.pop(handle, None)
         if unacked is None:
             return False
-        self.copies.forget(unacked.payload)
         if unacked.sends == 1:        # Karn: only an unambiguous round trip is a sample
             self.rtt.sample(now - unacked.first_sent)
         return True
@@ -100,7 +96,7 @@ class ResultBook:
         """The results to send again now, each once more; None for each one given up (2
         accept_timeouts passed without an acknowledgement: counted `results_unacked`)."""
         for handle, unacked in list(self.unacked.items()):
-            if not self.copies.is_due(unacked.next_send, now):
+            if unacked.next_send > now:
                 continue
             if now >= unacked.until:
                 del self.unacked[handle]
@@ -108,5 +104,5 @@ class ResultBook:
                 continue
             self.rtt.backoff()
             unacked.sends += 1
-            unacked.next_send = self.copies.due(now, self.rtt)
+            unacked.next_send = now + self.rtt.rto
             yield unacked.payload

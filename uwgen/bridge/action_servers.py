@@ -27,7 +27,6 @@ from rclpy.action import ActionClient
 from rclpy.task import Future
 
 from uwgen.bridge.action_results import ResultBook
-from uwgen.bridge.copies import SENT
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.orphans import OrphanWatch, goal_uuid
@@ -77,8 +76,7 @@ class ActionServers:
             self.goals[codec.id] = {}
             self.results[codec.id] = ResultBook(
                 codec.accept_timeout, command_rtt(codec.accept_timeout, wiring.options.link.period,
-                                                  wiring.round_trip, wiring.turn_gap),
-                wiring.copies)
+                                                  wiring.round_trip, wiring.turn_gap))
             self.watches[codec.id] = OrphanWatch(
                 wiring.node, codec.name, codec.id,
                 lambda handle, uuid, info, i=codec.id: self._adopt(i, handle, uuid, info),
@@ -253,8 +251,8 @@ class ActionServers:
             if payload is None:
                 counters.results_unacked += 1
                 continue
-            if self.w.copies.send(ident, payload) == SENT:
-                counters.results_resent += 1
+            counters.results_resent += 1
+            self._offer(ident, payload, "result")
 
     def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
         """Answer a goal that came again; True when it was one (then it is not run)."""

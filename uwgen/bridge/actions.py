@@ -135,7 +135,7 @@ class ActionStandIns(GoalAnswers):
                 return GoalResponse.REJECT
             state.payload = payload
             state.sent_at = self.w.clock.now()
-            state.next_send = self.w.copies.due(state.sent_at, self.rtt[codec.id])
+            state.next_send = state.sent_at + self.rtt[codec.id].rto
             if await state.answer != ACCEPTED:
                 return GoalResponse.REJECT
             self._states[id(goal)] = state

@@ -31,7 +31,6 @@ from rclpy.node import Node
 from uwgen.runtime.delivery import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
-from uwgen.bridge.copies import Copies
 from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.diagnostics import Watching
 from uwgen.bridge.dispatch import Dispatcher
@@ -40,7 +39,7 @@ from uwgen.bridge.medium import link_mac, mac_round_trip, warn_deadlines
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.recorder import recorder_for
-from uwgen.bridge.reliability import farewell, link_ledger, reliability_for, reliable_commands
+from uwgen.bridge.reliability import farewell, link_ledger, reliability_for
 from uwgen.bridge.security import guard_for, link_security
 from uwgen.bridge.services import Servers, StandIns, service_status
 from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
@@ -89,10 +88,7 @@ class BridgeNode(Node):
                                  log=self.get_logger(), main_group=main_group,
                                  service_group=ReentrantCallbackGroup(),
                                  round_trip=mac_round_trip(plan, link_cfg),
-                                 turn_gap=self.mac.turn_gap(),
-                                 copies=Copies(lambda key, payload: self.wiring.send(key, payload),
-                                               self._withdraw,
-                                               link_resends=bool(reliable_commands(plan))))
+                                 turn_gap=self.mac.turn_gap())
         self._log = w.log
         w.recorder = recorder_for(plan, self.options, w.wall)   # None without --record
         self.counters = BridgeCounters()
@@ -225,15 +221,8 @@ class BridgeNode(Node):
             return self.link.offer(ident, payload)
         return self.link.offer(ident, payload, published=published)
 
-    def _withdraw(self, key: int, payload: bytes) -> bool:
-        """Take a command's copy back from the link's queue (uwgen.bridge.copies)."""
-        withdraw = getattr(getattr(self, "link", None), "withdraw", None)
-        return bool(withdraw(key, payload)) if withdraw is not None else False
-
     def _on_link_payload(self, payload: bytes) -> None:
-        """Called by the link, on the link's thread: hand over, touch nothing else (but take
-        back a command's copy this answers before the link writes again: copies.py)."""
-        self.wiring.copies.heard(payload)
+        """Called by the link, on the link's thread: hand over, touch nothing else."""
         self.inbox.put(bytes(payload))
 
     def _drain_inbox(self) -> None:

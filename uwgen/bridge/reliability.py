@@ -25,19 +25,6 @@ def reliable_topics(plan: BridgePlan) -> dict[int, float | None]:
     return {t.id: t.policy.ttl for t in plan.topics if getattr(t.policy, "reliable", False)}
 
 
-def reliable_commands(plan: BridgePlan) -> dict[int, float]:
-    """Service and action id -> the deadline of its messages, when the link re-sends them
-    (docs/wire-format.md section 15.6): on a link with a MAC (turns or slots), whose reports
-    name a lost packet in the peer's next turn, so each lost request, goal, answer or result
-    goes again in this side's next turn, and only what was lost; on a link without one the
-    bridge's copies carry them (uwgen.bridge.copies)."""
-    if plan.mac is None or plan.mac.mode == "none" or plan.wire_format != 2:
-        return {}               # (wire format 1 has no reliable messages: the bridge re-sends)
-    out = {s.id: float(s.timeout) for s in plan.services if getattr(s, "timeout", None)}
-    out.update({a.id: float(a.accept_timeout) for a in (*plan.offered_actions, *plan.served_actions)})
-    return out
-
-
 def max_ages(plan: BridgePlan) -> dict[int, float]:
     """Wire id -> the most a message of it may have aged when it arrives (section 15.5)."""
     ages: dict[int, float] = {t.id: t.policy.ttl for t in plan.topics if t.policy.ttl is not None}
@@ -86,11 +73,7 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
     if plan.wire_format != 2:
         return None
     clock = wall if hasattr(wall, "now") else _Wall(wall)
-    return Reliability(plan.sender_id, period=link.period,
-                       reliable=reliable_topics(plan) | reliable_commands(plan),
-                       # commands are re-sent as their losses are reported, never copied in
-                       # spare room (wire-format.md section 15.6)
-                       copied=frozenset(reliable_topics(plan)),
+    return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
                        max_read_length=link.max_read_length, other_overhead=other_overhead,
                        turn_gap=turn_gap, settled_by=settled_by,

@@ -34,7 +34,6 @@ from typing import Any, Callable
 from rclpy.task import Future
 
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
-from uwgen.bridge.copies import SENT, Due
 from uwgen.bridge.counters import ServiceCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.outcomes import ASKS, Asking, Handled, bare, query
@@ -52,13 +51,11 @@ RECENT_REPLIES = 32   # answered requests per service whose response is kept for
 
 @dataclass
 class Outgoing:
-    """A request sent and not yet answered (calling side): sent again when its copy is due
-    (uwgen.bridge.copies: after an RTO; under a MAC the link re-sends it, the bridge only
-    past its deadline)."""
+    """A request sent and not yet answered (calling side): sent again after each RTO."""
 
     payload: bytes
     first_sent: float
-    due: Due
+    next_send: float
     sends: int = 1
 
 
@@ -157,8 +154,7 @@ class StandIns:
             rtt = self.rtt.get(codec.id)
             if rtt is not None:
                 now = self.w.clock.now()
-                self.outgoing[(codec.id, pending.seq)] = Outgoing(payload, now,
-                                                                  self.w.copies.due(now, rtt))
+                self.outgoing[(codec.id, pending.seq)] = Outgoing(payload, now, now + rtt.rto)
             result = await future
             if result is None:
                 return self._failed_reply(response)
@@ -195,8 +191,6 @@ class StandIns:
                                f"came {self.w.clock.now() - asked.called:.1f} s after the call; "
                                "counted ran_after_timeout)")
         outgoing = self.outgoing.pop((ident, seq), None)
-        if outgoing is not None:
-            self.w.copies.forget(outgoing.payload)
         if pending is not None and outgoing is not None and outgoing.sends == 1:
             self.rtt[ident].sample(self.w.clock.now() - outgoing.first_sent)   # Karn
         if pending is not None and not pending.token.done():
@@ -204,22 +198,18 @@ class StandIns:
 
     def expire(self) -> None:
         now = self.w.clock.now()
-        copies = self.w.copies
         for (ident, seq), outgoing in list(self.outgoing.items()):
-            if not copies.is_due(outgoing.due, now):
+            if outgoing.next_send > now:
                 continue
             rtt = self.rtt[ident]
-            sent = copies.send(ident, outgoing.payload)   # same seq: served once there
-            if sent == SENT:
-                rtt.backoff()
-                outgoing.sends += 1
-                self.counters[ident].request_resends += 1
-            outgoing.due = copies.due(now, rtt)
+            rtt.backoff()
+            outgoing.sends += 1
+            outgoing.next_send = now + rtt.rto
+            self.counters[ident].request_resends += 1
+            self.w.send(ident, outgoing.payload)          # same seq: served once there
         self._ask(now)
         for pending in self.calls.expire():
-            gone = self.outgoing.pop((pending.service_id, pending.seq), None)
-            if gone is not None:
-                copies.forget(gone.payload)
+            self.outgoing.pop((pending.service_id, pending.seq), None)
             codec = self.called[pending.service_id]
             if pending.service_id in self.rtt:       # never toward an rmw_desert server
                 self.asking[(pending.service_id, pending.seq)] = Asking(pending.started, now)

@@ -45,7 +45,6 @@ class Wiring:
     recorder: Any = None           # uwgen.bridge.recorder.BridgeRecorder with --record
     round_trip: float | None = None  # what the MAC expects a request and its answer to take
     turn_gap: float = 0.0            # the MAC's longest wait for the peer's turn (runtime.link.mac)
-    copies: Any = None               # uwgen.bridge.copies.Copies: when commands are sent again
     said: set[str] = field(default_factory=set)
     throttle: LogThrottle = field(init=False)  # error lines a remote peer can cause: bounded
     loops: LoopGuard = field(init=False)       # services/actions another bridge here handles
@@ -53,10 +52,6 @@ class Wiring:
     def __post_init__(self) -> None:
         self.throttle = LogThrottle(self.log.error, self.clock, warn=self.log.warning)
         self.loops = LoopGuard(self.node, self.log)
-        if self.copies is None:          # no link to take copies back from: timers only
-            from uwgen.bridge.copies import Copies
-            self.copies = Copies(lambda key, payload: self.send(key, payload),
-                                 lambda key, payload: False)
 
     def say_once(self, key: str, text: str) -> None:
         """Log the first occurrence of a kind of problem; later ones are counted only."""

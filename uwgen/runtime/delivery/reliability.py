@@ -76,7 +76,7 @@ class Reliability:
                  clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
                  settled_by: Callable[[int, float], float | None] | None = None,
-                 copies: int = 1, copied: frozenset[int] | None = None):
+                 copies: int = 1):
         self.sender, self.name, self.wall = sender, name, wall
         # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
         # peer or been lost before the peer's packet heard now was built (turns: the peer
@@ -127,8 +127,6 @@ class Reliability:
         self._queue: deque[Sent] = deque()            # lost reliable messages to send again
         self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
         self.engine.spare.limit = copies              # copies in spare room (copies.py)
-        self.copied = copied                          # keys copied in spare room (None: every
-                                                      # reliable key)
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
@@ -267,8 +265,6 @@ class Reliability:
         has left after its messages (uwgen.runtime.delivery.copies)."""
         with self._lock:
             def fits(m: Sent) -> bytes | None:
-                if self.copied is not None and m.key not in self.copied:
-                    return None
                 payload = self._aged(m, now)
                 return payload if message_measure(payload) <= room else None
             got = self.engine.spare.pick(self.engine.outstanding.values(), now, fits)

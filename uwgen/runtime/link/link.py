@@ -6,8 +6,7 @@
     link.offer(4, payload)        # an unframed payload from a generated codec
     link.start(); ...; link.stop()
 
-Outgoing: `offer()` queues a payload on its channel (policy applies there), `withdraw()` takes
-one back that has not started to leave; the connection pulls
+Outgoing: `offer()` queues a payload on its channel (policy applies there); the connection pulls
 payloads when the pacer allows a write, and payloads over 255 bytes leave as fragments (if the
 manifest reserves a fragment_id; otherwise they are refused, counted too_large and logged).
 Incoming: frames are decoded, fragments reassembled, and `on_payload` receives each complete payload
@@ -91,7 +90,8 @@ class Link:
         mac_hooks = self.mac.hooks() if wire_format == 2 else None
         self.hooks = join_hooks(own_hooks, mac_hooks) if mac_hooks is not None else own_hooks
         self.mac.backlog = lambda now: self._backlog(now, own_hooks)
-        self.name, self.clock = name, clock
+        self.name = name
+        self.clock = clock
         self.fragment_id = fragment_id
         self._on_payload = on_payload
         self.guard = guard
@@ -132,7 +132,6 @@ class Link:
             overhead=self._overhead_for(guard) if v2 else (guard.overhead if guard is not None else None),
             measure=message_measure if v2 else len,
             stamp=self.hooks.stamp if v2 else None, burst=self.mac.burst)
-        self.withdraw = self.scheduler.withdraw   # (key, payload) -> taken back before it left
         self.packer: Packer | None = None
         self.unpacker: Unpacker | None = None
         if v2:
