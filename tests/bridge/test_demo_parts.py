@@ -17,6 +17,14 @@ def test_square_waypoints_close_the_square():
     assert wps == [(6.0, 2.0), (6.0, 6.0), (2.0, 6.0), (2.0, 2.0)]
 
 
+def arrive(cmds, poses, pilot, sim, t):
+    """What the link delivers by `t`: commands to the vehicle, poses to the pilot."""
+    while cmds and cmds[0][0] <= t:
+        sim.command(*cmds.pop(0)[1], now=t)
+    while poses and poses[0][0] <= t:
+        pilot.observe(*poses.pop(0)[1], t)
+
+
 def fly(pilot, sim, seed, cmd_delay=0.45, pose_delay=0.5, loss=0.25, until=150.0):
     """The pilot and the vehicle joined by a lossy, late link (5 Hz latest for commands,
     2 Hz for poses, as the demo manifest allows). Returns the vehicle's path."""
@@ -33,10 +41,7 @@ def fly(pilot, sim, seed, cmd_delay=0.45, pose_delay=0.5, loss=0.25, until=150.0
                 cmds.append((t + cmd_delay, cmd))
         if k % 25 == 0 and rng.random() > loss:           # pose at 2 Hz, some lost
             poses.append((t + pose_delay, (sim.x, sim.y, sim.theta)))
-        while cmds and cmds[0][0] <= t:
-            sim.command(*cmds.pop(0)[1], now=t)
-        while poses and poses[0][0] <= t:
-            pilot.observe(*poses.pop(0)[1], t)
+        arrive(cmds, poses, pilot, sim, t)
         sim.step(t, step)
         path.append((sim.x, sim.y))
         t += step
@@ -422,10 +427,7 @@ def fly_tdma(pilot, sim, seed, frame, pose_at, surface_at=0.3, writes=3, spacing
             cmds.append((t + transit, last))
         if abs(phase - pose_at) < step / 2 and rng.random() > loss:
             poses.append((t + transit, (sim.x, sim.y, sim.theta)))
-        while cmds and cmds[0][0] <= t:
-            sim.command(*cmds.pop(0)[1], now=t)
-        while poses and poses[0][0] <= t:
-            pilot.observe(*poses.pop(0)[1], t)
+        arrive(cmds, poses, pilot, sim, t)
         sim.step(t, step)
         path.append((sim.x, sim.y))
         t += step
