@@ -246,9 +246,10 @@ class Reliability:
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:
             self._queue.extend(self.engine.due(now))
-            if self._queue:                   # not those a copy sent in spare room delivered since
-                self._queue = deque(m for m in self._queue if not self.engine.spare.delivered(m.ident))
             for m in list(self._queue):
+                if self.engine.spare.delivered(m.ident):
+                    self._queue.remove(m)     # a copy sent in spare room arrived meanwhile
+                    continue
                 if m.deadline is not None and m.deadline <= now:
                     self._queue.remove(m)
                     self.engine.entry(m.key).expired += 1

@@ -248,8 +248,7 @@ class ReliableLink(Receiving):
         copy is `spurious` and delivered once)."""
         if packet.timed_out or all(m.deadline is None for m in packet.messages):
             return
-        self.spare.gone(packet)
-        packet.timed_out = True
+        self._give_up(packet)
         for m in packet.messages:
             self._again(m, now, fast=True)
 
@@ -317,6 +316,11 @@ class ReliableLink(Receiving):
             if not packet.timed_out:
                 self._again(m, now, fast=True)
 
+    def _give_up(self, packet: _Packet) -> None:
+        """`packet`'s reliable messages go again: its copies are no longer on their way."""
+        self.spare.gone(packet)
+        packet.timed_out = True
+
     def _again(self, m: Sent, now: float, fast: bool = False) -> None:
         if m.deadline is None or not self.spare.needed(m):
             return                          # best effort, or another copy arrived or is on its way
@@ -338,8 +342,7 @@ class ReliableLink(Receiving):
             if packet.timed_out or now - packet.at < self.rtt.rto + self.ack_delay:
                 continue
             if any(m.deadline is not None for m in packet.messages):
-                self.spare.gone(packet)
-                packet.timed_out = True
+                self._give_up(packet)
                 self.rtt.backoff()
                 for m in packet.messages:
                     self._again(m, now)

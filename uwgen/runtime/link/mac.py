@@ -36,9 +36,10 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from uwgen.manifest.mac import air_time
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.hooks import PacketHooks
-from uwgen.runtime.link.pacing import DEFAULT_MARGIN, PACKET_HEADER
+from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.slot_timing import FramePhase, SlotTimer, tdma_capacity
 from uwgen.runtime.wire import envelope as env
 
@@ -84,10 +85,6 @@ def decode_items(control: bytes) -> list[MacItem]:
             out.append(MacItem(code, sender))
         i += 1
     return out
-
-
-def air_time(nbytes: int, bitrate: float) -> float:
-    return (nbytes + PACKET_HEADER) * 8 / bitrate
 
 
 class Mac:

@@ -36,8 +36,8 @@ from __future__ import annotations
 import math
 from collections import deque
 
+from uwgen.manifest.mac import air_time
 from uwgen.manifest.model import LinkConfig, MacConfig
-from uwgen.runtime.link.pacing import PACKET_HEADER
 
 LEAD = 0.05           # s: writes reach DESERT's MAC this long before they must (clock and thread jitter)
 MEMORY_FRAMES = 10    # frames after which a heard packet no longer counts
@@ -64,7 +64,7 @@ class FramePhase:
         if start is None:
             self.ignored += 1
             return
-        air = (nbytes + PACKET_HEADER) * 8 / self.bitrate
+        air = air_time(nbytes, self.bitrate)
         self._heard.append((now, (now - air - self.delay - start) % self.frame))
 
     def start(self, now: float) -> float | None:
@@ -129,7 +129,7 @@ def send_window(config: MacConfig, link: LinkConfig, side: str | None = None) ->
     air time plus the range's delay leaves only slot - air - delay; 0 when not even that
     (the slot's first packet then runs over; `uwgen analyze` warns)."""
     slot = config.slot if side is None else config.slot_length(side)
-    air = (link.max_read_length + PACKET_HEADER) * 8 / config.bitrate
+    air = air_time(link.max_read_length, config.bitrate)
     return max(0.0, min(slot - config.guard, slot - air - config.delay))
 
 
@@ -138,7 +138,7 @@ def tdma_capacity(config: MacConfig, link: LinkConfig, side: str | None = None) 
     them one after the other from the window's opening, each in the send window (while
     `max_packet_per_slot` allows), and uwApplication feeds its MAC one packet per `period`;
     at least one."""
-    air = (link.max_read_length + PACKET_HEADER) * 8 / config.bitrate
+    air = air_time(link.max_read_length, config.bitrate)
     by_window = math.floor(send_window(config, link, side) / air) + 1
     by_period = max(1, math.floor(config.frame / link.period))
     return max(1, min(config.max_packet_per_slot, by_window, by_period, config.queue_size))
