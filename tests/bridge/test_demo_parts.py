@@ -17,35 +17,40 @@ def test_square_waypoints_close_the_square():
     assert wps == [(6.0, 2.0), (6.0, 6.0), (2.0, 6.0), (2.0, 2.0)]
 
 
-def arrive(cmds, poses, pilot, sim, t):
-    """What the link delivers by `t`: commands to the vehicle, poses to the pilot."""
-    while cmds and cmds[0][0] <= t:
-        sim.command(*cmds.pop(0)[1], now=t)
-    while poses and poses[0][0] <= t:
-        pilot.observe(*poses.pop(0)[1], t)
+def flight(pilot, sim, carry, until):
+    """The pilot (10 Hz) and the vehicle joined by a link: `carry(t, tick, command, cmds,
+    poses)` puts what the link carries at time t on `cmds` (arrival, command) and `poses`
+    (arrival, pose). Returns the vehicle's path."""
+    cmds, poses, path, last = [], [], [], None
+    t, step = 0.0, 0.02
+    while t < until and not pilot.done:
+        k = round(t / step)
+        if k % 5 == 0:                                    # 10 Hz operator
+            last = pilot.command(t)
+            if last is None:
+                break
+        carry(t, k, last, cmds, poses)
+        while cmds and cmds[0][0] <= t:
+            sim.command(*cmds.pop(0)[1], now=t)
+        while poses and poses[0][0] <= t:
+            pilot.observe(*poses.pop(0)[1], t)
+        sim.step(t, step)
+        path.append((sim.x, sim.y))
+        t += step
+    return path
 
 
 def fly(pilot, sim, seed, cmd_delay=0.45, pose_delay=0.5, loss=0.25, until=150.0):
     """The pilot and the vehicle joined by a lossy, late link (5 Hz latest for commands,
     2 Hz for poses, as the demo manifest allows). Returns the vehicle's path."""
     rng = random.Random(seed)
-    cmds, poses, path = [], [], []
-    t, step = 0.0, 0.02
-    while t < until and not pilot.done:
-        k = round(t / step)
-        if k % 5 == 0:                                    # 10 Hz operator
-            cmd = pilot.command(t)
-            if cmd is None:
-                break
-            if k % 10 == 0 and rng.random() > loss:       # link rate 5/s, some lost
-                cmds.append((t + cmd_delay, cmd))
+
+    def carry(t, k, cmd, cmds, poses):
+        if k % 10 == 0 and rng.random() > loss:           # link rate 5/s, some lost
+            cmds.append((t + cmd_delay, cmd))
         if k % 25 == 0 and rng.random() > loss:           # pose at 2 Hz, some lost
             poses.append((t + pose_delay, (sim.x, sim.y, sim.theta)))
-        arrive(cmds, poses, pilot, sim, t)
-        sim.step(t, step)
-        path.append((sim.x, sim.y))
-        t += step
-    return path
+    return flight(pilot, sim, carry, until)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -414,24 +419,15 @@ def fly_tdma(pilot, sim, seed, frame, pose_at, surface_at=0.3, writes=3, spacing
     in each frame the surface's slot carries the pilot's latest command at each of its
     `writes`, the vehicle's slot its pose at `pose_at` s into the frame. Returns the path."""
     rng = random.Random(seed)
-    cmds, poses, path, last = [], [], [], None
-    t, step = 0.0, 0.02
-    while t < until and not pilot.done:
-        if round(t / step) % 5 == 0:                       # 10 Hz operator
-            last = pilot.command(t)
-            if last is None:
-                break
+
+    def carry(t, k, last, cmds, poses):
         phase = t % frame
-        if last is not None and any(abs(phase - (surface_at + i * spacing)) < step / 2
+        if last is not None and any(abs(phase - (surface_at + i * spacing)) < 0.01
                                     for i in range(writes)) and rng.random() > loss:
             cmds.append((t + transit, last))
-        if abs(phase - pose_at) < step / 2 and rng.random() > loss:
+        if abs(phase - pose_at) < 0.01 and rng.random() > loss:
             poses.append((t + transit, (sim.x, sim.y, sim.theta)))
-        arrive(cmds, poses, pilot, sim, t)
-        sim.step(t, step)
-        path.append((sim.x, sim.y))
-        t += step
-    return path
+    return flight(pilot, sim, carry, until)
 
 
 @pytest.mark.parametrize("pose_at", [0.9, 1.6, 2.4])
