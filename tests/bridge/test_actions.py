@@ -10,6 +10,7 @@ from rclpy.action import ActionClient, ActionServer
 from rclpy.task import Future
 from test_msgs.action import Fibonacci
 
+from uwgen.bridge.orphans import STATUS_GRACE
 from uwgen.codegen import generate
 from uwgen.runtime.wire.codec import pack_items
 
@@ -190,7 +191,9 @@ def test_a_client_side_asks_for_a_result_the_server_side_does_not_know(pair):
     links.links["vehicle"].mute = True                 # the real result never comes back
     links.links["vehicle"].inject(pack_items([2, 9, 24 + 4, 1]))     # result wanted, goal 4
     vb = bridges["vehicle"]
-    wait_for(lambda: counted(vb)["lost_goals"] == 1, what="the unknown goal reported")
+    # said once the action server's goal list is known, or STATUS_GRACE (10 s) after start
+    wait_for(lambda: counted(vb)["lost_goals"] == 1, timeout=STATUS_GRACE + 15.0,
+             what="the unknown goal reported")
     assert links.links["vehicle"].offered(9) == [pack_items([3, 9, 4, 0])]   # no such goal
 
 
