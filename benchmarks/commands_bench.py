@@ -292,8 +292,9 @@ class _Wall:
 
 
 def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
-              mac: str = "none") -> dict:
-    """One simulated run of the topic mix; the mission topic reliable or best effort."""
+              mac: str = "none", observe=None) -> dict:
+    """One simulated run of the topic mix; the mission topic reliable or best effort.
+    `observe(sim, macs)`, if given, is called before the run (benchmarks/turns_bench.py)."""
     from uwgen.manifest.model import LinkConfig
     from uwgen.runtime.link.mac import mac_for
     scen = scenario(per, seed, mac)
@@ -355,6 +356,8 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
             sent_at[k] = clock.now()
             sim.links["surface"].offer(MISSION, bytes((0, MISSION)) + k.to_bytes(2, "big") + bytes(16))
         sim.at(k * 2.0 + 0.3, send)
+    if observe is not None:
+        observe(sim, macs)
     sim.run(seconds + 60.0)
     got: dict[int, float] = {}
     dup = 0

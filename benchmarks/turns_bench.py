@@ -1,0 +1,172 @@
+#!/usr/bin/env python3
+"""Turns benchmark (docs/wire-format.md section 16, uwgen.runtime.link.mac.TurnMac): what a
+lost packet costs a round of turns, on simulated time.
+
+    .venv/bin/python benchmarks/turns_bench.py [--per 0.2] [--seeds 3,5,7] [--before main]
+
+The workload is commands_bench's reliable-topic run under `turns` (the demo's two-way topic
+mix and a reliable mission topic; 64 B every 0.2 s, 4800 bit/s, 1000 m; 10 minutes per
+seed). Every packet the emulator's core carries is traced (who wrote it and when, its C
+items, when it reached the other side or why it was lost), and each turn the leader granted
+is put in one class by what the channel did to it:
+
+- `ended`: the follower's end reached the leader before the leader wrote again;
+- `grant lost`: the follower wrote nothing in that turn (grant lost, and its notice with it
+  or there was none);
+- `answers lost`: the follower answered and none of its packets reached the leader;
+- `end lost`: the leader heard some of the answer, not its end;
+- `late`: the end reached the leader after the leader had written again.
+
+Per class: turns, and the mean time the leader kept the channel idle past what it could
+know, `idle`: from the arrival (or loss) of the follower's last packet of the turn to the
+leader's next write (`grant lost`: from the grant's write, the whole wait). Beside it: the
+leader's `missed` counter, the mean round (grant to grant), the follower's start after
+hearing its grant (mean / max), the sides' collisions, and the reliable topic's p95 over
+its measured round trip. `--before REF` runs the same measurement on the uwgen of git
+revision REF (exported to a temporary directory) first: the reference, same run.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+CLASSES = ("ended", "grant lost", "answers lost", "end lost", "late")
+
+
+class Trace:
+    """Every packet's fate at its destination, from the emulator core of a DuplexSim."""
+
+    def __init__(self):
+        self.packets: list[dict] = []
+
+    def attach(self, sim, macs) -> None:
+        from uwgen.runtime.link.mac import decode_items
+        from uwgen.runtime.wire import envelope
+        from uwgen.runtime.wire.framing import ShortFrameDecoder
+        core = sim.core
+        rx_end = core._rx_end
+
+        def traced(arr, t):
+            pkt, receiver = arr.packet, arr.receiver
+            before = core.counters(receiver)["packets_delivered"] if pkt.dest == receiver else None
+            rx_end(arr, t)
+            if before is None:
+                return
+            items = []
+            for frame in ShortFrameDecoder().feed(pkt.data):
+                items += decode_items(envelope.decode(frame).control or b"")
+            self.packets.append({
+                "source": pkt.source, "written": pkt.queued_at, "sent": pkt.sent_at, "end": arr.end,
+                "ok": core.counters(receiver)["packets_delivered"] > before,
+                "grant": next((i.count for i in items if i.code == 2), None),
+                "ended": any(i.code == 3 for i in items)})
+        core._rx_end = traced
+
+
+def analyse(packets: list[dict], leader: str = "surface") -> dict:
+    """The turns of a run, classed (module doc)."""
+    ours = sorted((p for p in packets if p["source"] == leader), key=lambda p: p["written"])
+    theirs = sorted((p for p in packets if p["source"] != leader), key=lambda p: p["written"])
+    grants = [p for p in ours if p["grant"]]
+    idle = {c: [] for c in CLASSES}
+    starts, rounds = [], []
+    for k, g in enumerate(grants[:-1]):
+        nxt = grants[k + 1]["written"]
+        rounds.append(nxt - g["written"])
+        back = next((p["written"] for p in ours if p["written"] > g["written"]), nxt)
+        answer = [p for p in theirs if g["written"] < p["written"] <= nxt]
+        heard = [p for p in answer if p["ok"]]
+        end = next((p for p in heard if p["ended"]), None)
+        if answer and g["ok"]:
+            starts.append(answer[0]["written"] - g["end"])
+        if end is not None:
+            cls = "ended" if end["end"] <= back else "late"
+        elif not answer:
+            cls = "grant lost"
+        elif not heard:
+            cls = "answers lost"
+        else:
+            cls = "end lost"
+        last = max((p["end"] for p in answer if p["written"] < back), default=g["written"])
+        idle[cls].append(back - last)
+    return {"turns": {c: len(v) for c, v in idle.items()},
+            "idle": {c: statistics.fmean(v) if v else float("nan") for c, v in idle.items()},
+            "round": statistics.fmean(rounds), "start_mean": statistics.fmean(starts),
+            "start_max": max(starts)}
+
+
+def measure(per: float, seed: int) -> dict:
+    sys.path.insert(0, str(HERE))
+    import commands_bench as cb
+    trace = Trace()
+    seen = {}
+
+    def observe(sim, macs):
+        trace.attach(sim, macs)
+        seen["macs"] = macs
+    r = cb.topic_run(per, seed, True, mac="turns", observe=observe)
+    out = analyse(trace.packets)
+    lead = seen["macs"]["surface"].stats()
+    out.update(missed=lead["missed"], grants=lead["grants_sent"], collisions=r["collisions"],
+               p95=r["p95"], rtt=r["rtt"], p95_rtt=r["p95"] / r["rtt"])
+    return out
+
+
+def export(rev: str) -> str:
+    """uwgen as at git revision `rev`, in a temporary directory."""
+    root = HERE.parent
+    out = tempfile.mkdtemp(prefix="uwgen_turns_ref_")
+    archive = subprocess.run(["git", "-C", str(root), "archive", rev, "uwgen"], check=True,
+                             capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", out], input=archive, check=True)
+    return out
+
+
+def rows(per: float, seeds: list[int], code: str | None) -> list[dict]:
+    if code is None:
+        return [measure(per, s) for s in seeds]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([code, str(HERE)])}
+    got = subprocess.run([sys.executable, __file__, "--json", "--per", str(per),
+                          "--seeds", ",".join(map(str, seeds))], env=env, check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(got.splitlines()[-1])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--per", type=float, default=0.2)
+    ap.add_argument("--seeds", default="3,5,7")
+    ap.add_argument("--before", metavar="REV", help="also measure uwgen at this git revision")
+    ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    seeds = [int(s) for s in args.seeds.split(",")]
+    if args.json:
+        print(json.dumps(rows(args.per, seeds, None)))
+        return 0
+    runs = []
+    if args.before:
+        runs.append((f"before ({args.before})", rows(args.per, seeds, export(args.before))))
+    runs.append(("this build", rows(args.per, seeds, None)))
+    print(f"PER {args.per:.0%}, turns, seeds {args.seeds}")
+    print("| code | seed | turns | " + " | ".join(f"{c} (idle s)" for c in CLASSES)
+          + " | missed | round (s) | follower start mean / max (s) | collisions | p95 / rtt |")
+    print("|---|---|---|" + "---|" * len(CLASSES) + "---|---|---|---|---|")
+    for name, results in runs:
+        for seed, r in zip(seeds, results):
+            n = sum(r["turns"].values())
+            cells = " | ".join(f"{r['turns'][c]} ({r['idle'][c]:.2f})" for c in CLASSES)
+            print(f"| {name} | {seed} | {n} | {cells} | {r['missed']} | {r['round']:.2f} | "
+                  f"{r['start_mean']:.2f} / {r['start_max']:.2f} | {r['collisions']} | "
+                  f"{r['p95_rtt']:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
