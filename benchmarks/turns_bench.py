@@ -5,8 +5,8 @@ lost packet costs a round of turns, on simulated time.
     .venv/bin/python benchmarks/turns_bench.py [--per 0.2] [--seeds 3,5,7] [--before main]
 
 The workload is commands_bench's reliable-topic run under `turns` (the demo's two-way topic
-mix and a reliable mission topic; 64 B every 0.2 s, 4800 bit/s, 1000 m; 10 minutes per
-seed). Every packet the emulator's core carries is traced (who wrote it and when, its C
+mix and a reliable mission topic; 64 B every 0.2 s, 4800 bit/s, 1000 m; the turns granted
+in its 10 minutes of traffic, per seed). Every packet the emulator's core carries is traced (who wrote it and when, its C
 items, when it reached the other side or why it was lost), and each turn the leader granted
 is put in one class by what the channel did to it:
 
@@ -20,7 +20,8 @@ is put in one class by what the channel did to it:
 Per class: turns, and the mean time the leader kept the channel idle past what it could
 know, `idle`: from the arrival (or loss) of the follower's last packet of the turn to the
 leader's next write (`grant lost`: from the grant's write, the whole wait). Beside it: the
-leader's `missed` counter, the mean round (grant to grant), the follower's start after
+leader's `missed` counter (the whole run, its idle minute after the traffic included), the
+mean round (grant to grant), the follower's start after
 hearing its grant (mean / max), the sides' collisions, and the reliable topic's p95 over
 its measured round trip. `--before REF` runs the same measurement on the uwgen of git
 revision REF (exported to a temporary directory) first: the reference, same run.
@@ -37,6 +38,7 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+SECONDS = 600.0         # of offered traffic (commands_bench.topic_run's default)
 CLASSES = ("ended", "grant lost", "answers lost", "end lost", "late")
 
 
@@ -70,11 +72,12 @@ class Trace:
         core._rx_end = traced
 
 
-def analyse(packets: list[dict], leader: str = "surface") -> dict:
-    """The turns of a run, classed (module doc)."""
+def analyse(packets: list[dict], until: float, leader: str = "surface") -> dict:
+    """The turns granted before `until` (the end of the offered traffic: after it the
+    leader's turns are a lone grant), classed (module doc)."""
     ours = sorted((p for p in packets if p["source"] == leader), key=lambda p: p["written"])
     theirs = sorted((p for p in packets if p["source"] != leader), key=lambda p: p["written"])
-    grants = [p for p in ours if p["grant"]]
+    grants = [p for p in ours if p["grant"] and p["written"] < until]
     idle = {c: [] for c in CLASSES}
     starts, rounds = [], []
     for k, g in enumerate(grants[:-1]):
@@ -111,8 +114,8 @@ def measure(per: float, seed: int) -> dict:
     def observe(sim, macs):
         trace.attach(sim, macs)
         seen["macs"] = macs
-    r = cb.topic_run(per, seed, True, mac="turns", observe=observe)
-    out = analyse(trace.packets)
+    r = cb.topic_run(per, seed, True, seconds=SECONDS, mac="turns", observe=observe)
+    out = analyse(trace.packets, SECONDS)
     lead = seen["macs"]["surface"].stats()
     out.update(missed=lead["missed"], grants=lead["grants_sent"], collisions=r["collisions"],
                p95=r["p95"], rtt=r["rtt"], p95_rtt=r["p95"] / r["rtt"])
