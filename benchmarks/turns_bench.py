@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import random
 import statistics
 import subprocess
 import sys
@@ -122,6 +123,66 @@ def measure(per: float, seed: int) -> dict:
     return out
 
 
+FLEET_MAC = "{mode: turns, leader: surface, bitrate: 4800, range: 1000}"
+
+
+def fleet_measure(vehicles: int, per: float, seed: int, seconds: float = 300.0) -> dict:
+    """One leader and `vehicles` followers on a 500 m circle around it (the manifest's range:
+    the farthest two apart), each side's Link under its TurnMac over the emulator's core,
+    best-effort traffic (the surface's orders to all every 0.5 s, each vehicle's telemetry
+    every second); the first vehicle restarts (a new Link, nothing kept) a third of the way
+    in. Collisions between the sides, the leader's missed turns, each vehicle's ended
+    turns after its restart."""
+    import math
+
+    from uwgen.emulator import BROADCAST, NodeSpec, Scenario
+    from uwgen.emulator.duplex import DuplexSim
+    from uwgen.emulator.from_manifest import with_mac
+    from uwgen.manifest.mac import mac_from_text
+    from uwgen.manifest.model import LinkConfig, LinkPolicy
+    from uwgen.runtime.link.mac import mac_for
+    names = ["surface"] + [f"auv{i + 1}" for i in range(vehicles)]
+    senders = {n: i + 1 for i, n in enumerate(names)}
+    config = mac_from_text(FLEET_MAC, names)
+    nodes = [NodeSpec("surface", position=(0.0, 0.0, 0.0), dest=BROADCAST)]
+    for i, n in enumerate(names[1:]):
+        a = 2 * math.pi * i / vehicles
+        nodes.append(NodeSpec(n, position=(500 * math.cos(a), 500 * math.sin(a), 0.0), dest="surface"))
+    scen = with_mac(Scenario(nodes=nodes, period=0.2, max_read_length=64, per=per, seed=seed), config)
+    macs = {}
+
+    def link_kw(side):
+        macs[side] = mac_for(config, side, senders, LinkConfig(64, 0.2))
+        return {"mac": macs[side], "sender_id": senders[side]}
+    sim = DuplexSim(scen, tuple(names), wire_format=2, step=0.025, link_kw_for=link_kw)
+    policy = LinkPolicy(queue="latest", ttl=5.0, rate=5)
+
+    def channels(side):
+        sim.links[side].add_channel(senders[side], policy)
+    for n in names:
+        channels(n)
+    restarted = {}
+
+    def restart():
+        sim.restart(names[1])
+        channels(names[1])
+        restarted["at"] = sim.clock.now()
+        restarted["mac"] = macs[names[1]]
+    sim.at(seconds / 3, restart)
+    for n in names:
+        every = 0.5 if n == "surface" else 1.0
+        t = random.Random(f"{seed}{n}").uniform(0, every)
+        while t < seconds:
+            sim.at(t, lambda n=n: sim.links[n].offer(senders[n], bytes((0, senders[n])) + bytes(18)))
+            t += every
+    sim.run(seconds)
+    lead = macs["surface"].stats()
+    return {"collisions": sum(sim.core.counters(n)["lost_collision"] for n in names),
+            "grants": lead["grants_sent"], "ends": lead["ends_heard"], "missed": lead["missed"],
+            "restarted_turns": restarted["mac"].stats()["turns"],
+            "received": {n: len(sim.received[n]) for n in names}}
+
+
 def export(rev: str) -> str:
     """uwgen as at git revision `rev`, in a temporary directory."""
     root = HERE.parent
@@ -132,11 +193,11 @@ def export(rev: str) -> str:
     return out
 
 
-def rows(per: float, seeds: list[int], code: str | None) -> list[dict]:
+def rows(per: float, seeds: list[int], code: str | None, fleet: int = 0) -> list[dict]:
     if code is None:
-        return [measure(per, s) for s in seeds]
+        return [fleet_measure(fleet, per, s) if fleet else measure(per, s) for s in seeds]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([code, str(HERE)])}
-    got = subprocess.run([sys.executable, __file__, "--json", "--per", str(per),
+    got = subprocess.run([sys.executable, __file__, "--json", "--per", str(per), "--fleet", str(fleet),
                           "--seeds", ",".join(map(str, seeds))], env=env, check=True,
                          capture_output=True, text=True).stdout
     return json.loads(got.splitlines()[-1])
@@ -147,16 +208,29 @@ def main() -> int:
     ap.add_argument("--per", type=float, default=0.2)
     ap.add_argument("--seeds", default="3,5,7")
     ap.add_argument("--before", metavar="REV", help="also measure uwgen at this git revision")
+    ap.add_argument("--fleet", type=int, default=0, metavar="N",
+                    help="instead: one leader and N followers (fleet_measure), 5 minutes a seed")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
     if args.json:
-        print(json.dumps(rows(args.per, seeds, None)))
+        print(json.dumps(rows(args.per, seeds, None, args.fleet)))
         return 0
     runs = []
     if args.before:
-        runs.append((f"before ({args.before})", rows(args.per, seeds, export(args.before))))
-    runs.append(("this build", rows(args.per, seeds, None)))
+        runs.append((f"before ({args.before})", rows(args.per, seeds, export(args.before), args.fleet)))
+    runs.append(("this build", rows(args.per, seeds, None, args.fleet)))
+    if args.fleet:
+        print(f"PER {args.per:.0%}, turns, 1 leader + {args.fleet} followers, seeds {args.seeds}")
+        print("| code | seed | grants | ends heard | missed | collisions | restarted follower's "
+              "turns | packets received per side |")
+        print("|---|---|---|---|---|---|---|---|")
+        for name, results in runs:
+            for seed, r in zip(seeds, results):
+                print(f"| {name} | {seed} | {r['grants']} | {r['ends']} | {r['missed']} | "
+                      f"{r['collisions']} | {r['restarted_turns']} | "
+                      f"{' '.join(str(v) for v in r['received'].values())} |")
+        return 0
     print(f"PER {args.per:.0%}, turns, seeds {args.seeds}")
     print("| code | seed | turns | " + " | ".join(f"{c} (idle s)" for c in CLASSES)
           + " | missed | round (s) | follower start mean / max (s) | collisions | p95 / rtt |")

@@ -127,8 +127,8 @@ def test_the_leader_grants_each_follower_in_turn():
     for _ in range(3):
         c = write(lead, t)
         grants.append(c[0] & 0x0F)
-        lead.heard(c[0] & 0x0F, bytes([0x30 | (c[0] & 0x0F)]), t + 1.6)    # 1000 m: 0.67 s each way
-        t += 1.6
+        lead.heard(c[0] & 0x0F, bytes([0x30 | (c[0] & 0x0F)]), t + 1.0)
+        t += 1.0
     assert grants == [2, 3, 2]
 
 

@@ -327,8 +327,9 @@ class TurnMac(Mac):
             deadline = (self.timing.grant_deadline(now, closing.count, self._noticed_at)
                         + self._late[closing.sender])
             self._waiting = (closing.sender, closing.count, now, deadline)
-            # the grant has to reach the follower before its answer can leave
-            self._earliest = now + self.timing.packet_air(nbytes) + 2 * self.timing.delay
+            # the grant has to end before an answer to it can start (the range is the
+            # farthest the sides are apart, not the nearest)
+            self._earliest = now + self.timing.packet_air(nbytes)
             self._noticed_at = None
             self._heard_in_wait = 0
         else:
