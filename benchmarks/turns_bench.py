@@ -20,8 +20,9 @@ is put in one class by what the channel did to it:
 Per class: turns, and the mean time the leader kept the channel idle past what it could
 know, `idle`: from the arrival (or loss) of the follower's last packet of the turn to the
 leader's next write (`grant lost`: from the grant's write, the whole wait). Beside it: the
-leader's `missed` counter (the whole run, its idle minute after the traffic included), the
-mean round (grant to grant), the follower's start after
+turns missed while traffic was offered (beside the leader's `missed` counter: the whole
+run, its idle minute after the traffic included), the idle time after losses per round
+(what lost packets cost a round on average), the mean round (grant to grant), the follower's start after
 hearing its grant (mean / max), the sides' collisions, and the reliable topic's p95 over
 its measured round trip. `--before REF` runs the same measurement on the uwgen of git
 revision REF (exported to a temporary directory) first: the reference, same run.
@@ -100,7 +101,9 @@ def analyse(packets: list[dict], until: float, leader: str = "surface") -> dict:
             cls = "end lost"
         last = max((p["end"] for p in answer if p["written"] < back), default=g["written"])
         idle[cls].append(back - last)
-    return {"turns": {c: len(v) for c, v in idle.items()},
+    lost = [x for c, v in idle.items() if c != "ended" for x in v]
+    return {"turns": {c: len(v) for c, v in idle.items()}, "missed_traffic": len(lost),
+            "loss_idle": sum(lost) / max(1, sum(len(v) for v in idle.values())),
             "idle": {c: statistics.fmean(v) if v else float("nan") for c, v in idle.items()},
             "round": statistics.fmean(rounds), "start_mean": statistics.fmean(starts),
             "start_max": max(starts)}
@@ -233,13 +236,15 @@ def main() -> int:
         return 0
     print(f"PER {args.per:.0%}, turns, seeds {args.seeds}")
     print("| code | seed | turns | " + " | ".join(f"{c} (idle s)" for c in CLASSES)
-          + " | missed | round (s) | follower start mean / max (s) | collisions | p95 / rtt |")
-    print("|---|---|---|" + "---|" * len(CLASSES) + "---|---|---|---|---|")
+          + " | missed (traffic / whole run) | idle after losses per round (s) | round (s) "
+          "| follower start mean / max (s) | collisions | p95 / rtt |")
+    print("|---|---|---|" + "---|" * len(CLASSES) + "---|---|---|---|---|---|")
     for name, results in runs:
         for seed, r in zip(seeds, results):
             n = sum(r["turns"].values())
             cells = " | ".join(f"{r['turns'][c]} ({r['idle'][c]:.2f})" for c in CLASSES)
-            print(f"| {name} | {seed} | {n} | {cells} | {r['missed']} | {r['round']:.2f} | "
+            print(f"| {name} | {seed} | {n} | {cells} | {r['missed_traffic']} / {r['missed']} | "
+                  f"{r['loss_idle']:.2f} | {r['round']:.2f} | "
                   f"{r['start_mean']:.2f} / {r['start_max']:.2f} | {r['collisions']} | "
                   f"{r['p95_rtt']:.2f} |")
     return 0
