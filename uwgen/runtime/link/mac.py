@@ -25,10 +25,11 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   window could no longer start arriving (uwgen.runtime.link.turn_timing: bounds from the
   manifest's physics, moved to the rest of the answer by each packet heard): the miss is
   counted and the next side is granted, so a lost grant or answer costs the wait for what
-  could still come, and a side that starts late or restarts answers the next grant naming it. The packet before a
-  full turn's last gives notice of the grant (`2S 00`): a follower that heard it and lost the
-  grant takes its turn all the same once the grant's packet has ended. Needs no change inside
-  DESERT and no clock agreement: every timer starts from an event this side saw.
+  could still come, and a side that starts late or restarts answers the next grant naming
+  it. The packet before a full turn's last gives notice of the grant (`2S 00`): a follower
+  that heard it and lost the grant takes its turn all the same once the grant's packet has
+  ended. Needs no change inside DESERT and no clock agreement: every timer starts from an
+  event this side saw.
   `settled_by` tells delivery that a peer's answer was built after all of this side's packets
   of the turn before it had arrived or been lost (a report there names their loss at once).
 """
@@ -387,11 +388,11 @@ class TurnMac(Mac):
         to it wait that much longer (counted `late_answers`)."""
         if self._missed is None or sender != self._missed[0]:
             return
-        who, deadline, span = self._missed
+        _who, deadline, span = self._missed
         if not deadline < start < deadline + span:
             return
         self.counts["late_answers"] += 1
-        self._late[sender] = max(self._late[sender], start - self._missed[1] + LISTEN)
+        self._late[sender] = max(self._late[sender], start - deadline + LISTEN)
 
     def _take_turn(self, count: int, now: float) -> None:
         self._notice_at = INF
