@@ -308,3 +308,14 @@ def test_a_weighted_tdma_slot_drains_more_packets_a_frame():
     assert tdma_capacity(config, LINK, "auv1") == 3          # floor(0.3 / 0.113) + 1
     assert TdmaMac(config, "surface", LINK).capacity == 15
     assert TdmaMac(config, "auv2", LINK).capacity == 3
+
+
+def test_a_packet_that_began_arriving_before_the_grant_ended_is_not_its_answer():
+    lead, _ = pair()
+    lead.carries = False
+    assert lead.next_write_at(0.0) <= 0.0
+    lead.parts(0.0)
+    lead.wrote(0.0, 64)                              # the grant, 0.11 s on the air
+    lead.arrived(64, 0.15)
+    lead.heard(2, bytes([0x32]), 0.15)               # began at 0.04: a packet of an older turn
+    assert lead.counts["ends_heard"] == 0 and lead.next_write_at(0.2) > 0.2
