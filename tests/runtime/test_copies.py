@@ -97,12 +97,12 @@ def test_from_one_packet_in_ten_lost_a_message_gets_a_second_copy():
     assert copies_of(measured(0), on_their_way(0)) == []
 
 
-def test_a_message_not_copied_yet_goes_before_a_second_copy_of_a_newer_one():
+def test_a_message_not_copied_yet_goes_before_a_second_copy_and_the_older_first():
     c = measured(LOSS_WINDOW // 5)                               # 20 %: two copies each
     packets = on_their_way(0, 1)                                 # 1 is the newer
-    assert copies_of(c, packets, tries=1) == ["m1"]
-    assert copies_of(c, packets, tries=1) == ["m0"]              # not m1's second copy
-    assert copies_of(c, packets) == ["m1", "m0"]
+    assert copies_of(c, packets, tries=1) == ["m0"]              # it waited longer
+    assert copies_of(c, packets, tries=1) == ["m1"]              # not m0's second copy
+    assert copies_of(c, packets) == ["m0", "m1"]
 
 
 # -- the packer: copies only in room a packet leaves with anyway ----------------------------

@@ -12,7 +12,8 @@ or a frame, more) unless a copy went with it. How many copies a message gets fol
 loss, so that all of them and the message are lost together about 1 time in 100 or less:
 one from COPY_LOSS (at 10 % loss, 1 in 100), two from SECOND_COPY_LOSS (at 20 %, 1 in 125
 instead of 1 in 25 with one). The message with the fewest copies so far goes first, so a
-second copy never takes the room a first copy of another message needs.
+second copy never takes the room a first copy of another message needs, then the one sent
+longest ago.
 """
 from __future__ import annotations
 
@@ -100,7 +101,9 @@ class Copies:
         """The copy to put in spare room, or None: a reliable message on its way (in the SCAN
         most recently sent packets), not known delivered, with fewer than `wanted()` copies
         since it last went again and its deadline ahead, whose copy `fits` (the copy's bytes,
-        or None) the room; the one with the fewest copies so far, then the newest."""
+        or None) the room; the one with the fewest copies so far, then the one sent longest
+        ago (the nearest to the slow end of the latencies: in a turn or slot of several new
+        messages, the copy of the one that waited longest for it goes first)."""
         wanted = self.wanted()
         if wanted <= 0:
             return None
@@ -114,7 +117,7 @@ class Copies:
                         or (m.deadline is not None and m.deadline <= now)):
                     continue
                 candidates[m.ident] = (self.copied.get(m.ident, 0), age, m)
-        for _copies, _age, m in sorted(candidates.values(), key=lambda c: c[:2]):
+        for _copies, _age, m in sorted(candidates.values(), key=lambda c: (c[0], -c[1])):
             payload = fits(m)
             if payload is not None:
                 self.copied[m.ident] = self.copied.get(m.ident, 0) + 1
