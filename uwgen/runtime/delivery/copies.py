@@ -12,8 +12,8 @@ or a frame, more) unless a copy went with it. How many copies a message gets fol
 loss, so that all of them and the message are lost together about 1 time in 100 or less:
 one from COPY_LOSS (at 10 % loss, 1 in 100), two from SECOND_COPY_LOSS (at 20 %, 1 in 125
 instead of 1 in 25 with one). The message with the fewest copies so far goes first, so a
-second copy never takes the room a first copy of another message needs, then the one sent
-longest ago.
+second copy never takes the room a first copy of another message needs, then the one whose
+last copy left longest ago.
 """
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ SCAN = 32               # the most recent packets on their way a copy is looked 
 
 class Copies:
     def __init__(self, limit: int = 2):
-        self.limit = limit                  # most copies in spare room per message and loss
+        self.limit = limit                  # most copies in spare room per message
         self.live: dict[int, int] = {}      # ident -> copies on their way
         self.done: OrderedDict[int, None] = OrderedDict()   # idents known delivered
         self.copied: dict[int, int] = {}    # ident -> copies sent in spare room since its
@@ -101,9 +101,9 @@ class Copies:
         """The copy to put in spare room, or None: a reliable message on its way (in the SCAN
         most recently sent packets), not known delivered, with fewer than `wanted()` copies
         since it last went again and its deadline ahead, whose copy `fits` (the copy's bytes,
-        or None) the room; the one with the fewest copies so far, then the one sent longest
-        ago (the nearest to the slow end of the latencies: in a turn or slot of several new
-        messages, the copy of the one that waited longest for it goes first)."""
+        or None) the room; the one with the fewest copies so far, then the one whose last copy
+        left longest ago (the nearest to the slow end of the latencies: in a turn or slot of
+        several new messages, the copy of the one that waited longest for it goes first)."""
         wanted = self.wanted()
         if wanted <= 0:
             return None

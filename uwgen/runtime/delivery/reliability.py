@@ -126,7 +126,7 @@ class Reliability:
         self._timed = False                           # the packet being built needs T
         self._queue: deque[Sent] = deque()            # lost reliable messages to send again
         self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
-        self.engine.spare.limit = copies              # copies in spare room (copies.py)
+        self.engine.spare.limit = copies              # most copies in spare room (copies.py)
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
