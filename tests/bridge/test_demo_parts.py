@@ -104,6 +104,22 @@ def test_pilot_share_follows_what_two_poses_show():
     assert pilot.share == pytest.approx(0.85)
 
 
+def test_pilot_holds_at_a_corner_it_reached_only_by_prediction_until_a_pose_confirms_it():
+    # as in a demo run under turns at 20 % PER: the last pose 3.9 m along the top edge, then
+    # none for 4.8 s while half the commands acted; counting them all, the pilot turned for
+    # the next corner 1.1 m early
+    pilot = Pilot([(2.0, 6.0), (2.0, 2.0)], lag=1.0)
+    pilot.observe(3.9, 6.0, math.pi, t=0.0)
+    t, cmd = 0.0, (0.4, 0.0)
+    while cmd != (0.0, 0.0) and t < 10.0:
+        t += 0.1
+        cmd = pilot.command(t)
+    assert cmd == (0.0, 0.0) and pilot.index == 0 and 2.5 < t < 5.5   # reached by the guess: held
+    pilot.observe(3.1, 6.0, math.pi, t=t + 0.5)                      # where it really is
+    lin, _ = pilot.command(t + 0.6)
+    assert lin > 0.0 and pilot.index == 0                             # on to the corner
+
+
 def test_vehicle_integrates_commands_and_stops_when_they_go_stale():
     sim = VehicleSim(0.0, 0.0, 0.0)
     sim.command(1.0, 0.0, now=0.0)

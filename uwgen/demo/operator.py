@@ -36,6 +36,7 @@ RESULT_WAIT = 65.0           # s for its result (the manifest's result_timeout +
 LEARN_DISTANCE = 0.3         # m commanded between two poses before they tell what acted (Pilot.observe)
 LEARN_WEIGHT = 0.3           # how much one such pair of poses moves the learned share
 MIN_SHARE = 0.3              # the least share learned (a vehicle that stopped is not driven blind)
+BLIND_LAGS = 2               # a pose older than this many lags cannot confirm a waypoint reached
 KEPT_LAGS = 5                # commands are kept this many lags (a pair of poses that far apart still tells)
 
 
@@ -126,10 +127,17 @@ class Pilot:
         if est is None:
             return 0.0, 0.0
         x, y, th = est
+        blind = t - self.pose[3] > BLIND_LAGS * self.lag
         while not self.done:
             tx, ty = self.waypoints[self.index]
             if math.hypot(tx - x, ty - y) > self.reach:
                 break
+            if blind:
+                # reached by the prediction alone, on an old pose (poses lost, commands
+                # perhaps too): hold until a pose says where the vehicle is, never turn
+                # for the next waypoint on a guess
+                self.sent.append((t, 0.0, 0.0))
+                return 0.0, 0.0
             self.index += 1
         if self.done:
             return None
