@@ -452,3 +452,12 @@ def test_withdrawing_a_payload_that_left_or_never_came_says_so():
     assert not s.withdraw(4, msg(4, 0))
     assert not s.withdraw(9, msg(4, 0))
     assert s.stats()[4]["withdrawn"] == 0
+
+
+def test_a_payload_waits_until_it_starts_to_leave():
+    s = LinkScheduler(ManualClock())
+    s.add_channel(4, LinkPolicy(queue="fifo", depth=10))
+    s.offer(4, msg(4, 0))
+    assert s.waiting(4, msg(4, 0)) and not s.waiting(4, msg(4, 1)) and not s.waiting(9, msg(4, 0))
+    assert s.next_payload(0.0) == (4, msg(4, 0))
+    assert not s.waiting(4, msg(4, 0))

@@ -178,10 +178,6 @@ class Link:
             self.connection.wake()
         return ok
 
-    def withdraw(self, key: int, payload: bytes) -> bool:
-        """Take back a queued payload not yet sent (LinkScheduler.withdraw); False if none waits."""
-        return self.scheduler.withdraw(key, payload)
-
     def whole_payload(self, key: int | None = None) -> int:
         """The longest payload of channel `key` that leaves whole in one packet, protection
         included: what a sender that splits its own data (schema announcements) aims for.

@@ -164,6 +164,15 @@ class LinkScheduler:
                     return True
         return False
 
+    def waiting(self, key: int, payload: bytes) -> bool:
+        """True while a payload equal to `payload` waits in channel `key`, not yet started to
+        leave (a command's copy is not queued behind an equal one that has not left)."""
+        ch = self._channels.get(key)
+        if ch is None:
+            return False
+        with self._lock:
+            return any(msg.payload == payload for msg in ch.queue)
+
     # -- consumer side (the connection, when it may write) -------------------------------------
 
     def next_payload(self, now: float | None = None, max_size: int | None = None,
