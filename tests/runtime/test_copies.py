@@ -1,6 +1,7 @@
 """Copies in spare room (docs/wire-format.md section 15.6): once the measured loss is above 1
 packet in 20, a reliable message not acknowledged yet also rides in the room a later packet,
-which leaves anyway with fresh messages, has left; a lost copy is sent again only when no
+which leaves anyway with fresh messages, has left (a second copy from 1 packet in 10, the
+message with the fewest copies first); a lost copy is sent again only when no
 other copy is on its way or has arrived; the receiver delivers it once and the ledger counts
 every copy. Every time is explicit (the engine) or a ManualClock (the packer, the links)."""
 from __future__ import annotations
@@ -9,7 +10,9 @@ from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.delivery.copies import COPY_LOSS, LOSS_WINDOW
+from types import SimpleNamespace
+
+from uwgen.runtime.delivery.copies import COPY_LOSS, LOSS_WINDOW, SECOND_COPY_LOSS, Copies
 from uwgen.runtime.delivery.reliability import Reliability
 from uwgen.runtime.delivery.reliable import ReliableLink, RttEstimator, Sent
 from uwgen.runtime.link.hooks import PacketHooks
@@ -60,6 +63,46 @@ def test_the_measured_loss_counts_the_last_packets_the_peer_reported():
     assert s.spare.loss() == 0.0                                             # nothing reported yet
     s.acked(r.ack_for(SURFACE, 10.0, nbytes=LOSS_WINDOW // 8), 10.5)
     assert s.spare.loss() == LOSS_WINDOW // 8 / LOSS_WINDOW
+
+
+def measured(lost: int) -> Copies:
+    """Copies whose last LOSS_WINDOW settled packets had `lost` reported missing."""
+    c = Copies()
+    for n in range(LOSS_WINDOW):
+        c.settled(n >= lost)
+    return c
+
+
+def on_their_way(*idents: int) -> list:
+    """Packets sent, oldest first, each carrying one reliable message."""
+    return [SimpleNamespace(timed_out=False, messages=[Sent(8, f"m{i}", 30.0, ident=i)])
+            for i in idents]
+
+
+def copies_of(c: Copies, packets: list, tries: int = 6) -> list[str]:
+    out = []
+    for _ in range(tries):
+        got = c.pick(packets, 1.0, lambda m: m.ref)
+        if got is not None:
+            out.append(got[1])
+    return out
+
+
+def test_from_one_packet_in_ten_lost_a_message_gets_a_second_copy():
+    few = int(COPY_LOSS * LOSS_WINDOW) + 1                      # 1 in 20 or more, below 1 in 10
+    many = -(-int(SECOND_COPY_LOSS * LOSS_WINDOW * 10) // 10)    # 1 in 10 or more
+    assert COPY_LOSS <= few / LOSS_WINDOW < SECOND_COPY_LOSS <= many / LOSS_WINDOW
+    assert copies_of(measured(few), on_their_way(0)) == ["m0"]
+    assert copies_of(measured(many), on_their_way(0)) == ["m0", "m0"]
+    assert copies_of(measured(0), on_their_way(0)) == []
+
+
+def test_a_message_not_copied_yet_goes_before_a_second_copy_and_the_older_first():
+    c = measured(LOSS_WINDOW // 5)                               # 20 %: two copies each
+    packets = on_their_way(0, 1)                                 # 1 is the newer
+    assert copies_of(c, packets, tries=1) == ["m0"]              # it waited longer
+    assert copies_of(c, packets, tries=1) == ["m1"]              # not m0's second copy
+    assert copies_of(c, packets) == ["m0", "m1"]
 
 
 # -- the packer: copies only in room a packet leaves with anyway ----------------------------

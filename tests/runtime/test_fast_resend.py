@@ -68,6 +68,18 @@ def test_under_turns_a_report_below_a_packet_sent_before_the_turn_settles_it_as_
     assert s.due(1.9) == [] and s.fast_resends == 1
 
 
+def test_a_report_that_held_its_largest_longer_than_it_can_say_gives_no_round_trip_sample():
+    s, r = engine(SURFACE), engine(VEHICLE)
+    s.sent(0, [Sent(4, "cmd", None)], 0.0)
+    r.received(SURFACE, EPOCH, 0, 0.7, eliciting=False)
+    s.acked(r.ack_for(SURFACE, 6.0), 6.7)                  # held 5.3 s: R1 says 3.75 at most
+    assert s.rtt.samples == 0 and s.rtt.srtt is None
+    s.sent(1, [Sent(4, "cmd", None)], 7.0)
+    r.received(SURFACE, EPOCH, 1, 7.7, eliciting=False)
+    s.acked(r.ack_for(SURFACE, 8.0), 8.7)                  # held 0.3 s: a sample of 1.5 s
+    assert s.rtt.samples == 1 and abs(s.rtt.srtt - 1.5) < 0.3
+
+
 def test_a_lost_report_falls_back_to_the_timer():
     s = engine(SURFACE)
     s.sent(0, [Sent(8, "mission", deadline=30.0)], 0.0)

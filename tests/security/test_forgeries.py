@@ -108,8 +108,12 @@ def test_unknown_sender_is_rejected(tmp_path):
     from .helpers import KEY, MODES
     third = LinkGuard.for_key(KEY, GuardConfig("demo", 9, {2: "vehicle"}, dict(MODES)),
                               tmp_path / "third.state")
+    from uwgen.security.guard import _plain
     v = vehicle(tmp_path)
-    assert v.unprotect(third.protect(4, twist())) is None
+    # about 1 protected frame in 200 also reads as plain CBOR items: the guard then counts it
+    # `unprotected` (the reason is a guess, the refusal is not), so this takes one that cannot
+    frame = next(f for f in (third.protect(4, twist(i)) for i in range(50)) if not _plain(f))
+    assert v.unprotect(frame) is None
     assert v.stats()["unknown_sender"] == 1
 
 

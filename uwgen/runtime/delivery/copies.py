@@ -8,8 +8,12 @@ goes again only when no other is on its way and none arrived. It also measures t
 loss (the share of its last LOSS_WINDOW settled packets the peer reported missing): copies
 are sent once it reaches COPY_LOSS, when the 95th percentile of a reliable topic's latency
 is a message that waited for a report and a re-send (a round trip, and under a MAC a turn
-or a frame, more) unless a copy went with it. At 20 % loss a copy in the same turn makes
-that 1 message in 25 instead of 1 in 5.
+or a frame, more) unless a copy went with it. How many copies a message gets follows the
+loss, so that all of them and the message are lost together about 1 time in 100 or less:
+one from COPY_LOSS (at 10 % loss, 1 in 100), two from SECOND_COPY_LOSS (at 20 %, 1 in 125
+instead of 1 in 25 with one). The message with the fewest copies so far goes first, so a
+second copy never takes the room a first copy of another message needs, then the one whose
+last copy left longest ago.
 """
 from __future__ import annotations
 
@@ -19,6 +23,7 @@ from itertools import islice
 from typing import Any
 
 COPY_LOSS = 0.05        # measured loss from which copies go in spare room
+SECOND_COPY_LOSS = 0.1  # measured loss from which a message gets two copies
 LOSS_WINDOW = 64        # settled packets the measured loss is counted over
 DONE_KEPT = 1024        # reliable messages known delivered, remembered
 COPIED_KEPT = 2048      # messages copied, remembered (those never settled are forgotten)
@@ -26,8 +31,8 @@ SCAN = 32               # the most recent packets on their way a copy is looked 
 
 
 class Copies:
-    def __init__(self, limit: int = 1):
-        self.limit = limit                  # copies in spare room per message and loss
+    def __init__(self, limit: int = 2):
+        self.limit = limit                  # most copies in spare room per message
         self.live: dict[int, int] = {}      # ident -> copies on their way
         self.done: OrderedDict[int, None] = OrderedDict()   # idents known delivered
         self.copied: dict[int, int] = {}    # ident -> copies sent in spare room since its
@@ -44,6 +49,12 @@ class Copies:
         """The share of the last LOSS_WINDOW settled packets reported missing (fewer settled
         so far count as arrived: a start never looks lossy)."""
         return self._recent_lost / LOSS_WINDOW
+
+    def wanted(self) -> int:
+        """Copies a message gets now: none below COPY_LOSS, one, two from SECOND_COPY_LOSS
+        (at most `limit`)."""
+        loss = self.loss()
+        return min(self.limit, 0 if loss < COPY_LOSS else 1 if loss < SECOND_COPY_LOSS else 2)
 
     def settled(self, arrived: bool) -> None:
         if len(self._recent) == LOSS_WINDOW and not self._recent[0]:
@@ -88,24 +99,30 @@ class Copies:
     def pick(self, packets: Any, now: float,
              fits: Callable[[Any], bytes | None]) -> tuple[Any, bytes] | None:
         """The copy to put in spare room, or None: a reliable message on its way (in the SCAN
-        most recently sent packets, the newest first), not known delivered, with fewer than `limit` copies since it
-        last went again and its deadline ahead, whose copy `fits` (the copy's bytes, or None)
-        the room; only once the measured loss is COPY_LOSS or more."""
-        if self.limit <= 0 or self.loss() < COPY_LOSS:
+        most recently sent packets), not known delivered, with fewer than `wanted()` copies
+        since it last went again and its deadline ahead, whose copy `fits` (the copy's bytes,
+        or None) the room; the one with the fewest copies so far, then the one whose last copy
+        left longest ago (the nearest to the slow end of the latencies: in a turn or slot of
+        several new messages, the copy of the one that waited longest for it goes first)."""
+        wanted = self.wanted()
+        if wanted <= 0:
             return None
-        for packet in islice(reversed(packets), SCAN):
+        candidates: dict[int, tuple[int, int, Any]] = {}
+        for age, packet in enumerate(islice(reversed(packets), SCAN)):
             if packet.timed_out:
                 continue
             for m in packet.messages:
-                if (m.ident is None or m.ident in self.done
-                        or self.copied.get(m.ident, 0) >= self.limit
+                if (m.ident is None or m.ident in self.done or m.ident in candidates
+                        or self.copied.get(m.ident, 0) >= wanted
                         or (m.deadline is not None and m.deadline <= now)):
                     continue
-                payload = fits(m)
-                if payload is not None:
-                    self.copied[m.ident] = self.copied.get(m.ident, 0) + 1
-                    while len(self.copied) > COPIED_KEPT:
-                        self.copied.pop(next(iter(self.copied)))
-                    self.sent += 1
-                    return m, payload
+                candidates[m.ident] = (self.copied.get(m.ident, 0), age, m)
+        for _copies, _age, m in sorted(candidates.values(), key=lambda c: (c[0], -c[1])):
+            payload = fits(m)
+            if payload is not None:
+                self.copied[m.ident] = self.copied.get(m.ident, 0) + 1
+                while len(self.copied) > COPIED_KEPT:
+                    self.copied.pop(next(iter(self.copied)))
+                self.sent += 1
+                return m, payload
         return None

@@ -223,7 +223,11 @@ class ReliableLink(Receiving):
             del self.outstanding[packet.number]
             self.spare.gone(packet)
             self._delivered_packet(packet)
-        if newest is not None and newest.number == largest and not newest.timed_out:
+        # Karn: no sample from a packet timed out; none either when the report held its
+        # largest longer than R1 can say (its delay is the most R1 holds): the held time is
+        # not known, and taken off short it would read as a round trip seconds longer
+        if newest is not None and newest.number == largest and not newest.timed_out \
+                and report.delay < MAX_DELAY_UNITS * DELAY_UNIT:
             self.rtt.sample(now - newest.at - min(report.delay, now - newest.at))
         if self.largest_acked is None or largest > self.largest_acked:
             self.largest_acked = largest
