@@ -372,8 +372,9 @@ class _Wall:
 
 
 def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
-              mac: str = "none") -> dict:
-    """One simulated run of the topic mix; the mission topic reliable or best effort."""
+              mac: str = "none", observe=None) -> dict:
+    """One simulated run of the topic mix; the mission topic reliable or best effort.
+    `observe(sim, macs)`, if given, is called before the run (benchmarks/turns_bench.py)."""
     from uwgen.manifest.model import LinkConfig
     from uwgen.runtime.link.mac import mac_for
     scen = scenario(per, seed, mac)
@@ -439,6 +440,8 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
     # repeats, held long) are no round trip of the workload
     srtt: dict[str, float] = {}
     sim.at(seconds, lambda: srtt.setdefault("at_end", rel["surface"].engine.rtt.srtt or float("nan")))
+    if observe is not None:
+        observe(sim, macs)
     sim.run(seconds + 60.0)
     got: dict[int, float] = {}
     dup = 0

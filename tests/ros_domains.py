@@ -19,6 +19,22 @@ import os
 FIRST, LAST = 1, 101
 DEMO_LIMIT = 100              # `uwgen demo` takes ROS_DOMAIN_ID % 101 and the id after it
 SEED_ENV = "UWGEN_TEST_DOMAIN_SEED"
+# A narrower range, "FIRST-LAST" inside 1..101, keeps the tests away from other ROS work on
+# the machine (a benchmark running in domains 80-89: UWGEN_TEST_DOMAINS=1-79).
+RANGE_ENV = "UWGEN_TEST_DOMAINS"
+
+
+def _range() -> tuple[int, int]:
+    text = os.environ.get(RANGE_ENV, "").strip()
+    if not text:
+        return FIRST, LAST
+    try:
+        first, last = (int(part) for part in text.split("-"))
+    except ValueError:
+        raise SystemExit(f"{RANGE_ENV}={text!r}: expected FIRST-LAST, e.g. 1-79") from None
+    if not FIRST <= first < last <= LAST:
+        raise SystemExit(f"{RANGE_ENV}={text!r}: a range inside {FIRST}-{LAST} of at least 2 ids")
+    return first, last
 
 
 def _worker() -> tuple[int, int]:
@@ -31,8 +47,9 @@ def _worker() -> tuple[int, int]:
 
 def block() -> range:
     index, count = _worker()
-    size = (LAST - FIRST + 1) // count
-    return range(FIRST + index * size, FIRST + (index + 1) * size)
+    first, last = _range()
+    size = (last - first + 1) // count
+    return range(first + index * size, first + (index + 1) * size)
 
 
 def _seed() -> int:

@@ -88,3 +88,13 @@ def test_mac_turns_missed_warn_on_the_bridge():
     st["link"]["mac"] = {"mode": "turns", "missed": 2, "dropped_turns": 0}
     v = a.assess(st)[0]
     assert v.level == WARN and "2 MAC turns missed" in v.message and v.values["mac"] == "turns"
+
+
+def test_mac_answers_later_than_their_bound_warn_that_the_range_is_wrong():
+    a = Assessor("net", "surface", clock=ManualClock())
+    st = status()
+    st["link"]["mac"] = {"mode": "turns", "missed": 0, "late_answers": 0}
+    assert a.assess(st)[0].level == OK
+    st["link"]["mac"] = {"mode": "turns", "missed": 0, "late_answers": 1}
+    v = a.assess(st)[0]
+    assert v.level == WARN and "range or bitrate" in v.message

@@ -9,6 +9,7 @@ import pytest
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.mac import (TURN_END, TURN_GRANT, Mac, MacItem, TdmaMac, TurnMac,
                                     decode_items, encode_items, mac_for, tdma_capacity)
+from uwgen.runtime.link.turn_timing import LISTEN, REACT
 from uwgen.security import control
 
 LINK = LinkConfig(max_read_length=64, period=0.2)
@@ -175,12 +176,80 @@ def test_tdma_capacity_follows_desert_settings(kw, capacity):
     assert tdma_capacity(config, LINK) == capacity
 
 
-def test_an_end_lost_after_the_answer_costs_two_intervals_not_a_timeout():
+def test_an_end_lost_after_the_answer_costs_an_interval_and_a_tick_after_the_heard_packet():
     lead, _ = pair()
     write(lead, 0.0)                                 # grants sender 2 two packets
-    assert lead.next_write_at(0.1) > 0.8 + 3 * lead.interval   # the first timer is longer
-    lead.heard(2, b"", 0.8)                          # its first packet; the one with the end is lost
-    assert lead.next_write_at(0.9) == pytest.approx(0.8 + 3 * lead.interval)
+    assert lead.next_write_at(0.1) > 1.0             # the first bound is longer
+    lead.arrived(64, 0.8)                            # its first packet, full size, ended arriving at 0.8
+    lead.heard(2, b"", 0.8)                          # ... and the one with the end is lost
+    start = 0.8 - (64 + 4) * 8 / 4800                # it started arriving one air time before
+    # the end was written at most an interval (and a late wake-up) after it, then waited at
+    # most DESERT's tick and its listen: by then it has started arriving or it never will
+    bound = start + lead.interval + REACT + LINK.period + LISTEN
+    assert lead.next_write_at(0.9) == pytest.approx(bound) and bound < 0.8 + 3 * lead.interval
+    assert lead.next_write_at(bound) == -math.inf and lead.counts["missed"] == 1
+
+
+def test_the_first_turn_timer_is_the_manifests_worst_case_and_one_slow_turn_does_not_inflate_it():
+    lead, _ = pair()
+    lead.carries = False
+    one_way = LINK.period + LISTEN + (64 + 4) * 8 / 4800 + 300 / 1500   # written -> arrived, 300 m
+    # the grant arrives, the follower writes within REACT and one interval later its second
+    # packet, which starts arriving a tick, a listen and the range's delay after
+    worst = one_way + REACT + lead.interval + LINK.period + LISTEN + 300 / 1500
+    write(lead, 0.0)
+    assert lead.next_write_at(0.1) == pytest.approx(worst)
+    lead.heard(2, bytes([0x32]), 1.0)                # a slow turn: its end heard at 1.0 s
+    write(lead, 1.0)
+    assert lead.next_write_at(1.1) == pytest.approx(1.0 + worst)     # the same bound, not 3 x 1.0 s
+
+
+def test_a_follower_that_answers_from_its_notice_is_never_talked_over():
+    lead, follower = pair()
+    t = 0.0
+    for _ in range(8):                               # quick turns: measured round trips short
+        lead.carries = False
+        write(lead, t)
+        lead.heard(2, bytes([0x32]), t + 0.6)
+        t += 0.6
+    lead.carries = True
+    lead.backlog = lambda now: True
+    write(lead, t)
+    notice = write(lead, t + 0.21)
+    grant = write(lead, t + 0.42)                    # lost on its way
+    assert notice == bytes([0x22, 0]) and grant == bytes([0x22, 2])
+    timing = follower.timing
+    heard = t + 0.21 + timing.one_way                # the notice heard as late as it can be
+    follower.heard(1, notice, heard)
+    follower.backlog = lambda now: True
+    start = follower.next_write_at(heard)
+    write(follower, start)
+    last = start + REACT                             # its second packet, written as late as allowed
+    assert follower.next_write_at(last) == -math.inf and write(follower, last) == bytes([0x32])
+    assert lead.next_write_at(t + 0.5) >= timing.arriving_by(last)
+
+
+def test_a_late_follower_writes_only_inside_its_window_and_ends_its_turn_there():
+    _, follower = pair()
+    follower.backlog = lambda now: True
+    follower.heard(1, bytes([0x22, 2]), 0.0)
+    # its thread woke late: no room for a second packet in the window the leader counts on
+    assert write(follower, 0.2) == bytes([0x32])
+    _, slow = pair()
+    slow.heard(1, bytes([0x22, 2]), 0.0)
+    assert slow.next_write_at(0.4) == math.inf and slow.counts["dropped_turns"] == 1
+
+
+def test_an_answer_later_than_the_bound_lengthens_the_next_bounds():
+    lead, _ = pair()
+    lead.carries = False
+    write(lead, 0.0)
+    first = lead.next_write_at(0.1)
+    lead.next_write_at(first)                        # nothing heard: taken back, missed
+    lead.heard(2, b"", first + 0.3)                  # its answer came after all: the range is longer
+    assert lead.counts["late_answers"] == 1
+    write(lead, first)
+    assert lead.next_write_at(first + 0.1) > first + first + 0.3 - REACT
 
 
 def test_the_leader_gives_notice_of_its_grant_on_the_packet_before_it():
@@ -239,3 +308,14 @@ def test_a_weighted_tdma_slot_drains_more_packets_a_frame():
     assert tdma_capacity(config, LINK, "auv1") == 3          # floor(0.3 / 0.113) + 1
     assert TdmaMac(config, "surface", LINK).capacity == 15
     assert TdmaMac(config, "auv2", LINK).capacity == 3
+
+
+def test_a_packet_that_began_arriving_before_the_grant_ended_is_not_its_answer():
+    lead, _ = pair()
+    lead.carries = False
+    assert lead.next_write_at(0.0) <= 0.0
+    lead.parts(0.0)
+    lead.wrote(0.0, 64)                              # the grant, 0.11 s on the air
+    lead.arrived(64, 0.15)
+    lead.heard(2, bytes([0x32]), 0.15)               # began at 0.04: a packet of an older turn
+    assert lead.counts["ends_heard"] == 0 and lead.next_write_at(0.2) > 0.2

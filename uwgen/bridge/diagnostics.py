@@ -46,7 +46,9 @@ BRIDGE_DROPS = {("security", "dropped"): "frames dropped as not authentic",
                 ("reliability", "stale"): "stale messages dropped on arrival",
                 ("connection", "reconnects"): "reconnects to the DESERT node",
                 ("mac", "missed"): "MAC turns missed (a grant or an end lost, the turn taken back)",
-                ("mac", "dropped_turns"): "MAC turns dropped (granted too late to use)"}
+                ("mac", "dropped_turns"): "MAC turns dropped (granted too late to use)",
+                ("mac", "late_answers"): "MAC answers later than their turn's bound (the "
+                                         "manifest's range or bitrate is not the real one)"}
 
 Check = Callable[[dict], list[tuple[int, str]]]
 CHECKS: list[Check] = []   # extra checks of the bridge's status (e.g. the MAC's turn health)

@@ -33,6 +33,10 @@ CALL_TRIES = 3               # a request or response lost on the link fails the 
 MISSION_HEADING = math.pi / 2   # rad: the mission action turns the vehicle to face north
 GOAL_WAIT = 15.0             # s for the goal's answer (the manifest's accept_timeout + margin)
 RESULT_WAIT = 65.0           # s for its result (the manifest's result_timeout + margin)
+LEARN_DISTANCE = 0.3         # m commanded between two poses before they tell what acted (Pilot.observe)
+LEARN_WEIGHT = 0.3           # how much one such pair of poses moves the learned share
+MIN_SHARE = 0.3              # the least share learned (a vehicle that stopped is not driven blind)
+KEPT_LAGS = 5                # commands are kept this many lags (a pair of poses that far apart still tells)
 
 
 def square_waypoints(start: tuple[float, float], side: float, laps: int = 1) -> list[tuple[float, float]]:
@@ -73,7 +77,8 @@ class Pilot:
         self.dt = 1.0 / rate
         # the share of the time a command sent acts on the vehicle: 1 when commands arrive
         # more often than the vehicle's command timeout; less when a MAC delivers them in
-        # bursts (a TDMA frame apart) and the vehicle stops in between
+        # bursts (a TDMA frame or a round of turns apart) and the vehicle stops in between;
+        # the start of what observe() learns from the poses
         self.share = share
         self.index = 0
         self.pose: tuple[float, float, float, float] | None = None   # x, y, theta, t received
@@ -84,6 +89,22 @@ class Pilot:
         return self.index >= len(self.waypoints)
 
     def observe(self, x: float, y: float, theta: float, t: float) -> None:
+        """A pose received at t. It also tells how much of what was commanded acted: the
+        distance between two poses against the commands sent over the same span (each
+        pose shows the commands up to `lag` before it arrived). A link that loses commands
+        or brings them in bursts, with the vehicle stopping in between (its command
+        timeout), moves it less than commanded; the prediction then counts `share` of
+        each command (learned, LEARN_WEIGHT a pose), not all of it, and does not turn
+        short of the corners."""
+        if self.pose is not None:
+            px, py, _, pt = self.pose
+            if t - pt <= (KEPT_LAGS - 1) * self.lag:   # older commands are no longer kept
+                commanded = sum(abs(lin) * self.dt for ts, lin, _ in self.sent
+                                if pt - self.lag < ts <= t - self.lag)
+                if commanded >= LEARN_DISTANCE:
+                    moved = math.hypot(x - px, y - py) / commanded
+                    self.share = min(1.0, max(MIN_SHARE, (1 - LEARN_WEIGHT) * self.share
+                                              + LEARN_WEIGHT * moved))
         self.pose = (x, y, theta, t)
 
     def estimate(self, t: float) -> tuple[float, float, float] | None:
@@ -91,7 +112,7 @@ class Pilot:
             return None
         x, y, th, t_rx = self.pose
         since = t_rx - self.lag
-        self.sent = [c for c in self.sent if c[0] > t - 3 * self.lag]
+        self.sent = [c for c in self.sent if c[0] > t - KEPT_LAGS * self.lag]
         for ts, lin, ang in self.sent:
             if ts > since:
                 th += ang * self.dt * self.share
@@ -144,7 +165,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds the pilot expects a pose and a command to take over the link")
     parser.add_argument("--share", type=float, default=1.0,
                         help="the share of the time a command acts on the vehicle (less than 1 when "
-                             "commands arrive further apart than the vehicle's command timeout)")
+                             "commands arrive further apart than the vehicle's command timeout); "
+                             "the start of what the pilot then learns from the poses it receives")
     args, ros_args = parser.parse_known_args(argv)
 
     import rclpy

@@ -20,13 +20,16 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   queueing is never read as a clock offset).
 - `TurnMac` (mode `turns`): the leader grants the turn to one side at a time (C item 2, to
   whom and how many packets); that side writes after hearing the grant, at most that many
-  packets, the last carrying C item 3 (end of turn); the leader takes the turn back when it
-  hears the end, or when its timer (from measured turn round trips) runs out: the miss is
-  counted and the next side is granted, so a lost grant or answer costs one timeout and a
-  side that starts late or restarts answers the next grant naming it. The packet before a
-  full turn's last gives notice of the grant (`2S 00`): a follower that heard it and lost the
-  grant takes its turn all the same once the grant's packet has ended. Needs no change inside
-  DESERT and no clock agreement: every timer starts from an event this side saw.
+  packets, the last carrying C item 3 (end of turn), all inside a window from the grant;
+  the leader takes the turn back when it hears the end, or when the last packet of that
+  window could no longer start arriving (uwgen.runtime.link.turn_timing: bounds from the
+  manifest's physics, moved to the rest of the answer by each packet heard): the miss is
+  counted and the next side is granted, so a lost grant or answer costs the wait for what
+  could still come, and a side that starts late or restarts answers the next grant naming
+  it. The packet before a full turn's last gives notice of the grant (`2S 00`): a follower
+  that heard it and lost the grant takes its turn all the same once the grant's packet has
+  ended. Needs no change inside DESERT and no clock agreement: every timer starts from an
+  event this side saw.
   `settled_by` tells delivery that a peer's answer was built after all of this side's packets
   of the turn before it had arrived or been lost (a report there names their loss at once).
 """
@@ -36,18 +39,18 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from uwgen.manifest.mac import air_time
+from uwgen.manifest.mac import LISTEN
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.slot_timing import FramePhase, SlotTimer, tdma_capacity
+from uwgen.runtime.link.turn_timing import RoundTrip, TurnTiming
 from uwgen.runtime.wire import envelope as env
 
 TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255);
                         # `2S 00`: notice that the leader's next packet grants S its turn
 TURN_END = 3            # C item `3S`: sender S ends its turn
 INF = math.inf
-LISTEN = 0.05           # s: DESERT's CSMA-ALOHA listen before a packet starts (10-20 ms measured, docs/emulator.md)
 
 
 @dataclass(frozen=True)
@@ -200,24 +203,6 @@ class TdmaMac(Mac):
         return {"mode": self.mode, "capacity_per_frame": self.capacity, "timed_writes": self.timer.timed}
 
 
-class _RoundTrip:
-    """Smoothed round trip of a turn (RFC 6298's rule), from a first guess."""
-
-    def __init__(self, first: float):
-        self.srtt, self.rttvar, self.samples = first, first / 2, 0
-
-    def sample(self, rtt: float) -> None:
-        if self.samples == 0:
-            self.srtt, self.rttvar = rtt, rtt / 2
-        else:
-            self.rttvar = 0.75 * self.rttvar + 0.25 * abs(self.srtt - rtt)
-            self.srtt = 0.875 * self.srtt + 0.125 * rtt
-        self.samples += 1
-
-    def timeout(self, floor: float) -> float:
-        return self.srtt + max(4 * self.rttvar, floor)
-
-
 class TurnMac(Mac):
     """Mode `turns` (module doc). `senders`: side name -> sender id, for every side."""
 
@@ -232,27 +217,32 @@ class TurnMac(Mac):
         self.leader_id = senders[config.leader]
         self.leading = side == config.leader
         self.my_packets = config.turn_packets(side)
-        self.air = air_time(link.max_read_length, config.bitrate)
-        self.period = link.period
-        self.interval = max(link.period * (1 + margin), self.air)
+        self.timing = TurnTiming(config, link, margin)
+        self.air, self.period, self.interval = self.timing.air, link.period, self.timing.interval
         self.followers = [(senders[s], config.turn_packets(s)) for s in senders if s != config.leader]
-        # A turn's round trip besides its packets: the grant's and the end's trips across the
-        # range, DESERT's period tick and its MAC's listen on both sides.
-        first = 2 * (config.delay + link.period + LISTEN + air_time(link.max_read_length, config.bitrate))
-        self.rtt = {sid: _RoundTrip(first) for sid, _ in self.followers}
+        # A turn's round trip besides its packets, until measured: the grant's and the end's
+        # trips across the range, DESERT's period tick and its MAC's listen on both sides.
+        self.rtt = {sid: RoundTrip(2 * self.timing.one_way) for sid, _ in self.followers}
+        self._late = {sid: 0.0 for sid, _ in self.followers}   # learned: answers later than the bound
         self._next = 0                    # index of the follower granted next
         self._holding = self.leading      # leader: its own turn; follower: a turn granted
         self._granted = self.my_packets if self.leading else 0
         self._sent = 0
         self._closing: MacItem | None = None    # the item the packet being built ends with
+        self._noticing = False            # leader: the packet being built gives notice
+        self._noticed_at: float | None = None   # leader: when the notice of the next grant left
         self._waiting: tuple[int, int, float, float] | None = None   # (sender, n, at, deadline)
+        self._missed: tuple[int, float, float] | None = None   # leader: (sender, deadline, span) of
+                                          # the turn last taken back by the timer
+        self._earliest = -INF             # leader: no answer to its grant starts arriving before
         self._heard_in_wait = 0
-        self._turn_until = INF            # follower: a turn not used by then is dropped
+        self._size: int | None = None     # bytes of the packet being opened (arrived)
+        self._turn_until = INF            # follower: no packet of its turn is written after it
         self._notice_at = INF             # follower: its turn starts then if the grant is lost
         self._last_end: float | None = None   # follower: when it last wrote its turn's end
         self.counts = {k: 0 for k in ("turns", "grants_sent", "grants_heard", "ends_heard",
                                       "missed", "recovered", "dropped_turns", "not_mine",
-                                      "notices_heard", "turns_from_notice")}
+                                      "notices_heard", "turns_from_notice", "late_answers")}
 
     # -- when ----------------------------------------------------------------------------
 
@@ -279,9 +269,11 @@ class TurnMac(Mac):
     def _expire(self, now: float) -> None:
         if self._waiting is not None and now >= self._waiting[3]:
             self.counts["missed"] += 1          # the grant or the end was lost: take it back
+            who, _n, at, deadline = self._waiting
+            self._missed = (who, deadline, deadline - at)
             self._waiting = None
             self._own_turn()
-        if not self.leading and self._holding and now >= self._turn_until:
+        if not self.leading and self._holding and now > self._turn_until:
             self.counts["dropped_turns"] += 1   # too late to use it: the leader has moved on
             self._holding = False
         if now >= self._notice_at:
@@ -300,14 +292,17 @@ class TurnMac(Mac):
             return b""
         self._sent += 1
         # The leader keeps its turn while its packets carry messages (a command stream
-        # offered at the link's pace fills it); a follower while more is queued.
-        more = self.carries if self.leading else self.backlog(now)
+        # offered at the link's pace fills it); a follower while more is queued and its
+        # window leaves room for another packet.
+        more = (self.carries if self.leading
+                else self.backlog(now) and now + self.interval <= self._turn_until)
         if self._sent < self._granted and more:
             self._closing = None
             if self.leading and self.followers and self._sent == self._granted - 1:
                 # the next packet is the last: tell its follower now, so one lost packet
                 # does not lose the follower's whole turn (rule 1, the notice)
                 sid, _ = self.followers[self._next % len(self.followers)]
+                self._noticing = True
                 return encode_items([MacItem(TURN_GRANT, sid, 0)])
             return b""
         if self.leading:
@@ -322,34 +317,46 @@ class TurnMac(Mac):
 
     def wrote(self, now: float, nbytes: int) -> None:
         closing, self._closing = self._closing, None
+        noticing, self._noticing = self._noticing, False
         if closing is None:
+            self._noticed_at = now if noticing else None
             return
         self._holding = False
         if closing.code == TURN_GRANT:
             self.counts["grants_sent"] += 1
             self._next += 1
-            deadline = (now + self.rtt[closing.sender].timeout(2 * self.interval)
-                        + closing.count * self.interval)
+            deadline = (self.timing.grant_deadline(now, closing.count, self._noticed_at)
+                        + self._late[closing.sender])
             self._waiting = (closing.sender, closing.count, now, deadline)
+            # the grant has to end before an answer to it can start (the range is the
+            # farthest the sides are apart, not the nearest)
+            self._earliest = now + self.timing.packet_air(nbytes)
+            self._noticed_at = None
             self._heard_in_wait = 0
         else:
             self.counts["turns"] += 1
             self._last_end = now
 
+    def arrived(self, nbytes: int | None, now: float) -> None:
+        self._size = nbytes
+
     def heard(self, sender: int, control: bytes, now: float) -> None:
         items = decode_items(control) if control else []
+        size, self._size = self._size, None
         if self.leading:
-            if self._waiting is None or sender != self._waiting[0]:
+            start = now - self.timing.packet_air(size)      # it started arriving then
+            if self._waiting is None or sender != self._waiting[0] or start < self._earliest:
+                self._heard_late(sender, start)     # not an answer to the grant
                 return
             self._heard_in_wait += 1
             who, n, at, deadline = self._waiting
-            # It is answering: its end comes within its remaining packets plus a margin,
-            # whatever the first timer said: later (a late answer is never talked over) or
-            # sooner (a lost end costs two packet intervals, not a whole timeout).
-            rest = max(0, n - self._heard_in_wait) + 2
-            self._waiting = (who, n, at, now + rest * self.interval)
+            # It is answering: the rest of its turn has started arriving within its remaining
+            # packets' intervals, whatever the first bound said: later (a late answer is
+            # never talked over) or sooner (a lost end costs a packet's interval and DESERT's
+            # tick, not a whole timeout).
+            rest = max(0, n - self._heard_in_wait)
+            self._waiting = (who, n, at, self.timing.rest_deadline(start, rest))
             if any(i.code == TURN_END and i.sender == sender for i in items):
-                who, _n, at, _ = self._waiting
                 self.counts["ends_heard"] += 1
                 self.rtt[who].sample(max(0.0, now - at - (self._heard_in_wait - 1) * self.interval))
                 self._waiting = None
@@ -363,9 +370,7 @@ class TurnMac(Mac):
             if item.count == 0:                 # a notice: the grant comes on the next packet
                 if item.sender == self.me and not self._holding:
                     self.counts["notices_heard"] += 1
-                    # that packet ends within an interval, DESERT's period tick (a write
-                    # that just missed one waits for the next), its air time and the listen
-                    self._notice_at = now + self.interval + self.period + self.air + LISTEN
+                    self._notice_at = self.timing.notice_start(now)
                 continue
             self._notice_at = INF
             if item.sender != self.me:
@@ -377,11 +382,24 @@ class TurnMac(Mac):
                 self.counts["recovered"] += 1
             self._take_turn(item.count, now)
 
+    def _heard_late(self, sender: int, start: float) -> None:
+        """Leader: a follower's packet that started arriving after the bound its turn was
+        taken back at (the manifest's range or bitrate is not the real one): later grants
+        to it wait that much longer (counted `late_answers`)."""
+        if self._missed is None or sender != self._missed[0]:
+            return
+        _who, deadline, span = self._missed
+        if not deadline < start < deadline + span:
+            return
+        self.counts["late_answers"] += 1
+        self._late[sender] = max(self._late[sender], start - deadline + LISTEN)
+
     def _take_turn(self, count: int, now: float) -> None:
         self._notice_at = INF
         self._holding, self._granted, self._sent = True, count, 0
-        # the leader waits a round trip plus these packets: a turn not used by then is gone
-        self._turn_until = now + (count + 1) * self.interval + self.config.delay
+        # its packets are written inside the window the leader's bound counts on: a turn not
+        # used by then is gone (a side that comes back late never talks over the next turn)
+        self._turn_until = self.timing.window(now, count)
 
     # -- for delivery and status ----------------------------------------------------------
 
