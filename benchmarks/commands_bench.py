@@ -18,6 +18,11 @@ still sent again while unanswered, as wire format 1 always did).
 
 The link is the demo's: 64 B every 0.2 s, 4800 bit/s, 1000 m (about 0.67 s each way).
 
+`--trace FILE` writes a JSON line per command payload offered and arriving, per refusal of
+the receiving judge and per packet taken for writing (its number and its messages' heads);
+`benchmarks/trace_commands.py FILE` prints, for each failed call or goal, what became of
+its messages (each leg's copies, the packets that carried them, what arrived, refusals).
+
 Reliable topics (wire format 2, docs/wire-format.md section 15) are measured first, on
 simulated time (uwgen.emulator.duplex: both sides' real Link code and the emulator's core,
 the demo's two-way topic mix, 10 minutes per row): a mission topic of one 20-byte message
@@ -154,7 +159,8 @@ class Side:
 
 
 class Overhead:
-    """Counts the bytes a bridge offers on command ids that are retries or acks."""
+    """Counts the bytes a bridge offers on command ids that are retries or acks (a copy taken
+    back before it left, LinkScheduler.withdraw, is not counted)."""
 
     def __init__(self, bridge: BridgeNode, retries: bool):
         self.bytes = 0
@@ -171,9 +177,68 @@ class Overhead:
                 self.seen.add((key, payload))
             return send(key, payload, **kw)
         bridge.wiring.send = counted
+        withdraw = bridge.wiring.withdraw
+
+        def withdrawn(key: int, payload: bytes) -> bool:   # taken back before it left: no air time
+            taken = withdraw(key, payload)
+            if taken and key in COMMAND_IDS and (key, payload) in self.seen:
+                self.bytes -= len(payload) + OVERHEAD
+            return taken
+        bridge.wiring.withdraw = withdrawn
         if not retries:
             bridge.standins.rtt.clear()                                  # no request copies
             bridge.action_servers._resend_results = lambda ident, now: None   # no result copies
+
+
+TRACE = None     # --trace: a file of JSON lines, one per command payload, refusal and packet
+
+
+def trace(side: str, bridge: BridgeNode) -> None:
+    """Write down when each command payload was offered and arrived, each refusal of the
+    receiving judge, and each packet taken for writing: where a failed call or goal lost its
+    time (benchmarks/trace_commands.py reads it)."""
+    import json
+    out, lock = TRACE, threading.Lock()
+
+    def put(**row):
+        with lock:
+            out.write(json.dumps({"t": round(time.monotonic(), 3), "side": side, **row}) + "\n")
+    send, put_in = bridge.wiring.send, bridge.inbox.put
+
+    def sending(key, payload, **kw):
+        ok = send(key, payload, **kw)
+        if key in COMMAND_IDS:
+            put(ev="offer", key=key, p=payload[:12].hex(), ok=ok)
+        return ok
+
+    def arriving(payload):
+        if len(payload) > 1 and payload[1] in COMMAND_IDS:
+            put(ev="in", key=payload[1], p=bytes(payload)[:12].hex())
+        return put_in(payload)
+    bridge.wiring.send, bridge.inbox.put = sending, arriving
+    if bridge.reliability is not None:
+        judge = bridge.reliability.judge
+        refuses = judge.refuses
+
+        def refusing(ident, peer, time24, age):
+            no = refuses(ident, peer, time24, age)
+            if no:
+                put(ev="refused", key=ident, age=round(age, 2), time=time24)
+            return no
+        judge.refuses = refusing
+    take = bridge.link.connection.outbox.take
+
+    def taking(now, pull, fit=None):
+        batch = take(now, pull, fit)
+        for frame in ShortFrameDecoder().feed(batch or b""):
+            try:
+                e = envelope.decode(frame)
+            except Exception:
+                continue
+            put(ev="packet", no=e.number, ack=e.ack is not None,
+                m=[envelope.to_v1(m)[:6].hex() for m in e.messages])
+        return batch
+    bridge.link.connection.outbox.take = taking
 
 
 def scenario(per: float, seed: int, mac: str) -> Scenario:
@@ -200,6 +265,8 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
                 side.executor.add_node(node)
                 bridges[name] = node
                 overhead[name] = Overhead(node, retries)
+                if TRACE is not None:
+                    trace(name, node)
 
             def serve(req, resp):
                 executed["calls"].append(req.int32_value)
@@ -233,6 +300,8 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             started = time.monotonic()
             ok_calls = ok_goals = 0
             for i in range(max(calls, goals)):
+                if TRACE is not None:
+                    TRACE.write(f'{{"t": {time.monotonic():.3f}, "ev": "round", "i": {i}}}\n')
                 if i < calls:
                     future = client.call_async(BasicTypes.Request(int32_value=1000 + i))
                     deadline = time.monotonic() + 12.0
@@ -242,6 +311,8 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
                             and future.result().int32_value == 3 * (1000 + i):
                         ok_calls += 1
                     else:
+                        if TRACE is not None:
+                            TRACE.write(f'{{"t": {time.monotonic():.3f}, "ev": "failed", "what": "call", "i": {i}}}\n')
                         client.remove_pending_request(future)
                 if i < goals:
                     order = 3 + i % 20          # int32 sequence: fib(47) overflows
@@ -257,6 +328,10 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
                         if result.done() and result.result().status == 4 \
                                 and list(result.result().result.sequence) == fibonacci(order):
                             ok_goals += 1
+                        elif TRACE is not None:
+                            TRACE.write(f'{{"t": {time.monotonic():.3f}, "ev": "failed", "what": "result", "i": {i}}}\n')
+                    elif TRACE is not None:
+                        TRACE.write(f'{{"t": {time.monotonic():.3f}, "ev": "failed", "what": "goal", "i": {i}}}\n')
             elapsed = time.monotonic() - started
             stop.set()
             time.sleep(1.0)
@@ -475,7 +550,12 @@ def main() -> int:
     ap.add_argument("--mac", default="none",
                     help="comma-separated MACs to run (none, tdma, turns; see MACS); the first "
                          "row of each rate is the reference")
+    ap.add_argument("--trace", help="write a JSON line per command payload, refusal and "
+                                    "packet here (benchmarks/trace_commands.py reads it)")
     args = ap.parse_args()
+    global TRACE
+    if args.trace:
+        TRACE = open(args.trace, "w", buffering=1)
     macs = args.mac.split(",")
     unknown = [m for m in macs if m not in MACS]
     if unknown:

@@ -17,9 +17,9 @@ def test_a_result_goes_again_after_its_rto_until_acknowledged():
     b.sent(5, b"goal", b"result", arrived=0.0, now=1.0)
     assert list(b.due(3.9)) == []                   # RTO 3 s from 1.0
     assert list(b.due(4.0)) == [b"result"]
-    assert b.acknowledged(5, now=5.0) is True
+    assert b.acknowledged(5, now=5.0).payload == b"result"
     assert list(b.due(100.0)) == []                 # nothing waits any more
-    assert b.acknowledged(5, now=6.0) is False      # a second acknowledgement is news to nobody
+    assert b.acknowledged(5, now=6.0) is None       # a second acknowledgement is news to nobody
 
 
 def test_a_result_never_acknowledged_is_given_up_after_two_accept_timeouts_once():
@@ -71,3 +71,10 @@ def test_only_the_last_results_are_kept():
         b.sent(handle, b"g%d" % handle, b"r%d" % handle, arrived=0.0, now=0.0)
     assert b.result_of(0) is None and b.result_of(2) is None
     assert b.result_of(3) == b"r3" and b.result_of(RECENT_RESULTS + 2) == b"r%d" % (RECENT_RESULTS + 2)
+
+
+def test_a_result_goes_again_when_its_copy_is_due_not_on_its_timer():
+    b = book()
+    b.sent(5, b"goal", b"result", arrived=0.0, now=0.0, turn=4)
+    assert list(b.due(20.0, ready=lambda u: False)) == []      # never due: never sent
+    assert list(b.due(1.0, ready=lambda u: u.turn == 4)) == [b"result"]   # before its RTO

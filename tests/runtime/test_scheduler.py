@@ -432,3 +432,32 @@ def test_a_channel_idle_for_long_is_served_at_once_when_a_message_comes():
     served_keys(s, clock, 30)
     s.offer(2, msg(2, 0))
     assert served_keys(s, clock, 1) == [2]
+
+
+def test_a_withdrawn_payload_never_leaves_and_the_others_keep_their_order():
+    s = LinkScheduler(ManualClock())
+    s.add_channel(4, LinkPolicy(queue="fifo", depth=10))
+    for k in range(3):
+        s.offer(4, msg(4, k))
+    assert s.withdraw(4, msg(4, 1))
+    assert s.stats()[4]["withdrawn"] == 1
+    assert [s.next_payload(t) for t in (0.0, 1.0, 2.0)] == [(4, msg(4, 0)), (4, msg(4, 2)), None]
+
+
+def test_withdrawing_a_payload_that_left_or_never_came_says_so():
+    s = LinkScheduler(ManualClock())
+    s.add_channel(4, LinkPolicy(queue="fifo", depth=10))
+    s.offer(4, msg(4, 0))
+    assert s.next_payload(0.0) == (4, msg(4, 0))
+    assert not s.withdraw(4, msg(4, 0))
+    assert not s.withdraw(9, msg(4, 0))
+    assert s.stats()[4]["withdrawn"] == 0
+
+
+def test_a_payload_waits_until_it_starts_to_leave():
+    s = LinkScheduler(ManualClock())
+    s.add_channel(4, LinkPolicy(queue="fifo", depth=10))
+    s.offer(4, msg(4, 0))
+    assert s.waiting(4, msg(4, 0)) and not s.waiting(4, msg(4, 1)) and not s.waiting(9, msg(4, 0))
+    assert s.next_payload(0.0) == (4, msg(4, 0))
+    assert not s.waiting(4, msg(4, 0))

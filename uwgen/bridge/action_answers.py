@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 from rclpy.task import Future
 
+from uwgen.bridge.copies import copy_due
+from uwgen.runtime.wire.codec import pack_items
 from uwgen.runtime.wire.table import ABORTED, ACCEPTED, REJECTED, RESULTS
 
 if TYPE_CHECKING:
@@ -35,6 +37,7 @@ class GoalState:
     early_feedback: Any = None                    # feedback that came before the goal handle
     payload: bytes = b""                          # the goal as sent (sent again unchanged)
     sends: int = 1
+    turn: int | None = None                       # own turns ended while it waited (copies.py)
     next_send: float = float("inf")               # when to send it again while unanswered (none
                                                   # until it is first sent: the expiry timer
                                                   # may run while the goal is being encoded)
@@ -82,6 +85,8 @@ class GoalAnswers:
                 return
             state = pending.token
             if not state.answer.done():   # the answer was lost; the result says it all
+                if state.sends > 1:
+                    self.w.withdraw(ident, state.payload)
                 counters.accepted += 1
                 state.answer.set_result(ACCEPTED)
             state.result.set_result((code, result))
@@ -93,6 +98,8 @@ class GoalAnswers:
             if code == ACCEPTED:     # a goal given up here (accept timeout) runs there: stop it
                 self.w.send(ident, codec.encode_cancel(handle))
         elif code in (ACCEPTED, REJECTED) and not state.answer.done():
+            if state.sends > 1:
+                self.w.withdraw(ident, state.payload)     # a copy not yet left: no air time
             if state.sends == 1 and not state.asking:   # Karn: only an unambiguous round trip
                 self.rtt[ident].sample(self.w.clock.now() - state.sent_at)
             if code == ACCEPTED:
@@ -204,13 +211,15 @@ class GoalAnswers:
                                               else codec.accept_timeout)
                     counters.result_queries += 1
                     self.w.send(ident, codec.encode_result_status(state.handle, received=False))
-                if not state.answer.done() and not state.asking and state.next_send <= now:
+                if not state.answer.done() and not state.asking and state.payload \
+                        and copy_due(self.w, ident, state.payload, state, now, self.rtt[ident].rto):
                     rtt = self.rtt[ident]
                     rtt.backoff()
                     state.sends += 1
                     state.next_send = now + rtt.rto
                     counters.goal_resends += 1
-                    self.w.send(ident, state.payload)
+                    if self.w.send(ident, state.payload):   # its answer or result takes it back
+                        self.w.expect(pack_items([3, ident, state.handle]), ident, state.payload)
         for state in list(self._states.values()):
             if state.cancel is not None and not state.cancel.done() and state.cancel_deadline <= now:
                 codec = self.offered[state.ident]

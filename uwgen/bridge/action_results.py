@@ -1,6 +1,7 @@
 """The results of one served action, kept for the client side until it has them (server side).
 
-A result is pushed once when its goal finishes, then sent again every RTO until the client
+A result is pushed once when its goal finishes, then sent again when a copy is due
+(uwgen.bridge.copies: once a round under the turns MAC, else every RTO) until the client
 side acknowledges it (wire format 13, *result status*) or for at most 2 accept_timeouts:
 the client side gives the handle to a new goal only 2 accept_timeouts after this goal ended
 there. The RECENT_RESULTS last results are also kept, with the goal's bytes, so that a goal
@@ -13,7 +14,7 @@ remembers, times (an injectable clock's `now` is passed in) and counts round tri
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from uwgen.runtime.delivery.reliable import RttEstimator
@@ -33,6 +34,7 @@ class Unacked:
     next_send: float
     until: float                  # no copy after this: the client side may reuse the handle
     sends: int = 1
+    turn: int | None = None       # own turns ended while it waited in the link (copies.py)
 
 
 @dataclass(frozen=True)
@@ -53,22 +55,26 @@ class ResultBook:
         self.recent: OrderedDict[int, Finished] = OrderedDict()
         self.unacked: dict[int, Unacked] = {}
 
-    def sent(self, handle: int, goal: bytes, result: bytes, arrived: float, now: float) -> None:
-        """The result of goal `handle` (which came as `goal` at `arrived`) went out at `now`."""
+    def sent(self, handle: int, goal: bytes, result: bytes, arrived: float, now: float,
+             turn: int | None = None) -> None:
+        """The result of goal `handle` (which came as `goal` at `arrived`) went out at `now`
+        (`turn`: the own turns ended then, under the turns MAC)."""
         self.recent[handle] = Finished(goal, result, arrived)
         self.recent.move_to_end(handle)
         while len(self.recent) > RECENT_RESULTS:
             self.recent.popitem(last=False)
-        self.unacked[handle] = Unacked(result, now, now + self.rtt.rto, now + 2 * self.accept_timeout)
+        self.unacked[handle] = Unacked(result, now, now + self.rtt.rto, now + 2 * self.accept_timeout,
+                                       turn=turn)
 
-    def acknowledged(self, handle: int, now: float) -> bool:
-        """The client side has the result: stop sending it. False if nothing waited for it."""
+    def acknowledged(self, handle: int, now: float) -> Unacked | None:
+        """The client side has the result: stop sending it (what waited for it; None if
+        nothing did)."""
         unacked = self.unacked.pop(handle, None)
         if unacked is None:
-            return False
+            return None
         if unacked.sends == 1:        # Karn: only an unambiguous round trip is a sample
             self.rtt.sample(now - unacked.first_sent)
-        return True
+        return unacked
 
     def forget(self, handle: int) -> None:
         """A new goal on `handle`: what the old one left is no longer asked for."""
@@ -92,15 +98,17 @@ class ResultBook:
             return None
         return recent.result
 
-    def due(self, now: float) -> Iterator[bytes | None]:
+    def due(self, now: float, ready: Callable[[Unacked], bool] | None = None
+            ) -> Iterator[bytes | None]:
         """The results to send again now, each once more; None for each one given up (2
-        accept_timeouts passed without an acknowledgement: counted `results_unacked`)."""
+        accept_timeouts passed without an acknowledgement: counted `results_unacked`).
+        `ready`: whether a result's copy is due (uwgen.bridge.copies); default its timer."""
         for handle, unacked in list(self.unacked.items()):
-            if unacked.next_send > now:
-                continue
             if now >= unacked.until:
                 del self.unacked[handle]
                 yield None
+                continue
+            if not (unacked.next_send <= now if ready is None else ready(unacked)):
                 continue
             self.rtt.backoff()
             unacked.sends += 1

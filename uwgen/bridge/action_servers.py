@@ -27,6 +27,7 @@ from rclpy.action import ActionClient
 from rclpy.task import Future
 
 from uwgen.bridge.action_results import ResultBook
+from uwgen.bridge.copies import copy_due
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.orphans import OrphanWatch, goal_uuid
@@ -89,7 +90,8 @@ class ActionServers:
             dispatcher.sends(KIND_TOPIC, ident)
 
     def _offer(self, ident: int, payload: bytes, what: str, key: int | None = None) -> bool:
-        if self.w.send(ident if key is None else key, payload):
+        # an answer or result equal to one still waiting in the link is not queued twice
+        if self.w.offer_once(ident if key is None else key, payload):
             return True
         self.counters[ident].reply_refused += 1
         self.w.say_once(f"aref{ident}{what}", f"{self.served[ident][0].name}: {what} refused by the link")
@@ -111,7 +113,8 @@ class ActionServers:
             payload = codec.encode_result(handle, ABORTED, codec.ros_class().Result())
         if self._offer(ident, payload, "result"):
             self.counters[ident].results_sent += 1
-        self.results[ident].sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now())
+        self.results[ident].sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(),
+                                 self.w.turns())
 
     # -- the link (executor thread) --------------------------------------------------------
 
@@ -174,8 +177,11 @@ class ActionServers:
         """The client side has the result of goal `handle` (stop sending it), or wants it."""
         counters = self.counters[ident]
         if received:
-            if self.results[ident].acknowledged(handle, self.w.clock.now()):
+            acked = self.results[ident].acknowledged(handle, self.w.clock.now())
+            if acked is not None:
                 counters.results_acked += 1
+                if acked.sends > 1:
+                    self.w.withdraw(ident, acked.payload)   # a copy not yet left
             return
         counters.result_queries += 1
         entry = self.goals[ident].get(handle)
@@ -245,14 +251,18 @@ class ActionServers:
             lambda f: self._finished(ident, handle, goal_handle, f))
 
     def _resend_results(self, ident: int, now: float) -> None:
-        """Results not acknowledged within the RTO go again, until the book gives them up."""
-        counters = self.counters[ident]
-        for payload in self.results[ident].due(now):
+        """Results not acknowledged go again when a copy is due (copies.py), until the book
+        gives them up."""
+        counters, book = self.counters[ident], self.results[ident]
+        for payload in book.due(now, lambda u: copy_due(self.w, ident, u.payload, u, now, book.rtt.rto)):
             if payload is None:
                 counters.results_unacked += 1
                 continue
             counters.results_resent += 1
-            self._offer(ident, payload, "result")
+            if self._offer(ident, payload, "result"):     # its acknowledgement takes it back
+                codec = self.served[ident][0]
+                handle = codec.decode_response(payload, ros=False)[0]
+                self.w.expect(codec.encode_result_status(handle, received=True), ident, payload)
 
     def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
         """Answer a goal that came again; True when it was one (then it is not run)."""

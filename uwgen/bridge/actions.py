@@ -15,9 +15,10 @@ Results: each result that arrives is acknowledged (`[2, id, 24 + handle, 0]`), a
 copy (the server side re-sends a result until acknowledged); an accepted goal with no
 result asks for it (`[2, id, 24 + handle, 1]`) every accept_timeout.
 
-Losses: a goal with no answer is sent again (same handle and bytes) every retransmission
-timeout (reliable.command_rtt: measured from this action's goal/answer round trips, at
-most a quarter of `accept_timeout`). A goal with no answer within `accept_timeout` may be
+Losses: a goal with no answer is sent again (same handle and bytes) when a copy is due
+(uwgen.bridge.copies: once a round under the turns MAC, else every retransmission timeout,
+reliable.command_rtt: measured from this action's goal/answer round trips, at most a
+quarter of `accept_timeout`). A goal with no answer within `accept_timeout` may be
 running there (only the answers lost), so it is never rejected then: the client side asks
 the server side about it (a result request) until `result_timeout` from the call, and
 accepts it when the server side says it runs or sends its result, or rejects it when the
@@ -133,6 +134,7 @@ class ActionStandIns(GoalAnswers):
                 counters.refused += 1
                 log.error(f"{codec.name}: goal rejected: the link refused it (see ~/status)")
                 return GoalResponse.REJECT
+            state.turn = self.w.turns()
             state.payload = payload
             state.sent_at = self.w.clock.now()
             state.next_send = state.sent_at + self.rtt[codec.id].rto

@@ -31,6 +31,7 @@ from rclpy.node import Node
 from uwgen.runtime.delivery import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
+from uwgen.bridge.copies import own_turns
 from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.diagnostics import Watching
 from uwgen.bridge.dispatch import Dispatcher
@@ -131,6 +132,11 @@ class BridgeNode(Node):
                                  clock=clock, name=plan.side, **plan.link_options(), **security_kw)
         for key, policy, name, whole in plan.channels():
             self.link.add_channel(key, policy, name, whole=whole)
+        # commands' copies (copies.py): what waits in the link's queues, taking one back
+        scheduler = getattr(self.link, "scheduler", None)
+        if hasattr(scheduler, "waiting"):
+            w.waiting, w.withdraw = scheduler.waiting, scheduler.withdraw
+            w.turns = own_turns(self.mac)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery
@@ -222,7 +228,10 @@ class BridgeNode(Node):
         return self.link.offer(ident, payload, published=published)
 
     def _on_link_payload(self, payload: bytes) -> None:
-        """Called by the link, on the link's thread: hand over, touch nothing else."""
+        """Called by the link, on the link's thread: hand over, touch nothing else but the
+        command copies it answers (Wiring.take_back: before the turn it opens is built)."""
+        if self.wiring.answered_by:
+            self.wiring.take_back(bytes(payload))
         self.inbox.put(bytes(payload))
 
     def _drain_inbox(self) -> None:

@@ -34,6 +34,7 @@ from typing import Any, Callable
 from rclpy.task import Future
 
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
+from uwgen.bridge.copies import copy_due
 from uwgen.bridge.counters import ServiceCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.outcomes import ASKS, Asking, Handled, bare, query
@@ -51,12 +52,14 @@ RECENT_REPLIES = 32   # answered requests per service whose response is kept for
 
 @dataclass
 class Outgoing:
-    """A request sent and not yet answered (calling side): sent again after each RTO."""
+    """A request sent and not yet answered (calling side): sent again when a copy is due
+    (uwgen.bridge.copies)."""
 
     payload: bytes
     first_sent: float
     next_send: float
     sends: int = 1
+    turn: int | None = None          # own turns ended while it waited in the link (copies.py)
 
 
 def service_rtt(codec: Any, period: float, round_trip: float | None = None,
@@ -154,7 +157,8 @@ class StandIns:
             rtt = self.rtt.get(codec.id)
             if rtt is not None:
                 now = self.w.clock.now()
-                self.outgoing[(codec.id, pending.seq)] = Outgoing(payload, now, now + rtt.rto)
+                self.outgoing[(codec.id, pending.seq)] = Outgoing(payload, now, now + rtt.rto,
+                                                                  turn=self.w.turns())
             result = await future
             if result is None:
                 return self._failed_reply(response)
@@ -191,6 +195,8 @@ class StandIns:
                                f"came {self.w.clock.now() - asked.called:.1f} s after the call; "
                                "counted ran_after_timeout)")
         outgoing = self.outgoing.pop((ident, seq), None)
+        if outgoing is not None and outgoing.sends > 1:
+            self.w.withdraw(ident, outgoing.payload)       # a copy not yet left: no air time
         if pending is not None and outgoing is not None and outgoing.sends == 1:
             self.rtt[ident].sample(self.w.clock.now() - outgoing.first_sent)   # Karn
         if pending is not None and not pending.token.done():
@@ -199,14 +205,15 @@ class StandIns:
     def expire(self) -> None:
         now = self.w.clock.now()
         for (ident, seq), outgoing in list(self.outgoing.items()):
-            if outgoing.next_send > now:
-                continue
             rtt = self.rtt[ident]
+            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto):
+                continue
             rtt.backoff()
             outgoing.sends += 1
             outgoing.next_send = now + rtt.rto
             self.counters[ident].request_resends += 1
-            self.w.send(ident, outgoing.payload)          # same seq: served once there
+            if self.w.send(ident, outgoing.payload):      # same seq: served once there
+                self.w.expect(query(3, ident, seq), ident, outgoing.payload)
         self._ask(now)
         for pending in self.calls.expire():
             self.outgoing.pop((pending.service_id, pending.seq), None)
@@ -303,7 +310,7 @@ class Servers:
             replied = self.replied[ident].get(seq)
             if replied is not None:
                 counters.repeated_replies += 1
-                self.w.send(ident, replied[0])
+                self.w.offer_once(ident, replied[0])     # not twice in one packet
             return
         if not client.service_is_ready():
             if len(self.waiting[ident]) >= WAITING_LIMIT:

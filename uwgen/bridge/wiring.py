@@ -7,6 +7,7 @@ into each other; the node builds one `Wiring` and hands it to each of them.
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -18,6 +19,7 @@ from uwgen.bridge.throttle import LogThrottle
 from uwgen.manifest.model import Qos
 from uwgen.runtime.clock import Clock
 
+EXPECTED = 64                # copies an arriving answer may take back (Wiring.expect)
 Send = Callable[..., bool]   # (id, payload, published=None) -> accepted
 
 
@@ -45,6 +47,13 @@ class Wiring:
     recorder: Any = None           # uwgen.bridge.recorder.BridgeRecorder with --record
     round_trip: float | None = None  # what the MAC expects a request and its answer to take
     turn_gap: float = 0.0            # the MAC's longest wait for the peer's turn (runtime.link.mac)
+    # the link's queue, set once the link exists (uwgen.bridge.copies): whether an equal
+    # payload still waits in a channel, taking one back, and the own turns ended (None: no turns)
+    waiting: Callable[[int, bytes], bool] = lambda key, payload: False
+    withdraw: Callable[[int, bytes], bool] = lambda key, payload: False
+    turns: Callable[[], int | None] = lambda: None
+    # answer head -> (key, copy): a copy the answer takes back on arrival (take_back)
+    answered_by: OrderedDict = field(default_factory=OrderedDict)
     said: set[str] = field(default_factory=set)
     throttle: LogThrottle = field(init=False)  # error lines a remote peer can cause: bounded
     loops: LoopGuard = field(init=False)       # services/actions another bridge here handles
@@ -52,6 +61,28 @@ class Wiring:
     def __post_init__(self) -> None:
         self.throttle = LogThrottle(self.log.error, self.clock, warn=self.log.warning)
         self.loops = LoopGuard(self.node, self.log)
+
+    def offer_once(self, key: int, payload: bytes) -> bool:
+        """Offer a command message unless an equal one still waits in the link (it would
+        ride the same packet: one is enough); True when it is queued either way."""
+        return self.waiting(key, payload) or self.send(key, payload)
+
+    def expect(self, answer: bytes, key: int, copy: bytes) -> None:
+        """A copy `copy` (channel `key`) was offered: the payload arriving that starts with
+        `answer` (its response, goal answer or result, or a result's acknowledgement) takes
+        it back if it still waits (uwgen.bridge.copies). The last EXPECTED are kept."""
+        self.answered_by[answer] = (key, copy)
+        self.answered_by.move_to_end(answer)
+        while len(self.answered_by) > EXPECTED:
+            self.answered_by.popitem(last=False)
+
+    def take_back(self, payload: bytes) -> None:
+        """On the link's thread, as a payload arrives: the copies it answers are taken back
+        before the turn it opens builds its packets (the executor sees the answer later)."""
+        for answer, (key, copy) in list(self.answered_by.items()):
+            if payload.startswith(answer):
+                self.answered_by.pop(answer, None)
+                self.withdraw(key, copy)
 
     def say_once(self, key: str, text: str) -> None:
         """Log the first occurrence of a kind of problem; later ones are counted only."""

@@ -18,7 +18,7 @@ from uwgen.runtime.stats import Counters
 from uwgen.runtime.wire.framing import MAX_PAYLOAD
 
 CHANNEL_COUNTERS = ("offered", "sent", "superseded", "overflow", "expired", "too_large", "invalid",
-                    "rate_limited", "fragments_sent", "protect_failed")
+                    "rate_limited", "fragments_sent", "protect_failed", "withdrawn")
 DROP_REASONS = ("superseded", "overflow", "expired", "too_large", "invalid", "protect_failed")
 
 

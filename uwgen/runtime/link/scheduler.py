@@ -149,6 +149,30 @@ class LinkScheduler:
                 c.inc(reason)
             return True
 
+    def withdraw(self, key: int, payload: bytes) -> bool:
+        """Take back a queued payload that has not started to leave (the first equal one):
+        its sender no longer needs it sent (a command's copy whose answer came meanwhile).
+        False when none waits (it left, or was never queued); counted `withdrawn`."""
+        ch = self._channels.get(key)
+        if ch is None:
+            return False
+        with self._lock:
+            for msg in ch.queue:
+                if msg.payload == payload:
+                    ch.queue.remove(msg)
+                    ch.counters.inc("withdrawn")
+                    return True
+        return False
+
+    def waiting(self, key: int, payload: bytes) -> bool:
+        """True while a payload equal to `payload` waits in channel `key`, not yet started to
+        leave (a command's copy is not queued behind an equal one that has not left)."""
+        ch = self._channels.get(key)
+        if ch is None:
+            return False
+        with self._lock:
+            return any(msg.payload == payload for msg in ch.queue)
+
     # -- consumer side (the connection, when it may write) -------------------------------------
 
     def next_payload(self, now: float | None = None, max_size: int | None = None,

@@ -1,0 +1,116 @@
+"""When a command's copy is due (uwgen.bridge.copies): never while an equal payload still
+waits in the link; under the turns MAC once per round, when the own turn that carried it has
+ended (whatever became of it there: lost, or delivered and refused by the receiving judge);
+otherwise on its timer."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+from uwgen.bridge.copies import copy_due, own_turns
+from uwgen.bridge.wiring import Wiring
+from uwgen.manifest.model import LinkConfig, MacConfig
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.link.mac import Mac, TdmaMac, TurnMac
+
+LINK = LinkConfig(max_read_length=64, period=0.2)
+SENDERS = {"surface": 1, "vehicle": 2}
+TURNS = MacConfig(mode="turns", range=1000, leader="surface", packets=(("surface", 4), ("vehicle", 2)))
+
+
+@dataclass
+class Leg:
+    next_send: float = 3.0
+    turn: int | None = None
+
+
+def link(turns=None):
+    """A wiring's view of the link: what waits in it, and the own turns ended."""
+    state = SimpleNamespace(waiting=set(), turns=turns)
+    return state, SimpleNamespace(waiting=lambda k, p: (k, p) in state.waiting,
+                                  turns=lambda: state.turns)
+
+
+def test_without_turns_a_copy_is_due_on_its_timer():
+    _, w = link()
+    leg = Leg(next_send=3.0)
+    assert not copy_due(w, 20, b"req", leg, 2.9, rto=3.0)
+    assert copy_due(w, 20, b"req", leg, 3.0, rto=3.0)
+
+
+def test_without_turns_a_copy_whose_message_still_waits_in_the_link_is_put_off_a_timeout():
+    state, w = link()
+    state.waiting.add((20, b"req"))
+    leg = Leg(next_send=3.0)
+    assert not copy_due(w, 20, b"req", leg, 3.0, rto=2.5)
+    assert leg.next_send == 5.5
+    state.waiting.clear()
+    assert not copy_due(w, 20, b"req", leg, 5.0, rto=2.5)
+    assert copy_due(w, 20, b"req", leg, 5.5, rto=2.5)
+
+
+def test_under_turns_a_copy_is_due_once_the_turn_that_carried_it_has_ended_not_on_a_timer():
+    state, w = link(turns=7)
+    leg = Leg(next_send=0.0, turn=7)                 # offered in turn 7: its timer is no matter
+    assert not copy_due(w, 20, b"req", leg, 100.0, rto=3.0)
+    state.turns = 8                                   # that turn ended: the peer's turn now
+    assert copy_due(w, 20, b"req", leg, 100.0, rto=3.0)
+    assert not copy_due(w, 20, b"req", leg, 100.0, rto=3.0)   # once a round
+    state.turns = 9
+    assert copy_due(w, 20, b"req", leg, 100.0, rto=3.0)
+
+
+def test_a_request_delivered_but_refused_there_unanswered_is_copied_the_next_round():
+    # A request that arrived and was refused by the receiving judge (`unmeasured` before the
+    # clock exchange, `stale`, `untimed`) gets no answer: whether its packet was acknowledged
+    # does not matter, the round without an answer makes its copy due.
+    state, w = link(turns=0)
+    leg = Leg(turn=0)
+    state.turns = 1
+    assert copy_due(w, 20, b"req", leg, 1.0, rto=3.0)
+
+
+def test_under_turns_a_message_that_missed_its_turn_is_copied_a_round_after_it_leaves():
+    state, w = link(turns=3)
+    state.waiting.add((20, b"req"))                  # the turn was full: it waits for the next
+    leg = Leg(turn=3)
+    state.turns = 4
+    assert not copy_due(w, 20, b"req", leg, 1.0, rto=3.0)
+    assert leg.turn == 4
+    state.waiting.clear()                            # it left in the turn that ends with 5
+    assert not copy_due(w, 20, b"req", leg, 2.0, rto=3.0)
+    state.turns = 5
+    assert copy_due(w, 20, b"req", leg, 3.0, rto=3.0)
+
+
+def test_own_turns_are_the_leaders_grants_and_a_followers_ends_and_none_without_turns():
+    leader, follower = (TurnMac(TURNS, s, SENDERS, LINK) for s in ("surface", "vehicle"))
+    leader.counts["grants_sent"], follower.counts["turns"] = 3, 5
+    assert (own_turns(leader)(), own_turns(follower)()) == (3, 5)
+    leader.counts["grants_sent"] += 1
+    assert own_turns(leader)() == 4
+    tdma = MacConfig(mode="tdma", frame=3.0, guard=0.8, slots=("surface", "vehicle"))
+    assert own_turns(Mac())() is None
+    assert own_turns(TdmaMac(tdma, "surface", LINK, senders=SENDERS))() is None
+
+
+def test_offer_once_queues_nothing_while_an_equal_payload_still_waits():
+    sent = []
+    w = Wiring(node=None, send=lambda k, p: sent.append((k, p)) or True, clock=ManualClock(), options=None,
+               log=SimpleNamespace(error=print, warning=print), main_group=None, service_group=None)
+    w.waiting = lambda k, p: (k, p) == (20, b"old")
+    assert w.offer_once(20, b"old") and w.offer_once(20, b"new")
+    assert sent == [(20, b"new")]
+
+
+def test_an_arriving_answer_takes_its_copy_back_on_the_link_thread_and_only_its_own():
+    taken = []
+    w = Wiring(node=None, send=lambda k, p: True, clock=ManualClock(), options=None,
+               log=SimpleNamespace(error=print, warning=print), main_group=None, service_group=None)
+    w.withdraw = lambda k, p: taken.append((k, p)) or True
+    w.expect(b"\x03\x14\x05", 20, b"\x02\x14\x05req")
+    w.expect(b"\x03\x14\x06", 20, b"\x02\x14\x06req")
+    w.take_back(b"\x03\x14\x05resp")
+    assert taken == [(20, b"\x02\x14\x05req")]
+    w.take_back(b"\x03\x14\x05resp")                 # a second answer: nothing left to take
+    assert taken == [(20, b"\x02\x14\x05req")] and list(w.answered_by) == [b"\x03\x14\x06"]
