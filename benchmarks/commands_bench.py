@@ -38,6 +38,7 @@ given against that round.
 from __future__ import annotations
 
 import argparse
+import gc
 import itertools
 import os
 import random
@@ -156,6 +157,12 @@ class Side:
                 pass
         self.executor.shutdown(timeout_sec=1.0)
         rclpy.shutdown(context=self.context)
+        # the DDS participant goes only when the context is destroyed and nothing uses it
+        # (action clients and servers hold their node until garbage collection): else the
+        # next run, in the same domains, sees this run's bridges and its loop guard stops
+        # bridging the services and actions they offer
+        self.context.destroy()
+        gc.collect()
 
 
 class Overhead:

@@ -5,6 +5,7 @@ vehicle and a surface computer would, so their graphs never see each other.
 """
 from __future__ import annotations
 
+import gc
 import random
 import threading
 from contextlib import contextmanager
@@ -59,6 +60,14 @@ class RosSide:
         if self.context.ok():
             rclpy.shutdown(context=self.context)
         self._thread.join(timeout=2.0)
+        # Shutting a context down leaves its DDS participant alive until the context is
+        # destroyed, which waits until nothing uses it: action clients and servers hold their
+        # node, and they go only when garbage collection breaks their cycles (maybe never in
+        # a test run). A later test in the same domain then saw this side's bridge in its
+        # graph, and its loop guard stopped bridging.
+        self.nodes.clear()
+        self.context.destroy()
+        gc.collect()
 
 
 def start_bridge(side: RosSide, package, link_factory, *, flush_timeout: float | None = None,

@@ -10,6 +10,8 @@ link reconnects.
 """
 from __future__ import annotations
 
+import gc
+
 import os
 import threading
 import time
@@ -90,6 +92,8 @@ class Surface:
         if self.context.ok():
             rclpy.shutdown(context=self.context)
         self.thread.join(timeout=2.0)
+        self.context.destroy()          # its participant leaves the domain now (bridge/harness.py)
+        gc.collect()
 
 
 def start_app_peer(port: int, conf: Path, *args: str):
