@@ -40,7 +40,7 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SECONDS = 600.0         # of offered traffic (commands_bench.topic_run's default)
+SECONDS = 600.0         # of offered traffic (commands_sim.topic_run's default)
 CLASSES = ("ended", "grant lost", "answers lost", "end lost", "late")
 
 
@@ -111,7 +111,7 @@ def analyse(packets: list[dict], until: float, leader: str = "surface") -> dict:
 
 def measure(per: float, seed: int) -> dict:
     sys.path.insert(0, str(HERE))
-    import commands_bench as cb
+    import commands_sim as cb
     trace = Trace()
     seen = {}
 
