@@ -153,25 +153,25 @@ class LinkScheduler:
         """Take back a queued payload that has not started to leave (the first equal one):
         its sender no longer needs it sent (a command's copy whose answer came meanwhile).
         False when none waits (it left, or was never queued); counted `withdrawn`."""
-        ch = self._channels.get(key)
-        if ch is None:
-            return False
         with self._lock:
-            for msg in ch.queue:
-                if msg.payload == payload:
-                    ch.queue.remove(msg)
-                    ch.counters.inc("withdrawn")
-                    return True
-        return False
+            ch, msg = self._queued(key, payload)
+            if msg is None:
+                return False
+            ch.queue.remove(msg)
+            ch.counters.inc("withdrawn")
+            return True
 
     def waiting(self, key: int, payload: bytes) -> bool:
         """True while a payload equal to `payload` waits in channel `key`, not yet started to
         leave (a command's copy is not queued behind an equal one that has not left)."""
-        ch = self._channels.get(key)
-        if ch is None:
-            return False
         with self._lock:
-            return any(msg.payload == payload for msg in ch.queue)
+            return self._queued(key, payload)[1] is not None
+
+    def _queued(self, key: int, payload: bytes) -> tuple[Channel | None, Message | None]:
+        """Channel `key` and the first message in its queue equal to `payload` (lock held)."""
+        ch = self._channels.get(key)
+        msg = None if ch is None else next((m for m in ch.queue if m.payload == payload), None)
+        return ch, msg
 
     # -- consumer side (the connection, when it may write) -------------------------------------
 
