@@ -289,7 +289,11 @@ def test_a_goal_delivered_twice_runs_once(pair):
     wait_for(future.done, what="the result")
     assert future.result().status == GoalStatus.STATUS_SUCCEEDED
     assert results == [4]
-    wait_for(lambda: counted(bridges["vehicle"])["duplicate_goals"] == 1, what="repeat counted")
+    # every request after the first is a repeat (the client side may also have copied the
+    # goal while the server side waited for the local server's goal list, orphans.py)
+    wait_for(lambda: counted(bridges["vehicle"])["duplicate_goals"] >= 1, what="repeat counted")
+    status = counted(bridges["vehicle"])
+    assert status["duplicate_goals"] == status["goal_requests"] - 1
 
 
 @pytest.mark.parametrize("side, payload, counter", [

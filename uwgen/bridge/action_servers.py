@@ -144,14 +144,16 @@ class ActionServers:
         self.results[ident].forget(handle)        # a new goal on a handle used before
         self.watches[ident].forget(handle)
         now = self.w.clock.now()
-        # A goal waits for the local server at most half its accept_timeout: the client
-        # side's clock started before the goal's trip, and the answer needs one too.
+        # A goal waits for the local server, and for its goal list (orphans.py: a copy of a
+        # goal a previous start left running is not run again), at most half its
+        # accept_timeout: the client side's clock started before the goal's trip, and the
+        # answer needs one too.
         entry = goals[handle] = Served(None, now + codec.accept_timeout / 2, payload=payload,
                                        arrived=now, goal=goal)
-        if client.server_is_ready():
+        if client.server_is_ready() and self.watches[ident].listed(now):
             self._send_goal(ident, handle, entry)
         else:
-            counters.waited += 1     # sent once the server is discovered (see _send_waiting)
+            counters.waited += 1     # sent once the server and its list are known (_send_waiting)
 
     def _send_goal(self, ident: int, handle: int, entry: Served) -> None:
         from unique_identifier_msgs.msg import UUID
@@ -165,12 +167,15 @@ class ActionServers:
         entry.goal = None
         entry.sent.add_done_callback(lambda f: self._answered(ident, handle, f))
 
-    def _send_waiting(self, ident: int) -> None:
-        """Send the goals that waited for the local server, now that it is ready."""
+    def _send_waiting(self, ident: int, now: float) -> None:
+        """Send the goals that waited for the local server, now that it is ready and its goal
+        list is known (or the goal's wait is over: sent rather than refused for a list that
+        is slow to come)."""
         if not self.served[ident][1].server_is_ready():
             return
+        listed = self.watches[ident].listed(now)
         for handle, entry in list(self.goals[ident].items()):
-            if entry.sent is None:
+            if entry.sent is None and (listed or entry.deadline <= now):
                 self._send_goal(ident, handle, entry)
 
     def _result_status(self, ident: int, handle: int, received: bool) -> None:
@@ -202,7 +207,7 @@ class ActionServers:
         # accept_timeout is refused on arrival, so it never will), or this bridge restarted
         # and did not find it. Answered 0: no such goal here; not before the local server's
         # goal list was read (a goal about to be adopted is not "lost").
-        if not self.watches[ident].knows_enough(self.w.clock.now()):
+        if not self.watches[ident].listed(self.w.clock.now()):
             self._deferred.add((ident, handle))           # answered once it knows (expire)
             return
         codec = self.served[ident][0]
@@ -224,7 +229,12 @@ class ActionServers:
         response = codec.ros_class().Impl.SendGoalService.Response(accepted=True, stamp=info.stamp)
         goal_handle = ClientGoalHandle(client, UUID(uuid=list(uuid)), response)
         self.own_uuids.add(uuid)
-        if handle in self.goals[ident]:
+        held = self.goals[ident].get(handle)
+        if held is not None and held.sent is None and not done:
+            # held for the list (on_request): the copy of this running goal, not a new one
+            del self.goals[ident][handle]
+            self.counters[ident].duplicate_goals += 1
+        elif handle in self.goals[ident]:
             self.counters[ident].orphans_cancelled += 1
             self.w.log.warning(f"{codec.name}: a goal (handle {handle}) that a previous start of "
                                "this bridge left on the local server is cancelled: its handle "
@@ -357,7 +367,7 @@ class ActionServers:
     def expire(self) -> None:
         now, say = self.w.clock.now(), self.w.throttle.report
         for ident, handle in list(self._deferred):
-            if self.watches[ident].knows_enough(now):
+            if self.watches[ident].listed(now):
                 self._deferred.discard((ident, handle))
                 if handle not in self.goals[ident]:
                     self.counters[ident].result_queries -= 1   # counted when it came
@@ -365,7 +375,7 @@ class ActionServers:
         for ident, goals in self.goals.items():
             codec, client = self.served[ident]
             counters = self.counters[ident]
-            self._send_waiting(ident)
+            self._send_waiting(ident, now)
             self._resend_results(ident, now)
             for handle, entry in list(goals.items()):
                 if entry.deadline > now:

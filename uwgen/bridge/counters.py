@@ -86,8 +86,10 @@ class ActionCounters:
                               # the action (loops.py)
     # server side (the bridge calls the real action server)
     goal_requests: int = 0    # goals that came over the link
-    duplicate_goals: int = 0  # a goal for a handle already in flight (dropped)
-    waited: int = 0           # goals that came before the local server was discovered
+    duplicate_goals: int = 0  # a goal for a handle already in flight, or the copy of a goal
+                              # a previous start left running (dropped; orphans.py)
+    waited: int = 0           # goals that came before the local server was discovered, or
+                              # before its goal list was known (orphans.py), and waited
     no_server: int = 0        # no local action server within accept_timeout: rejected
     server_timeouts: int = 0  # the local server did not answer or finish in time
     server_gone: int = 0      # goals aborted because the local server disappeared

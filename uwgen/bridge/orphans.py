@@ -11,9 +11,18 @@ executing or canceling, that this start did not send, was started by a predecess
 died without finishing it (SIGKILL, a crash): it is **adopted** (a goal handle for it is
 made from its UUID, its result is asked for and pushed to the client side under its handle,
 and `result_timeout` is supervised as for any goal), or **cancelled** when its handle is
-busy with a newer goal. Until the status topic has been heard (at most `STATUS_GRACE`
-seconds after start), the server side does not tell the client side that it knows no such
-goal, so a client asking meanwhile is not told "lost" for a goal about to be adopted.
+busy with a newer goal.
+
+Until the goal list is **known** (`OrphanWatch.listed`) the server side neither sends the
+local server a goal that came over the link nor tells the client side that it knows no such
+goal: a goal's copy that reaches a bridge started again before the list would otherwise run a
+second time beside the running goal it copies, and a client asking meanwhile would be told
+"lost" for a goal about to be adopted. The list is known once it has been heard, or once the
+status publisher has been matched for `LIST_SETTLE` seconds with nothing heard (a transient
+local list comes with the match; a server that never had a goal publishes none), or
+`STATUS_GRACE` seconds after start. A goal held for the list that the list then shows
+running on its handle is the running goal's copy: the running goal is adopted and the copy
+dropped (counted `duplicate_goals`).
 
 A goal of ours that **finished** while no bridge watched it (succeeded, aborted or cancelled
 while the server side was down) is listed too, for as long as the local server keeps its
@@ -30,8 +39,9 @@ from collections.abc import Callable
 from typing import Any
 
 MARK = b"uwg"
-STATUS_GRACE = 10.0         # seconds after start before "no such goal" is said without the list
+STATUS_GRACE = 10.0         # seconds after start before the list counts as known unheard
                             # (discovery of the local server can take seconds on a loaded machine)
+LIST_SETTLE = 0.5           # seconds a matched status publisher may take to deliver its list
 ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
 FINISHED = (4, 5, 6)        # GoalStatus SUCCEEDED, CANCELED, ABORTED
 
@@ -59,15 +69,25 @@ class OrphanWatch:
         from rclpy.qos import qos_profile_action_status_default
         self.ident, self.adopt, self.own, self.started = ident, adopt, own, started
         self.heard = False
+        self.matched: float | None = None     # when the status publisher was first seen matched
         self.seen: set[bytes] = set()
         self.finished: dict[int, tuple[int, bytes, Any]] = {}   # handle -> (stamp, uuid, info)
         self.sub = node.create_subscription(GoalStatusArray, f"{action_name}/_action/status",
                                             self._status, qos_profile_action_status_default,
                                             callback_group=callback_group)
 
-    def knows_enough(self, now: float) -> bool:
-        """Whether "no such goal" may be said: the list was heard, or the grace is over."""
-        return self.heard or now - self.started >= STATUS_GRACE
+    def listed(self, now: float) -> bool:
+        """Whether the local server's goal list is known (see the module's docstring): heard,
+        or its publisher matched `LIST_SETTLE` seconds ago with nothing to say, or the grace
+        is over. Asked on every expiry tick, so the match is timed from when it happened."""
+        if self.heard or now - self.started >= STATUS_GRACE:
+            return True
+        if self.sub.get_publisher_count() == 0:
+            self.matched = None
+            return False
+        if self.matched is None:
+            self.matched = now
+        return now - self.matched >= LIST_SETTLE
 
     def finished_goal(self, handle: int) -> tuple[bytes, Any] | None:
         """(uuid, goal info) of the latest goal of ours on `handle` that finished unwatched,
