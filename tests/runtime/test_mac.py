@@ -17,8 +17,11 @@ TURNS = MacConfig(mode="turns", range=300, leader="surface", packets=(("surface"
 SENDERS = {"surface": 1, "vehicle": 2}
 
 
-def pair():
-    return (TurnMac(TURNS, "surface", SENDERS, LINK), TurnMac(TURNS, "vehicle", SENDERS, LINK))
+def pair(leader_packets: int = 3):
+    """(leader, follower); a one-packet leader turn is its grant alone (no notice before it)."""
+    turns = MacConfig(mode="turns", range=300, leader="surface",
+                      packets=(("surface", leader_packets), ("vehicle", 2)))
+    return (TurnMac(turns, "surface", SENDERS, LINK), TurnMac(turns, "vehicle", SENDERS, LINK))
 
 
 def write(mac: TurnMac, now: float) -> bytes:
@@ -72,13 +75,28 @@ def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
     assert lead.rtt[2].samples == 1 and lead.rtt[2].srtt == pytest.approx(1.1 - 0.42)
 
 
-def test_the_leader_ends_its_turn_at_its_first_packet_without_messages():
+def test_the_leader_gives_notice_on_its_first_packet_without_messages_and_grants_on_the_next():
     lead, _ = pair()
     lead.carries = True
     lead.backlog = lambda now: True
     assert write(lead, 0.0) == b""
-    lead.carries = False                             # nothing more: the grant goes alone
-    assert write(lead, 0.21) == bytes([0x22, 2])
+    lead.carries = False                             # nothing more: notice, then the grant
+    assert write(lead, 0.21) == bytes([0x22, 0])
+    lead.carries = True                              # what came meanwhile rides in the grant's packet
+    assert write(lead, 0.42) == bytes([0x22, 2])
+    assert lead.next_write_at(0.5) > 0.5             # the turn is the follower's
+
+
+def test_an_idle_leader_still_gives_notice_before_its_grant():
+    lead, _ = pair()
+    lead.carries = False
+    assert [write(lead, t) for t in (0.0, 0.21)] == [bytes([0x22, 0]), bytes([0x22, 2])]
+
+
+def test_a_one_packet_leader_turn_is_its_grant_alone():
+    lead, _ = pair(leader_packets=1)
+    lead.carries = True
+    assert write(lead, 0.0) == bytes([0x22, 2])
 
 
 def test_a_follower_writes_at_most_the_packets_granted():
@@ -91,7 +109,7 @@ def test_a_follower_writes_at_most_the_packets_granted():
 
 
 def test_a_lost_grant_or_end_is_counted_and_the_leader_takes_the_turn_back():
-    lead, _ = pair()
+    lead, _ = pair(leader_packets=1)
     lead.backlog = lambda now: False
     write(lead, 0.0)                                 # grant-only packet
     deadline = lead.next_write_at(0.1)
@@ -177,7 +195,7 @@ def test_tdma_capacity_follows_desert_settings(kw, capacity):
 
 
 def test_an_end_lost_after_the_answer_costs_an_interval_and_a_tick_after_the_heard_packet():
-    lead, _ = pair()
+    lead, _ = pair(leader_packets=1)
     write(lead, 0.0)                                 # grants sender 2 two packets
     assert lead.next_write_at(0.1) > 1.0             # the first bound is longer
     lead.arrived(64, 0.8)                            # its first packet, full size, ended arriving at 0.8
@@ -191,7 +209,7 @@ def test_an_end_lost_after_the_answer_costs_an_interval_and_a_tick_after_the_hea
 
 
 def test_the_first_turn_timer_is_the_manifests_worst_case_and_one_slow_turn_does_not_inflate_it():
-    lead, _ = pair()
+    lead, _ = pair(leader_packets=1)
     lead.carries = False
     one_way = LINK.period + LISTEN + (64 + 4) * 8 / 4800 + 300 / 1500   # written -> arrived, 300 m
     # the grant arrives, the follower writes within REACT and one interval later its second
@@ -241,7 +259,7 @@ def test_a_late_follower_writes_only_inside_its_window_and_ends_its_turn_there()
 
 
 def test_an_answer_later_than_the_bound_lengthens_the_next_bounds():
-    lead, _ = pair()
+    lead, _ = pair(leader_packets=1)
     lead.carries = False
     write(lead, 0.0)
     first = lead.next_write_at(0.1)
@@ -286,7 +304,7 @@ def test_a_grant_after_its_notice_starts_the_turn_at_once_and_others_notices_are
 
 
 def test_settled_by_says_until_when_a_peers_answer_covers_this_sides_packets():
-    lead, follower = pair()
+    lead, follower = pair(leader_packets=1)
     assert Mac().settled_by(2, 1.0) is None
     lead.carries = False
     write(lead, 0.42)                                           # the grant
@@ -311,7 +329,7 @@ def test_a_weighted_tdma_slot_drains_more_packets_a_frame():
 
 
 def test_a_packet_that_began_arriving_before_the_grant_ended_is_not_its_answer():
-    lead, _ = pair()
+    lead, _ = pair(leader_packets=1)
     lead.carries = False
     assert lead.next_write_at(0.0) <= 0.0
     lead.parts(0.0)

@@ -296,14 +296,18 @@ class TurnMac(Mac):
         # window leaves room for another packet.
         more = (self.carries if self.leading
                 else self.backlog(now) and now + self.interval <= self._turn_until)
-        if self._sent < self._granted and more:
+        noticed = self.leading and self._noticed_at is not None   # this packet grants
+        if self.leading and self.followers and not noticed and self._sent < self._granted \
+                and (not more or self._sent == self._granted - 1):
+            # the next packet is the last (this one carries nothing, or the count is reached
+            # after it): tell its follower now, so one lost packet does not lose the
+            # follower's whole turn (rule 1, the notice); the next packet grants
+            sid, _ = self.followers[self._next % len(self.followers)]
             self._closing = None
-            if self.leading and self.followers and self._sent == self._granted - 1:
-                # the next packet is the last: tell its follower now, so one lost packet
-                # does not lose the follower's whole turn (rule 1, the notice)
-                sid, _ = self.followers[self._next % len(self.followers)]
-                self._noticing = True
-                return encode_items([MacItem(TURN_GRANT, sid, 0)])
+            self._noticing = True
+            return encode_items([MacItem(TURN_GRANT, sid, 0)])
+        if self._sent < self._granted and more and not noticed:
+            self._closing = None
             return b""
         if self.leading:
             if not self.followers:
