@@ -30,6 +30,26 @@ them). Writes end at `close - lead - period`: a later one could miss the window 
 whole frame. Every packet is built as it is written, so it is the freshest it can be. A
 frame's writes are counted from the end of the window before (also those made while no
 phase was known), so whatever DESERT's queue held drains before more is written.
+
+Settling: a packet heard may have started anywhere in its sender's ON window (its sender
+wrote it before knowing the phase, or its timing rested on such a packet), so a phase just
+learned may be late by up to the longest other ON window. For `SETTLE_FRAMES` frames after
+the phase is learned, or moves by more than `lead`, the write windows end that much earlier:
+every packet then reaches the MAC before the slot opens, whatever the error, and starts at
+the opening, so the other sides hear packets that give them the exact phase. The windows
+begin after this slot's window before closed (a packet reaching the MAC earlier would go in
+that one, maybe late in it).
+
+No phase known (start, restart, or nothing heard for `memory`): DESERT may start a packet
+written now anywhere in the ON window, late enough to run into the next slot when the guard
+is shorter than a packet's air time and the range's delay, and lose it or the next side's
+first packet. So the side listens first, `LISTEN_FRAMES` frames if its slot is the frame's
+first, `MEMORY_FRAMES` otherwise (a side that starts late or restarts hears the others'
+timed packets and never writes blind; at a common start the first slot's side speaks
+first while the others, silent until they hear, leave the slot it may run into empty),
+then writes one packet per `BLIND_FRAMES` frames: time for the others to hear it and for
+their timed packets to come back, so another one goes blind only when all of those were
+lost (it may then run into a slot the others use).
 """
 from __future__ import annotations
 
@@ -41,6 +61,9 @@ from uwgen.manifest.model import LinkConfig, MacConfig
 
 LEAD = 0.05           # s: writes reach DESERT's MAC this long before they must (clock and thread jitter)
 MEMORY_FRAMES = 10    # frames after which a heard packet no longer counts
+BLIND_FRAMES = 4      # frames between two writes made while no phase is known
+LISTEN_FRAMES = 2     # frames the side of the first slot listens before it writes without a phase
+SETTLE_FRAMES = 4     # frames after the phase was learned or moved in which writes allow for its error
 KEEP = 64             # the most recent packets the phase is taken from
 
 
@@ -82,29 +105,55 @@ class FramePhase:
 
 
 class SlotTimer:
-    """When `side` may write (module doc): at most `capacity` writes in any `window` seconds
-    (a frame and the pacer's margin) while the frame's start is not known (`origin` None);
-    else in its slot's write windows, at most `capacity` writes since the window before
-    ended (a write made before the phase was known counts: its packet may still wait)."""
+    """When `side` may write (module doc): while the frame's start is not known (`origin`
+    None), after listening and then one write per `blind_gap`; else in its slot's write
+    windows (the settling ones while the phase is new), at most `capacity` writes since the
+    window before ended (a write made before the phase was known counts: its packet may
+    still wait)."""
 
     def __init__(self, config: MacConfig, side: str, link: LinkConfig, capacity: int,
-                 interval: float, window: float, lead: float = LEAD):
-        self.frame, self.capacity, self.window = config.frame, capacity, window
+                 interval: float, lead: float = LEAD):
+        self.frame, self.capacity, self.lead = config.frame, capacity, lead
         self.open_at = config.slot_start(side)              # from the frame's start
+        on = config.slot_length(side) - config.guard
         close = self.open_at + send_window(config, link, side)
         self.end = close - lead - link.period               # last write of a frame's window
         first = min(self.open_at - link.period - lead, self.end - (capacity - 1) * interval - lead)
         self.begin = max(first, self.end - self.frame + 1e-6)   # windows never overlap
+        # settling: a packet heard may have started anywhere in its sender's ON window, so
+        # the phase may be late by that much; every write then reaches the MAC before the
+        # slot opens all the same, and after this slot's window before closed
+        late = max((config.slot_length(s) - config.guard for s in config.slots if s != side),
+                   default=0.0)
+        settle_end = self.open_at - late - lead - link.period
+        settle_begin = self.open_at - self.frame + on
+        self.settling = (settle_begin, settle_end) if settle_end > settle_begin else None
+        self.settle = SETTLE_FRAMES * self.frame
+        self.listen = self.frame * (LISTEN_FRAMES if self.open_at == 0 else MEMORY_FRAMES)
+        self.blind_gap = BLIND_FRAMES * self.frame
         self._writes: deque[float] = deque()
-        self.timed = 0                      # writes placed in a window
+        self._origin: float | None = None       # the phase settling started from
+        self._settle_until = -math.inf
+        self._blind_since: float | None = None  # when this side last had no phase
+        self._last_blind = -math.inf
+        self.timed = 0                          # writes placed in a window
+        self.blind = 0                          # writes made with no phase known
 
     def next_write_at(self, origin: float | None, now: float) -> float:
         """-inf: now; else when this side may write next."""
-        while self._writes and self._writes[0] + max(self.window, self.frame) <= now:
+        while self._writes and self._writes[0] + self.frame <= now:
             self._writes.popleft()
         if origin is None:
-            recent = [w for w in self._writes if w + self.window > now]
-            return -math.inf if len(recent) < self.capacity else recent[-self.capacity] + self.window
+            if self._blind_since is None:
+                # a phase forgotten was heard of last `memory` ago: listened long enough
+                self._blind_since = now if self._origin is None else now - self.listen
+            self._origin = None
+            at = max(self._blind_since + self.listen, self._last_blind + self.blind_gap)
+            return -math.inf if at <= now else at
+        self._blind_since = None
+        if self._origin is None or abs((origin - self._origin + self.frame / 2) % self.frame
+                                       - self.frame / 2) > self.lead:
+            self._origin, self._settle_until = origin, now + self.settle
         begin, end = self.writes_window(origin, now)
         if sum(1 for w in self._writes if w > end - self.frame) >= self.capacity:
             begin += self.frame
@@ -112,14 +161,21 @@ class SlotTimer:
 
     def wrote(self, origin: float | None, now: float) -> None:
         self._writes.append(now)
-        self.timed += origin is not None
+        if origin is None:
+            self.blind += 1
+            self._last_blind = now
+        else:
+            self.timed += 1
 
     def writes_window(self, origin: float, now: float) -> tuple[float, float]:
-        """(begin, end) of the first write window that ends after `now`."""
-        base = origin + self.end
-        k = (now - base) // self.frame + 1
-        end = base + k * self.frame
-        return end - (self.end - self.begin), end
+        """(begin, end) of the first write window that ends after `now` (a settling one
+        until `settle` has passed since the phase was learned or last moved by more than
+        the lead)."""
+        first, last = (self.settling if self.settling is not None and now < self._settle_until
+                       else (self.begin, self.end))
+        base = origin + last
+        end = base + ((now - base) // self.frame + 1) * self.frame
+        return end - (last - first), end
 
 
 def send_window(config: MacConfig, link: LinkConfig, side: str | None = None) -> float:
