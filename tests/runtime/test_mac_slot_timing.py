@@ -9,8 +9,8 @@ import pytest
 
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.mac import TdmaMac, mac_for
-from uwgen.runtime.link.slot_timing import (BLIND_FRAMES, LEAD, LISTEN_FRAMES, MEMORY_FRAMES, SETTLE_FRAMES,
-                                            FramePhase, send_window)
+from uwgen.runtime.link.slot_timing import (BLIND_FRAMES, LEAD, LISTEN_FRAMES, MEMORY_FRAMES, FramePhase,
+                                            send_window)
 
 LINK = LinkConfig(max_read_length=64, period=0.2)
 # frame 1 s, 2 slots of 0.5 s, guard 0.25: surface ON [0, 0.25), vehicle ON [0.5, 0.75)
@@ -79,12 +79,12 @@ def test_a_guard_shorter_than_a_packet_and_the_range_shortens_the_send_window():
 
 
 def settled(mac: TdmaMac, at: float) -> float:
-    """`mac` hears the vehicle's slot of frames starting at `at` + k and has known that
-    phase for SETTLE_FRAMES: returns the start of a frame after that."""
+    """`mac` hears the vehicle's slot (2 packets) of the frame starting at `at`, frames
+    starting at `at` + k: two packets of one sender a frame apart at most, so one was timed
+    and the phase is settled. Returns the next frame's start."""
     hear(mac, 2, arrival(at, 0.5))
-    mac.next_write_at(at + 0.9)                              # learned now
-    hear(mac, 2, arrival(at + SETTLE_FRAMES, 0.5))
-    return at + SETTLE_FRAMES + 1.0
+    hear(mac, 2, arrival(at, 0.5, place=AIR))
+    return at + 1.0
 
 
 def test_a_side_that_has_heard_nothing_listens_before_it_writes():
@@ -109,37 +109,41 @@ def test_with_no_phase_known_one_packet_goes_per_blind_gap():
     assert mac.stats()["blind_writes"] == 1 and mac.stats()["timed_writes"] == 0
 
 
-def test_a_phase_just_learned_has_writes_reach_the_mac_before_the_slot_even_if_it_is_late():
+def test_a_phase_not_settled_has_writes_reach_the_mac_before_the_slot_even_if_it_is_late():
     # the packet heard may have started up to the vehicle's ON window (0.25 s) into it: the
-    # frame then starts up to 0.25 s before 11.0 + k; while settling every write reaches
+    # frame then starts up to 0.25 s before 10.0 + k; until settled every write reaches
     # DESERT's MAC (a period after it) before the earliest opening, 11.75 + k, and after the
     # surface's window before closed
     mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
     hear(mac, 2, arrival(10.0, 0.5))
     on = 0.5 - TWO.guard
+    end = 12.0 - on - LEAD - 0.2
     t = mac.next_write_at(10.9)
-    assert t == pytest.approx(12.0 - 1.0 + on)
+    assert t == pytest.approx(max(12.0 - 1.0 + on, end - 0.21 - LEAD))
     for _ in range(2):
         assert mac.next_write_at(t) == -math.inf
         mac.wrote(t, 64)
         assert t + 0.2 + LEAD <= 12.0 - on                    # in the MAC before the earliest open
         t += 0.21
-    assert mac.next_write_at(t) == pytest.approx(12.0 - 1.0 + on + 1.0)   # full: the next frame's
-    # settled: the windows move to just before the slot
-    later = 11.0 + SETTLE_FRAMES * TWO.frame
-    hear(mac, 2, arrival(later - 1.0, 0.5))
-    close = later + 1.0 + send_window(TWO, LINK, "surface")
-    begin = min(later + 1.0 - 0.2 - LEAD, close - 0.2 - LEAD - 0.21 - LEAD)
-    assert mac.next_write_at(later + 0.1) == pytest.approx(begin)
+    assert mac.next_write_at(t) > 12.0                        # full: the next frame's
+    # a second packet of the vehicle's within two frames: one of the two was timed
+    hear(mac, 2, arrival(11.0, 0.5))
+    close = 13.0 + send_window(TWO, LINK, "surface")
+    begin = min(13.0 - 0.2 - LEAD, close - 0.2 - LEAD - 0.21 - LEAD)
+    assert mac.next_write_at(12.2) == pytest.approx(begin)
 
 
-def test_a_phase_that_moves_by_more_than_the_lead_settles_again():
-    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
-    start = settled(mac, 10.0)
-    assert mac.next_write_at(start + 0.1) > start + 0.5      # settled: just before the slot
-    hear(mac, 2, arrival(start + 0.8, 0.5))                   # frames start 0.2 s earlier
-    on = 0.5 - TWO.guard
-    assert mac.next_write_at(start + 1.7) == pytest.approx(start + 1.8 + 1.0 - 1.0 + on)
+def test_packets_of_one_sender_as_far_apart_as_blind_writes_do_not_settle_the_phase():
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase.heard(2, 64, arrival(10.0, 0.5, place=0.2))
+    assert not phase.settled(11.0)
+    phase.heard(2, 64, arrival(10.0 + BLIND_FRAMES - 1, 0.5))
+    assert not phase.settled(10.0 + BLIND_FRAMES)
+    phase.heard(1, 64, arrival(10.0 + BLIND_FRAMES, 0.0))    # another sender's: no pair
+    assert not phase.settled(10.0 + BLIND_FRAMES + 0.5)
+    phase.heard(2, 64, arrival(10.0 + BLIND_FRAMES, 0.5))
+    assert phase.settled(10.0 + BLIND_FRAMES + 0.9)
+    assert not phase.settled(10.0 + BLIND_FRAMES + MEMORY_FRAMES + 1.0)   # forgotten
 
 
 def test_writes_land_before_the_on_window_opens():

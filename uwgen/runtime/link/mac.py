@@ -14,8 +14,8 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   (`tdma_capacity`), so DESERT's queues never hold more than a slot's worth. It learns the
   frame's phase from the packets it hears and writes each frame's packets so that they reach
   DESERT's MAC just before its ON window opens (uwgen.runtime.link.slot_timing): a message
-  then waits in DESERT about one period, not up to a frame (a few frames after the phase is
-  learned: before the slot opens even if the phase is late). With no phase (nothing heard
+  then waits in DESERT about one period, not up to a frame (until the phase is settled:
+  before the slot opens even if the phase is late). With no phase (nothing heard
   in `MEMORY_FRAMES` frames) it listens, then writes one packet every few frames: DESERT
   may start it late in the window, and the guard need not cover a packet and the range.
 - `TurnMac` (mode `turns`): the leader grants the turn to one side at a time (C item 2, to
@@ -175,7 +175,7 @@ class TdmaMac(Mac):
         self._arrived: tuple[int, float] | None = None     # the packet being opened: (bytes, when)
 
     def next_write_at(self, now: float) -> float:
-        return self.timer.next_write_at(self.phase.start(now), now)
+        return self.timer.next_write_at(self.phase.start(now), now, self.phase.settled(now))
 
     def wrote(self, now: float, nbytes: int) -> None:
         self.timer.wrote(self.phase.start(now), now)
