@@ -117,13 +117,13 @@ class Queue:
         return self.items.pop(0)
 
 
-def packer(fresh, copies):
+def packer(fresh, copies, ack_only=True):
     asked = []
 
-    def copy(now, room):
-        asked.append(room)
+    def copy(now, room, fresh):
+        asked.append((room, fresh))
         return copies.pop(0) if copies else None
-    hooks = PacketHooks(copy=copy, ack_only=lambda now: True)
+    hooks = PacketHooks(copy=copy, ack_only=lambda now: ack_only)
     return Packer(Queue(fresh), sender=1, max_read_length=64, hooks=hooks,
                   counters=Counters(PACKET_COUNTERS)), asked
 
@@ -132,13 +132,27 @@ def test_a_copy_fills_the_room_left_after_the_fresh_messages():
     p, asked = packer([(4, bytes((0, 4)) + bytes(20))], [(8, bytes((0, 8)) + bytes(20))])
     out = envelope.decode(p.next_packet(0.0))
     assert [m.id for m in out.messages] == [4, 8]                      # fresh first, then the copy
-    assert asked and asked[0] < 64
+    assert asked and asked[0][0] < 64 and asked[0][1] is True
 
 
 def test_a_copy_never_makes_a_packet_of_its_own():
-    p, asked = packer([], [(8, bytes((0, 8)) + bytes(20))])
-    out = envelope.decode(p.next_packet(0.0))                          # leaves for its A part
-    assert not out.messages and asked == []
+    p, asked = packer([], [(8, bytes((0, 8)) + bytes(20))], ack_only=False)
+    assert p.next_packet(0.0) is None and asked == []                  # nothing makes it leave
+
+
+def test_a_packet_that_leaves_for_its_parts_alone_is_offered_copies_as_not_fresh():
+    p, asked = packer([], [])
+    envelope.decode(p.next_packet(0.0))                                # leaves for its A part
+    assert [fresh for _room, fresh in asked] == [False]
+
+
+def test_reliable_copies_ride_only_beside_fresh_messages():
+    rel = Reliability(1, period=0.5, reliable={7: 30.0}, max_ages={}, max_read_length=64)
+    for _ in range(LOSS_WINDOW):
+        rel.engine.spare.settled(False)                                # lossy: copies wanted
+    rel.sent(0, [(7, rel.stamp(7, bytes((0, 7)) + bytes(8), 0.0, 0.0))], 0.0)
+    assert rel.copy(0.2, 60, fresh=False) is None
+    assert rel.copy(0.2, 60, fresh=True) is not None
 
 
 # -- two links (a ManualClock) --------------------------------------------------------------
@@ -216,6 +230,6 @@ def test_under_turns_a_copy_never_keeps_the_leaders_turn():
     for k in range(3):
         (t, n), = mission_copies(written, k)                 # one copy: nothing rode with it
         after = [keys for when, number, keys in written["surface"] if number == n + 1]
-        assert after == [[]]                                 # the next packet: the grant alone
+        assert after == [[]]                     # the next packet: the notice alone, no copy
     assert rel["surface"].stats()["reliability"]["copies"] == 0
     assert surface.counts["grants_sent"] > 10

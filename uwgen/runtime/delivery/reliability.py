@@ -43,6 +43,7 @@ from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.packets import message_measure
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
+from uwgen.runtime.delivery.echoes import Echoes
 from uwgen.runtime.delivery.reliable import (REPORT_KEY, ReliableLink, RttEstimator, Sent,
                                              packet_peers, wire_id)
 from uwgen.runtime.delivery.judge import AgeJudge
@@ -76,7 +77,7 @@ class Reliability:
                  clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
                  settled_by: Callable[[int, float], float | None] | None = None,
-                 copies: int = 2):
+                 copies: int = 2, commands: frozenset[int] = frozenset(), own_span: float = 0.0):
         self.sender, self.name, self.wall = sender, name, wall
         # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
         # peer or been lost before the peer's packet heard now was built (turns: the peer
@@ -127,6 +128,7 @@ class Reliability:
         self._queue: deque[Sent] = deque()            # lost reliable messages to send again
         self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
         self.engine.spare.limit = copies              # most copies in spare room (copies.py)
+        self.echoes = Echoes(frozenset(commands), own_span, self.heads)   # echoes.py
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
@@ -184,8 +186,9 @@ class Reliability:
             stamped, _ = self.heads.add(payload, now - born)
             return stamped
 
-    def carrying(self, picked: list[tuple[int, bytes]], now: float) -> None:
+    def carrying(self, picked: list[tuple[int, bytes]], now: float, fresh: bool = True) -> None:
         self._timed = any(wire_id(key) in self.max_ages for key, _ in picked)
+        self.echoes.carrying(picked)
         # T also goes with the A part on the first packets and then now and then, so the
         # peer measures our clock's offset (clock_offset.py)
         self._want_time = self._timed or (
@@ -230,6 +233,7 @@ class Reliability:
                              else self.engine.spare.new_ident())
                 messages.append(replace(m, ref=payload, tail=None))
             self._resending.clear()
+            self.echoes.left(number, picked, now)
             messages += self.acks.carried()      # its reports: confirmed once it is acked
             self.engine.sent(number, messages, now,
                              packet_peers(messages, self.destinations, self._everyone))
@@ -242,6 +246,7 @@ class Reliability:
         the ledger waits for the next packet's fate too (wire-format.md section 14.2)."""
         with self._lock:
             self.engine.cut(number, moved)
+            self.echoes.cut(number)
 
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:
@@ -261,10 +266,13 @@ class Reliability:
                     return m.key, payload
             return None
 
-    def copy(self, now: float, room: int) -> tuple[int, bytes] | None:
-        """A copy of a reliable message on its way, for the room a packet that leaves anyway
-        has left after its messages (uwgen.runtime.delivery.copies)."""
+    def copy(self, now: float, room: int, fresh: bool = True) -> tuple[int, bytes] | None:
+        """A copy for the room a packet that leaves anyway has left: a command of this own
+        turn (echoes.py), else, beside fresh messages, a reliable message on its way (copies.py)."""
         with self._lock:
+            echo = self.echoes.pick(now, room) if self.engine.spare.wanted() > 0 else None
+            if echo is not None or not fresh:
+                return echo
             def fits(m: Sent) -> bytes | None:
                 payload = self._aged(m, now)
                 return payload if message_measure(payload) <= room else None
@@ -300,7 +308,7 @@ class Reliability:
 
     def next_time(self, now: float) -> float | None:
         with self._lock:
-            if self._queue or self.acks.final:
+            if self._queue or self.acks.final or self.echoes.waiting(now, self.engine.spare):
                 return now
             times = [t for t in [self.engine.next_timeout()] if t is not None]
             times += self.acks.next_times()
@@ -437,5 +445,6 @@ class Reliability:
                                     "fast_resends": self.engine.fast_resends,
                                     "timer_resends": self.engine.timer_resends,
                                     "copies": self.engine.spare.sent,
+                                    **self.echoes.stats(),
                                     "clock_offsets": {p: o.as_dict() for p, o in
                                                       self.offsets.peers().items()}}}

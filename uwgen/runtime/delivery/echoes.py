@@ -1,0 +1,102 @@
+"""A command's copy in its own turn (docs/wire-format.md section 15.6, "Commands in spare
+room"). Pure: `uwgen.runtime.delivery.reliability.Reliability` tells it what left and asks
+it for a copy.
+
+A command message (a service's request or response; an action's goal, answer, result,
+result request or cancel) leaves once; the bridge sends it again when a round brought no
+answer (`uwgen.bridge.copies`). Under a MAC a round is seconds (a turn and the peer's, or a
+frame), so at 20 % loss, where a request, its answer and under turns the grant between them
+each fail one time in five, a call gets about 0.6 of a chance a round, and a 12 s deadline
+holds 3 to 4 rounds: about 2 calls in 100 fail. A copy of each leg in the same turn makes a
+leg fail one time in 25, so a round fails about one time in 8.
+
+So, from the loss at which reliable topics get copies (`copies.COPY_LOSS`), a command also
+goes once more in the room a later packet of the **same own turn or slot** leaves after its
+fresh messages (never a packet of its own, never before a fresh message): within `window`
+seconds of the packet that carried it (the MAC's `own_span`: a turn's packets, a TDMA
+slot). A later turn is the bridge's copy, timed on the round; a copy there as well would
+send the command twice. The receiver's bridge already takes a command twice (by its seq or
+handle: `duplicate_requests`, `duplicate_goals`, a repeated answer or result counted and
+dropped). The copy's age item is the command's age when it leaves. Oldest first; one copy
+a message; a message cut across packets (a long result) is not copied.
+"""
+from __future__ import annotations
+
+from collections import deque
+
+from uwgen.runtime.link.packets import message_measure
+from uwgen.runtime.wire.heads import HeadError, Heads
+
+KEPT = 16       # command messages remembered for a copy (a turn carries a few)
+
+
+class Echoes:
+    """Command messages sent in this side's turn, for one copy each in its spare room."""
+
+    def __init__(self, keys: frozenset[int], window: float, heads: Heads):
+        self.keys, self.window = keys, window     # the commands' channel keys (not feedback)
+        self.heads = heads                        # the link's heads: the age item's place
+        self._recent: deque[tuple[int, int, bytes, float]] = deque(maxlen=KEPT)  # number, key, payload, at
+        self._picked: set[int] = set()        # id() of the copies handed out for this packet
+        self._building = False                 # the packet being built carries a command
+        self.sent: dict[int, int] = {}         # channel key -> copies sent
+        self.bytes: dict[int, int] = {}        # channel key -> bytes of its copies
+
+    def carrying(self, picked: list[tuple[int, bytes]]) -> None:
+        """The packet being built carries `picked`: a command among them (not a copy) will
+        wait for its copy (`waiting`), so the turn is not ended on this packet."""
+        self._building = self.window > 0 and any(
+            key in self.keys and id(payload) not in self._picked for key, payload in picked)
+
+    def left(self, number: int, picked: list[tuple[int, bytes]], now: float) -> None:
+        """Packet `number` left now carrying `picked` ((key, payload): copies among them are
+        not copied again)."""
+        self._building = False
+        if not self.keys or self.window <= 0:
+            return
+        for key, payload in picked:
+            if id(payload) in self._picked:
+                continue
+            if key in self.keys:
+                self._recent.append((number, key, payload, now))
+        self._picked.clear()
+
+    def cut(self, number: int) -> None:
+        """Packet `number`'s last message was cut: its tail is in the next packet, and a copy
+        of its whole would not fit a packet's spare room anyway."""
+        if self._recent and self._recent[-1][0] == number:
+            self._recent.pop()
+
+    def waiting(self, now: float, spare) -> bool:
+        """Whether a command of this turn still waits for its copy, at a loss copies are
+        wanted at (`spare`: the link's `copies.Copies`): the side writes one more packet of
+        its turn for it (a follower whose answer went alone; the next packet of a leader's
+        turn is its notice or grant, which leaves anyway)."""
+        return spare.wanted() > 0 and (self._building or any(
+            now - at <= self.window for _n, _k, _p, at in self._recent))
+
+    def pick(self, now: float, room: int) -> tuple[int, bytes] | None:
+        """The copy for `room` bytes of spare room, or None: the oldest command sent within
+        `window` whose copy fits."""
+        while self._recent and now - self._recent[0][3] > self.window:
+            self._recent.popleft()
+        for i, (_number, key, payload, at) in enumerate(self._recent):
+            copy = self._older(payload, now - at)
+            if message_measure(copy) <= room:
+                del self._recent[i]
+                self._picked.add(id(copy))
+                self.sent[key] = self.sent.get(key, 0) + 1
+                self.bytes[key] = self.bytes.get(key, 0) + len(copy)
+                return key, copy
+        return None
+
+    def stats(self) -> dict:
+        return {"command_copies": dict(self.sent), "command_copy_bytes": dict(self.bytes)}
+
+    def _older(self, payload: bytes, later: float) -> bytes:
+        """`payload` with its age item (if its entry has one) `later` seconds older."""
+        try:
+            age = self.heads.take(payload).age
+        except HeadError:
+            return payload
+        return payload if age is None else self.heads.aged_again(payload, age + later)
