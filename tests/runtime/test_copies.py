@@ -1,7 +1,7 @@
 """Copies in spare room (docs/wire-format.md section 15.6): once the measured loss is above 1
 packet in 20, a reliable message not acknowledged yet also rides in the room a later packet,
-which leaves anyway with fresh messages, has left (a second copy from 1 packet in 10, the
-message with the fewest copies first); a lost copy is sent again only when no
+which leaves anyway with fresh messages, has left (a second copy from 1 packet in 10, a third
+from 3 in 20, the message with the fewest copies first); a lost copy is sent again only when no
 other copy is on its way or has arrived; the receiver delivers it once and the ledger counts
 every copy. Every time is explicit (the engine) or a ManualClock (the packer, the links)."""
 from __future__ import annotations
@@ -12,7 +12,8 @@ from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import ManualClock
 from types import SimpleNamespace
 
-from uwgen.runtime.delivery.copies import COPY_LOSS, LOSS_WINDOW, SECOND_COPY_LOSS, Copies
+from uwgen.runtime.delivery.copies import (COPY_LOSS, LOSS_WINDOW, SECOND_COPY_LOSS,
+                                           THIRD_COPY_LOSS, Copies)
 from uwgen.runtime.delivery.reliability import Reliability
 from uwgen.runtime.delivery.reliable import ReliableLink, RttEstimator, Sent
 from uwgen.runtime.link.hooks import PacketHooks
@@ -97,12 +98,20 @@ def test_from_one_packet_in_ten_lost_a_message_gets_a_second_copy():
     assert copies_of(measured(0), on_their_way(0)) == []
 
 
-def test_a_message_not_copied_yet_goes_before_a_second_copy_and_the_older_first():
-    c = measured(LOSS_WINDOW // 5)                               # 20 %: two copies each
+def test_from_three_packets_in_twenty_lost_a_message_gets_a_third_copy():
+    below = -(-int(THIRD_COPY_LOSS * LOSS_WINDOW * 10) // 10) - 1     # just under 3 in 20
+    assert SECOND_COPY_LOSS <= below / LOSS_WINDOW < THIRD_COPY_LOSS
+    assert copies_of(measured(below), on_their_way(0)) == ["m0", "m0"]
+    # at 20 % the message and its copies are all lost 1 time in 625, not 1 in 125
+    assert copies_of(measured(LOSS_WINDOW // 5), on_their_way(0)) == ["m0", "m0", "m0"]
+
+
+def test_a_message_not_copied_yet_goes_before_a_further_copy_and_the_older_first():
+    c = measured(LOSS_WINDOW // 5)                               # 20 %: three copies each
     packets = on_their_way(0, 1)                                 # 1 is the newer
     assert copies_of(c, packets, tries=1) == ["m0"]              # it waited longer
     assert copies_of(c, packets, tries=1) == ["m1"]              # not m0's second copy
-    assert copies_of(c, packets) == ["m0", "m1"]
+    assert copies_of(c, packets) == ["m0", "m1", "m0", "m1"]
 
 
 # -- the packer: copies only in room a packet leaves with anyway ----------------------------

@@ -76,7 +76,7 @@ class Reliability:
                  clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
                  settled_by: Callable[[int, float], float | None] | None = None,
-                 copies: int = 2):
+                 copies: int = 3):
         self.sender, self.name, self.wall = sender, name, wall
         # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
         # peer or been lost before the peer's packet heard now was built (turns: the peer
