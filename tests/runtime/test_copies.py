@@ -114,6 +114,38 @@ def test_a_message_not_copied_yet_goes_before_a_further_copy_and_the_older_first
     assert copies_of(c, packets) == ["m0", "m1", "m0", "m1"]
 
 
+def sent_once(loss: int = LOSS_WINDOW // 5) -> Reliability:
+    """A side whose loss is measured and round trip known (1.8 s) that sent a packet at
+    t=9.8 (number 0), then, at t=10, one reliable message (packet 1), no copy of it yet."""
+    rel = Reliability(SURFACE, period=0.2, reliable={8: 30.0}, max_ages={}, name="surface")
+    for n in range(LOSS_WINDOW):
+        rel.engine.spare.settled(n >= loss)
+    rel.engine.rtt.sample(1.8)
+    rel.engine.sent(0, [Sent(4, b"\x00\x04c", None)], 9.8)
+    rel.engine.sent(1, [Sent(8, b"\x00\x08m0", None, ident=rel.engine.spare.new_ident())], 10.0)
+    return rel
+
+
+def test_a_message_sent_once_whose_report_is_overdue_goes_first_in_the_next_packet():
+    rel = sent_once()
+    assert rel.resend(11.0, 64) is None                     # its report may still come
+    assert rel.resend(11.9, 64) == (8, b"\x00\x08m0")      # a round trip without: first
+    assert rel.resend(12.0, 64) is None                     # once; more copies in spare room
+    assert rel.copy(12.0, 64) == (8, b"\x00\x08m0")
+
+
+def test_a_message_whose_report_came_or_that_has_a_copy_waits_for_spare_room():
+    rel = sent_once()
+    r = engine(VEHICLE)
+    r.received(SURFACE, EPOCH, 0, 10.5, eliciting=False)     # built before packet 1 came
+    rel.engine.acked(r.ack_for(SURFACE, 10.6, nbytes=0), 11.0)
+    assert 1 in rel.engine.outstanding and rel.resend(12.5, 64) is None
+    rel = sent_once()
+    assert rel.copy(10.2, 64) is not None                   # copied in spare room
+    assert rel.resend(12.5, 64) is None
+    assert sent_once(loss=0).resend(12.5, 64) is None       # no loss measured: no copies
+
+
 # -- the packer: copies only in room a packet leaves with anyway ----------------------------
 
 class Queue:

@@ -102,20 +102,23 @@ class Copies:
         self.copied.pop(m.ident, None)
         return True
 
-    def pick(self, packets: Any, now: float,
-             fits: Callable[[Any], bytes | None]) -> tuple[Any, bytes] | None:
+    def pick(self, packets: Any, now: float, fits: Callable[[Any], bytes | None],
+             unanswered: tuple[float, float] | None = None) -> tuple[Any, bytes] | None:
         """The copy to put in spare room, or None: a reliable message on its way (in the SCAN
         most recently sent packets), not known delivered, with fewer than `wanted()` copies
         since it last went again and its deadline ahead, whose copy `fits` (the copy's bytes,
         or None) the room; the one with the fewest copies so far, then the one whose last copy
         left longest ago (the nearest to the slow end of the latencies: in a turn or slot of
-        several new messages, the copy of the one that waited longest for it goes first)."""
-        wanted = self.wanted()
+        several new messages, the copy of the one that waited longest for it goes first).
+        `unanswered` (after, before): only a message not copied yet, in a packet sent
+        between the two (`Reliability.resend`: its report is overdue)."""
+        wanted = self.wanted() if unanswered is None else min(1, self.wanted())
         if wanted <= 0:
             return None
         candidates: dict[int, tuple[int, int, Any]] = {}
         for age, packet in enumerate(islice(reversed(packets), SCAN)):
-            if packet.timed_out:
+            if packet.timed_out or (unanswered is not None
+                                    and not unanswered[0] < packet.at <= unanswered[1]):
                 continue
             for m in packet.messages:
                 if (m.ident is None or m.ident in self.done or m.ident in candidates

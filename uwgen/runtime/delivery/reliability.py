@@ -259,19 +259,26 @@ class Reliability:
                     self._queue.remove(m)
                     self._resending[id(payload)] = m
                     return m.key, payload
-            return None
+            # a message sent once, in a packet no report has answered for a round trip: its
+            # first copy goes first, as a re-send does (wire-format.md 15.6, overdue reports)
+            srtt = self.engine.rtt.srtt
+            return None if srtt is None else self._copy(now, room, (self.engine.reported_at, now - srtt))
 
     def copy(self, now: float, room: int) -> tuple[int, bytes] | None:
         """A copy of a reliable message on its way, for the room a packet that leaves anyway
         has left after its messages (uwgen.runtime.delivery.copies)."""
         with self._lock:
-            def fits(m: Sent) -> bytes | None:
-                payload = self._aged(m, now)
-                return payload if message_measure(payload) <= room else None
-            got = self.engine.spare.pick(self.engine.outstanding.values(), now, fits)
-            if got is not None:
-                self._resending[id(got[1])] = got[0]
-            return None if got is None else (got[0].key, got[1])
+            return self._copy(now, room)
+
+    def _copy(self, now: float, room: int,
+              unanswered: tuple[float, float] | None = None) -> tuple[int, bytes] | None:
+        def fits(m: Sent) -> bytes | None:
+            payload = self._aged(m, now)
+            return payload if message_measure(payload) <= room else None
+        got = self.engine.spare.pick(self.engine.outstanding.values(), now, fits, unanswered)
+        if got is not None:
+            self._resending[id(got[1])] = got[0]
+        return None if got is None else (got[0].key, got[1])
 
     def _aged(self, m: Sent, now: float) -> bytes:
         """The copy to send again, its age item rewritten to the message's age now (its
