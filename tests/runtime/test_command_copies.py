@@ -8,7 +8,7 @@ from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkConfig, LinkPolicy, MacConfig
 from uwgen.runtime.clock import ManualClock
-from uwgen.runtime.delivery.copies import LOSS_WINDOW
+from uwgen.runtime.delivery.copies import LOSS_WINDOW, MEASURED
 from uwgen.runtime.delivery.echoes import Echoes
 from uwgen.runtime.delivery.reliability import Reliability
 from uwgen.runtime.link.mac import mac_for
@@ -59,17 +59,36 @@ class _Lossy:
     def wanted(self) -> int:
         return self._wanted
 
+    def measured(self) -> bool:
+        return True
 
-def test_the_link_copies_a_command_only_at_a_measured_loss_and_even_in_a_packet_of_parts_alone():
+
+def command_link() -> Reliability:
     rel = Reliability(1, period=0.2, reliable={}, max_ages={CALL: 12.0}, max_read_length=64,
                       commands=frozenset({CALL}), own_span=1.0)
     rel.sent(0, [(CALL, rel.stamp(CALL, REQUEST, 0.0, 0.0))], 0.0)
-    assert rel.copy(0.2, 60) is None and rel.next_time(0.2) != 0.2      # no loss measured
+    return rel
+
+
+def test_the_link_copies_a_command_only_at_a_measured_loss_and_even_in_a_packet_of_parts_alone():
+    rel = command_link()
+    for _ in range(MEASURED):
+        rel.engine.spare.settled(True)                      # measured: nothing lost
+    assert rel.copy(0.2, 60) is None and rel.next_time(0.2) != 0.2
     for _ in range(LOSS_WINDOW // 10):
         rel.engine.spare.settled(False)
     assert rel.next_time(0.2) == 0.2                        # a packet of its turn for the copy
     key, copy = rel.copy(0.2, 60, fresh=False)              # a notice's, a grant's, an end's packet
     assert key == CALL and rel.stats()["reliability"]["command_copies"] == {CALL: 1}
+
+
+def test_at_a_start_before_the_loss_is_known_a_command_is_copied():
+    rel = command_link()                                    # nothing settled yet
+    assert rel.copy(0.2, 60) is not None
+    for _ in range(MEASURED):
+        rel.engine.spare.settled(True)
+    rel.sent(1, [(CALL, rel.stamp(CALL, RESPONSE, 0.3, 0.3))], 0.3)
+    assert rel.copy(0.5, 60) is None                        # known now: no loss, no copy
 
 
 # -- two links under turns (a ManualClock) ----------------------------------------------------
@@ -105,8 +124,8 @@ def call_over_turns(lossy: bool):
                                 other_overhead=macs[side].overhead, turn_gap=macs[side].turn_gap(),
                                 settled_by=macs[side].settled_by, commands=frozenset({CALL}),
                                 own_span=macs[side].own_span())
-        for _ in range(LOSS_WINDOW // 8 if lossy else 0):   # a link measured lossy (1 in 8)
-            rel[side].engine.spare.settled(False)
+        for k in range(LOSS_WINDOW):                 # measured: lossy (1 in 8) or not
+            rel[side].engine.spare.settled(not (lossy and k % 8 == 0))
         return rel[side].hooks()
     sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,
                     clock=clock, step=0.025,

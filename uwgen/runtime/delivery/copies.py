@@ -32,6 +32,7 @@ THIRD_COPY_LOSS = 0.15  # measured loss from which a message gets three copies
 LOSS_WINDOW = 64        # settled packets the measured loss is counted over
 DONE_KEPT = 1024        # reliable messages known delivered, remembered
 COPIED_KEPT = 2048      # messages copied, remembered (those never settled are forgotten)
+MEASURED = 16          # settled packets before the measured loss says anything
 SCAN = 32               # the most recent packets on their way a copy is looked for in
 
 
@@ -54,6 +55,10 @@ class Copies:
         """The share of the last LOSS_WINDOW settled packets reported missing (fewer settled
         so far count as arrived: a start never looks lossy)."""
         return self._recent_lost / LOSS_WINDOW
+
+    def measured(self) -> bool:
+        """Whether enough packets have settled for the loss to say something (MEASURED)."""
+        return len(self._recent) >= MEASURED
 
     def wanted(self) -> int:
         """Copies a message gets now: none below COPY_LOSS, one, two from SECOND_COPY_LOSS,

@@ -10,8 +10,10 @@ each fail one time in five, a call gets about 0.6 of a chance a round, and a 12 
 holds 3 to 4 rounds: about 2 calls in 100 fail. A copy of each leg in the same turn makes a
 leg fail one time in 25, so a round fails about one time in 8.
 
-So, from the loss at which reliable topics get copies (`copies.COPY_LOSS`), a command also
-goes once more in the room a later packet of the **same own turn or slot** leaves after its
+So, from the loss at which reliable topics get copies (`copies.COPY_LOSS`), and while too
+few packets have settled for the loss to be known (`copies.MEASURED`: at a start, where a
+first call would otherwise go alone over a link that may be lossy), a command also goes once
+more in the room a later packet of the **same own turn or slot** leaves after its
 fresh messages (never a packet of its own, never before a fresh message): within `window`
 seconds of the packet that carried it (the MAC's `own_span`: a turn's packets, a TDMA
 slot). A later turn is the bridge's copy, timed on the round; a copy there as well would
@@ -67,12 +69,17 @@ class Echoes:
         if self._recent and self._recent[-1][0] == number:
             self._recent.pop()
 
+    @staticmethod
+    def wanted(spare) -> bool:
+        """Whether commands are copied now (`spare`: the link's `copies.Copies`): at a loss
+        copies go at, or while the loss is not known yet."""
+        return spare.wanted() > 0 or not spare.measured()
+
     def waiting(self, now: float, spare) -> bool:
-        """Whether a command of this turn still waits for its copy, at a loss copies are
-        wanted at (`spare`: the link's `copies.Copies`): the side writes one more packet of
-        its turn for it (a follower whose answer went alone; the next packet of a leader's
-        turn is its notice or grant, which leaves anyway)."""
-        return spare.wanted() > 0 and (self._building or any(
+        """Whether a command of this turn still waits for its copy, when `wanted`: the side
+        writes one more packet of its turn for it (a follower whose answer went alone; the
+        next packet of a leader's turn is its notice or grant, which leaves anyway)."""
+        return self.wanted(spare) and (self._building or any(
             now - at <= self.window for _n, _k, _p, at in self._recent))
 
     def pick(self, now: float, room: int) -> tuple[int, bytes] | None:
