@@ -1,7 +1,8 @@
 """A command's copy in its own turn (uwgen.runtime.delivery.echoes; docs/wire-format.md
-section 15.6): at a measured loss a request, an answer or a result goes once more in the
-spare room of a later packet of the same turn or slot, never later, never twice; under turns
-a lost packet then costs the command nothing. Explicit times, and two links on a ManualClock."""
+section 15.6): at a measured loss a request, an answer or a result the bridge sends again
+(and, at a start, any command) goes once more in the spare room of a later packet of the
+same turn or slot, never later, never twice; under turns a lost packet then costs it
+nothing. Explicit times, and two links on a ManualClock."""
 from __future__ import annotations
 
 from uwgen.emulator import NodeSpec, Scenario
@@ -19,14 +20,28 @@ REQUEST = bytes((2, CALL, 7)) + bytes(12)   # kind 2, id 20, seq 7
 RESPONSE = bytes((3, CALL, 7)) + bytes(12)
 
 
-def echoes(window: float = 1.0) -> tuple[Echoes, Heads]:
+class _Lossy:
+    """A link's measured loss (copies.Copies): copies wanted, the loss known."""
+
+    def __init__(self, wanted: int = 1, measured: bool = True):
+        self._wanted, self._measured = wanted, measured
+
+    def wanted(self) -> int:
+        return self._wanted
+
+    def measured(self) -> bool:
+        return self._measured
+
+
+def echoes(window: float = 1.0, spare: _Lossy | None = None) -> tuple[Echoes, Heads]:
     heads = Heads(aged=frozenset({CALL}))
-    return Echoes(frozenset({CALL}), window, heads), heads
+    return Echoes(frozenset({CALL}), window, heads, spare or _Lossy()), heads
 
 
-def test_a_command_gets_one_copy_in_its_own_turn_its_age_moved_on():
+def test_a_command_sent_again_gets_one_copy_in_its_own_turn_its_age_moved_on():
     e, heads = echoes()
     stamped, _ = heads.add(REQUEST, 0.5)
+    e.repeat(CALL, REQUEST)                                 # the bridge's copy: its first was lost
     e.left(0, [(CALL, stamped)], 10.0)
     key, copy = e.pick(10.4, 64)
     assert key == CALL and heads.take(copy).payload == REQUEST
@@ -35,16 +50,30 @@ def test_a_command_gets_one_copy_in_its_own_turn_its_age_moved_on():
     assert e.pick(10.6, 64) is None and e.sent == {CALL: 1}
 
 
+def test_a_command_sent_the_first_time_gets_no_copy_once_the_loss_is_known():
+    e, heads = echoes()
+    e.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
+    assert e.pick(0.2, 64) is None and not e.waiting(0.2)
+    start, heads = echoes(spare=_Lossy(0, measured=False))   # at a start: every command
+    start.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
+    assert start.waiting(0.2) and start.pick(0.2, 64) is not None
+
+
 def test_no_copy_after_its_own_turn_or_where_it_does_not_fit():
     e, heads = echoes(window=1.0)
+    e.repeat(CALL, REQUEST)
     e.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
     assert e.pick(0.5, 8) is None                           # no room: it waits
-    assert e.waiting(0.5, _Lossy()) and not e.waiting(0.5, _Lossy(0))
-    assert e.pick(1.2, 64) is None and not e.waiting(1.2, _Lossy())   # the turn is over
+    assert e.waiting(0.5)
+    assert e.pick(1.2, 64) is None and not e.waiting(1.2)   # the turn is over
+    quiet, heads = echoes(spare=_Lossy(0))                  # no loss measured: none
+    quiet.repeat(CALL, REQUEST)
+    quiet.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
+    assert not quiet.waiting(0.2)
 
 
 def test_topics_feedback_and_a_cut_command_are_not_copied():
-    e, heads = echoes()
+    e, heads = echoes(spare=_Lossy(measured=False))        # every command: none of these
     e.left(0, [(4, bytes((0, 4, 1))), (256 + CALL, bytes((0, CALL, 1)))], 0.0)
     assert e.pick(0.2, 64) is None                          # a topic, an action's feedback
     e.left(1, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.2)
@@ -52,20 +81,10 @@ def test_topics_feedback_and_a_cut_command_are_not_copied():
     assert e.pick(0.4, 64) is None
 
 
-class _Lossy:
-    def __init__(self, wanted: int = 1):
-        self._wanted = wanted
-
-    def wanted(self) -> int:
-        return self._wanted
-
-    def measured(self) -> bool:
-        return True
-
-
 def command_link() -> Reliability:
     rel = Reliability(1, period=0.2, reliable={}, max_ages={CALL: 12.0}, max_read_length=64,
                       commands=frozenset({CALL}), own_span=1.0)
+    rel.repeat(CALL, REQUEST)                               # the bridge sends it again
     rel.sent(0, [(CALL, rel.stamp(CALL, REQUEST, 0.0, 0.0))], 0.0)
     return rel
 
@@ -142,6 +161,10 @@ def call_over_turns(lossy: bool):
             return sent(number, picked, now)
         link.hooks.sent = spy
         link.add_channel(CALL, LinkPolicy(queue="fifo", depth=8, ttl=12.0))
+    # the bridges' copies (a request sent again, its answer given again): the link copies
+    # them in their turn
+    rel["surface"].repeat(CALL, REQUEST)
+    rel["vehicle"].repeat(CALL, RESPONSE)
     sim.at(5.0, lambda: sim.links["surface"].offer(CALL, REQUEST))
     got: list[float] = []
 

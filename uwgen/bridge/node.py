@@ -138,6 +138,8 @@ class BridgeNode(Node):
         if hasattr(scheduler, "waiting"):
             w.waiting, w.withdraw = scheduler.waiting, scheduler.withdraw
             w.turns = own_turns(self.mac)
+        if self.reliability is not None:
+            w.repeat = self.reliability.repeat
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery

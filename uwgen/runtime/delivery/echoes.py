@@ -24,31 +24,58 @@ a message; a message cut across packets (a long result) is not copied.
 """
 from __future__ import annotations
 
-from collections import deque
+from collections import OrderedDict, deque
+from typing import Any
 
 from uwgen.runtime.link.packets import message_measure
 from uwgen.runtime.wire.heads import HeadError, Heads
 
 KEPT = 16       # command messages remembered for a copy (a turn carries a few)
+REPEATS = 32    # the bridge's repeats remembered until they leave
 
 
 class Echoes:
     """Command messages sent in this side's turn, for one copy each in its spare room."""
 
-    def __init__(self, keys: frozenset[int], window: float, heads: Heads):
+    def __init__(self, keys: frozenset[int], window: float, heads: Heads, spare: Any):
         self.keys, self.window = keys, window     # the commands' channel keys (not feedback)
         self.heads = heads                        # the link's heads: the age item's place
+        self.spare = spare                        # the link's copies.Copies: its measured loss
+        self._repeats: OrderedDict[tuple[int, bytes], None] = OrderedDict()   # (key, payload)
         self._recent: deque[tuple[int, int, bytes, float]] = deque(maxlen=KEPT)  # number, key, payload, at
         self._picked: set[int] = set()        # id() of the copies handed out for this packet
         self._building = False                 # the packet being built carries a command
         self.sent: dict[int, int] = {}         # channel key -> copies sent
         self.bytes: dict[int, int] = {}        # channel key -> bytes of its copies
 
+    def repeat(self, key: int, payload: bytes) -> None:
+        """The bridge offers `payload` (as it offered it: no head) on `key` again: its first
+        went without an answer, or the peer asked for it again. It gets its copy."""
+        self._repeats[(key, bytes(payload))] = None
+        while len(self._repeats) > REPEATS:
+            self._repeats.popitem(last=False)
+
+    def _copied(self, key: int, payload: bytes, take: bool = False) -> bool:
+        """Whether a command leaving now gets its copy: a repeat (taken off the list when
+        `take`), or any command while the loss is not known."""
+        if key not in self.keys or id(payload) in self._picked:
+            return False
+        if not self.spare.measured():
+            return True
+        try:
+            bare = (key, self.heads.take(payload).payload)
+        except HeadError:
+            return False
+        if bare not in self._repeats:
+            return False
+        if take:
+            del self._repeats[bare]
+        return True
+
     def carrying(self, picked: list[tuple[int, bytes]]) -> None:
-        """The packet being built carries `picked`: a command among them (not a copy) will
-        wait for its copy (`waiting`), so the turn is not ended on this packet."""
-        self._building = self.window > 0 and any(
-            key in self.keys and id(payload) not in self._picked for key, payload in picked)
+        """The packet being built carries `picked`: a command among them that gets its copy
+        will wait for it (`waiting`), so the turn is not ended on this packet."""
+        self._building = self.window > 0 and any(self._copied(k, p) for k, p in picked)
 
     def left(self, number: int, picked: list[tuple[int, bytes]], now: float) -> None:
         """Packet `number` left now carrying `picked` ((key, payload): copies among them are
@@ -57,9 +84,7 @@ class Echoes:
         if not self.keys or self.window <= 0:
             return
         for key, payload in picked:
-            if id(payload) in self._picked:
-                continue
-            if key in self.keys:
+            if self._copied(key, payload, take=True):
                 self._recent.append((number, key, payload, now))
         self._picked.clear()
 
@@ -69,17 +94,16 @@ class Echoes:
         if self._recent and self._recent[-1][0] == number:
             self._recent.pop()
 
-    @staticmethod
-    def wanted(spare) -> bool:
-        """Whether commands are copied now (`spare`: the link's `copies.Copies`): at a loss
-        copies go at, or while the loss is not known yet."""
-        return spare.wanted() > 0 or not spare.measured()
+    def wanted(self) -> bool:
+        """Whether copies go now: at a loss reliable topics' copies go at, or while the loss
+        is not known yet."""
+        return self.spare.wanted() > 0 or not self.spare.measured()
 
-    def waiting(self, now: float, spare) -> bool:
+    def waiting(self, now: float) -> bool:
         """Whether a command of this turn still waits for its copy, when `wanted`: the side
         writes one more packet of its turn for it (a follower whose answer went alone; the
         next packet of a leader's turn is its notice or grant, which leaves anyway)."""
-        return self.wanted(spare) and (self._building or any(
+        return self.wanted() and (self._building or any(
             now - at <= self.window for _n, _k, _p, at in self._recent))
 
     def pick(self, now: float, room: int) -> tuple[int, bytes] | None:

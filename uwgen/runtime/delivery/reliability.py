@@ -126,7 +126,7 @@ class Reliability:
         self._deadline_of: dict[int, float] = {}      # channel key -> its message being sent
         self._timed = False                           # the packet being built needs T
         self.engine.spare.limit = copies              # most copies in spare room (copies.py)
-        self.echoes = Echoes(frozenset(commands), own_span, self.heads)   # echoes.py
+        self.echoes = Echoes(frozenset(commands), own_span, self.heads, self.engine.spare)
         self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
@@ -247,6 +247,11 @@ class Reliability:
             self.engine.cut(number, moved)
             self.echoes.cut(number)
 
+    def repeat(self, key: int, payload: bytes) -> None:
+        """The bridge offers a command again (echoes.py: it gets a copy in its turn)."""
+        with self._lock:
+            self.echoes.repeat(key, payload)
+
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:
             return self.repairs.resend(now, room)
@@ -273,7 +278,7 @@ class Reliability:
 
     def next_time(self, now: float) -> float | None:
         with self._lock:
-            if self.repairs.queue or self.acks.final or self.echoes.waiting(now, self.engine.spare):
+            if self.repairs.queue or self.acks.final or self.echoes.waiting(now):
                 return now
             times = [t for t in [self.engine.next_timeout()] if t is not None]
             times += self.acks.next_times()

@@ -45,7 +45,7 @@ class Repairs:
     def copy(self, now: float, room: int, fresh: bool = True) -> tuple[int, bytes] | None:
         """A copy for the room a packet that leaves anyway has left: a command of this own
         turn (echoes.py), else, beside fresh messages, a reliable message on its way (copies.py)."""
-        echo = self.echoes.pick(now, room) if self.echoes.wanted(self.engine.spare) else None
+        echo = self.echoes.pick(now, room) if self.echoes.wanted() else None
         return echo if echo is not None or not fresh else self._copy(now, room)
 
     def _copy(self, now: float, room: int,
