@@ -1,26 +1,24 @@
-"""A command's copy in its own turn (docs/wire-format.md section 15.6, "Commands in spare
-room"). Pure: `uwgen.runtime.delivery.reliability.Reliability` tells it what left and asks
-it for a copy.
+"""A command's copy in its own turn (docs/wire-format.md section 15.6, "A command's copy in
+its own turn"). Pure: `uwgen.runtime.delivery.reliability.Reliability` tells it what left and
+what the bridge sends again, and asks it for a copy.
 
 A command message (a service's request or response; an action's goal, answer, result,
 result request or cancel) leaves once; the bridge sends it again when a round brought no
 answer (`uwgen.bridge.copies`). Under a MAC a round is seconds (a turn and the peer's, or a
 frame), so at 20 % loss, where a request, its answer and under turns the grant between them
 each fail one time in five, a call gets about 0.6 of a chance a round, and a 12 s deadline
-holds 3 to 4 rounds: about 2 calls in 100 fail. A copy of each leg in the same turn makes a
-leg fail one time in 25, so a round fails about one time in 8.
-
-So, from the loss at which reliable topics get copies (`copies.COPY_LOSS`), and while too
-few packets have settled for the loss to be known (`copies.MEASURED`: at a start, where a
-first call would otherwise go alone over a link that may be lossy), a command also goes once
-more in the room a later packet of the **same own turn or slot** leaves after its
-fresh messages (never a packet of its own, never before a fresh message): within `window`
-seconds of the packet that carried it (the MAC's `own_span`: a turn's packets, a TDMA
-slot). A later turn is the bridge's copy, timed on the round; a copy there as well would
-send the command twice. The receiver's bridge already takes a command twice (by its seq or
-handle: `duplicate_requests`, `duplicate_goals`, a repeated answer or result counted and
-dropped). The copy's age item is the command's age when it leaves. Oldest first; one copy
-a message; a message cut across packets (a long result) is not copied.
+holds 3 to 4 rounds: about 2 calls in 100 fail. A command that has already lost a round is
+the one whose next loss fails it: what the bridge sends again (`repeat`) also goes once more
+in the room a later packet of the **same own turn or slot** leaves after its fresh messages,
+so each of its legs fails one time in 25 and a round about one in 8. So does every command
+while too few packets have settled for the loss to be known (`copies.MEASURED`: a start).
+Copies go only at the loss from which reliable topics get theirs (`copies.COPY_LOSS`), within
+`window` seconds of the packet that carried the command (the MAC's `own_span`: a turn's
+packets, a TDMA slot; a later turn is the bridge's copy). They may ride a packet that leaves
+for its parts alone, and a follower writes one more packet of its turn for one. The
+receiver's bridge already takes a command twice (by its seq or handle). The copy's age item
+is the command's age when it leaves. Oldest first; one copy a message; a message cut across
+packets is not copied.
 """
 from __future__ import annotations
 
