@@ -14,10 +14,10 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   (`tdma_capacity`), so DESERT's queues never hold more than a slot's worth. It learns the
   frame's phase from the packets it hears and writes each frame's packets so that they reach
   DESERT's MAC just before its ON window opens (uwgen.runtime.link.slot_timing): a message
-  then waits in DESERT about one period, not up to a frame. Until it has heard a packet (or
-  after hearing none for `MEMORY_FRAMES` frames) it writes at most `capacity` in any one
-  frame, whenever: a message then waits up to about a frame (bounded, never growing, so
-  queueing is never read as a clock offset).
+  then waits in DESERT about one period, not up to a frame (until the phase is settled:
+  before the slot opens even if the phase is late). With no phase (nothing heard
+  in `MEMORY_FRAMES` frames) it listens, then writes one packet every few frames: DESERT
+  may start it late in the window, and the guard need not cover a packet and the range.
 - `TurnMac` (mode `turns`): the leader grants the turn to one side at a time (C item 2, to
   whom and how many packets); that side writes after hearing the grant, at most that many
   packets, the last carrying C item 3 (end of turn), all inside a window from the grant;
@@ -139,12 +139,11 @@ class TdmaMac(Mac):
         self.phase = FramePhase(config, {i: config.slot_start(s) for s, i in ids.items()})
         others = [i for s, i in ids.items() if s != side]
         self._anonymous = others[0] if anonymous and len(others) == 1 else None
-        self.timer = SlotTimer(config, side, link, self.capacity, link.period * (1.0 + margin),
-                               config.frame * (1.0 + margin))
+        self.timer = SlotTimer(config, side, link, self.capacity, link.period * (1.0 + margin))
         self._arrived: tuple[int, float] | None = None     # the packet being opened: (bytes, when)
 
     def next_write_at(self, now: float) -> float:
-        return self.timer.next_write_at(self.phase.start(now), now)
+        return self.timer.next_write_at(self.phase.start(now), now, self.phase.settled(now))
 
     def wrote(self, now: float, nbytes: int) -> None:
         self.timer.wrote(self.phase.start(now), now)
@@ -171,7 +170,8 @@ class TdmaMac(Mac):
         return self.config.slot_length(self.side)
 
     def stats(self) -> dict:
-        return {"mode": self.mode, "capacity_per_frame": self.capacity, "timed_writes": self.timer.timed}
+        return {"mode": self.mode, "capacity_per_frame": self.capacity, "timed_writes": self.timer.timed,
+                "blind_writes": self.timer.blind}
 
 
 class TurnMac(Mac):
