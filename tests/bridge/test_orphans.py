@@ -36,12 +36,11 @@ def kill(side, bridge) -> None:
     bridge.destroy_node()
 
 
-@pytest.mark.parametrize("down", [0.0, 1.0], ids=["restarted at once", "restarted later"])
-def test_a_goal_left_by_a_killed_server_side_bridge_is_adopted_and_its_result_reaches_the_caller(
-        pair, fib_codec, down):  # noqa: F811
-    surface, vehicle, bridges, links = pair
+def goal_then_kill(surface, vehicle, bridges, delay: float):
+    """A goal that runs `delay` s is accepted through the bridges, then the server-side
+    bridge is killed: (the goals the real server ran, the caller's goal handle)."""
     results: list = []
-    fib_server(vehicle.node("real"), results, delay=2.0)
+    fib_server(vehicle.node("real"), results, delay=delay)
     client = ActionClient(surface.node("op"), Fibonacci, "/fib")
     assert client.wait_for_server(timeout_sec=5.0)
     wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
@@ -49,6 +48,14 @@ def test_a_goal_left_by_a_killed_server_side_bridge_is_adopted_and_its_result_re
     goal_handle = send_goal(client, 5)
     assert goal_handle.accepted
     kill(vehicle, bridges["vehicle"])
+    return results, goal_handle
+
+
+@pytest.mark.parametrize("down", [0.0, 1.0], ids=["restarted at once", "restarted later"])
+def test_a_goal_left_by_a_killed_server_side_bridge_is_adopted_and_its_result_reaches_the_caller(
+        pair, fib_codec, down):  # noqa: F811
+    surface, vehicle, bridges, links = pair
+    results, goal_handle = goal_then_kill(surface, vehicle, bridges, delay=2.0)
     time.sleep(down)
     pkg = fake_package([])
     pkg.ACTIONS = {9: fib_codec}
@@ -68,15 +75,7 @@ def test_a_goal_that_finished_while_the_server_side_bridge_was_down_reports_its_
     finished on the local server's status list and, asked by the client side, gives the
     result the server kept: the caller is told succeeded, not aborted or lost."""
     surface, vehicle, bridges, links = pair
-    results: list = []
-    fib_server(vehicle.node("real"), results, delay=0.5)
-    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
-    assert client.wait_for_server(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
-             what="real server visible")
-    goal_handle = send_goal(client, 5)
-    assert goal_handle.accepted
-    kill(vehicle, bridges["vehicle"])
+    results, goal_handle = goal_then_kill(surface, vehicle, bridges, delay=0.5)
     time.sleep(2.0)                                        # it finishes meanwhile
     assert results == [5]
     pkg = fake_package([])
@@ -129,15 +128,8 @@ def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal
 
     with ros_sides("surface", "vehicle") as (surface, vehicle):
         bridges = {s.name: start_bridge(s, package, links.factory) for s in (surface, vehicle)}
-        results: list = []
-        fib_server(vehicle.node("real"), results, delay=2.5)
-        client = ActionClient(surface.node("op"), Fibonacci, "/fib")
-        assert client.wait_for_server(timeout_sec=5.0)
-        wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
-                 what="real server visible")
-        goal_handle = send_goal(client, 5)
-        assert goal_handle.accepted and results == [5]
-        kill(vehicle, bridges["vehicle"])
+        results, goal_handle = goal_then_kill(surface, vehicle, bridges, delay=2.5)
+        assert results == [5]
         monkeypatch.setattr(OrphanWatch, "_status", late_status)
         monkeypatch.setattr(OrphanWatch, "__init__", late_init)
         again = start_bridge(vehicle, package, links.factory)
