@@ -35,6 +35,7 @@ class Unacked:
     until: float                  # no copy after this: the client side may reuse the handle
     sends: int = 1
     turn: int | None = None       # own turns ended while it waited in the link (copies.py)
+    answer_by: float | None = None   # TDMA: its answer is in by then (copies.py)
 
 
 @dataclass(frozen=True)

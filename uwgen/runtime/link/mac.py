@@ -43,7 +43,7 @@ from uwgen.manifest.mac import LISTEN
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
-from uwgen.runtime.link.slot_timing import FramePhase, SlotTimer, tdma_capacity
+from uwgen.runtime.link.slot_timing import AnswerTimes, FramePhase, SlotTimer, tdma_capacity
 from uwgen.runtime.link.turn_timing import RoundTrip, TurnTiming
 from uwgen.runtime.wire import envelope as env
 
@@ -163,8 +163,7 @@ class TdmaMac(Mac):
                  margin: float = DEFAULT_MARGIN, senders: dict[str, int] | None = None,
                  anonymous: bool = False):
         super().__init__()
-        self.config = config
-        self.burst = config.frame            # one write window a frame
+        self.config, self.burst = config, config.frame      # one write window a frame
         self.capacity = tdma_capacity(config, link, side)
         self.max_bytes = link.max_read_length
         ids = {s: i for s, i in (senders or {}).items() if s in config.slots}
@@ -174,6 +173,7 @@ class TdmaMac(Mac):
         self.timer = SlotTimer(config, side, link, self.capacity, link.period * (1.0 + margin),
                                config.frame * (1.0 + margin))
         self._arrived: tuple[int, float] | None = None     # the packet being opened: (bytes, when)
+        self.answers = AnswerTimes(self.phase, self.timer, config, link, side)   # copies: slot_timing
 
     def next_write_at(self, now: float) -> float:
         return self.timer.next_write_at(self.phase.start(now), now)
