@@ -61,6 +61,7 @@ class Outgoing:
     sends: int = 1
     turn: int | None = None          # own turns ended while it waited in the link (copies.py)
     answer_by: float | None = None   # TDMA: its answer is in by then (copies.py)
+    twin: float | None = None        # TDMA: the slot its copy's twin went in
 
 
 def service_rtt(codec: Any, period: float, round_trip: float | None = None,
@@ -207,7 +208,7 @@ class StandIns:
         now = self.w.clock.now()
         for (ident, seq), outgoing in list(self.outgoing.items()):
             rtt = self.rtt[ident]
-            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto):
+            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto, twin=True):
                 continue
             rtt.backoff()
             outgoing.sends += 1
