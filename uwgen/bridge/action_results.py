@@ -78,6 +78,14 @@ class ResultBook:
             self.rtt.sample(now - unacked.first_sent)
         return unacked
 
+    def resent(self, handle: int) -> None:
+        """The result went again in reply to its goal's copy: under TDMA its own copy is
+        timed from that departure (copies.py), not from the one before, which would send it
+        a second time in the next slot."""
+        unacked = self.unacked.get(handle)
+        if unacked is not None:
+            unacked.answer_by = None
+
     def forget(self, handle: int) -> None:
         """A new goal on `handle`: what the old one left is no longer asked for."""
         self.recent.pop(handle, None)
