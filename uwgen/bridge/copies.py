@@ -30,7 +30,7 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   waits in the link, the copy is put off by one more timeout.
 
 `Leg` is what the parts keep of each message waiting for its answer: `next_send` (the
-timer), `turn` (the own turns ended while it, or its last copy, still waited in the link)
+timer), `turn` (the own turns ended while it, or its last copy, still waited in the link),
 `answer_by` (TDMA: when the answer to its last departure is in; None while it waits),
 `twin` (TDMA: the `answer_by` of the slot its copy's twin went in) and `sends`.
 """
