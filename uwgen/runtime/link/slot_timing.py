@@ -111,9 +111,6 @@ class SlotTimer:
             begin += self.frame
         return -math.inf if begin <= now else begin
 
-    def last_write(self) -> float:
-        return self._writes[-1] if self._writes else -math.inf
-
     def wrote(self, origin: float | None, now: float) -> None:
         self._writes.append(now)
         self.timed += origin is not None
@@ -153,15 +150,14 @@ class AnswerTimes:
         return self.timer.left_in(origin, now) + self.span
 
     def offered_by(self, now: float) -> float | None:
-        """For a message offered now, when the answers are in to the slot it can still be
-        written for in the write window open now (room left, and the pacer's interval after
-        the last write before its end): a second copy of what left in it rides a later
-        packet of the same slot (uwgen.bridge.copies). None: it cannot."""
+        """For a message offered now, when it can still be written in the write window open
+        now (room left, a pacer's interval before its end): a second copy of what left in
+        it rides a later packet of the same slot (uwgen.bridge.copies). None: it cannot."""
         origin = self.phase.start(now)
         if origin is None or self.span is None or self.timer.next_write_at(origin, now) > now:
             return None
         begin, end = self.timer.writes_window(origin, now)
-        if not begin <= now <= end or self.timer.last_write() + self.timer.interval > end:
+        if not begin <= now <= end - self.timer.interval:
             return None
         return end - self.timer.end + self.timer.open_at + self.span
 
