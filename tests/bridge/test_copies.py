@@ -24,17 +24,14 @@ class Leg:
     next_send: float = 3.0
     turn: int | None = None
     answer_by: float | None = None
-    twin: float | None = None
-    sends: int = 1
 
 
-def link(turns=None, answer_by=lambda now: None, offered_by=lambda now: None):
+def link(turns=None, answer_by=lambda now: None):
     """A wiring's view of the link: what waits in it, the own turns ended, and when the
-    answers to a message leaving now, or offered now, are in (TDMA)."""
+    answers to a message leaving now are in (TDMA)."""
     state = SimpleNamespace(waiting=set(), turns=turns)
     return state, SimpleNamespace(waiting=lambda k, p: (k, p) in state.waiting,
-                                  turns=lambda: state.turns, answer_by=answer_by,
-                                  offered_by=offered_by)
+                                  turns=lambda: state.turns, answer_by=answer_by)
 
 
 def test_without_turns_a_copy_is_due_on_its_timer():
@@ -106,26 +103,6 @@ def test_under_tdma_a_copy_is_due_once_the_answer_to_its_slot_could_no_longer_co
     assert not copy_due(w, 20, b"req", leg, 3.1, rto=3.2)
     assert not copy_due(w, 20, b"req", leg, 5.9, rto=3.2)
     assert copy_due(w, 20, b"req", leg, 5.98, rto=3.2)
-
-
-def test_under_tdma_a_copy_gets_one_twin_in_the_same_slot_while_its_window_has_room():
-    # the slot whose answers are in by 2.98 takes writes until 0.45 (0.24 with room for one
-    # more packet); a first send gets no twin, a copy one
-    slot = lambda now: 3.0 * ((now + 0.9) // 3.0) + 2.98
-    state, w = link(answer_by=slot, offered_by=lambda now: slot(now) if (now + 0.9) % 3.0 <= 1.14 else None)
-    first = Leg(next_send=9.0)
-    assert not copy_due(w, 20, b"req", first, 0.1, rto=3.2, twin=True)     # the first send: no twin
-    copy = Leg(next_send=9.0, sends=2)                # a copy offered at 2.98, left at 3.05
-    assert copy_due(w, 20, b"req", copy, 3.1, rto=3.2, twin=True)          # its twin, in this slot
-    state.waiting.add((20, b"req"))
-    assert not copy_due(w, 20, b"req", copy, 3.2, rto=3.2, twin=True)
-    state.waiting.clear()                             # the twin left too
-    assert not copy_due(w, 20, b"req", copy, 3.3, rto=3.2, twin=True)      # one twin a slot
-    assert copy_due(w, 20, b"req", copy, 5.98, rto=3.2, twin=True)         # the next frame's copy
-    result = Leg(next_send=9.0, sends=2)              # a result's copy: no twin (a long deadline)
-    assert not copy_due(w, 20, b"req", result, 3.1, rto=3.2)
-    late = Leg(next_send=9.0, sends=2)                # a copy that left as the window closed
-    assert not copy_due(w, 20, b"req", late, 3.3, rto=3.2, twin=True)
 
 
 def test_under_tdma_without_a_phase_a_copy_is_due_on_its_timer():

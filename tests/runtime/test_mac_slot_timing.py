@@ -166,18 +166,3 @@ def test_answers_to_a_packet_written_for_a_slot_are_in_once_the_peers_next_on_wi
     vehicle = TdmaMac(TWO, "vehicle", LINK, senders=SENDERS)
     hear(vehicle, 1, arrival(10.0, 0.0))                     # its ON opens at 10.5 + k
     assert vehicle.answers.answer_by(11.3) == pytest.approx(11.5 + 0.5 + 0.25 + AIR + DELAY + ANSWER_MARGIN)
-
-
-def test_a_message_offered_while_the_write_window_has_room_still_leaves_in_its_slot():
-    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
-    assert mac.answers.offered_by(10.3) is None                  # no phase
-    hear(mac, 2, arrival(10.0, 0.5))
-    by = 11.0 + 0.5 + 0.25 + AIR + DELAY + ANSWER_MARGIN
-    begin = mac.next_write_at(10.3)
-    end = 11.0 + send_window(TWO, LINK, "surface") - LEAD - 0.2
-    assert mac.answers.offered_by(begin + 0.01) == pytest.approx(by)
-    assert mac.answers.offered_by(10.3) is None                  # before the window: not yet
-    assert mac.answers.offered_by(end - 0.01) is None            # no interval left before its end
-    mac.wrote(begin, 64)
-    mac.wrote(begin + 0.21, 64)                                  # the slot's 2 packets: full
-    assert mac.answers.offered_by(begin + 0.22) is None

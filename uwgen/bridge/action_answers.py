@@ -39,7 +39,6 @@ class GoalState:
     sends: int = 1
     turn: int | None = None                       # own turns ended while it waited (copies.py)
     answer_by: float | None = None   # TDMA: its answer is in by then (copies.py)
-    twin: float | None = None        # TDMA: the slot its copy's twin went in
     next_send: float = float("inf")               # when to send it again while unanswered (none
                                                   # until it is first sent: the expiry timer
                                                   # may run while the goal is being encoded)

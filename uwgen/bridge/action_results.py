@@ -36,7 +36,6 @@ class Unacked:
     sends: int = 1
     turn: int | None = None       # own turns ended while it waited in the link (copies.py)
     answer_by: float | None = None   # TDMA: its answer is in by then (copies.py)
-    twin: float | None = None        # TDMA: the slot its copy's twin went in
 
 
 @dataclass(frozen=True)

@@ -18,21 +18,13 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   closes, so the copy still leaves in the next own slot, and an answer merely late in the
   peer's slot costs no copy. A timer cannot do this: the frame's phase drifts against it,
   its copy leaves just before a late answer, or misses a window and loses a frame.
-  A request's copy (`twin=True`: a deadline of a few frames) gets a twin: once the copy
-  has left, the same bytes again while the write window still has room (`Wiring
-  .offered_by`), so it rides a later packet of the same slot; the serving side answers
-  each copy that arrives, so the answer is doubled too. At 20 % loss a round (request and
-  answer) then fails about 13 % of the time instead of 36 %, at the cost of a request and
-  most of the time an answer more per round that needed a copy. The first send has no
-  twin. Results and goals (their deadlines leave more frames) go single.
 - Other MACs (none, and TDMA while no phase is known): the retransmission timer
   (`uwgen.runtime.delivery.reliable.command_rtt`); when it fires while the message still
   waits in the link, the copy is put off by one more timeout.
 
 `Leg` is what the parts keep of each message waiting for its answer: `next_send` (the
-timer), `turn` (the own turns ended while it, or its last copy, still waited in the link),
-`answer_by` (TDMA: when the answer to its last departure is in; None while it waits),
-`twin` (TDMA: the `answer_by` of the slot its copy's twin went in) and `sends`.
+timer), `turn` (the own turns ended while it, or its last copy, still waited in the link)
+and `answer_by` (TDMA: when the answer to its last departure is in; None while it waits).
 """
 from __future__ import annotations
 
@@ -41,22 +33,16 @@ from typing import TYPE_CHECKING, Callable, Protocol
 if TYPE_CHECKING:
     from uwgen.bridge.wiring import Wiring
 
-TWIN_MATCH = 0.5        # s: the same slot's answer time, whatever the phase estimate moved
-
 
 class Leg(Protocol):
     next_send: float
     turn: int | None
     answer_by: float | None
-    twin: float | None
-    sends: int
 
 
-def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: float,
-             twin: bool = False) -> bool:
+def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: float) -> bool:
     """True when the copy of `payload` (channel `key`) is to be offered now (module doc);
-    `rto`: the timer's next wait, used when it fires while the message still waits; `twin`:
-    under TDMA a copy gets a twin in its slot (a deadline of a few frames: requests, goals)."""
+    `rto`: the timer's next wait, used when it fires while the message still waits."""
     turns = w.turns()
     if turns is None:
         if w.waiting(key, payload):
@@ -69,7 +55,7 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
         if leg.answer_by is None:
             return leg.next_send <= now
         if now < leg.answer_by:
-            return twin and _twin_due(w, leg, now)
+            return False
         leg.answer_by = None                 # the copy: timed again once it has left
         return True
     if w.waiting(key, payload) or leg.turn is None:
@@ -78,18 +64,6 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
     if turns <= leg.turn:
         return False                         # the turn that carried it has not ended
     leg.turn = turns                         # the copy waits from now for the next own turn
-    return True
-
-
-def _twin_due(w: Wiring, leg: Leg, now: float) -> bool:
-    """TDMA: a copy that has left gets one twin in a later packet of the same slot, while
-    the write window has room for it (module doc)."""
-    if leg.sends < 2 or leg.twin == leg.answer_by:
-        return False
-    by = w.offered_by(now)
-    if by is None or abs(by - leg.answer_by) > TWIN_MATCH:
-        return False
-    leg.twin = leg.answer_by
     return True
 
 
@@ -110,11 +84,3 @@ def answer_time(mac) -> Callable[[float], float | None]:
     if getattr(mac, "mode", "none") != "tdma":
         return lambda now: None
     return mac.answers.answer_by
-
-
-def twin_time(mac) -> Callable[[float], float | None]:
-    """Under TDMA with a known phase, for a message offered now, when the answers to the slot
-    it can still be written for are in (`AnswerTimes.offered_by`); None otherwise."""
-    if getattr(mac, "mode", "none") != "tdma":
-        return lambda now: None
-    return mac.answers.offered_by

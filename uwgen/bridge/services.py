@@ -61,7 +61,6 @@ class Outgoing:
     sends: int = 1
     turn: int | None = None          # own turns ended while it waited in the link (copies.py)
     answer_by: float | None = None   # TDMA: its answer is in by then (copies.py)
-    twin: float | None = None        # TDMA: the slot its copy's twin went in
 
 
 def service_rtt(codec: Any, period: float, round_trip: float | None = None,
@@ -208,7 +207,7 @@ class StandIns:
         now = self.w.clock.now()
         for (ident, seq), outgoing in list(self.outgoing.items()):
             rtt = self.rtt[ident]
-            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto, twin=True):
+            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto):
                 continue
             rtt.backoff()
             outgoing.sends += 1

@@ -53,7 +53,6 @@ class Wiring:
     withdraw: Callable[[int, bytes], bool] = lambda key, payload: False
     turns: Callable[[], int | None] = lambda: None
     answer_by: Callable[[float], float | None] = lambda now: None   # TDMA: copies.answer_time
-    offered_by: Callable[[float], float | None] = lambda now: None  # TDMA: copies.twin_time
     # answer head -> (key, copy): a copy the answer takes back on arrival (take_back)
     answered_by: OrderedDict = field(default_factory=OrderedDict)
     said: set[str] = field(default_factory=set)

@@ -90,7 +90,7 @@ class SlotTimer:
 
     def __init__(self, config: MacConfig, side: str, link: LinkConfig, capacity: int,
                  interval: float, window: float, lead: float = LEAD):
-        self.frame, self.capacity, self.window, self.interval = config.frame, capacity, window, interval
+        self.frame, self.capacity, self.window = config.frame, capacity, window
         self.open_at = config.slot_start(side)              # from the frame's start
         close = self.open_at + send_window(config, link, side)
         self.end = close - lead - link.period               # last write of a frame's window
@@ -148,18 +148,6 @@ class AnswerTimes:
         if origin is None or self.span is None:
             return None
         return self.timer.left_in(origin, now) + self.span
-
-    def offered_by(self, now: float) -> float | None:
-        """For a message offered now, when it can still be written in the write window open
-        now (room left, a pacer's interval before its end): a second copy of what left in
-        it rides a later packet of the same slot (uwgen.bridge.copies). None: it cannot."""
-        origin = self.phase.start(now)
-        if origin is None or self.span is None or self.timer.next_write_at(origin, now) > now:
-            return None
-        begin, end = self.timer.writes_window(origin, now)
-        if not begin <= now <= end - self.timer.interval:
-            return None
-        return end - self.timer.end + self.timer.open_at + self.span
 
 
 def reply_span(config: MacConfig, link: LinkConfig, side: str) -> float | None:
