@@ -9,8 +9,9 @@ traffic as in the demo, against the same workload without the commands' retries,
 Per rate and mode it prints: calls and goals that succeeded within their timeouts with the
 real result (the server's own response / Fibonacci sequence), duplicate executions at the
 real server (a request or goal run more than once), and the air time spent on retries and
-acknowledgements (copies of requests, goals, results and answers; result acknowledgements
-and requests; 4 bytes of framing each) as a share of all bytes the two sides wrote.
+acknowledgements (copies of requests, goals, results and answers, the bridge's and the
+link's copies in the same turn (uwgen.runtime.delivery.echoes); result acknowledgements and
+requests; 4 bytes of framing each) as a share of all bytes the two sides wrote.
 
 Modes: `retries` is this build; `reference` is the same build with the commands' retries off
 (no request copies, no result copies, no result acknowledgements or requests; goals are
@@ -31,6 +32,7 @@ from __future__ import annotations
 import argparse
 import gc
 import itertools
+import json
 import os
 import random
 import sys
@@ -139,8 +141,14 @@ class Overhead:
 
     def __init__(self, bridge: BridgeNode, retries: bool):
         self.bytes = 0
+        self.kinds: Counter = Counter()       # bytes by what they are (--breakdown)
         self.seen: set[tuple[int, bytes]] = set()
         send = bridge.wiring.send
+
+        def kind(key: int, payload: bytes, status: bool) -> str:
+            what = {(20, 2): "request copy", (20, 3): "response copy", (9, 2): "goal copy",
+                    (9, 3): "goal answer/result copy"}.get((key, payload[0]), f"id {key} copy")
+            return "result ack/query" if status else what
 
         def counted(key: int, payload: bytes, **kw) -> bool:
             if key in COMMAND_IDS:
@@ -149,6 +157,7 @@ class Overhead:
                     return True                     # reference: no result status at all
                 if status or (key, payload) in self.seen:
                     self.bytes += len(payload) + OVERHEAD
+                    self.kinds[kind(key, payload, status)] += len(payload) + OVERHEAD
                 self.seen.add((key, payload))
             return send(key, payload, **kw)
         bridge.wiring.send = counted
@@ -158,6 +167,8 @@ class Overhead:
             taken = withdraw(key, payload)
             if taken and key in COMMAND_IDS and (key, payload) in self.seen:
                 self.bytes -= len(payload) + OVERHEAD
+                status = payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18
+                self.kinds[kind(key, payload, status)] -= len(payload) + OVERHEAD
             return taken
         bridge.wiring.withdraw = withdrawn
         if not retries:
@@ -172,7 +183,6 @@ def trace(side: str, bridge: BridgeNode) -> None:
     """Write down when each command payload was offered and arrived, each refusal of the
     receiving judge, and each packet taken for writing: where a failed call or goal lost its
     time (benchmarks/trace_commands.py reads it)."""
-    import json
     out, lock = TRACE, threading.Lock()
 
     def put(**row):
@@ -210,7 +220,7 @@ def trace(side: str, bridge: BridgeNode) -> None:
                 e = envelope.decode(frame)
             except Exception:
                 continue
-            put(ev="packet", no=e.number, ack=e.ack is not None,
+            put(ev="packet", no=e.number, ack=e.ack is not None, c=(e.control or b"").hex(),
                 m=[envelope.to_v1(m)[:6].hex() for m in e.messages])
         return batch
     bridge.link.connection.outbox.take = taking
@@ -303,7 +313,18 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             time.sleep(1.0)
             written = sum(b.link.stats()["connection"]["bytes_sent"] for b in bridges.values())
             extra = sum(o.bytes for o in overhead.values())
+            kinds = sum((o.kinds for o in overhead.values()), Counter())
+            for b in bridges.values():    # the link's copies of commands in their own turn
+                rel = b.link.stats().get("reliability", {})
+                copies = rel.get("command_copies", {})
+                for key, n in rel.get("command_copy_bytes", {}).items():
+                    if int(key) in COMMAND_IDS:            # framing counted per copy, as above
+                        extra += n + OVERHEAD * copies[key]
+                        kinds["in-turn copy"] += n + OVERHEAD * copies[key]
             collisions = sum(c["lost_collision"] for c in emu.all_counters().values())
+            if TRACE is not None:
+                for name, b in bridges.items():
+                    TRACE.write(json.dumps({"ev": "mac", "side": name, **b.link.stats()["mac"]}) + "\n")
         finally:
             surface.close()
             vehicle.close()
@@ -315,7 +336,8 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
     capacity = 2 * elapsed / 0.2 * (64 + OVERHEAD)
     return {"calls": f"{ok_calls}/{calls}", "goals": f"{ok_goals}/{goals}", "dup": dup,
             "share": extra / written if written else 0.0, "capacity": extra / capacity,
-            "time": elapsed, "collisions": collisions}
+            "time": elapsed, "collisions": collisions,
+            "kinds": {k: v / written if written else 0.0 for k, v in sorted(kinds.items())}}
 
 
 def main() -> int:
@@ -333,6 +355,8 @@ def main() -> int:
     ap.add_argument("--mac", default="none",
                     help="comma-separated MACs to run (none, tdma, turns; see MACS); the first "
                          "row of each rate is the reference")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="after each row, the retry+ack bytes by what they are (share of bytes written)")
     ap.add_argument("--trace", help="write a JSON line per command payload, refusal and "
                                     "packet here (benchmarks/trace_commands.py reads it)")
     args = ap.parse_args()
@@ -362,6 +386,8 @@ def main() -> int:
                 print(f"| {per:.0%} | {mac} | {'retries' if retries else 'reference'} | "
                       f"{r['calls']} | {r['goals']} | {r['dup']} | {r['share']:.1%} | "
                       f"{r['capacity']:.1%} | {r['collisions']} | {r['time']:.0f} |", flush=True)
+                if args.breakdown:
+                    print("  retry+ack bytes: " + ", ".join(f"{k} {v:.1%}" for k, v in r["kinds"].items()))
     return 0
 
 

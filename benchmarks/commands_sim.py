@@ -97,8 +97,8 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
         hooks = r.hooks()
 
         def counted(source):                # re-sends and copies in spare room: repair bytes
-            def count(now, room):
-                got = source(now, room)
+            def count(now, room, *fresh):
+                got = source(now, room, *fresh)
                 if got is not None:
                     repair["resent"] += message_measure(got[1])
                 return got

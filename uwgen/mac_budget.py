@@ -80,6 +80,7 @@ def mac_warnings(manifest: Manifest) -> list[str]:
     longest = max(links.values(), key=lambda link: link.max_read_length)
     if mac.mode == "tdma":
         from uwgen.runtime.link.mac import tdma_capacity
+        from uwgen.runtime.link.slot_timing import BLIND_FRAMES
         shortest = min(mac.slots, key=mac.slot_length)
         for name in (s for s in mac.slots if mac.weight(s) > mac.weight(shortest)):
             link = manifest.sides[name].link
@@ -93,7 +94,8 @@ def mac_warnings(manifest: Manifest) -> list[str]:
             out.append(f"mac tdma: guard {mac.guard:g} s is shorter than a {longest.max_read_length}-byte "
                        f"packet's air time plus the {mac.range:g} m range ({overrun:.3f} s): a packet "
                        "DESERT starts at the end of a slot's ON window runs into the next slot, so "
-                       "a side writes only what starts early enough")
+                       "a side writes only what starts early enough, and until it has heard the "
+                       f"frame's phase it listens, then writes a packet every {BLIND_FRAMES} frames")
     rt = round_trip(mac, longest.period, longest.max_read_length, list(manifest.sides))
     deadlines = [(f"service {s.name}", "timeout", s.timeout) for s in manifest.services]
     deadlines += [(f"action {a.name}", "accept_timeout", a.accept_timeout)

@@ -1,7 +1,7 @@
 """Copies in spare room (docs/wire-format.md section 15.6): once the measured loss is above 1
 packet in 20, a reliable message not acknowledged yet also rides in the room a later packet,
-which leaves anyway with fresh messages, has left (a second copy from 1 packet in 10, the
-message with the fewest copies first); a lost copy is sent again only when no
+which leaves anyway with fresh messages, has left (a second copy from 1 packet in 10, a third
+from 3 in 20, the message with the fewest copies first); a lost copy is sent again only when no
 other copy is on its way or has arrived; the receiver delivers it once and the ledger counts
 every copy. Every time is explicit (the engine) or a ManualClock (the packer, the links)."""
 from __future__ import annotations
@@ -12,7 +12,8 @@ from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.clock import ManualClock
 from types import SimpleNamespace
 
-from uwgen.runtime.delivery.copies import COPY_LOSS, LOSS_WINDOW, SECOND_COPY_LOSS, Copies
+from uwgen.runtime.delivery.copies import (COPY_LOSS, LOSS_WINDOW, SECOND_COPY_LOSS,
+                                           THIRD_COPY_LOSS, Copies)
 from uwgen.runtime.delivery.reliability import Reliability
 from uwgen.runtime.delivery.reliable import ReliableLink, RttEstimator, Sent
 from uwgen.runtime.link.hooks import PacketHooks
@@ -97,12 +98,52 @@ def test_from_one_packet_in_ten_lost_a_message_gets_a_second_copy():
     assert copies_of(measured(0), on_their_way(0)) == []
 
 
-def test_a_message_not_copied_yet_goes_before_a_second_copy_and_the_older_first():
-    c = measured(LOSS_WINDOW // 5)                               # 20 %: two copies each
+def test_from_three_packets_in_twenty_lost_a_message_gets_a_third_copy():
+    below = -(-int(THIRD_COPY_LOSS * LOSS_WINDOW * 10) // 10) - 1     # just under 3 in 20
+    assert SECOND_COPY_LOSS <= below / LOSS_WINDOW < THIRD_COPY_LOSS
+    assert copies_of(measured(below), on_their_way(0)) == ["m0", "m0"]
+    # at 20 % the message and its copies are all lost 1 time in 625, not 1 in 125
+    assert copies_of(measured(LOSS_WINDOW // 5), on_their_way(0)) == ["m0", "m0", "m0"]
+
+
+def test_a_message_not_copied_yet_goes_before_a_further_copy_and_the_older_first():
+    c = measured(LOSS_WINDOW // 5)                               # 20 %: three copies each
     packets = on_their_way(0, 1)                                 # 1 is the newer
     assert copies_of(c, packets, tries=1) == ["m0"]              # it waited longer
     assert copies_of(c, packets, tries=1) == ["m1"]              # not m0's second copy
-    assert copies_of(c, packets) == ["m0", "m1"]
+    assert copies_of(c, packets) == ["m0", "m1", "m0", "m1"]
+
+
+def sent_once(loss: int = LOSS_WINDOW // 5) -> Reliability:
+    """A side whose loss is measured and round trip known (1.8 s) that sent a packet at
+    t=9.8 (number 0), then, at t=10, one reliable message (packet 1), no copy of it yet."""
+    rel = Reliability(SURFACE, period=0.2, reliable={8: 30.0}, max_ages={}, name="surface")
+    for n in range(LOSS_WINDOW):
+        rel.engine.spare.settled(n >= loss)
+    rel.engine.rtt.sample(1.8)
+    rel.engine.sent(0, [Sent(4, b"\x00\x04c", None)], 9.8)
+    rel.engine.sent(1, [Sent(8, b"\x00\x08m0", None, ident=rel.engine.spare.new_ident())], 10.0)
+    return rel
+
+
+def test_a_message_sent_once_whose_report_is_overdue_goes_first_in_the_next_packet():
+    rel = sent_once()
+    assert rel.resend(11.0, 64) is None                     # its report may still come
+    assert rel.resend(11.9, 64) == (8, b"\x00\x08m0")      # a round trip without: first
+    assert rel.resend(12.0, 64) is None                     # once; more copies in spare room
+    assert rel.copy(12.0, 64) == (8, b"\x00\x08m0")
+
+
+def test_a_message_whose_report_came_or_that_has_a_copy_waits_for_spare_room():
+    rel = sent_once()
+    r = engine(VEHICLE)
+    r.received(SURFACE, EPOCH, 0, 10.5, eliciting=False)     # built before packet 1 came
+    rel.engine.acked(r.ack_for(SURFACE, 10.6, nbytes=0), 11.0)
+    assert 1 in rel.engine.outstanding and rel.resend(12.5, 64) is None
+    rel = sent_once()
+    assert rel.copy(10.2, 64) is not None                   # copied in spare room
+    assert rel.resend(12.5, 64) is None
+    assert sent_once(loss=0).resend(12.5, 64) is None       # no loss measured: no copies
 
 
 # -- the packer: copies only in room a packet leaves with anyway ----------------------------
@@ -117,13 +158,13 @@ class Queue:
         return self.items.pop(0)
 
 
-def packer(fresh, copies):
+def packer(fresh, copies, ack_only=True):
     asked = []
 
-    def copy(now, room):
-        asked.append(room)
+    def copy(now, room, fresh):
+        asked.append((room, fresh))
         return copies.pop(0) if copies else None
-    hooks = PacketHooks(copy=copy, ack_only=lambda now: True)
+    hooks = PacketHooks(copy=copy, ack_only=lambda now: ack_only)
     return Packer(Queue(fresh), sender=1, max_read_length=64, hooks=hooks,
                   counters=Counters(PACKET_COUNTERS)), asked
 
@@ -132,13 +173,27 @@ def test_a_copy_fills_the_room_left_after_the_fresh_messages():
     p, asked = packer([(4, bytes((0, 4)) + bytes(20))], [(8, bytes((0, 8)) + bytes(20))])
     out = envelope.decode(p.next_packet(0.0))
     assert [m.id for m in out.messages] == [4, 8]                      # fresh first, then the copy
-    assert asked and asked[0] < 64
+    assert asked and asked[0][0] < 64 and asked[0][1] is True
 
 
 def test_a_copy_never_makes_a_packet_of_its_own():
-    p, asked = packer([], [(8, bytes((0, 8)) + bytes(20))])
-    out = envelope.decode(p.next_packet(0.0))                          # leaves for its A part
-    assert not out.messages and asked == []
+    p, asked = packer([], [(8, bytes((0, 8)) + bytes(20))], ack_only=False)
+    assert p.next_packet(0.0) is None and asked == []                  # nothing makes it leave
+
+
+def test_a_packet_that_leaves_for_its_parts_alone_is_offered_copies_as_not_fresh():
+    p, asked = packer([], [])
+    envelope.decode(p.next_packet(0.0))                                # leaves for its A part
+    assert [fresh for _room, fresh in asked] == [False]
+
+
+def test_reliable_copies_ride_only_beside_fresh_messages():
+    rel = Reliability(1, period=0.5, reliable={7: 30.0}, max_ages={}, max_read_length=64)
+    for _ in range(LOSS_WINDOW):
+        rel.engine.spare.settled(False)                                # lossy: copies wanted
+    rel.sent(0, [(7, rel.stamp(7, bytes((0, 7)) + bytes(8), 0.0, 0.0))], 0.0)
+    assert rel.copy(0.2, 60, fresh=False) is None
+    assert rel.copy(0.2, 60, fresh=True) is not None
 
 
 # -- two links (a ManualClock) --------------------------------------------------------------
@@ -216,6 +271,6 @@ def test_under_turns_a_copy_never_keeps_the_leaders_turn():
     for k in range(3):
         (t, n), = mission_copies(written, k)                 # one copy: nothing rode with it
         after = [keys for when, number, keys in written["surface"] if number == n + 1]
-        assert after == [[]]                                 # the next packet: the grant alone
+        assert after == [[]]                     # the next packet: the notice alone, no copy
     assert rel["surface"].stats()["reliability"]["copies"] == 0
     assert surface.counts["grants_sent"] > 10

@@ -240,7 +240,7 @@ def test_the_hooks_are_told_the_tail_takes_room_but_not_that_it_was_sent_again()
     # reliability sizes its A part from what `carrying` says the messages take
     from uwgen.runtime.link.hooks import PacketHooks
     carried, sent = [], []
-    hooks = PacketHooks(carrying=lambda picked, now: carried.append(list(picked)),
+    hooks = PacketHooks(carrying=lambda picked, now, fresh: carried.append(list(picked)),
                         sent=lambda n, picked, now: sent.append(list(picked)))
     sim = LinkSim(scenario(), "a", "b", wire_format=2, sender_id=1, hooks=hooks)
     sim.sender.add_channel(5, LinkPolicy(queue="fifo", depth=100))

@@ -169,14 +169,15 @@ def test_tdma_writes_at_most_a_slots_capacity_per_frame():
     config = MacConfig(mode="tdma", frame=1.0, guard=0.35, slots=("surface", "vehicle"),
                        max_packet_per_slot=1000, range=300)
     assert tdma_capacity(config, LINK) == 2
-    mac = TdmaMac(config, "surface", LINK)
-    assert mac.next_write_at(0.0) == -math.inf
-    mac.wrote(0.0, 64)
-    mac.wrote(0.21, 64)
-    assert mac.next_write_at(0.3) == pytest.approx(1.05)
-    assert mac.next_write_at(1.05) == -math.inf       # the first write left the window
-    mac.wrote(1.05, 64)
-    assert mac.next_write_at(1.1) == pytest.approx(1.26)
+    mac = TdmaMac(config, "surface", LINK, senders={"surface": 1, "vehicle": 2})
+    mac.arrived(64, 10.0 + 0.5 + 68 * 8 / 4800 + 0.2)  # the vehicle's slot of frames at 10 + k
+    mac.heard(2, b"", 10.0 + 0.5 + 68 * 8 / 4800 + 0.2)
+    t = mac.next_write_at(10.9)
+    for _ in range(2):
+        assert mac.next_write_at(t) == -math.inf
+        mac.wrote(t, 64)
+        t += 0.21
+    assert mac.next_write_at(t) == pytest.approx(t - 0.42 + 1.0)   # the next frame's window
     assert mac.turn_gap() == 1.0
 
 

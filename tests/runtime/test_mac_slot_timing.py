@@ -9,7 +9,8 @@ import pytest
 
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.mac import TdmaMac, mac_for
-from uwgen.runtime.link.slot_timing import ANSWER_MARGIN, LEAD, FramePhase, send_window
+from uwgen.runtime.link.slot_timing import (ANSWER_MARGIN, BLIND_FRAMES, LEAD, LISTEN_FRAMES, MEMORY_FRAMES,
+                                            FramePhase, send_window)
 
 LINK = LinkConfig(max_read_length=64, period=0.2)
 # frame 1 s, 2 slots of 0.5 s, guard 0.25: surface ON [0, 0.25), vehicle ON [0.5, 0.75)
@@ -77,59 +78,121 @@ def test_a_guard_shorter_than_a_packet_and_the_range_shortens_the_send_window():
     assert TdmaMac(TWO, "surface", LINK).capacity == 2
 
 
-def test_nothing_heard_keeps_tdma_to_its_rate_limit():
+def settled(mac: TdmaMac, at: float) -> float:
+    """`mac` hears the vehicle's slot (2 packets) of the frame starting at `at`, frames
+    starting at `at` + k: two packets of one sender a frame apart at most, so one was timed
+    and the phase is settled. Returns the next frame's start."""
+    hear(mac, 2, arrival(at, 0.5))
+    hear(mac, 2, arrival(at, 0.5, place=AIR))
+    return at + 1.0
+
+
+def test_a_side_that_has_heard_nothing_listens_before_it_writes():
+    # the first slot's side listens LISTEN_FRAMES frames, the others MEMORY_FRAMES: a side
+    # that starts late or restarts hears the others' timed packets before it writes
+    surface = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
+    vehicle = TdmaMac(TWO, "vehicle", LINK, senders=SENDERS)
+    assert surface.next_write_at(3.0) == pytest.approx(3.0 + LISTEN_FRAMES * TWO.frame)
+    assert vehicle.next_write_at(3.0) == pytest.approx(3.0 + MEMORY_FRAMES * TWO.frame)
+    hear(vehicle, 1, arrival(4.0, 0.0, place=0.2))           # the surface's: now it knows a phase
+    assert vehicle.next_write_at(4.6) < 3.0 + MEMORY_FRAMES * TWO.frame
+
+
+def test_with_no_phase_known_one_packet_goes_per_blind_gap():
+    # it may start anywhere in DESERT's ON window and run into the next slot: one at a time,
+    # until the answer it brings (the others' timed packets) has had time to arrive
     mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
-    for t in (0.33, 0.54):                                   # any phase: only the count holds
+    t = mac.next_write_at(0.0)
+    assert mac.next_write_at(t) == -math.inf
+    mac.wrote(t, 64)
+    assert mac.next_write_at(t + 0.21) == pytest.approx(t + BLIND_FRAMES * TWO.frame)
+    assert mac.stats()["blind_writes"] == 1 and mac.stats()["timed_writes"] == 0
+
+
+def test_a_phase_not_settled_has_writes_reach_the_mac_before_the_slot_even_if_it_is_late():
+    # the packet heard may have started up to the vehicle's ON window (0.25 s) into it: the
+    # frame then starts up to 0.25 s before 10.0 + k; until settled every write reaches
+    # DESERT's MAC (a period after it) before the earliest opening, 11.75 + k, and after the
+    # surface's window before closed
+    mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
+    hear(mac, 2, arrival(10.0, 0.5))
+    on = 0.5 - TWO.guard
+    end = 12.0 - on - LEAD - 0.2
+    t = mac.next_write_at(10.9)
+    assert t == pytest.approx(max(12.0 - 1.0 + on, end - 0.21 - LEAD))
+    for _ in range(2):
         assert mac.next_write_at(t) == -math.inf
         mac.wrote(t, 64)
-    assert mac.next_write_at(0.8) == pytest.approx(0.33 + 1.05)
-    assert mac.stats()["timed_writes"] == 0
+        assert t + 0.2 + LEAD <= 12.0 - on                    # in the MAC before the earliest open
+        t += 0.21
+    assert mac.next_write_at(t) > 12.0                        # full: the next frame's
+    # a second packet of the vehicle's within two frames: one of the two was timed
+    hear(mac, 2, arrival(11.0, 0.5))
+    close = 13.0 + send_window(TWO, LINK, "surface")
+    begin = min(13.0 - 0.2 - LEAD, close - 0.2 - LEAD - 0.21 - LEAD)
+    assert mac.next_write_at(12.2) == pytest.approx(begin)
+
+
+def test_packets_of_one_sender_as_far_apart_as_blind_writes_do_not_settle_the_phase():
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase.heard(2, 64, arrival(10.0, 0.5, place=0.2))
+    assert not phase.settled(11.0)
+    phase.heard(2, 64, arrival(10.0 + BLIND_FRAMES - 1, 0.5))
+    assert not phase.settled(10.0 + BLIND_FRAMES)
+    phase.heard(1, 64, arrival(10.0 + BLIND_FRAMES, 0.0))    # another sender's: no pair
+    assert not phase.settled(10.0 + BLIND_FRAMES + 0.5)
+    phase.heard(2, 64, arrival(10.0 + BLIND_FRAMES, 0.5))
+    assert phase.settled(10.0 + BLIND_FRAMES + 0.9)
+    assert not phase.settled(10.0 + BLIND_FRAMES + MEMORY_FRAMES + 1.0)   # forgotten
 
 
 def test_writes_land_before_the_on_window_opens():
     mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
-    hear(mac, 2, arrival(10.0, 0.5))                         # frames start at 10 + k
-    # surface ON opens at 11.0: the first write goes a period and the lead before it, or
-    # earlier so that the slot's 2 packets one interval apart all reach the MAC (a period
+    start = settled(mac, 10.0)                               # frames start at 10 + k
+    # surface ON opens at start + 1: the first write goes a period and the lead before it,
+    # or earlier so that the slot's 2 packets one interval apart all reach the MAC (a period
     # after their write) by the send window's close, with the lead to spare twice
-    close = 11.0 + send_window(TWO, LINK, "surface")
-    begin = min(11.0 - 0.2 - LEAD, close - 0.2 - LEAD - 0.21 - LEAD)
-    assert mac.next_write_at(10.3) == pytest.approx(begin)
-    t = mac.next_write_at(10.3)
+    close = start + 1.0 + send_window(TWO, LINK, "surface")
+    begin = min(start + 1.0 - 0.2 - LEAD, close - 0.2 - LEAD - 0.21 - LEAD)
+    assert mac.next_write_at(start + 0.3) == pytest.approx(begin)
+    t = mac.next_write_at(start + 0.3)
+    timed = mac.stats()["timed_writes"]
     for _ in range(2):
         assert mac.next_write_at(t) == -math.inf
         mac.wrote(t, 64)
         assert t + 0.2 <= close - LEAD                       # in the MAC before the window closes
         t += 0.21
     assert mac.next_write_at(t) == pytest.approx(begin + 1.0)   # full: the next frame's
-    assert mac.stats()["timed_writes"] == 2
+    assert mac.stats()["timed_writes"] == timed + 2
 
 
 def test_writes_made_before_the_phase_was_known_count_in_the_first_window():
     mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
-    mac.wrote(10.2, 64)                                      # rate only: may wait for 11.0's ON
+    mac.wrote(10.8, 64)                                      # no phase: may wait for 12.0's ON
     hear(mac, 2, arrival(10.0, 0.5))
-    begin = mac.next_write_at(10.3)
-    mac.wrote(begin, 64)
-    assert mac.next_write_at(begin + 0.21) == pytest.approx(begin + 1.0)
+    t = mac.next_write_at(10.9)                              # settling window (11.25, 11.5)
+    assert t == pytest.approx(11.25)
+    mac.wrote(t, 64)
+    assert mac.next_write_at(t + 0.21) == pytest.approx(t + 1.0)
 
 
 def test_a_write_offered_late_in_the_window_still_goes_until_the_window_ends():
     mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
-    hear(mac, 2, arrival(10.0, 0.5))
-    end = 11.0 + send_window(TWO, LINK, "surface") - LEAD - 0.2
+    start = settled(mac, 10.0)
+    end = start + 1.0 + send_window(TWO, LINK, "surface") - LEAD - 0.2
     assert mac.next_write_at(end - 0.01) == -math.inf
-    assert mac.next_write_at(end + 0.01) > 11.5              # too late for this ON: next frame
+    assert mac.next_write_at(end + 0.01) > start + 1.5       # too late for this ON: next frame
 
 
-def test_a_peer_silent_for_long_returns_tdma_to_its_rate_limit():
+def test_a_peer_silent_for_long_lets_tdma_write_without_a_phase():
     mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
     hear(mac, 2, arrival(10.0, 0.5))
-    assert mac.next_write_at(10.5) > 10.5                    # timed: waits for its window
+    assert mac.next_write_at(10.6) > 10.6                    # timed: waits for its window
     silent = 10.0 + 0.5 + AIR + DELAY + 10 * TWO.frame + 0.01
-    assert mac.next_write_at(silent) == -math.inf            # phase forgotten: rate only
+    assert mac.next_write_at(silent) == -math.inf            # phase forgotten, listened enough
     mac.wrote(silent, 64)
-    assert mac.stats()["timed_writes"] == 0
+    assert mac.stats()["blind_writes"] == 1
+    assert mac.next_write_at(silent + 0.3) == pytest.approx(silent + BLIND_FRAMES * TWO.frame)
 
 
 def test_a_packet_from_a_sender_without_a_slot_teaches_nothing():
@@ -156,9 +219,10 @@ def test_answers_to_a_packet_written_for_a_slot_are_in_once_the_peers_next_on_wi
     # last packet by 11.75, which has arrived (air, range) by 11.75 + AIR + DELAY
     mac = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
     assert mac.answers.answer_by(10.3) is None                       # no phase: the timer decides
-    hear(mac, 2, arrival(10.0, 0.5))
+    settled(mac, 10.0)                                       # frames start at 10 + k
     by = 11.0 + 0.5 + 0.25 + AIR + DELAY + ANSWER_MARGIN
     begin = mac.next_write_at(10.3)
+    assert begin < 11.0
     assert mac.answers.answer_by(begin) == pytest.approx(by)
     end = 11.0 + send_window(TWO, LINK, "surface") - LEAD - 0.2
     assert mac.answers.answer_by(end + 0.2) == pytest.approx(by)     # noticed gone a little late

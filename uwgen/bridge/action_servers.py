@@ -89,17 +89,19 @@ class ActionServers:
             dispatcher.sends(KIND_RESPONSE, ident)
             dispatcher.sends(KIND_TOPIC, ident)
 
-    def _offer(self, ident: int, payload: bytes, what: str, key: int | None = None) -> bool:
-        # an answer or result equal to one still waiting in the link is not queued twice
-        if self.w.offer_once(ident if key is None else key, payload):
+    def _offer(self, ident: int, payload: bytes, what: str, key: int | None = None,
+               again: bool = False) -> bool:
+        # an answer or result equal to one still waiting in the link is not queued twice;
+        # `again`: the client side asked for it again (the link copies it in its turn)
+        if self.w.offer_once(ident if key is None else key, payload, again):
             return True
         self.counters[ident].reply_refused += 1
         self.w.say_once(f"aref{ident}{what}", f"{self.served[ident][0].name}: {what} refused by the link")
         return False
 
-    def _answer(self, ident: int, handle: int, code: int) -> None:
+    def _answer(self, ident: int, handle: int, code: int, again: bool = False) -> None:
         codec = self.served[ident][0]
-        if self._offer(ident, codec.encode_answer(handle, code), "answer"):
+        if self._offer(ident, codec.encode_answer(handle, code), "answer", again=again):
             self.counters[ident].answers += 1
 
     def _result(self, ident: int, handle: int, status: int, result: Any, entry: Served) -> None:
@@ -192,12 +194,12 @@ class ActionServers:
         entry = self.goals[ident].get(handle)
         if entry is not None:
             if entry.goal_handle is not None:
-                self._answer(ident, handle, ACCEPTED)     # still running
+                self._answer(ident, handle, ACCEPTED, again=True)     # still running
             return
         recent = self.results[ident].result_of(handle)
         if recent is not None:
             counters.results_resent += 1
-            self._offer(ident, recent, "result")
+            self._offer(ident, recent, "result", again=True)
             return
         finished = self.watches[ident].finished_goal(handle)
         if finished is not None:                  # it finished while no bridge watched it
@@ -280,13 +282,13 @@ class ActionServers:
         if entry is not None:
             if entry.goal_handle is not None and entry.payload == payload:
                 self.counters[ident].repeated_replies += 1
-                self._answer(ident, handle, ACCEPTED)      # the first answer was lost
+                self._answer(ident, handle, ACCEPTED, again=True)   # the first answer was lost
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
             return False
         self.counters[ident].repeated_replies += 1
-        self._offer(ident, result, "result")               # the answer and result were lost
+        self._offer(ident, result, "result", again=True)   # the answer and result were lost
         self.results[ident].resent(handle)
         return True
 

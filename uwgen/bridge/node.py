@@ -119,7 +119,8 @@ class BridgeNode(Node):
         security_kw.update(link_mac(self.mac))
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
             seal_hooks.overhead if seal_hooks is not None else 0) + self.mac.overhead,
-            turn_gap=self.mac.turn_gap(), settled_by=self.mac.settled_by)
+            turn_gap=self.mac.turn_gap(), settled_by=self.mac.settled_by,
+            own_span=self.mac.own_span())
         reliability_hooks = self.reliability.hooks() if self.reliability is not None else None
         if self.reliability is not None and hasattr(self.guard, "use_offsets"):
             # the seal reads T with each peer's measured clock offset; reliability judges
@@ -138,6 +139,8 @@ class BridgeNode(Node):
             w.waiting, w.withdraw = scheduler.waiting, scheduler.withdraw
             w.turns = own_turns(self.mac)
             w.answer_by = answer_time(self.mac)
+        if self.reliability is not None:
+            w.repeat = self.reliability.repeat
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery

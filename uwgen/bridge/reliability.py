@@ -39,6 +39,12 @@ def max_ages(plan: BridgePlan) -> dict[int, float]:
     return ages
 
 
+def command_keys(plan: BridgePlan) -> frozenset[int]:
+    """The link channel keys of this side's services and actions (requests, responses,
+    goals, answers, results; an action's feedback is on its own key, not among them)."""
+    return frozenset(e.id for e in (*plan.services, *plan.offered_actions, *plan.served_actions))
+
+
 def destinations(plan: BridgePlan, senders: dict[str, int]) -> dict[int, frozenset[int]] | None:
     """Wire id -> the sender ids of the peers this side's messages of it are for, when
     some entry names its peers (a fleet: each vehicle's entries are between it and the
@@ -63,13 +69,15 @@ class _Wall:
 def reliability_for(plan: BridgePlan, link: LinkConfig,
                     wall: Clock | Callable[[], float] = WALL_CLOCK, *,
                     other_overhead: int = 0, turn_gap: float = 0.0,
-                    settled_by: Callable[[int, float], float | None] | None = None
-                    ) -> Reliability | None:
+                    settled_by: Callable[[int, float], float | None] | None = None,
+                    own_span: float = 0.0) -> Reliability | None:
     """The link's reliability of this side (None on wire format 1). `wall`: the wall clock
     T is stamped with and checked against (a Clock, or a function giving seconds);
     `other_overhead`: what the hooks joined with it (the per-packet seal, the MAC) add to a
     packet; `turn_gap`: the MAC's longest wait for the peer's turn and `settled_by` what a
-    peer's answer covers of this side's packets (uwgen.runtime.link.mac)."""
+    peer's answer covers of this side's packets, `own_span` how long its own turn or slot
+    lasts (uwgen.runtime.link.mac): its services' and actions' messages get a copy in spare
+    room within it (uwgen.runtime.delivery.echoes)."""
     if plan.wire_format != 2:
         return None
     clock = wall if hasattr(wall, "now") else _Wall(wall)
@@ -77,6 +85,7 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
                        max_read_length=link.max_read_length, other_overhead=other_overhead,
                        turn_gap=turn_gap, settled_by=settled_by,
+                       commands=command_keys(plan), own_span=own_span,
                        destinations=destinations(plan, plan.side_ids),
                        peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},
                        # K on an unsealed link is this side's; a sealed link's is the seal's

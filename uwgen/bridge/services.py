@@ -311,7 +311,7 @@ class Servers:
             replied = self.replied[ident].get(seq)
             if replied is not None:
                 counters.repeated_replies += 1
-                self.w.offer_once(ident, replied[0])     # not twice in one packet
+                self.w.offer_once(ident, replied[0], again=True)   # not twice in one packet
             return
         if not client.service_is_ready():
             if len(self.waiting[ident]) >= WAITING_LIMIT:

@@ -53,6 +53,8 @@ class Wiring:
     withdraw: Callable[[int, bytes], bool] = lambda key, payload: False
     turns: Callable[[], int | None] = lambda: None
     answer_by: Callable[[float], float | None] = lambda now: None   # TDMA: copies.answer_time
+    # the link's reliability: a command offered again gets a copy in its turn (echoes.py)
+    repeat: Callable[[int, bytes], None] = lambda key, payload: None
     # answer head -> (key, copy): a copy the answer takes back on arrival (take_back)
     answered_by: OrderedDict = field(default_factory=OrderedDict)
     said: set[str] = field(default_factory=set)
@@ -63,15 +65,20 @@ class Wiring:
         self.throttle = LogThrottle(self.log.error, self.clock, warn=self.log.warning)
         self.loops = LoopGuard(self.node, self.log)
 
-    def offer_once(self, key: int, payload: bytes) -> bool:
+    def offer_once(self, key: int, payload: bytes, again: bool = False) -> bool:
         """Offer a command message unless an equal one still waits in the link (it would
-        ride the same packet: one is enough); True when it is queued either way."""
+        ride the same packet: one is enough); True when it is queued either way. `again`:
+        the peer asked for it again (its first was lost): the link copies it in its turn."""
+        if again:
+            self.repeat(key, payload)
         return self.waiting(key, payload) or self.send(key, payload)
 
     def expect(self, answer: bytes, key: int, copy: bytes) -> None:
         """A copy `copy` (channel `key`) was offered: the payload arriving that starts with
         `answer` (its response, goal answer or result, or a result's acknowledgement) takes
-        it back if it still waits (uwgen.bridge.copies). The last EXPECTED are kept."""
+        it back if it still waits (uwgen.bridge.copies). The last EXPECTED are kept. The
+        link copies it once more in its turn (uwgen.runtime.delivery.echoes)."""
+        self.repeat(key, copy)
         self.answered_by[answer] = (key, copy)
         self.answered_by.move_to_end(answer)
         while len(self.answered_by) > EXPECTED:

@@ -9,11 +9,15 @@ loss (the share of its last LOSS_WINDOW settled packets the peer reported missin
 are sent once it reaches COPY_LOSS, when the 95th percentile of a reliable topic's latency
 is a message that waited for a report and a re-send (a round trip, and under a MAC a turn
 or a frame, more) unless a copy went with it. How many copies a message gets follows the
-loss, so that all of them and the message are lost together about 1 time in 100 or less:
-one from COPY_LOSS (at 10 % loss, 1 in 100), two from SECOND_COPY_LOSS (at 20 %, 1 in 125
-instead of 1 in 25 with one). The message with the fewest copies so far goes first, so a
-second copy never takes the room a first copy of another message needs, then the one whose
-last copy left longest ago.
+loss: one from COPY_LOSS (at 10 % loss, it and its copy are lost together 1 time in 100),
+two from SECOND_COPY_LOSS, three from THIRD_COPY_LOSS (at 20 %, 1 in 625 instead of 1 in
+125 with two). Messages that share a turn or a slot share its room (two new messages in a
+turn of four packets get one copy each, whatever the loss), so the third copy is the room
+a message alone in its turn has left: under a MAC a message lost with all its copies waits
+a round for its report and its re-send, past twice the round trip, and at 20 % those must
+stay under 1 in 20 of all messages. The message with the fewest copies so far goes first,
+so a further copy never takes the room a first copy of another message needs, then the one
+whose last copy left longest ago.
 """
 from __future__ import annotations
 
@@ -24,14 +28,16 @@ from typing import Any
 
 COPY_LOSS = 0.05        # measured loss from which copies go in spare room
 SECOND_COPY_LOSS = 0.1  # measured loss from which a message gets two copies
+THIRD_COPY_LOSS = 0.15  # measured loss from which a message gets three copies
 LOSS_WINDOW = 64        # settled packets the measured loss is counted over
 DONE_KEPT = 1024        # reliable messages known delivered, remembered
 COPIED_KEPT = 2048      # messages copied, remembered (those never settled are forgotten)
+MEASURED = 16          # settled packets before the measured loss says anything
 SCAN = 32               # the most recent packets on their way a copy is looked for in
 
 
 class Copies:
-    def __init__(self, limit: int = 2):
+    def __init__(self, limit: int = 3):
         self.limit = limit                  # most copies in spare room per message
         self.live: dict[int, int] = {}      # ident -> copies on their way
         self.done: OrderedDict[int, None] = OrderedDict()   # idents known delivered
@@ -50,11 +56,16 @@ class Copies:
         so far count as arrived: a start never looks lossy)."""
         return self._recent_lost / LOSS_WINDOW
 
+    def measured(self) -> bool:
+        """Whether enough packets have settled for the loss to say something (MEASURED)."""
+        return len(self._recent) >= MEASURED
+
     def wanted(self) -> int:
-        """Copies a message gets now: none below COPY_LOSS, one, two from SECOND_COPY_LOSS
-        (at most `limit`)."""
+        """Copies a message gets now: none below COPY_LOSS, one, two from SECOND_COPY_LOSS,
+        three from THIRD_COPY_LOSS (at most `limit`)."""
         loss = self.loss()
-        return min(self.limit, 0 if loss < COPY_LOSS else 1 if loss < SECOND_COPY_LOSS else 2)
+        return min(self.limit, sum(loss >= step for step in (COPY_LOSS, SECOND_COPY_LOSS,
+                                                             THIRD_COPY_LOSS)))
 
     def settled(self, arrived: bool) -> None:
         if len(self._recent) == LOSS_WINDOW and not self._recent[0]:
@@ -96,20 +107,23 @@ class Copies:
         self.copied.pop(m.ident, None)
         return True
 
-    def pick(self, packets: Any, now: float,
-             fits: Callable[[Any], bytes | None]) -> tuple[Any, bytes] | None:
+    def pick(self, packets: Any, now: float, fits: Callable[[Any], bytes | None],
+             unanswered: tuple[float, float] | None = None) -> tuple[Any, bytes] | None:
         """The copy to put in spare room, or None: a reliable message on its way (in the SCAN
         most recently sent packets), not known delivered, with fewer than `wanted()` copies
         since it last went again and its deadline ahead, whose copy `fits` (the copy's bytes,
         or None) the room; the one with the fewest copies so far, then the one whose last copy
         left longest ago (the nearest to the slow end of the latencies: in a turn or slot of
-        several new messages, the copy of the one that waited longest for it goes first)."""
-        wanted = self.wanted()
+        several new messages, the copy of the one that waited longest for it goes first).
+        `unanswered` (after, before): only a message not copied yet, in a packet sent
+        between the two (`Reliability.resend`: its report is overdue)."""
+        wanted = self.wanted() if unanswered is None else min(1, self.wanted())
         if wanted <= 0:
             return None
         candidates: dict[int, tuple[int, int, Any]] = {}
         for age, packet in enumerate(islice(reversed(packets), SCAN)):
-            if packet.timed_out:
+            if packet.timed_out or (unanswered is not None
+                                    and not unanswered[0] < packet.at <= unanswered[1]):
                 continue
             for m in packet.messages:
                 if (m.ident is None or m.ident in self.done or m.ident in candidates

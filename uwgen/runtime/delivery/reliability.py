@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections import OrderedDict, deque
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import asdict, replace
 
@@ -41,8 +41,9 @@ from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.delivery.freshness import MAX_AGE, TICKS_PER_SECOND, stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.hooks import PacketHooks
-from uwgen.runtime.link.packets import message_measure
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
+from uwgen.runtime.delivery.echoes import Echoes
+from uwgen.runtime.delivery.repairs import Repairs
 from uwgen.runtime.delivery.reliable import (REPORT_KEY, ReliableLink, RttEstimator, Sent,
                                              packet_peers, wire_id)
 from uwgen.runtime.delivery.judge import AgeJudge
@@ -76,7 +77,7 @@ class Reliability:
                  clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
                  settled_by: Callable[[int, float], float | None] | None = None,
-                 copies: int = 2):
+                 copies: int = 3, commands: frozenset[int] = frozenset(), own_span: float = 0.0):
         self.sender, self.name, self.wall = sender, name, wall
         # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
         # peer or been lost before the peer's packet heard now was built (turns: the peer
@@ -124,9 +125,9 @@ class Reliability:
         self._lock = threading.Lock()
         self._deadline_of: dict[int, float] = {}      # channel key -> its message being sent
         self._timed = False                           # the packet being built needs T
-        self._queue: deque[Sent] = deque()            # lost reliable messages to send again
-        self._resending: dict[int, Sent] = {}         # id(payload) -> the copy picked now
         self.engine.spare.limit = copies              # most copies in spare room (copies.py)
+        self.echoes = Echoes(frozenset(commands), own_span, self.heads, self.engine.spare)
+        self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
@@ -184,8 +185,9 @@ class Reliability:
             stamped, _ = self.heads.add(payload, now - born)
             return stamped
 
-    def carrying(self, picked: list[tuple[int, bytes]], now: float) -> None:
+    def carrying(self, picked: list[tuple[int, bytes]], now: float, fresh: bool = True) -> None:
         self._timed = any(wire_id(key) in self.max_ages for key, _ in picked)
+        self.echoes.carrying(picked)
         # T also goes with the A part on the first packets and then now and then, so the
         # peer measures our clock's offset (clock_offset.py)
         self._want_time = self._timed or (
@@ -223,13 +225,14 @@ class Reliability:
         with self._lock:
             messages = []
             for key, payload in picked:
-                m = self._resending.pop(id(payload), None)   # a copy: its message's identity
+                m = self.repairs.resending.pop(id(payload), None)   # a copy: its message's identity
                 if m is None:
                     deadline = self._deadline_of.get(key)
                     m = Sent(key, None, deadline, ident=None if deadline is None
                              else self.engine.spare.new_ident())
                 messages.append(replace(m, ref=payload, tail=None))
-            self._resending.clear()
+            self.repairs.resending.clear()
+            self.echoes.left(number, picked, now)
             messages += self.acks.carried()      # its reports: confirmed once it is acked
             self.engine.sent(number, messages, now,
                              packet_peers(messages, self.destinations, self._everyone))
@@ -242,45 +245,20 @@ class Reliability:
         the ledger waits for the next packet's fate too (wire-format.md section 14.2)."""
         with self._lock:
             self.engine.cut(number, moved)
+            self.echoes.cut(number)
+
+    def repeat(self, key: int, payload: bytes) -> None:
+        """The bridge offers a command again (echoes.py: it gets a copy in its turn)."""
+        with self._lock:
+            self.echoes.repeat(key, payload)
 
     def resend(self, now: float, room: int) -> tuple[int, bytes] | None:
         with self._lock:
-            self._queue.extend(self.engine.due(now))
-            for m in list(self._queue):
-                if self.engine.spare.delivered(m.ident):
-                    self._queue.remove(m)     # a copy sent in spare room arrived meanwhile
-                    continue
-                if m.deadline is not None and m.deadline <= now:
-                    self._queue.remove(m)
-                    self.engine.entry(m.key).expired += 1
-                    continue
-                payload = self._aged(m, now)
-                if message_measure(payload) <= room:
-                    self._queue.remove(m)
-                    self._resending[id(payload)] = m
-                    return m.key, payload
-            return None
+            return self.repairs.resend(now, room)
 
-    def copy(self, now: float, room: int) -> tuple[int, bytes] | None:
-        """A copy of a reliable message on its way, for the room a packet that leaves anyway
-        has left after its messages (uwgen.runtime.delivery.copies)."""
+    def copy(self, now: float, room: int, fresh: bool = True) -> tuple[int, bytes] | None:
         with self._lock:
-            def fits(m: Sent) -> bytes | None:
-                payload = self._aged(m, now)
-                return payload if message_measure(payload) <= room else None
-            got = self.engine.spare.pick(self.engine.outstanding.values(), now, fits)
-            if got is not None:
-                self._resending[id(got[1])] = got[0]
-            return None if got is None else (got[0].key, got[1])
-
-    def _aged(self, m: Sent, now: float) -> bytes:
-        """The copy to send again, its age item rewritten to the message's age now (its
-        deadline less the entry's re-send window is its publication time, section 15.4): the
-        age it left with the first time would make it look younger than it is."""
-        window = self.deadlines.get(m.key)
-        if m.deadline is None or window is None:
-            return m.ref
-        return self.heads.aged_again(m.ref, now - (m.deadline - window))
+            return self.repairs.copy(now, room, fresh)
 
     def ack_only(self, now: float) -> bool:
         with self._lock:
@@ -300,7 +278,7 @@ class Reliability:
 
     def next_time(self, now: float) -> float | None:
         with self._lock:
-            if self._queue or self.acks.final:
+            if self.repairs.queue or self.acks.final or self.echoes.waiting(now):
                 return now
             times = [t for t in [self.engine.next_timeout()] if t is not None]
             times += self.acks.next_times()
@@ -437,5 +415,6 @@ class Reliability:
                                     "fast_resends": self.engine.fast_resends,
                                     "timer_resends": self.engine.timer_resends,
                                     "copies": self.engine.spare.sent,
+                                    **self.echoes.stats(),
                                     "clock_offsets": {p: o.as_dict() for p, o in
                                                       self.offsets.peers().items()}}}

@@ -167,6 +167,7 @@ class ReliableLink(Receiving):
         self._fates: OrderedDict[int, bool] = OrderedDict()
         self._moved: Sent | None = None     # a message the next packet carries whole (cut)
         self.spare = Copies()               # copies of reliable messages, the measured loss
+        self.reported_at = -float("inf")    # when the last report about our packets came
 
     def entry(self, key: int) -> EntryLedger:
         return self.ledger.setdefault(key, EntryLedger())
@@ -201,6 +202,7 @@ class ReliableLink(Receiving):
             return
         for report in reports:
             if report.peer == self.me and self.largest_sent is not None:
+                self.reported_at = now
                 self._report(report, now, reporter, settled_by)
 
     def _report(self, report: Report, now: float, reporter: int | None = None,

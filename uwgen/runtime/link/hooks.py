@@ -27,12 +27,13 @@ class PacketHooks:
     overhead: int = 0
     next_overhead: Callable[[float], int] | None = None
     number: Callable[[], int] | None = None
-    carrying: Callable[[list[tuple[int, bytes]], float], None] | None = None
+    # (picked, now, fresh): the packet's messages, and whether any is not a copy
+    carrying: Callable[[list[tuple[int, bytes]], float, bool], None] | None = None
     # packet `number`'s last message was cut, its tail starts the next packet (or, moved=True,
     # the message goes whole in the next packet): wire-format.md section 14.2
     cut: Callable[..., None] | None = None
     resend: Callable[[float, int], tuple[int, bytes] | None] | None = None
-    copy: Callable[[float, int], tuple[int, bytes] | None] | None = None
+    copy: Callable[[float, int, bool], tuple[int, bytes] | None] | None = None   # (now, room, fresh)
     ack_only: Callable[[float], bool] | None = None
     next_time: Callable[[float], float | None] | None = None
     stamp: Callable[[int, bytes, float, float], bytes] | None = None
@@ -112,9 +113,9 @@ def join_hooks(*hooks: PacketHooks | None) -> PacketHooks:
     def part_room(key: int) -> int:
         return sum(room(key) for room in roomers)
 
-    def carrying(picked: list[tuple[int, bytes]], now: float) -> None:
+    def carrying(picked: list[tuple[int, bytes]], now: float, fresh: bool = True) -> None:
         for tell in carriers:
-            tell(picked, now)
+            tell(picked, now, fresh)
 
     def cut(number: int, moved: bool = False) -> None:
         for tell in cutters:

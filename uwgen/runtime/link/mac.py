@@ -14,10 +14,10 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   (`tdma_capacity`), so DESERT's queues never hold more than a slot's worth. It learns the
   frame's phase from the packets it hears and writes each frame's packets so that they reach
   DESERT's MAC just before its ON window opens (uwgen.runtime.link.slot_timing): a message
-  then waits in DESERT about one period, not up to a frame. Until it has heard a packet (or
-  after hearing none for `MEMORY_FRAMES` frames) it writes at most `capacity` in any one
-  frame, whenever: a message then waits up to about a frame (bounded, never growing, so
-  queueing is never read as a clock offset).
+  then waits in DESERT about one period, not up to a frame (until the phase is settled:
+  before the slot opens even if the phase is late). With no phase (nothing heard
+  in `MEMORY_FRAMES` frames) it listens, then writes one packet every few frames: DESERT
+  may start it late in the window, and the guard need not cover a packet and the range.
 - `TurnMac` (mode `turns`): the leader grants the turn to one side at a time (C item 2, to
   whom and how many packets); that side writes after hearing the grant, at most that many
   packets, the last carrying C item 3 (end of turn), all inside a window from the grant;
@@ -37,57 +37,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 from uwgen.manifest.mac import LISTEN
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.hooks import PacketHooks
+from uwgen.runtime.link.mac_items import (TURN_END, TURN_GRANT, MacItem,  # noqa: F401 (the MAC's names)
+                                          decode_items, encode_items)
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.slot_timing import AnswerTimes, FramePhase, SlotTimer, tdma_capacity
 from uwgen.runtime.link.turn_timing import RoundTrip, TurnTiming
 from uwgen.runtime.wire import envelope as env
 
-TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255);
-                        # `2S 00`: notice that the leader's next packet grants S its turn
-TURN_END = 3            # C item `3S`: sender S ends its turn
 INF = math.inf
-
-
-@dataclass(frozen=True)
-class MacItem:
-    code: int
-    sender: int
-    count: int = 0      # TURN_GRANT: packets granted (0: a notice of the grant to come)
-
-
-def encode_items(items: list[MacItem]) -> bytes:
-    out = bytearray()
-    for it in items:
-        if not 0 <= it.sender <= 15:
-            raise ValueError(f"MAC item for sender {it.sender}: a sender id fits 4 bits")
-        out.append((it.code << 4) | it.sender)
-        if it.code == TURN_GRANT:
-            if not 0 <= it.count <= 255:
-                raise ValueError(f"a turn grant is for 1..255 packets (0: a notice), got {it.count}")
-            out.append(it.count)
-    return bytes(out)
-
-
-def decode_items(control: bytes) -> list[MacItem]:
-    """The MAC's items among a C part's bytes (others skipped; total, never fails: a grant
-    cut short by the part's end is ignored)."""
-    out, i = [], 0
-    while i < len(control):
-        code, sender = control[i] >> 4, control[i] & 0x0F
-        if code == TURN_GRANT:
-            if i + 1 < len(control):
-                out.append(MacItem(code, sender, control[i + 1]))
-            i += 2
-            continue
-        if code == TURN_END:
-            out.append(MacItem(code, sender))
-        i += 1
-    return out
 
 
 class Mac:
@@ -125,6 +86,12 @@ class Mac:
     def turn_gap(self) -> float:
         return 0.0
 
+    def own_span(self) -> float:
+        """The longest this side's own turn or slot lasts (its packets follow one another
+        within it): a command's copy in spare room goes no later (delivery's echoes). 0: no
+        turn (DESERT's MAC decides when a packet leaves)."""
+        return 0.0
+
     def settled_by(self, sender: int, now: float) -> float | None:
         """Until when this side's writes had all reached `sender` or been lost before the
         packet heard from it now was built (None: the MAC cannot say). Delivery takes a
@@ -141,8 +108,9 @@ class Mac:
                            ack_only=self.must_send, next_time=self.next_time,
                            carrying=self._carrying)
 
-    def _carrying(self, picked: list, now: float) -> None:
-        self.carries = bool(picked)
+    def _carrying(self, picked: list, now: float, fresh: bool | None = None) -> None:
+        # copies in spare room never keep a turn going: only fresh messages count
+        self.carries = bool(picked) if fresh is None else fresh
 
     def _part(self, now: float) -> dict:
         control = self.parts(now)
@@ -163,20 +131,20 @@ class TdmaMac(Mac):
                  margin: float = DEFAULT_MARGIN, senders: dict[str, int] | None = None,
                  anonymous: bool = False):
         super().__init__()
-        self.config, self.burst = config, config.frame      # one write window a frame
+        self.config, self.side = config, side
+        self.burst = config.frame            # one write window a frame
         self.capacity = tdma_capacity(config, link, side)
         self.max_bytes = link.max_read_length
         ids = {s: i for s, i in (senders or {}).items() if s in config.slots}
         self.phase = FramePhase(config, {i: config.slot_start(s) for s, i in ids.items()})
         others = [i for s, i in ids.items() if s != side]
         self._anonymous = others[0] if anonymous and len(others) == 1 else None
-        self.timer = SlotTimer(config, side, link, self.capacity, link.period * (1.0 + margin),
-                               config.frame * (1.0 + margin))
+        self.timer = SlotTimer(config, side, link, self.capacity, link.period * (1.0 + margin))
         self._arrived: tuple[int, float] | None = None     # the packet being opened: (bytes, when)
         self.answers = AnswerTimes(self.phase, self.timer, config, link, side)   # copies: slot_timing
 
     def next_write_at(self, now: float) -> float:
-        return self.timer.next_write_at(self.phase.start(now), now)
+        return self.timer.next_write_at(self.phase.start(now), now, self.phase.settled(now))
 
     def wrote(self, now: float, nbytes: int) -> None:
         self.timer.wrote(self.phase.start(now), now)
@@ -199,8 +167,12 @@ class TdmaMac(Mac):
     def turn_gap(self) -> float:
         return self.config.frame
 
+    def own_span(self) -> float:
+        return self.config.slot_length(self.side)
+
     def stats(self) -> dict:
-        return {"mode": self.mode, "capacity_per_frame": self.capacity, "timed_writes": self.timer.timed}
+        return {"mode": self.mode, "capacity_per_frame": self.capacity, "timed_writes": self.timer.timed,
+                "blind_writes": self.timer.blind}
 
 
 class TurnMac(Mac):
@@ -417,6 +389,10 @@ class TurnMac(Mac):
 
     def turn_gap(self) -> float:
         return self.cycle()
+
+    def own_span(self) -> float:
+        # its packets, one an interval, and the notice's packet before a leader's grant
+        return (self.my_packets + self.leading) * self.interval
 
     def settled_by(self, sender: int, now: float) -> float | None:
         """The leader: a follower answers in the turn granted by its last packet, so

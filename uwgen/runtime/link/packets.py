@@ -28,13 +28,15 @@ The seams of reliability and the seal (docs/seams.md section 5) are the `PacketH
 
 Reliability also uses (docs/seams.md section 5, "How the two sets of hooks meet"):
 
-- `carrying([(key, payload), ...], now)` once a packet's messages are chosen, before `parts`
-  (the cut tail a packet starts with is among them, as `64 body`: it takes room, but it is
-  in no `sent` list: its message went with the packet of its head);
+- `carrying([(key, payload), ...], now, fresh)` once a packet's messages are chosen, before
+  `parts` (the cut tail a packet starts with is among them, as `64 body`: it takes room, but
+  it is in no `sent` list: its message went with the packet of its head); `fresh`: some are
+  not copies (a MAC keeps a turn going for fresh messages only);
 - `resend(now, room)` -> a (key, payload) to send again, at most `room` bytes as counted by
   `message_measure`, or None: served before the scheduler's messages;
-- `copy(now, room)` -> the same for a copy of a message not acknowledged yet, asked only for
-  the room a packet that carries messages anyway has left after them (never displacing one);
+- `copy(now, room, fresh)` -> the same for a copy of a message not acknowledged yet, asked
+  only for the room a packet that leaves anyway has left after its messages (never
+  displacing one); `fresh`: it carries fresh messages (else it leaves for `ack_only`);
 - `ack_only(now)` -> True when a packet must leave even without messages (an acknowledgement
   is due): the packer then builds one with only the hooks' parts;
 - `next_time(now)` -> when one of the above will next want a packet (None: never), so the
@@ -193,15 +195,19 @@ class Packer:
         if messages and budget > 1:
             self._cut_last(now, messages, picked, room - charged - 1)
         cut_now = self.first is not None and self._cut_of == cut_at
-        if h.copy is not None and picked and budget > 1 and not cut_now:
-            # room left in a packet that leaves anyway: copies of messages not acknowledged
-            # yet (wire-format.md section 15.6), after every fresh message and cut head
-            fill(lambda room: h.copy(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0)))
-        if not messages:
-            if h.ack_only is None or not h.ack_only(now):
-                return None
+        fresh = bool(carried or picked)
+        leaves = fresh or (h.ack_only is not None and h.ack_only(now))
+        if h.copy is not None and leaves and budget > 1 and not cut_now:
+            # room left in a packet that leaves anyway (messages, or a part that must go: an
+            # acknowledgement, a MAC's grant or end): copies of messages not acknowledged yet
+            # and commands of this turn (wire-format.md section 15.6), after every fresh
+            # message and cut head
+            fill(lambda room: h.copy(now, room - (max(0, env.TIME_LEN - charged) if roomy else 0),
+                                     fresh))
+        if not leaves:
+            return None
         if h.carrying is not None:
-            h.carrying(carried + picked, now)
+            h.carrying(carried + picked, now, fresh)
         number = h.number() if h.number is not None else self.number
         try:
             envelope = env.Envelope(self.sender, number % env.NUMBER_MOD, env.ordered(messages),

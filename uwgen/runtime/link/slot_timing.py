@@ -30,6 +30,29 @@ them). Writes end at `close - lead - period`: a later one could miss the window 
 whole frame. Every packet is built as it is written, so it is the freshest it can be. A
 frame's writes are counted from the end of the window before (also those made while no
 phase was known), so whatever DESERT's queue held drains before more is written.
+
+Settling: a packet heard may have started anywhere in its sender's ON window (its sender
+wrote it before knowing the phase), so a phase learned from such packets may be late by up
+to the longest other ON window. Until the phase is *settled*, the write windows end that
+much earlier: every packet then reaches the MAC before the slot opens, whatever the error,
+and starts at the opening, so the other sides hear the exact phase. The windows begin as
+late as the slot's packets allow, and after this slot's window before closed (a packet
+reaching the MAC earlier would go in that one, maybe late in it). The phase is settled
+once two packets of one sender were heard less than `BLIND_FRAMES - 2` frames apart (a
+side with no phase writes one per `BLIND_FRAMES` frames, so one of them was timed: it
+started at its window's opening, settling or settled, and its estimate is exact), within
+`memory`.
+
+No phase known (start, restart, or nothing heard for `memory`): DESERT may start a packet
+written now anywhere in the ON window, late enough to run into the next slot when the guard
+is shorter than a packet's air time and the range's delay, and lose it or the next side's
+first packet. So the side listens first, `LISTEN_FRAMES` frames if its slot is the frame's
+first, `MEMORY_FRAMES` otherwise (a side that starts late or restarts hears the others'
+timed packets and never writes blind; at a common start the first slot's side speaks
+first while the others, silent until they hear, leave the slot it may run into empty),
+then writes one packet per `BLIND_FRAMES` frames: time for the others to hear it and for
+their timed packets to come back, so another one goes blind only when all of those were
+lost (it may then run into a slot the others use).
 """
 from __future__ import annotations
 
@@ -41,6 +64,8 @@ from uwgen.manifest.model import LinkConfig, MacConfig
 
 LEAD = 0.05           # s: writes reach DESERT's MAC this long before they must (clock and thread jitter)
 MEMORY_FRAMES = 10    # frames after which a heard packet no longer counts
+BLIND_FRAMES = 4      # frames between two writes made while no phase is known
+LISTEN_FRAMES = 2     # frames the side of the first slot listens before it writes without a phase
 KEEP = 64             # the most recent packets the phase is taken from
 ANSWER_MARGIN = 0.1   # s: an answer heard is in the bridge's hands this much later
 
@@ -58,6 +83,11 @@ class FramePhase:
         self.memory = memory if memory is not None else MEMORY_FRAMES * config.frame
         self._heard: deque[tuple[float, float]] = deque(maxlen=KEEP)   # (when heard, estimate)
         self.ignored = 0                            # packets from a sender without a slot
+        # two packets of one sender heard this close: one was timed (a side with no phase
+        # writes one per BLIND_FRAMES frames, each starting up to a frame after its write)
+        self.pair_gap = (BLIND_FRAMES - 2) * config.frame
+        self._last: dict[int, float] = {}           # sender -> when its last packet was heard
+        self._timed_at = -math.inf                  # when a packet known timed was heard
 
     def heard(self, sender: int, nbytes: int, now: float) -> None:
         """A packet of `nbytes` (as DESERT sent it, before its header) from `sender` arrived now."""
@@ -67,6 +97,14 @@ class FramePhase:
             return
         air = air_time(nbytes, self.bitrate)
         self._heard.append((now, (now - air - self.delay - start) % self.frame))
+        if now - self._last.get(sender, -math.inf) < self.pair_gap:
+            self._timed_at = now
+        self._last[sender] = now
+
+    def settled(self, now: float) -> bool:
+        """Whether a packet its sender timed to its slot is among those the phase is taken
+        from: the phase is then exact, not late by a packet's place in its window."""
+        return self._timed_at >= now - self.memory
 
     def start(self, now: float) -> float | None:
         """A time (mod `frame`, in [0, frame)) at which a frame starts; None when nothing was
@@ -83,37 +121,65 @@ class FramePhase:
 
 
 class SlotTimer:
-    """When `side` may write (module doc): at most `capacity` writes in any `window` seconds
-    (a frame and the pacer's margin) while the frame's start is not known (`origin` None);
-    else in its slot's write windows, at most `capacity` writes since the window before
-    ended (a write made before the phase was known counts: its packet may still wait)."""
+    """When `side` may write (module doc): while the frame's start is not known (`origin`
+    None), after listening and then one write per `blind_gap`; else in its slot's write
+    windows (the settling ones while the phase is new), at most `capacity` writes since the
+    window before ended (a write made before the phase was known counts: its packet may
+    still wait)."""
 
     def __init__(self, config: MacConfig, side: str, link: LinkConfig, capacity: int,
-                 interval: float, window: float, lead: float = LEAD):
-        self.frame, self.capacity, self.window = config.frame, capacity, window
+                 interval: float, lead: float = LEAD):
+        self.frame, self.capacity, self.lead = config.frame, capacity, lead
         self.open_at = config.slot_start(side)              # from the frame's start
+        on = config.slot_length(side) - config.guard
         close = self.open_at + send_window(config, link, side)
         self.end = close - lead - link.period               # last write of a frame's window
         first = min(self.open_at - link.period - lead, self.end - (capacity - 1) * interval - lead)
         self.begin = max(first, self.end - self.frame + 1e-6)   # windows never overlap
+        # settling: a packet heard may have started anywhere in its sender's ON window, so
+        # the phase may be late by that much; every write then reaches the MAC before the
+        # slot opens all the same, as late as the slot's packets allow, and after this slot's
+        # window before closed
+        late = max((config.slot_length(s) - config.guard for s in config.slots if s != side),
+                   default=0.0)
+        settle_end = self.open_at - late - lead - link.period
+        settle_begin = max(self.open_at - self.frame + on,
+                           settle_end - (capacity - 1) * interval - lead)
+        self.settling = (settle_begin, settle_end) if settle_end > settle_begin else None
+        self.listen = self.frame * (LISTEN_FRAMES if self.open_at == 0 else MEMORY_FRAMES)
+        self.blind_gap = BLIND_FRAMES * self.frame
         self._writes: deque[float] = deque()
-        self.timed = 0                      # writes placed in a window
+        self._knew = False                      # a phase was known at the last call
+        self._blind_since: float | None = None  # when this side last had no phase
+        self._last_blind = -math.inf
+        self.timed = 0                          # writes placed in a window
+        self.blind = 0                          # writes made with no phase known
 
-    def next_write_at(self, origin: float | None, now: float) -> float:
-        """-inf: now; else when this side may write next."""
-        while self._writes and self._writes[0] + max(self.window, self.frame) <= now:
+    def next_write_at(self, origin: float | None, now: float, settled: bool = True) -> float:
+        """-inf: now; else when this side may write next. `settled`: the phase `origin` is
+        exact (FramePhase.settled); else the settling windows are used."""
+        while self._writes and self._writes[0] + self.frame <= now:
             self._writes.popleft()
         if origin is None:
-            recent = [w for w in self._writes if w + self.window > now]
-            return -math.inf if len(recent) < self.capacity else recent[-self.capacity] + self.window
-        begin, end = self.writes_window(origin, now)
+            if self._blind_since is None:
+                # a phase forgotten was heard of last `memory` ago: listened long enough
+                self._blind_since = now - self.listen if self._knew else now
+            self._knew = False
+            at = max(self._blind_since + self.listen, self._last_blind + self.blind_gap)
+            return -math.inf if at <= now else at
+        self._blind_since, self._knew = None, True
+        begin, end = self.writes_window(origin, now, settled)
         if sum(1 for w in self._writes if w > end - self.frame) >= self.capacity:
             begin += self.frame
         return -math.inf if begin <= now else begin
 
     def wrote(self, origin: float | None, now: float) -> None:
         self._writes.append(now)
-        self.timed += origin is not None
+        if origin is None:
+            self.blind += 1
+            self._last_blind = now
+        else:
+            self.timed += 1
 
     def left_in(self, origin: float, written: float) -> float:
         """When the ON window opens that a packet written at about `written` (or noticed
@@ -123,12 +189,14 @@ class SlotTimer:
         _begin, end = self.writes_window(origin, written - gap / 2)
         return end - self.end + self.open_at
 
-    def writes_window(self, origin: float, now: float) -> tuple[float, float]:
-        """(begin, end) of the first write window that ends after `now`."""
-        base = origin + self.end
-        k = (now - base) // self.frame + 1
-        end = base + k * self.frame
-        return end - (self.end - self.begin), end
+    def writes_window(self, origin: float, now: float, settled: bool = True) -> tuple[float, float]:
+        """(begin, end) of the first write window that ends after `now` (a settling one
+        unless `settled`)."""
+        first, last = (self.settling if self.settling is not None and not settled
+                       else (self.begin, self.end))
+        base = origin + last
+        end = base + ((now - base) // self.frame + 1) * self.frame
+        return end - (last - first), end
 
 
 class AnswerTimes:

@@ -1,0 +1,89 @@
+"""TDMA bridges (uwgen.runtime.link.mac.TdmaMac) from their first packet, against the
+emulator's UW/TDMA (uwgen.emulator.tdma), in simulated time: the demo's TDMA (frame 1 s, 2
+slots, guard 0.25 s, 300 m, 64 B at 4800 bit/s: a packet and the range take 0.31 s, more
+than the guard), both sides saturated, started at every phase of the frame, restarted, or
+started late: no packet is lost to a collision between the two sides, and a side that
+starts late or restarts finds its slot."""
+from __future__ import annotations
+
+import pytest
+
+from uwgen.emulator import NodeSpec, Scenario, TdmaSpec
+from uwgen.emulator.core import EmulatorCore
+from uwgen.manifest.model import LinkConfig, MacConfig
+from uwgen.runtime.link.mac import TdmaMac
+
+LINK = LinkConfig(max_read_length=64, period=0.2)
+DEMO = MacConfig(mode="tdma", frame=1.0, guard=0.25, slots=("surface", "vehicle"),
+                 max_packet_per_slot=1000, queue_size=10, range=300)
+SENDERS = {"surface": 1, "vehicle": 2}
+STEP = 0.005                  # how often the simulated bridges look at their clocks
+
+
+def run(starts: dict[str, float], seconds: float, ticks: tuple[float, float] = (0.0, 0.0),
+        restart: tuple[str, float] | None = None, per: float = 0.0, seed: int = 1):
+    """Each side from its start on always has a 64-byte packet to write and writes when its
+    pacer (one per period + 5 %) and its MAC allow; `ticks`: each DESERT node's period tick
+    phase; `restart`: (side, when) its bridge starts again knowing nothing. Returns (the
+    emulator's counters, delivery times by sending side, the MACs)."""
+    scenario = Scenario(nodes=[NodeSpec(s, position=(i * DEMO.range, 0.0, 0.0), phase=ticks[i])
+                               for i, s in enumerate(DEMO.slots)],
+                        period=0.2, max_read_length=64, bitrate=DEMO.bitrate, per=per, seed=seed,
+                        tdma=TdmaSpec(frame=DEMO.frame, guard=DEMO.guard, max_packet_per_slot=1000,
+                                      queue_size=10))
+    core = EmulatorCore(scenario)
+    macs = {s: TdmaMac(DEMO, s, LINK, senders=SENDERS) for s in DEMO.slots}
+    pace = {s: 0.0 for s in DEMO.slots}
+    delivered: dict[str, list[float]] = {s: [] for s in DEMO.slots}
+    for s in DEMO.slots:
+        core.client_attached(s, 0.0)
+    k = 0
+    while (t := k * STEP) < seconds:
+        if restart is not None and k == round(restart[1] / STEP):
+            macs[restart[0]] = TdmaMac(DEMO, restart[0], LINK, senders=SENDERS)
+        for s in DEMO.slots:
+            if t >= max(starts[s], pace[s]) and macs[s].next_write_at(t) <= t:
+                core.client_data(s, t, bytes(64))
+                macs[s].wrote(t, 64)
+                pace[s] = t + 0.21
+        for d in core.advance(t):
+            delivered[d.source].append(d.time)
+            macs[d.node].arrived(len(d.data), d.time)
+            macs[d.node].heard(SENDERS[d.source], b"", d.time)
+        k += 1
+    return core.all_counters(), delivered, macs
+
+
+def collisions(counters: dict) -> int:
+    return sum(c["lost_collision"] for c in counters.values())
+
+
+@pytest.mark.parametrize("ticks", [(0.0, 0.0), (0.0, 0.1)])
+def test_no_start_phase_loses_a_packet_to_a_collision(ticks):
+    # a packet DESERT starts late in the surface's ON window (its period tick 0.2 s into the
+    # frame) runs 0.06 s into the vehicle's slot: had it been written before the surface
+    # knew the frame's phase while the vehicle sent at its slot's start, one was lost
+    lost = {}
+    for s in range(10):
+        for v in (0.0, 0.3, 0.6):
+            counters, delivered, _ = run({"surface": 5.0 + s / 10, "vehicle": 5.0 + v}, 15.0, ticks)
+            lost[(s / 10, v)] = collisions(counters)
+            assert delivered["surface"] and delivered["vehicle"]
+    assert sum(lost.values()) == 0, {k: n for k, n in lost.items() if n}
+
+
+@pytest.mark.parametrize("side", ["surface", "vehicle"])
+def test_a_side_that_restarts_finds_its_slot_without_a_collision(side):
+    for when in (12.0, 12.25, 12.5, 12.75):
+        counters, delivered, macs = run({"surface": 0.0, "vehicle": 0.0}, 25.0, restart=(side, when))
+        assert collisions(counters) == 0, when
+        # it heard the other side's timed packets before it wrote: nothing written blind
+        assert macs[side].stats()["blind_writes"] == 0, when
+        assert any(when < t < when + 4.0 for t in delivered[side]), when
+
+
+def test_a_side_that_starts_late_hears_its_way_into_its_slot():
+    counters, delivered, macs = run({"surface": 0.0, "vehicle": 20.0}, 30.0, per=0.2, seed=3)
+    assert collisions(counters) == 0
+    assert macs["vehicle"].stats()["blind_writes"] == 0
+    assert min(delivered["vehicle"]) < 20.0 + 3.0

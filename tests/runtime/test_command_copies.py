@@ -1,0 +1,194 @@
+"""A command's copy in its own turn (uwgen.runtime.delivery.echoes; docs/wire-format.md
+section 15.6): at a measured loss a request, an answer or a result the bridge sends again
+(and, at a start, any command) goes once more in the spare room of a later packet of the
+same turn or slot, never later, never twice; under turns a lost packet then costs it
+nothing. Explicit times, and two links on a ManualClock."""
+from __future__ import annotations
+
+from uwgen.emulator import NodeSpec, Scenario
+from uwgen.emulator.duplex import DuplexSim
+from uwgen.manifest.model import LinkConfig, LinkPolicy, MacConfig
+from uwgen.runtime.clock import ManualClock
+from uwgen.runtime.delivery.copies import LOSS_WINDOW, MEASURED
+from uwgen.runtime.delivery.echoes import Echoes
+from uwgen.runtime.delivery.reliability import Reliability
+from uwgen.runtime.link.mac import mac_for
+from uwgen.runtime.wire.heads import Heads
+
+CALL = 20                                   # a service's channel (requests and responses)
+REQUEST = bytes((2, CALL, 7)) + bytes(12)   # kind 2, id 20, seq 7
+RESPONSE = bytes((3, CALL, 7)) + bytes(12)
+
+
+class _Lossy:
+    """A link's measured loss (copies.Copies): copies wanted, the loss known."""
+
+    def __init__(self, wanted: int = 1, measured: bool = True):
+        self._wanted, self._measured = wanted, measured
+
+    def wanted(self) -> int:
+        return self._wanted
+
+    def measured(self) -> bool:
+        return self._measured
+
+
+def echoes(window: float = 1.0, spare: _Lossy | None = None) -> tuple[Echoes, Heads]:
+    heads = Heads(aged=frozenset({CALL}))
+    return Echoes(frozenset({CALL}), window, heads, spare or _Lossy()), heads
+
+
+def test_a_command_sent_again_gets_one_copy_in_its_own_turn_its_age_moved_on():
+    e, heads = echoes()
+    stamped, _ = heads.add(REQUEST, 0.5)
+    e.repeat(CALL, REQUEST)                                 # the bridge's copy: its first was lost
+    e.left(0, [(CALL, stamped)], 10.0)
+    key, copy = e.pick(10.4, 64)
+    assert key == CALL and heads.take(copy).payload == REQUEST
+    assert heads.take(copy).age > heads.take(stamped).age  # 0.5 s old when it left, 0.4 s ago
+    e.left(1, [(CALL, copy)], 10.4)                         # the copy left: not copied again
+    assert e.pick(10.6, 64) is None and e.sent == {CALL: 1}
+
+
+def test_a_command_sent_the_first_time_gets_no_copy_once_the_loss_is_known():
+    e, heads = echoes()
+    e.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
+    assert e.pick(0.2, 64) is None and not e.waiting(0.2)
+    start, heads = echoes(spare=_Lossy(0, measured=False))   # at a start: every command
+    start.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
+    assert start.waiting(0.2) and start.pick(0.2, 64) is not None
+
+
+def test_no_copy_after_its_own_turn_or_where_it_does_not_fit():
+    e, heads = echoes(window=1.0)
+    e.repeat(CALL, REQUEST)
+    e.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
+    assert e.pick(0.5, 8) is None                           # no room: it waits
+    assert e.waiting(0.5)
+    assert e.pick(1.2, 64) is None and not e.waiting(1.2)   # the turn is over
+    quiet, heads = echoes(spare=_Lossy(0))                  # no loss measured: none
+    quiet.repeat(CALL, REQUEST)
+    quiet.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
+    assert not quiet.waiting(0.2)
+
+
+def test_topics_feedback_and_a_cut_command_are_not_copied():
+    e, heads = echoes(spare=_Lossy(measured=False))        # every command: none of these
+    e.left(0, [(4, bytes((0, 4, 1))), (256 + CALL, bytes((0, CALL, 1)))], 0.0)
+    assert e.pick(0.2, 64) is None                          # a topic, an action's feedback
+    e.left(1, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.2)
+    e.cut(1)                                                # its tail went in packet 2
+    assert e.pick(0.4, 64) is None
+
+
+def command_link() -> Reliability:
+    rel = Reliability(1, period=0.2, reliable={}, max_ages={CALL: 12.0}, max_read_length=64,
+                      commands=frozenset({CALL}), own_span=1.0)
+    rel.repeat(CALL, REQUEST)                               # the bridge sends it again
+    rel.sent(0, [(CALL, rel.stamp(CALL, REQUEST, 0.0, 0.0))], 0.0)
+    return rel
+
+
+def test_the_link_copies_a_command_only_at_a_measured_loss_and_even_in_a_packet_of_parts_alone():
+    rel = command_link()
+    for _ in range(MEASURED):
+        rel.engine.spare.settled(True)                      # measured: nothing lost
+    assert rel.copy(0.2, 60) is None and rel.next_time(0.2) != 0.2
+    for _ in range(LOSS_WINDOW // 10):
+        rel.engine.spare.settled(False)
+    assert rel.next_time(0.2) == 0.2                        # a packet of its turn for the copy
+    key, copy = rel.copy(0.2, 60, fresh=False)              # a notice's, a grant's, an end's packet
+    assert key == CALL and rel.stats()["reliability"]["command_copies"] == {CALL: 1}
+
+
+def test_at_a_start_before_the_loss_is_known_a_command_is_copied():
+    rel = command_link()                                    # nothing settled yet
+    assert rel.copy(0.2, 60) is not None
+    for _ in range(MEASURED):
+        rel.engine.spare.settled(True)
+    rel.sent(1, [(CALL, rel.stamp(CALL, RESPONSE, 0.3, 0.3))], 0.3)
+    assert rel.copy(0.5, 60) is None                        # known now: no loss, no copy
+
+
+# -- two links under turns (a ManualClock) ----------------------------------------------------
+
+TURNS = MacConfig(mode="turns", range=1000.0, leader="surface",
+                  packets=(("surface", 4), ("vehicle", 2)), bitrate=4800.0)
+SENDERS = {"surface": 1, "vehicle": 2}
+
+
+class Wall:
+    def __init__(self, clock: ManualClock):
+        self.clock = clock
+
+    def now(self) -> float:
+        return 1.7e9 + self.clock.now()
+
+
+def call_over_turns(lossy: bool):
+    """A call at 5 s over turns at 1000 m; the surface's packet carrying the request is lost.
+    Returns (surface packets carrying it, vehicle packets carrying the answer, each as
+    (time, number), when the request reached the vehicle, the two links' reliabilities, the
+    payloads the surface received)."""
+    scen = Scenario(nodes=[NodeSpec("surface", position=(0, 0, 0), dest="vehicle"),
+                           NodeSpec("vehicle", position=(1000, 0, 0), dest="surface")],
+                    period=0.2, max_read_length=64, bitrate=4800.0)
+    clock = ManualClock()
+    macs = {side: mac_for(TURNS, side, SENDERS, LinkConfig(64, 0.2)) for side in SENDERS}
+    rel: dict[str, Reliability] = {}
+
+    def hooks_for(side):
+        rel[side] = Reliability(SENDERS[side], period=0.2, reliable={}, max_ages={CALL: 12.0},
+                                wall=Wall(clock), name=side, max_read_length=64,
+                                other_overhead=macs[side].overhead, turn_gap=macs[side].turn_gap(),
+                                settled_by=macs[side].settled_by, commands=frozenset({CALL}),
+                                own_span=macs[side].own_span())
+        for k in range(LOSS_WINDOW):                 # measured: lossy (1 in 8) or not
+            rel[side].engine.spare.settled(not (lossy and k % 8 == 0))
+        return rel[side].hooks()
+    sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,
+                    clock=clock, step=0.025,
+                    link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})
+    carried: dict[str, list[tuple[float, int]]] = {s: [] for s in SENDERS}
+    for side, link in sim.links.items():
+        sent = link.hooks.sent
+
+        def spy(number, picked, now, side=side, sent=sent):
+            if any(key == CALL for key, _ in picked):
+                if side == "surface" and not carried[side]:
+                    sim.drop(side, sim.written[side])       # the request's first packet is lost
+                carried[side].append((now, number))
+            return sent(number, picked, now)
+        link.hooks.sent = spy
+        link.add_channel(CALL, LinkPolicy(queue="fifo", depth=8, ttl=12.0))
+    # the bridges' copies (a request sent again, its answer given again): the link copies
+    # them in their turn
+    rel["surface"].repeat(CALL, REQUEST)
+    rel["vehicle"].repeat(CALL, RESPONSE)
+    sim.at(5.0, lambda: sim.links["surface"].offer(CALL, REQUEST))
+    got: list[float] = []
+
+    def serve():                                # the vehicle's bridge answers the request
+        if not got and any(p[:3] == REQUEST[:3] for _, p in sim.received["vehicle"]):
+            got.append(clock.now())
+            sim.links["vehicle"].offer(CALL, RESPONSE)
+    for k in range(600):
+        sim.at(0.05 * k, serve)
+    sim.run(25.0)
+    return carried["surface"], carried["vehicle"], got, rel, [p for _, p in sim.received["surface"]]
+
+
+def test_under_turns_a_request_whose_packet_is_lost_arrives_in_the_same_turn_by_its_copy():
+    sent, answers, got, rel, back = call_over_turns(lossy=True)
+    span = rel["surface"].echoes.window
+    assert len(sent) == 2 and sent[1][0] - sent[0][0] <= span    # the copy, in the same turn
+    assert got and got[0] < sent[0][0] + span + 2.0             # it came before the next turn
+    # the vehicle answered in its next turn, and copied the answer in the same turn
+    assert len(answers) == 2 and answers[1][0] - answers[0][0] <= rel["vehicle"].echoes.window
+    assert 1 <= sum(p[:3] == RESPONSE[:3] for p in back) <= 2  # the answer came (and its copy)
+
+
+def test_without_a_measured_loss_a_lost_request_waits_for_the_bridges_copy():
+    sent, answers, got, rel, back = call_over_turns(lossy=False)
+    assert len(sent) == 1 and not got and not answers          # no copy: the call needs a round
+    assert rel["surface"].stats()["reliability"]["command_copies"] == {}
