@@ -17,6 +17,7 @@ import os
 # emulator's, a bridge's) may hold the port a participant needs, and discovery then fails now
 # and then (a walkthrough listener that heard nothing in 120 s). 0 is everyone's default.
 FIRST, LAST = 1, 101
+BLOCK_MIN = 3                 # a process's ROS_DOMAIN_ID, the id after it, one for its tests
 DEMO_LIMIT = 100              # `uwgen demo` takes ROS_DOMAIN_ID % 101 and the id after it
 SEED_ENV = "UWGEN_TEST_DOMAIN_SEED"
 # A narrower range, "FIRST-LAST" inside 1..101, keeps the tests away from other ROS work on
@@ -32,8 +33,9 @@ def _range() -> tuple[int, int]:
         first, last = (int(part) for part in text.split("-"))
     except ValueError:
         raise SystemExit(f"{RANGE_ENV}={text!r}: expected FIRST-LAST, e.g. 1-79") from None
-    if not FIRST <= first < last <= LAST:
-        raise SystemExit(f"{RANGE_ENV}={text!r}: a range inside {FIRST}-{LAST} of at least 2 ids")
+    if not (FIRST <= first <= last <= LAST and last - first + 1 >= BLOCK_MIN):
+        raise SystemExit(f"{RANGE_ENV}={text!r}: a range inside {FIRST}-{LAST} of at least "
+                         f"{BLOCK_MIN} ids")
     return first, last
 
 
@@ -49,6 +51,10 @@ def block() -> range:
     index, count = _worker()
     first, last = _range()
     size = (last - first + 1) // count
+    if size < BLOCK_MIN:        # else next_domain() would find no id of its own, forever
+        raise SystemExit(f"{RANGE_ENV}: {last - first + 1} ids ({first}-{last}) for {count} test "
+                         f"processes; each needs {BLOCK_MIN} (its ROS_DOMAIN_ID, the id after "
+                         f"it, one for its tests' contexts): give at least {BLOCK_MIN * count}")
     return range(first + index * size, first + (index + 1) * size)
 
 

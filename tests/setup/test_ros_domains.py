@@ -32,7 +32,13 @@ def test_a_narrower_range_keeps_every_worker_inside_it(monkeypatch):
     assert len(ids) == len(set(ids)) and min(ids) == 1 and max(ids) <= 60
 
 
-@pytest.mark.parametrize("text", ["80", "0-50", "50-40", "1-120", "a-b"])
+@pytest.mark.parametrize("text", ["80", "0-50", "50-40", "1-120", "a-b", "5-6"])
 def test_a_bad_range_stops_the_run_with_what_is_expected(monkeypatch, text):
     with pytest.raises(SystemExit, match="UWGEN_TEST_DOMAINS"):
         blocks(monkeypatch, 1, text)
+
+
+def test_a_range_too_small_for_its_workers_stops_the_run_not_loops(monkeypatch):
+    with pytest.raises(SystemExit, match="give at least 9"):
+        blocks(monkeypatch, 3, "1-8")
+    assert [len(b) for b in blocks(monkeypatch, 3, "1-9")] == [3, 3, 3]
