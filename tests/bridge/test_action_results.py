@@ -78,15 +78,3 @@ def test_a_result_goes_again_when_its_copy_is_due_not_on_its_timer():
     b.sent(5, b"goal", b"result", arrived=0.0, now=0.0, turn=4)
     assert list(b.due(20.0, ready=lambda u: False)) == []      # never due: never sent
     assert list(b.due(1.0, ready=lambda u: u.turn == 4)) == [b"result"]   # before its RTO
-
-
-def test_a_result_sent_again_for_a_goals_copy_times_its_own_copy_from_that_departure():
-    # under TDMA the copy waits for the answers to the slot the result last left in: a
-    # result re-sent in reply to a goal's copy left in a later slot than the one timed
-    b = book()
-    b.sent(5, b"goal", b"result", arrived=0.0, now=1.0)
-    b.unacked[5].answer_by = 4.1                    # the first send's slot
-    b.resent(5)
-    assert b.unacked[5].answer_by is None           # timed again once the repeat has left
-    b.resent(6)                                     # nothing waits on 6: nothing to do
-    assert list(b.unacked) == [5]

@@ -38,7 +38,6 @@ class GoalState:
     payload: bytes = b""                          # the goal as sent (sent again unchanged)
     sends: int = 1
     turn: int | None = None                       # own turns ended while it waited (copies.py)
-    answer_by: float | None = None   # TDMA: its answer is in by then (copies.py)
     next_send: float = float("inf")               # when to send it again while unanswered (none
                                                   # until it is first sent: the expiry timer
                                                   # may run while the goal is being encoded)
@@ -77,10 +76,8 @@ class GoalAnswers:
             counters.other_sides += 1       # an answer or result for another client side
             return
         if code in RESULTS:
-            # Acknowledged whatever became of it: a copy means our last ack was lost. Once
-            # while an equal ack still waits in the link (copies arriving in one slot or
-            # turn): a second would ride the same packet.
-            if self.w.offer_once(ident, codec.encode_result_status(handle, received=True)):
+            # Acknowledged whatever became of it: a copy means our last ack was lost.
+            if self.w.send(ident, codec.encode_result_status(handle, received=True)):
                 counters.result_acks += 1
             pending = table.complete(ident, handle)
             if pending is None:

@@ -35,7 +35,6 @@ class Unacked:
     until: float                  # no copy after this: the client side may reuse the handle
     sends: int = 1
     turn: int | None = None       # own turns ended while it waited in the link (copies.py)
-    answer_by: float | None = None   # TDMA: its answer is in by then (copies.py)
 
 
 @dataclass(frozen=True)
@@ -76,14 +75,6 @@ class ResultBook:
         if unacked.sends == 1:        # Karn: only an unambiguous round trip is a sample
             self.rtt.sample(now - unacked.first_sent)
         return unacked
-
-    def resent(self, handle: int) -> None:
-        """The result went again in reply to its goal's copy: under TDMA its own copy is
-        timed from that departure (copies.py), not from the one before, which would send it
-        a second time in the next slot."""
-        unacked = self.unacked.get(handle)
-        if unacked is not None:
-            unacked.answer_by = None
 
     def forget(self, handle: int) -> None:
         """A new goal on `handle`: what the old one left is no longer asked for."""

@@ -289,7 +289,6 @@ class ActionServers:
             return False
         self.counters[ident].repeated_replies += 1
         self._offer(ident, result, "result", again=True)   # the answer and result were lost
-        self.results[ident].resent(handle)
         return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:

@@ -11,20 +11,12 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   meanwhile: the answer takes the copy back (`Wiring.withdraw`) before it uses air time.
   A timer cannot do this: a round is a turn and the peer's turn (seconds, and longer when a
   turn is missed), and a copy timed on it leaves just before its answer or a round late.
-- Under TDMA, once a frame, when the answer could no longer come: the link's MAC knows the
-  ON window a message written now leaves in, and when every other side's next ON window has
-  reached this side (`TdmaMac.answers`); once the message (or its last copy) has left the
-  link, its copy is due then. The answer arrives before this side's next write window
-  closes, so the copy still leaves in the next own slot, and an answer merely late in the
-  peer's slot costs no copy. A timer cannot do this: the frame's phase drifts against it,
-  its copy leaves just before a late answer, or misses a window and loses a frame.
-- Other MACs (none, and TDMA while no phase is known): the retransmission timer
-  (`uwgen.runtime.delivery.reliable.command_rtt`); when it fires while the message still
-  waits in the link, the copy is put off by one more timeout.
+- Other MACs (none, TDMA): the retransmission timer (`uwgen.runtime.delivery.reliable
+  .command_rtt`); when it fires while the message still waits in the link, the copy is put
+  off by one more timeout.
 
 `Leg` is what the parts keep of each message waiting for its answer: `next_send` (the
-timer), `turn` (the own turns ended while it, or its last copy, still waited in the link)
-and `answer_by` (TDMA: when the answer to its last departure is in; None while it waits).
+timer) and `turn` (the own turns ended while it, or its last copy, still waited in the link).
 """
 from __future__ import annotations
 
@@ -37,7 +29,6 @@ if TYPE_CHECKING:
 class Leg(Protocol):
     next_send: float
     turn: int | None
-    answer_by: float | None
 
 
 def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: float) -> bool:
@@ -45,18 +36,11 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
     `rto`: the timer's next wait, used when it fires while the message still waits."""
     turns = w.turns()
     if turns is None:
+        if leg.next_send > now:
+            return False
         if w.waiting(key, payload):
-            leg.answer_by = None             # not left yet: no copy behind it
-            if leg.next_send <= now:
-                leg.next_send = now + rto
+            leg.next_send = now + rto        # it has not left yet: no copy behind it
             return False
-        if leg.answer_by is None:
-            leg.answer_by = w.answer_by(now)     # TDMA: it left lately; None: the timer
-        if leg.answer_by is None:
-            return leg.next_send <= now
-        if now < leg.answer_by:
-            return False
-        leg.answer_by = None                 # the copy: timed again once it has left
         return True
     if w.waiting(key, payload) or leg.turn is None:
         leg.turn = turns                     # still waiting for an own turn to carry it
@@ -75,12 +59,3 @@ def own_turns(mac) -> Callable[[], int | None]:
         return lambda: None
     counts, key = mac.counts, "grants_sent" if mac.leading else "turns"
     return lambda: counts[key]
-
-
-def answer_time(mac) -> Callable[[float], float | None]:
-    """When the answers to a message that left the link at about `now` have all come or been
-    lost, under TDMA with a known phase (`uwgen.runtime.link.slot_timing.AnswerTimes`); None
-    otherwise (the timer)."""
-    if getattr(mac, "mode", "none") != "tdma":
-        return lambda now: None
-    return mac.answers.answer_by

@@ -31,7 +31,7 @@ from rclpy.node import Node
 from uwgen.runtime.delivery import ledger
 from uwgen.bridge.action_servers import ActionServers
 from uwgen.bridge.actions import ActionStandIns, action_status
-from uwgen.bridge.copies import answer_time, own_turns
+from uwgen.bridge.copies import own_turns
 from uwgen.bridge.counters import BridgeCounters
 from uwgen.bridge.diagnostics import Watching
 from uwgen.bridge.dispatch import Dispatcher
@@ -138,7 +138,6 @@ class BridgeNode(Node):
         if hasattr(scheduler, "waiting"):
             w.waiting, w.withdraw = scheduler.waiting, scheduler.withdraw
             w.turns = own_turns(self.mac)
-            w.answer_by = answer_time(self.mac)
         if self.reliability is not None:
             w.repeat = self.reliability.repeat
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert

@@ -60,7 +60,6 @@ class Outgoing:
     next_send: float
     sends: int = 1
     turn: int | None = None          # own turns ended while it waited in the link (copies.py)
-    answer_by: float | None = None   # TDMA: its answer is in by then (copies.py)
 
 
 def service_rtt(codec: Any, period: float, round_trip: float | None = None,

@@ -52,7 +52,6 @@ class Wiring:
     waiting: Callable[[int, bytes], bool] = lambda key, payload: False
     withdraw: Callable[[int, bytes], bool] = lambda key, payload: False
     turns: Callable[[], int | None] = lambda: None
-    answer_by: Callable[[float], float | None] = lambda now: None   # TDMA: copies.answer_time
     # the link's reliability: a command offered again gets a copy in its turn (echoes.py)
     repeat: Callable[[int, bytes], None] = lambda key, payload: None
     # answer head -> (key, copy): a copy the answer takes back on arrival (take_back)

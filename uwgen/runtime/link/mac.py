@@ -44,7 +44,7 @@ from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.link.mac_items import (TURN_END, TURN_GRANT, MacItem,  # noqa: F401 (the MAC's names)
                                           decode_items, encode_items)
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
-from uwgen.runtime.link.slot_timing import AnswerTimes, FramePhase, SlotTimer, tdma_capacity
+from uwgen.runtime.link.slot_timing import FramePhase, SlotTimer, tdma_capacity
 from uwgen.runtime.link.turn_timing import RoundTrip, TurnTiming
 from uwgen.runtime.wire import envelope as env
 
@@ -141,7 +141,6 @@ class TdmaMac(Mac):
         self._anonymous = others[0] if anonymous and len(others) == 1 else None
         self.timer = SlotTimer(config, side, link, self.capacity, link.period * (1.0 + margin))
         self._arrived: tuple[int, float] | None = None     # the packet being opened: (bytes, when)
-        self.answers = AnswerTimes(self.phase, self.timer, config, link, side)   # copies: slot_timing
 
     def next_write_at(self, now: float) -> float:
         return self.timer.next_write_at(self.phase.start(now), now, self.phase.settled(now))

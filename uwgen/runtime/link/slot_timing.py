@@ -67,7 +67,6 @@ MEMORY_FRAMES = 10    # frames after which a heard packet no longer counts
 BLIND_FRAMES = 4      # frames between two writes made while no phase is known
 LISTEN_FRAMES = 2     # frames the side of the first slot listens before it writes without a phase
 KEEP = 64             # the most recent packets the phase is taken from
-ANSWER_MARGIN = 0.1   # s: an answer heard is in the bridge's hands this much later
 
 
 class FramePhase:
@@ -181,14 +180,6 @@ class SlotTimer:
         else:
             self.timed += 1
 
-    def left_in(self, origin: float, written: float) -> float:
-        """When the ON window opens that a packet written at about `written` (or noticed
-        gone from the link up to half the gap between two write windows later) leaves in:
-        the window of the last write window begun by then."""
-        gap = self.frame - (self.end - self.begin)
-        _begin, end = self.writes_window(origin, written - gap / 2)
-        return end - self.end + self.open_at
-
     def writes_window(self, origin: float, now: float, settled: bool = True) -> tuple[float, float]:
         """(begin, end) of the first write window that ends after `now` (a settling one
         unless `settled`)."""
@@ -197,36 +188,6 @@ class SlotTimer:
         base = origin + last
         end = base + ((now - base) // self.frame + 1) * self.frame
         return end - (last - first), end
-
-
-class AnswerTimes:
-    """When the answers to this side's packets are in (uwgen.bridge.copies times a command's
-    copy on it): a packet written in a write window leaves in the ON window after it, and
-    the other sides answer in their next ON windows (`span` from its opening, reply_span).
-    None while no phase is known, or when no other side has a slot."""
-
-    def __init__(self, phase: FramePhase, timer: SlotTimer, config: MacConfig,
-                 link: LinkConfig, side: str):
-        self.phase, self.timer = phase, timer
-        self.span = reply_span(config, link, side)
-
-    def answer_by(self, now: float) -> float | None:
-        """For a packet written at about `now` (or noticed gone a little later)."""
-        origin = self.phase.start(now)
-        if origin is None or self.span is None:
-            return None
-        return self.timer.left_in(origin, now) + self.span
-
-
-def reply_span(config: MacConfig, link: LinkConfig, side: str) -> float | None:
-    """Seconds from the opening of `side`'s ON window until the last packet any other side
-    starts in its next ON window (anywhere in slot - guard) has arrived (its air time, the
-    range) and is in the bridge's hands (ANSWER_MARGIN): answers to what `side` sent in
-    that window are in by then (None: no other side has a slot)."""
-    air, mine = air_time(link.max_read_length, config.bitrate), config.slot_start(side)
-    return max((((config.slot_start(s) - mine) % config.frame or config.frame)
-                + config.slot_length(s) - config.guard + air + config.delay + ANSWER_MARGIN
-                for s in config.slots if s != side), default=None)
 
 
 def send_window(config: MacConfig, link: LinkConfig, side: str | None = None) -> float:
