@@ -135,6 +135,12 @@ class Side:
         gc.collect()
 
 
+def result_status(payload: bytes) -> bool:
+    """A result's acknowledgement or request (an action's kind-2 message whose body opens
+    with 0x18)."""
+    return payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18
+
+
 class Overhead:
     """Counts the bytes a bridge offers on command ids that are retries or acks (a copy taken
     back before it left, LinkScheduler.withdraw, is not counted)."""
@@ -152,7 +158,7 @@ class Overhead:
 
         def counted(key: int, payload: bytes, **kw) -> bool:
             if key in COMMAND_IDS:
-                status = payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18   # result status
+                status = result_status(payload)
                 if status and not retries:
                     return True                     # reference: no result status at all
                 if status or (key, payload) in self.seen:
@@ -167,8 +173,7 @@ class Overhead:
             taken = withdraw(key, payload)
             if taken and key in COMMAND_IDS and (key, payload) in self.seen:
                 self.bytes -= len(payload) + OVERHEAD
-                status = payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18
-                self.kinds[kind(key, payload, status)] -= len(payload) + OVERHEAD
+                self.kinds[kind(key, payload, result_status(payload))] -= len(payload) + OVERHEAD
             return taken
         bridge.wiring.withdraw = withdrawn
         if not retries:

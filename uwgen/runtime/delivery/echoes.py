@@ -42,7 +42,9 @@ class Echoes:
         self._repeats: OrderedDict[tuple[int, bytes], None] = OrderedDict()   # (key, payload)
         self._recent: deque[tuple[int, int, bytes, float]] = deque(maxlen=KEPT)  # number, key, payload, at
         self._picked: set[int] = set()        # id() of the copies handed out for this packet
-        self._building = False                 # the packet being built carries a command
+        # the packet being built: id() of its commands that get a copy -> (key, payload) as
+        # the bridge offered it (read once, in `carrying`; `left` records them)
+        self._building: dict[int, tuple[int, bytes] | None] = {}
         self.sent: dict[int, int] = {}         # channel key -> copies sent
         self.bytes: dict[int, int] = {}        # channel key -> bytes of its copies
 
@@ -53,36 +55,38 @@ class Echoes:
         while len(self._repeats) > REPEATS:
             self._repeats.popitem(last=False)
 
-    def _copied(self, key: int, payload: bytes, take: bool = False) -> bool:
-        """Whether a command leaving now gets its copy: a repeat (taken off the list when
-        `take`), or any command while the loss is not known."""
+    def _repeated(self, key: int, payload: bytes) -> tuple[int, bytes] | None | bool:
+        """Whether a command leaving now gets its copy: its entry in the repeats (key, the
+        payload as offered), None while the loss is not known (every command), or False."""
         if key not in self.keys or id(payload) in self._picked:
             return False
         if not self.spare.measured():
-            return True
+            return None
         try:
             bare = (key, self.heads.take(payload).payload)
         except HeadError:
             return False
-        if bare not in self._repeats:
-            return False
-        if take:
-            del self._repeats[bare]
-        return True
+        return bare if bare in self._repeats else False
 
     def carrying(self, picked: list[tuple[int, bytes]]) -> None:
         """The packet being built carries `picked`: a command among them that gets its copy
         will wait for it (`waiting`), so the turn is not ended on this packet."""
-        self._building = self.window > 0 and any(self._copied(k, p) for k, p in picked)
+        self._building = {}
+        if self.window > 0:
+            for key, payload in picked:
+                got = self._repeated(key, payload)
+                if got is not False:
+                    self._building[id(payload)] = got
 
     def left(self, number: int, picked: list[tuple[int, bytes]], now: float) -> None:
         """Packet `number` left now carrying `picked` ((key, payload): copies among them are
         not copied again)."""
-        self._building = False
-        if not self.keys or self.window <= 0:
-            return
+        building, self._building = self._building, {}
         for key, payload in picked:
-            if self._copied(key, payload, take=True):
+            # read in `carrying` when it was told of this packet
+            got = building[id(payload)] if id(payload) in building else self._repeated(key, payload)
+            if got is not False and self.window > 0:
+                self._repeats.pop(got, None)          # copied once: off the list
                 self._recent.append((number, key, payload, now))
         self._picked.clear()
 
@@ -101,7 +105,7 @@ class Echoes:
         """Whether a command of this turn still waits for its copy, when `wanted`: the side
         writes one more packet of its turn for it (a follower whose answer went alone; the
         next packet of a leader's turn is its notice or grant, which leaves anyway)."""
-        return self.wanted() and (self._building or any(
+        return self.wanted() and (bool(self._building) or any(
             now - at <= self.window for _n, _k, _p, at in self._recent))
 
     def pick(self, now: float, room: int) -> tuple[int, bytes] | None:
