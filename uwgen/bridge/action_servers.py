@@ -209,7 +209,7 @@ class ActionServers:
         # accept_timeout is refused on arrival, so it never will), or this bridge restarted
         # and did not find it. Answered 0: no such goal here; not before the local server's
         # goal list was read (a goal about to be adopted is not "lost").
-        if not self.watches[ident].listed(self.w.clock.now()):
+        if not self.watches[ident].heard_or_grace(self.w.clock.now()):
             self._deferred.add((ident, handle))           # answered once it knows (expire)
             return
         codec = self.served[ident][0]
@@ -369,7 +369,7 @@ class ActionServers:
     def expire(self) -> None:
         now, say = self.w.clock.now(), self.w.throttle.report
         for ident, handle in list(self._deferred):
-            if self.watches[ident].listed(now):
+            if self.watches[ident].heard_or_grace(now):
                 self._deferred.discard((ident, handle))
                 if handle not in self.goals[ident]:
                     self.counters[ident].result_queries -= 1   # counted when it came

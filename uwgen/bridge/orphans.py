@@ -13,16 +13,17 @@ made from its UUID, its result is asked for and pushed to the client side under 
 and `result_timeout` is supervised as for any goal), or **cancelled** when its handle is
 busy with a newer goal.
 
-Until the goal list is **known** (`OrphanWatch.listed`) the server side neither sends the
-local server a goal that came over the link nor tells the client side that it knows no such
-goal: a goal's copy that reaches a bridge started again before the list would otherwise run a
-second time beside the running goal it copies, and a client asking meanwhile would be told
-"lost" for a goal about to be adopted. The list is known once it has been heard, or once the
-status publisher has been matched for `LIST_SETTLE` seconds with nothing heard (a transient
-local list comes with the match; a server that never had a goal publishes none), or
-`STATUS_GRACE` seconds after start. A goal held for the list that the list then shows
-running on its handle is the running goal's copy: the running goal is adopted and the copy
-dropped (counted `duplicate_goals`).
+Until the goal list is **known** (`OrphanWatch.listed`) the server side does not send the
+local server a goal that came over the link: a goal's copy that reaches a bridge started
+again before the list would otherwise run a second time beside the running goal it copies.
+The list is known once it has been heard, or once the status publisher has been matched for
+`LIST_SETTLE` seconds with nothing heard (a transient local list comes with the match; a
+server that never had a goal publishes none), or `STATUS_GRACE` seconds after start. A goal
+held for the list that the list then shows running on its handle is the running goal's copy:
+the running goal is adopted and the copy dropped (counted `duplicate_goals`). The side tells
+the client side that it knows no such goal only once the list was heard or `STATUS_GRACE`
+is over (`heard_or_grace`): a caller told "lost" for a goal about to be adopted is lied to,
+so no guess from the match there.
 
 A goal of ours that **finished** while no bridge watched it (succeeded, aborted or cancelled
 while the server side was down) is listed too, for as long as the local server keeps its
@@ -41,7 +42,8 @@ from typing import Any
 MARK = b"uwg"
 STATUS_GRACE = 10.0         # seconds after start before the list counts as known unheard
                             # (discovery of the local server can take seconds on a loaded machine)
-LIST_SETTLE = 0.5           # seconds a matched status publisher may take to deliver its list
+LIST_SETTLE = 2.0           # seconds a matched status publisher may take to deliver its list
+                            # (a loaded machine has taken more than 0.5 s)
 ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
 FINISHED = (4, 5, 6)        # GoalStatus SUCCEEDED, CANCELED, ABORTED
 
@@ -75,6 +77,12 @@ class OrphanWatch:
         self.sub = node.create_subscription(GoalStatusArray, f"{action_name}/_action/status",
                                             self._status, qos_profile_action_status_default,
                                             callback_group=callback_group)
+
+    def heard_or_grace(self, now: float) -> bool:
+        """Whether "no such goal" may be said: the list was heard, or the grace is over (a
+        caller told "lost" for a goal about to be adopted is lied to: no guess from the
+        match here)."""
+        return self.heard or now - self.started >= STATUS_GRACE
 
     def listed(self, now: float) -> bool:
         """Whether the local server's goal list is known (see the module's docstring): heard,
