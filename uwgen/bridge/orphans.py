@@ -42,8 +42,7 @@ from typing import Any
 MARK = b"uwg"
 STATUS_GRACE = 10.0         # seconds after start before the list counts as known unheard
                             # (discovery of the local server can take seconds on a loaded machine)
-LIST_SETTLE = 2.0           # seconds a matched status publisher may take to deliver its list
-                            # (a loaded machine has taken more than 0.5 s)
+LIST_SETTLE = 0.5           # seconds a matched status publisher may take to deliver its list
 ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
 FINISHED = (4, 5, 6)        # GoalStatus SUCCEEDED, CANCELED, ABORTED
 
