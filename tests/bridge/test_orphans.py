@@ -12,7 +12,8 @@ from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from test_msgs.action import Fibonacci
 
-from uwgen.bridge.orphans import OrphanWatch, goal_uuid, handle_of
+from uwgen.bridge.action_results import REPEAT_WINDOW
+from uwgen.bridge.orphans import ARRIVAL_MODULO, OrphanWatch, age_of_copy, goal_uuid, handle_of
 from uwgen.codegen import generate
 
 from .fakes import LinkPair, fake_package, wait_for
@@ -25,6 +26,16 @@ def test_a_goal_uuid_names_its_action_and_handle_and_nothing_else_is_ours():
     assert len(uuid) == 16 and uuid[:5] == b"uwg\x09\x07"
     assert handle_of(uuid, 9) == 7 and handle_of(uuid, 10) is None
     assert handle_of(bytes(16), 9) is None
+
+
+def test_a_goal_uuid_tells_a_copy_of_its_goal_and_how_long_ago_the_goal_came():
+    uuid = goal_uuid(9, 7, random.Random(1), b"\x02\x09\x07\x05", arrived=1_700_000_000.25)
+    assert age_of_copy(uuid, b"\x02\x09\x07\x05", 1_700_000_003.0) == pytest.approx(2.75)
+    assert age_of_copy(uuid, b"\x02\x09\x07\x06", 1_700_000_003.0) is None   # another goal
+    # a clock set back puts the arrival ahead: far outside any window, never "just now"
+    assert age_of_copy(uuid, b"\x02\x09\x07\x05", 1_699_999_999.0) > 1e6
+    assert age_of_copy(uuid, b"\x02\x09\x07\x05",
+                       1_700_000_000.25 + ARRIVAL_MODULO / 1000 + 1.0) == pytest.approx(1.0)
 
 
 def kill(side, bridge) -> None:
@@ -102,6 +113,50 @@ def patient_fib_codec(tmp_path_factory):
                     manifest=root / "uwgen.yaml").ACTIONS[9]
 
 
+def hold_list(monkeypatch):
+    """From now on a bridge that starts hears its local server's goal list, and sees the
+    status publisher matched, only once `release(bridge)` is called (in the bridge's
+    executor, as a status message comes)."""
+    released, held = threading.Event(), []
+    status, init = OrphanWatch._status, OrphanWatch.__init__
+
+    def late_status(self, msg):                  # the list comes only once released
+        if released.is_set():
+            status(self, msg)
+        else:
+            held.append((self, msg))
+
+    def late_init(self, *args, **kw):
+        init(self, *args, **kw)
+        count = self.sub.get_publisher_count
+        self.sub.get_publisher_count = lambda: count() if released.is_set() else 0
+
+    def hand_over():
+        released.set()
+        for watch, msg in held:
+            status(watch, msg)
+
+    def release(bridge):
+        timer = bridge.create_timer(0.01, lambda: (timer.cancel(), hand_over()),
+                                    callback_group=bridge.wiring.main_group)
+
+    monkeypatch.setattr(OrphanWatch, "_status", late_status)
+    monkeypatch.setattr(OrphanWatch, "__init__", late_init)
+    return release
+
+
+def copy_held(again, links, results: list) -> None:
+    """The goal's copy reaches the restarted bridge `again`, whose goal list is held back:
+    the copy is held, not sent (results unchanged)."""
+    before = list(results)
+    wait_for(lambda: again.action_servers.served[9][1].server_is_ready(),
+             what="real server visible again")
+    links.links["vehicle"].inject(links.links["surface"].offered(9)[0])   # the goal's copy
+    wait_for(lambda: counted(again)["goal_requests"] == 1, what="the copy")
+    time.sleep(0.5)                              # it would have been sent by now
+    assert results == before and counted(again)["waited"] == 1
+
+
 def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal_list_is_not_run_again(
         patient_fib_codec, monkeypatch):
     """The server-side bridge is killed while its goal runs; the goal's copy reaches the new
@@ -112,40 +167,14 @@ def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal
     package = fake_package([])
     package.ACTIONS = {9: patient_fib_codec}
     links = LinkPair()
-    release, held = threading.Event(), []
-    status, init = OrphanWatch._status, OrphanWatch.__init__
-
-    def late_status(self, msg):                  # the list comes only once released
-        if release.is_set():
-            status(self, msg)
-        else:
-            held.append((self, msg))
-
-    def late_init(self, *args, **kw):
-        init(self, *args, **kw)
-        count = self.sub.get_publisher_count
-        self.sub.get_publisher_count = lambda: count() if release.is_set() else 0
-
     with ros_sides("surface", "vehicle") as (surface, vehicle):
         bridges = {s.name: start_bridge(s, package, links.factory) for s in (surface, vehicle)}
         results, goal_handle = goal_then_kill(surface, vehicle, bridges, delay=2.5)
         assert results == [5]
-        monkeypatch.setattr(OrphanWatch, "_status", late_status)
-        monkeypatch.setattr(OrphanWatch, "__init__", late_init)
+        release = hold_list(monkeypatch)
         again = start_bridge(vehicle, package, links.factory)
-        wait_for(lambda: again.action_servers.served[9][1].server_is_ready(),
-                 what="real server visible again")
-        links.links["vehicle"].inject(links.links["surface"].offered(9)[0])   # the goal's copy
-        wait_for(lambda: counted(again)["goal_requests"] == 1, what="the copy")
-        time.sleep(0.5)                          # it would have been sent by now
-        assert results == [5] and counted(again)["waited"] == 1
-
-        def hand_over():                         # in the bridge's executor, as a status message
-            release.set()
-            for watch, msg in held:
-                status(watch, msg)
-        timer = again.create_timer(0.01, lambda: (timer.cancel(), hand_over()),
-                                   callback_group=again.wiring.main_group)
+        copy_held(again, links, results)
+        release(again)
         wait_for(lambda: counted(again)["orphans_adopted"] == 1, what="the running goal adopted")
         future = goal_handle.get_result_async()
         wait_for(future.done, timeout=10.0, what="the goal's result")
@@ -153,3 +182,91 @@ def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal
         assert results == [5]                                  # run once
         status_now = counted(again)
         assert (status_now["duplicate_goals"], status_now["orphans_cancelled"]) == (1, 0)
+
+
+@pytest.fixture(scope="module")
+def slow_fib_codec(tmp_path_factory):
+    """/fib with a 20 s accept_timeout (a copy is a repeat for 30 s after its goal came, far
+    longer than a restart takes here) and a 30 s result_timeout."""
+    root = tmp_path_factory.mktemp("slowacts")
+    (root / "pkg" / "msg").mkdir(parents=True)
+    (root / "pkg" / "msg" / "Unused.msg").write_text("int8 x\n")
+    (root / "uwgen.yaml").write_text(MANIFEST.replace("accept_timeout: 0.5", "accept_timeout: 20")
+                                     .replace("result_timeout: 3", "result_timeout: 30"))
+    return generate(tmp_path_factory.mktemp("gen"), "uwgen_slowacts", folders=[root],
+                    manifest=root / "uwgen.yaml").ACTIONS[9]
+
+
+@pytest.fixture
+def finished_while_down(slow_fib_codec):
+    """A goal accepted through the bridges, the server-side bridge killed, the goal finished
+    on the local server meanwhile (its answer and result never left): (start a new
+    server-side bridge, the link pair, the goals the real server ran, the caller's goal
+    handle)."""
+    package = fake_package([])
+    package.ACTIONS = {9: slow_fib_codec}
+    links = LinkPair()
+    with ros_sides("surface", "vehicle") as (surface, vehicle):
+        bridges = {s.name: start_bridge(s, package, links.factory) for s in (surface, vehicle)}
+        results, goal_handle = goal_then_kill(surface, vehicle, bridges, delay=0.2)
+        time.sleep(1.0)                                    # it finishes meanwhile
+        assert results == [5]
+        yield (lambda: start_bridge(vehicle, package, links.factory)), links, results, goal_handle
+
+
+def listed_finished(again, goal: bytes) -> None:
+    """The restarted bridge has the local server's list, showing `goal`'s handle finished."""
+    wait_for(lambda: goal[2] in again.action_servers.watches[9].finished,
+             what="the finished goal listed")
+
+
+@pytest.mark.parametrize("first", ["list", "copy"])
+def test_a_copy_of_a_goal_that_finished_while_the_server_side_bridge_was_down_is_answered_not_run(
+        finished_while_down, monkeypatch, first):
+    """The goal finished unwatched; the client side, its answer and result lost, copies it.
+    The restarted bridge finds it finished in the local server's list (before the copy
+    comes, or after: the copy held for the list), within REPEAT_WINDOW accept_timeouts of
+    its arrival and with the copy's payload: the copy is answered accepted and gets the
+    result the local server kept, and the goal does not run again."""
+    start, links, results, goal_handle = finished_while_down
+    release = hold_list(monkeypatch) if first == "copy" else None
+    again = start()
+    if release is None:
+        copy = links.links["surface"].offered(9)[0]                       # the goal's copy
+        listed_finished(again, copy)
+        links.links["vehicle"].inject(copy)
+    else:
+        copy_held(again, links, results)
+        release(again)
+    future = goal_handle.get_result_async()
+    wait_for(future.done, timeout=15.0, what="the goal's result")
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+    assert list(future.result().result.sequence) == [0, 1]
+    time.sleep(0.5)                                        # a second run would have begun
+    assert results == [5]                                  # run once
+    status = counted(again)
+    assert (status["goal_requests"], status["duplicate_goals"], status["orphans_finished"]) == (1, 1, 1)
+    assert status["answers"] >= 1                          # accepted, then the result
+
+
+@pytest.mark.parametrize("new", ["same goal after the window", "another goal within it"])
+def test_a_new_goal_on_the_handle_of_a_goal_that_finished_while_the_bridge_was_down_runs(
+        finished_while_down, new):
+    """Handles are reused: the same payload on the handle once REPEAT_WINDOW accept_timeouts
+    have passed since the finished goal came (the restarted bridge's system clock put that
+    far ahead), or another payload at once, is a new goal: it runs."""
+    start, links, results, goal_handle = finished_while_down
+    again = start()
+    copy = links.links["surface"].offered(9)[0]
+    if new == "same goal after the window":
+        window = REPEAT_WINDOW * again.action_servers.served[9][0].accept_timeout
+        again.wiring.wall = lambda: time.time() + window + 1.0
+        goal, expected = copy, [5, 5]
+    else:
+        codec = again.action_servers.served[9][0]
+        goal, expected = codec.encode_goal(copy[2], Fibonacci.Goal(order=6)), [5, 6]
+    listed_finished(again, copy)
+    links.links["vehicle"].inject(goal)
+    wait_for(lambda: results == expected, what="the new goal run")
+    status = counted(again)
+    assert (status["duplicate_goals"], status["orphans_finished"]) == (0, 0)

@@ -11,8 +11,9 @@ answered 3 (canceling) or 2 (refused).
 
 Losses: a goal that comes again (the client side sends it again while unanswered) is
 answered again if it was accepted, and a goal that finished lately gets its result again
-(`uwgen.bridge.action_results`, which also sends results again until acknowledged), so a
-lost answer or result costs a repeat, not a second run. A local server that does not
+(`uwgen.bridge.action_results`, which also sends results again until acknowledged; after a
+restart, from the local server's goal list: `uwgen.bridge.orphans`), so a lost answer or
+result costs a repeat, not a second run. A local server that does not
 answer within `accept_timeout` is answered 0; a goal that does not finish within
 `result_timeout` is cancelled and reported aborted; a local server that disappears during
 goals gets them reported aborted after SERVER_GONE_GRACE.
@@ -26,7 +27,7 @@ from typing import Any
 from rclpy.action import ActionClient
 from rclpy.task import Future
 
-from uwgen.bridge.action_results import ResultBook
+from uwgen.bridge.action_results import REPEAT_WINDOW, ResultBook
 from uwgen.bridge.copies import copy_due
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
@@ -160,7 +161,8 @@ class ActionServers:
     def _send_goal(self, ident: int, handle: int, entry: Served) -> None:
         from unique_identifier_msgs.msg import UUID
         client = self.served[ident][1]
-        uuid = goal_uuid(ident, handle, self._rng)      # names the handle (orphans.py)
+        arrived = self.w.wall() - (self.w.clock.now() - entry.arrived)
+        uuid = goal_uuid(ident, handle, self._rng, entry.payload, arrived)   # orphans.py
         self.own_uuids.add(uuid)
         entry.sent = client.send_goal_async(
             entry.goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb),
@@ -178,7 +180,8 @@ class ActionServers:
         listed = self.watches[ident].listed(now)
         for handle, entry in list(self.goals[ident].items()):
             if entry.sent is None and (listed or entry.deadline <= now):
-                self._send_goal(ident, handle, entry)
+                if not self._copy_of_finished(ident, handle, entry.payload, entry.arrived):
+                    self._send_goal(ident, handle, entry)
 
     def _result_status(self, ident: int, handle: int, received: bool) -> None:
         """The client side has the result of goal `handle` (stop sending it), or wants it."""
@@ -219,12 +222,14 @@ class ActionServers:
         self._answer(ident, handle, REJECTED)
         counters.lost_goals += 1
 
-    def _adopt(self, ident: int, handle: int, uuid: bytes, info: Any, done: bool = False) -> None:
+    def _adopt(self, ident: int, handle: int, uuid: bytes, info: Any, done: bool = False,
+               payload: bytes = b"", arrived: float | None = None) -> None:
         """A goal a previous start of this bridge sent the local server, still running: adopt
         it (its result goes to the client side under its handle), or cancel it when its
         handle is busy with a newer goal (orphans.py). `done`: it finished while no bridge
-        watched it, and the client side asks for its result: the local server's kept result
-        (get_result) goes to it."""
+        watched it, and the client side asks for its result or copies it: the local server's
+        kept result (get_result) goes to it, kept as the goal's (`payload` as it came at
+        `arrived`) for its later copies."""
         from rclpy.action.client import ClientGoalHandle
         from unique_identifier_msgs.msg import UUID
         codec, client = self.served[ident]
@@ -232,8 +237,8 @@ class ActionServers:
         goal_handle = ClientGoalHandle(client, UUID(uuid=list(uuid)), response)
         self.own_uuids.add(uuid)
         held = self.goals[ident].get(handle)
-        if held is not None and held.sent is None and not done:
-            # held for the list (on_request): the copy of this running goal, not a new one
+        if held is not None and held.sent is None:
+            # held for the list (on_request): the copy of this goal, not a new one
             del self.goals[ident][handle]
             self.counters[ident].duplicate_goals += 1
         elif handle in self.goals[ident]:
@@ -246,7 +251,8 @@ class ActionServers:
         now = self.w.clock.now()
         sent: Future = Future()
         sent.set_result(goal_handle)
-        self.goals[ident][handle] = Served(sent, now + codec.result_timeout, arrived=now,
+        self.goals[ident][handle] = Served(sent, now + codec.result_timeout, payload=payload,
+                                           arrived=now if arrived is None else arrived,
                                            goal_handle=goal_handle)
         if done:
             self.counters[ident].orphans_finished += 1
@@ -286,9 +292,24 @@ class ActionServers:
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
-            return False
+            return self._copy_of_finished(ident, handle, payload, self.w.clock.now())
         self.counters[ident].repeated_replies += 1
         self._offer(ident, result, "result", again=True)   # the answer and result were lost
+        return True
+
+    def _copy_of_finished(self, ident: int, handle: int, payload: bytes, came: float) -> bool:
+        """Whether `payload`, come at `came`, copies a goal that finished on the local server
+        while no bridge watched it, by the rule of ResultBook.repeat_of (orphans.py); if so
+        it is answered accepted and the goal's kept result follows (counted duplicate_goals
+        by the caller, or by _adopt for a held copy)."""
+        window = REPEAT_WINDOW * self.served[ident][0].accept_timeout
+        wall_came = self.w.wall() - (self.w.clock.now() - came)
+        found = self.watches[ident].repeat_of(handle, payload, wall_came, window)
+        if found is None:
+            return False
+        uuid, info, age = found
+        self._adopt(ident, handle, uuid, info, done=True, payload=payload, arrived=came - age)
+        self._answer(ident, handle, ACCEPTED, again=True)
         return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:

@@ -2,8 +2,10 @@
 started on the local action server, and adopts them (docs/wire-format.md section 13,
 "Restarts").
 
-Every goal the server side sends its local action server has a UUID that says so and names
-the link's handle: `75 77 67` ("uwg"), the action id, the handle, then 11 random bytes.
+Every goal the server side sends its local action server has a UUID that says so, names the
+link's handle and tells how the goal came: `75 77 67` ("uwg"), the action id, the handle, a
+4-byte digest of the goal's payload as it came over the link (BLAKE2s), when it first came
+(milliseconds of the system clock, modulo 2^40, 5 bytes big-endian), then 2 random bytes.
 The local action server lists its goals on its status topic (`<action>/_action/status`,
 transient local: a subscriber that comes late still gets the last list). A bridge that
 starts reads it; every goal with our mark for one of its actions, still accepted,
@@ -27,14 +29,37 @@ so no guess from the match there.
 
 A goal of ours that **finished** while no bridge watched it (succeeded, aborted or cancelled
 while the server side was down) is listed too, for as long as the local server keeps its
-result. Its result is given to the client side only when the client side asks for the result
-of that handle (it keeps asking while it waits): handles are reused, so an old result pushed
-unasked could complete a newer goal. Of the finished goals on one handle the latest accepted
-is kept (goals on a handle follow one another); a newer goal on the handle drops it
-(`finished_goal`, `forget`).
+result. Of the finished goals on one handle the latest accepted is kept (goals on a handle
+follow one another); a newer goal on the handle drops it (`finished_goal`, `forget`). Its
+result goes to the client side in two cases, never unasked (handles are reused, so an old
+result pushed unasked could complete a newer goal):
+
+- the client side asks for the result of that handle (it keeps asking while it waits);
+- a goal comes over the link on that handle that is the finished goal's **copy**
+  (`repeat_of`): the same payload (its digest in the UUID), within `REPEAT_WINDOW`
+  accept_timeouts of when the finished goal first came (its arrival in the UUID). The copy
+  is answered accepted, the finished goal's result follows, and the copy is not run
+  (counted `duplicate_goals` and `orphans_finished`). This is the rule a bridge that kept running applies to a goal
+  that comes again after its answer and result were lost (`action_results.ResultBook
+  .repeat_of`: same handle, same bytes, measured from the first arrival), measured from the
+  same instant: the arrival is written into the UUID because the status list's stamp is
+  the local server's acceptance, later than the arrival by the wait for the list and the
+  local server's answer (up to half an accept_timeout, then one more), and a window
+  measured from it would reach past the time the client side may give the handle to a new
+  goal. The window is what separates a copy from a new goal with the same payload on a
+  reused handle: the client side sends copies within one accept_timeout of the goal's first
+  send and gives the handle to a new goal only 2 accept_timeouts after the old one ended
+  there, so the same payload on the handle within the window is the copy, after it a new
+  goal; only when all the client side's handles ended more recently does it reuse one
+  sooner (calls.CallTable), and a new goal with the same payload then cannot be told from a
+  copy on the wire, here as on a running bridge. Another payload is a new goal at any
+  time. Only the clock differs from the running bridge's: the arrival is on the system
+  clock, which a restart does not reset (an arrival that lies ahead of it, after the clock
+  was set back, is outside the window).
 """
 from __future__ import annotations
 
+import hashlib
 import random
 from collections.abc import Callable
 from typing import Any
@@ -47,9 +72,31 @@ ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
 FINISHED = (4, 5, 6)        # GoalStatus SUCCEEDED, CANCELED, ABORTED
 
 
-def goal_uuid(ident: int, handle: int, rng: random.Random) -> bytes:
-    """The 16-byte UUID of a goal the server side sends for (action id, handle)."""
-    return MARK + bytes([ident & 0xFF, handle & 0xFF]) + bytes(rng.getrandbits(8) for _ in range(11))
+ARRIVAL_MODULO = 1 << 40    # milliseconds: the arrival in a UUID wraps every 34.8 years
+
+
+def digest(payload: bytes) -> bytes:
+    """The 4 bytes of a goal's UUID that tell its payload (a copy has the same)."""
+    return hashlib.blake2s(payload, digest_size=4).digest()
+
+
+def goal_uuid(ident: int, handle: int, rng: random.Random, payload: bytes = b"",
+              arrived: float = 0.0) -> bytes:
+    """The 16-byte UUID of a goal the server side sends for (action id, handle), that came
+    as `payload` at `arrived` (system clock, seconds since the epoch)."""
+    ms = int(arrived * 1000) % ARRIVAL_MODULO
+    return (MARK + bytes([ident & 0xFF, handle & 0xFF]) + digest(payload) + ms.to_bytes(5, "big")
+            + bytes(rng.getrandbits(8) for _ in range(2)))
+
+
+def age_of_copy(uuid: bytes, payload: bytes, now: float) -> float | None:
+    """Seconds since the goal named by `uuid` first came, when `payload` is its copy (same
+    digest); None when it is another goal. `now`: system clock, seconds since the epoch."""
+    uuid = bytes(uuid)
+    if uuid[5:9] != digest(payload):
+        return None
+    ms = (int(now * 1000) - int.from_bytes(uuid[9:14], "big")) % ARRIVAL_MODULO
+    return ms / 1000
 
 
 def handle_of(uuid: bytes, ident: int) -> int | None:
@@ -101,6 +148,21 @@ class OrphanWatch:
         taken (it is handed over once); None when there is none."""
         got = self.finished.pop(handle, None)
         return None if got is None else (got[1], got[2])
+
+    def repeat_of(self, handle: int, payload: bytes, now: float, window: float
+                  ) -> tuple[bytes, Any, float] | None:
+        """(uuid, goal info, seconds since it came) of the goal of ours on `handle` that
+        finished unwatched and of which `payload` is a copy that came within `window` s of
+        it (module docstring), taken; None when `payload` is a new goal. `now`: when the
+        copy came, system clock, seconds since the epoch."""
+        got = self.finished.get(handle)
+        if got is None:
+            return None
+        age = age_of_copy(got[1], payload, now)
+        if age is None or age > window:
+            return None
+        del self.finished[handle]
+        return got[1], got[2], age
 
     def forget(self, handle: int) -> None:
         """A newer goal came on `handle`: a finished one's result is no longer asked for."""
