@@ -53,7 +53,7 @@ class RosSide:
             close = getattr(node, "close", None)
             try:
                 self.executor.remove_node(node)
-                close() if close else node.destroy_node()
+                close() if close else destroy_with_waitables(node)
             except Exception:
                 pass
         self.executor.shutdown(timeout_sec=1.0)
@@ -62,12 +62,23 @@ class RosSide:
         self._thread.join(timeout=2.0)
         # Shutting a context down leaves its DDS participant alive until the context is
         # destroyed, which waits until nothing uses it: action clients and servers hold their
-        # node, and they go only when garbage collection breaks their cycles (maybe never in
-        # a test run). A later test in the same domain then saw this side's bridge in its
-        # graph, and its loop guard stopped bridging.
+        # node, and Node.destroy_node leaves them (waitables) to garbage collection, maybe
+        # never in a test run. A later test in the same domain then saw this side's bridge
+        # or action server in its graph (its loop guard stopped bridging, a goal went to the
+        # old server). The bridge destroys its own (BridgeNode.destroy_node); the test's
+        # nodes have theirs destroyed here.
         self.nodes.clear()
         self.context.destroy()
         gc.collect()
+
+
+def destroy_with_waitables(node) -> None:
+    """Destroy `node` and the action clients and servers made on it."""
+    for waitable in list(node.waitables):
+        destroy = getattr(waitable, "destroy", None)
+        if destroy is not None:
+            destroy()
+    node.destroy_node()
 
 
 def start_bridge(side: RosSide, package, link_factory, *, flush_timeout: float | None = None,

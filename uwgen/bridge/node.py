@@ -316,6 +316,16 @@ class BridgeNode(Node):
                 self._log.debug(f"destroy_node after shutdown: {exc}")
         return status
 
+    def destroy_node(self) -> None:
+        """Release every ROS entity, the action clients and servers too: they are waitables,
+        which Node.destroy_node leaves, and while one lives the node stays in the graph (its
+        context's DDS participant with it, until garbage collection frees them)."""
+        for waitable in list(self.waitables):
+            destroy = getattr(waitable, "destroy", None)
+            if destroy is not None:
+                destroy()
+        super().destroy_node()
+
     def _flush_discovery(self) -> bool:
         """Wait (bounded) until the disconnect beacons have left; see RmwDiscovery.flush."""
         return self.rmw_discovery.flush() if self.rmw_discovery is not None else True
