@@ -93,13 +93,14 @@ def test_a_goal_nobody_answers_is_asked_about_until_result_timeout_then_rejected
     goal_handle = send_goal(client)
     assert not goal_handle.accepted and time.monotonic() - started >= 2.5   # not at 0.5 s
     status = counted(bridges["surface"])
+    assert status["goals"] == 1, status
     assert (status["accept_timeouts"], status["unknown_outcomes"]) == (1, 1)
     assert status["goals_table"]["outstanding"] == 0
     # Sent three times in all, then asked about, then a cancel in case it runs there.
     sent = links.links["surface"].offered(9)
     assert sent[0] == sent[1] == sent[2] and status["goal_resends"] == 2
     handle = sent[0][2]
-    assert sent[3] == pack_items([2, 9, 24 + handle, 1]) and status["result_queries"] >= 2
+    assert sent[3] == pack_items([2, 9, 24 + handle, 1]) and status["result_queries"] >= 2, (sent, status)
     assert sent[-1] == pack_items([2, 9, handle])
 
 
@@ -139,12 +140,18 @@ def test_a_goal_that_comes_before_the_server_is_discovered_waits_for_it(pair):
 
 
 def test_a_goal_with_no_server_is_rejected_after_waiting(pair):
+    """Held for the local server, then rejected. A copy that comes after the rejection left
+    (a loaded machine's answer can trail the client side's copy timer) is a new goal on the
+    handle and waits too: every goal held is rejected, none sent."""
     surface, vehicle, bridges, links = pair
     client = ActionClient(surface.node("op"), Fibonacci, "/fib")
     assert client.wait_for_server(timeout_sec=5.0)
     assert not send_goal(client).accepted
-    wait_for(lambda: counted(bridges["vehicle"])["no_server"] == 1, what="no_server counted")
-    assert counted(bridges["vehicle"])["waited"] == 1
+    served = bridges["vehicle"].action_servers
+    wait_for(lambda: not served.goals[9] and counted(bridges["vehicle"])["no_server"] >= 1,
+             what="no_server counted, nothing waiting")
+    status = counted(bridges["vehicle"])
+    assert status["waited"] == status["no_server"] and status["answers"] >= 1
 
 
 def drop_replies(link, count: int) -> list:
