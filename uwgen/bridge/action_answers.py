@@ -219,7 +219,8 @@ class GoalAnswers:
                     state.next_send = now + rtt.rto
                     counters.goal_resends += 1
                     if self.w.send(ident, state.payload):   # its answer or result takes it back
-                        self.w.expect(pack_items([3, ident, state.handle]), ident, state.payload)
+                        self.w.expect(pack_items([3, ident, state.handle]), ident, state.payload,
+                                      echo=self.w.urgent(state.sent_at + codec.accept_timeout))
         for state in list(self._states.values()):
             if state.cancel is not None and not state.cancel.done() and state.cancel_deadline <= now:
                 codec = self.offered[state.ident]

@@ -140,6 +140,7 @@ class BridgeNode(Node):
             w.turns = own_turns(self.mac)
         if self.reliability is not None:
             w.repeat = self.reliability.repeat
+            self.reliability.on_fate = w.fates.told     # fates.py: each side repairs its leg
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery
@@ -263,6 +264,8 @@ class BridgeNode(Node):
     def status(self) -> dict:
         """Everything the bridge and its link counted, as a JSON-able dict."""
         link_stats = link_stats_of(self.link)
+        if isinstance(link_stats.get("reliability"), dict):   # what reports told (fates.py)
+            link_stats["reliability"]["command_fates"] = self.wiring.fates.stats()
         channels = channel_stats(link_stats)
         for key, row in link_ledger(link_stats).items():   # what became of each copy sent
             channels.setdefault(key, {})["on_link"] = row

@@ -148,6 +148,7 @@ class StandIns:
                 self.calls.abandon(codec.id, pending.seq)
                 log.error(f"{codec.name}: call failed, request cannot be encoded: {exc}")
                 return self._failed_reply(response)
+            self.w.fates.forget(codec.id, payload)
             if not self.w.send(codec.id, payload):
                 counters.refused += 1
                 self.calls.abandon(codec.id, pending.seq)
@@ -213,7 +214,9 @@ class StandIns:
             outgoing.next_send = now + rtt.rto
             self.counters[ident].request_resends += 1
             if self.w.send(ident, outgoing.payload):      # same seq: served once there
-                self.w.expect(query(3, ident, seq), ident, outgoing.payload)
+                pending = self.calls.get(ident, seq)
+                self.w.expect(query(3, ident, seq), ident, outgoing.payload,
+                              echo=pending is not None and self.w.urgent(pending.deadline))
         self._ask(now)
         for pending in self.calls.expire():
             self.outgoing.pop((pending.service_id, pending.seq), None)
@@ -310,7 +313,8 @@ class Servers:
             replied = self.replied[ident].get(seq)
             if replied is not None:
                 counters.repeated_replies += 1
-                self.w.offer_once(ident, replied[0], again=True)   # not twice in one packet
+                self.w.offer_once(ident, replied[0],                # not twice in one packet
+                                  again=self.w.urgent(handled + codec.timeout))
             return
         if not client.service_is_ready():
             if len(self.waiting[ident]) >= WAITING_LIMIT:
@@ -390,6 +394,8 @@ class Servers:
             replied.popitem(last=False)
         if self.w.send(ident, payload):
             counters.replies += 1
+            # a lost response goes again at once, within the call's time (fates.py)
+            self.w.fates.repairable(ident, payload, self.w.clock.now() + codec.timeout)
         else:
             counters.reply_refused += 1
             self.w.throttle.report(f"srvref{ident}", f"{codec.name}: response for seq {seq} refused by the link")
