@@ -15,7 +15,7 @@ OTHER = bytes((2, CALL, 8)) + bytes(12)
 
 def engine() -> ReliableLink:
     link = ReliableLink(1, RttEstimator(2.0, 0.2, 60.0, 0.2), ack_delay=1.0)
-    link.watched = frozenset({CALL})
+    link.told.watched = frozenset({CALL})
     return link
 
 
@@ -29,7 +29,7 @@ def test_a_report_tells_each_command_message_arrived_or_lost_and_nothing_of_topi
     link.sent(0, [Sent(CALL, REQUEST, None), Sent(TOPIC, b"topic", None)], 0.0)
     link.sent(1, [Sent(CALL, OTHER, None)], 0.2)
     link.acked(report(1, 0b0000_0000), 1.0)           # 1 arrived, 0 did not
-    assert sorted(link.fates) == [(CALL, REQUEST, False), (CALL, OTHER, True)]
+    assert sorted(link.told.fates) == [(CALL, REQUEST, False), (CALL, OTHER, True)]
 
 
 def test_a_packet_overtaken_under_turns_is_told_lost_once():
@@ -37,11 +37,11 @@ def test_a_packet_overtaken_under_turns_is_told_lost_once():
     link.sent(0, [Sent(TOPIC, b"t", None)], 0.0)
     link.sent(1, [Sent(CALL, REQUEST, None)], 0.2)    # its turn's last packet
     link.acked(report(0, 0, 0), 1.0, settled_by=0.5)  # built after 1 arrived or was lost
-    assert link.fates == [(CALL, REQUEST, False)]
-    link.fates.clear()
+    assert link.told.fates == [(CALL, REQUEST, False)]
+    link.told.fates.clear()
     link.sent(2, [Sent(TOPIC, b"t", None)], 2.0)
     link.acked(report(2, 0b0000_0000), 3.0)           # names 1 missing: already told
-    assert link.fates == []
+    assert link.told.fates == []
 
 
 def test_a_cut_command_is_told_with_the_packet_of_its_tail():
@@ -50,9 +50,9 @@ def test_a_cut_command_is_told_with_the_packet_of_its_tail():
     link.cut(0)                                       # its tail rides packet 1
     link.sent(1, [Sent(TOPIC, b"t", None)], 0.2)
     link.acked(report(0, 0, 0), 0.5)
-    assert link.fates == []                           # the head alone tells nothing
+    assert link.told.fates == []                           # the head alone tells nothing
     link.acked(report(1, 0b1000_0000), 1.0)
-    assert link.fates == [(CALL, REQUEST, True)]
+    assert link.told.fates == [(CALL, REQUEST, True)]
 
 
 def command_side(sender: int) -> Reliability:

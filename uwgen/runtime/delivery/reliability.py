@@ -130,7 +130,7 @@ class Reliability:
         self.echoes = Echoes(frozenset(commands), own_span, self.heads, self.engine.spare)
         # a command's fate, as the peer's reports tell it, goes to the bridge (section 15.6, "A
         # command's fate"): (key, payload as offered, arrived), on the link's thread, unlocked
-        self.engine.watched = frozenset(commands)
+        self.engine.told.watched = frozenset(commands)
         self.on_fate: Callable[[int, bytes, bool], None] | None = None
         self.report_bytes = 0                         # A parts written (with their length byte)
         self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
@@ -313,7 +313,7 @@ class Reliability:
             epoch = self._epoch(envelope)
             # a reliable message, or a command (its sender repairs it from our report: 15.6)
             eliciting = any(m.id in self.heads.numbered and m.kind == 0
-                            or m.id in self.engine.watched and m.kind in COMMAND_KINDS
+                            or m.id in self.engine.told.watched and m.kind in COMMAND_KINDS
                             for m in envelope.messages)
             # the clock exchange (clock_offset.py) completes at once: a packet with T from a
             # peer whose offset is not measured is reported without waiting, and a report
@@ -343,7 +343,7 @@ class Reliability:
                               "or names packets never sent: %s", self.name, self.judge.who(peer),
                               envelope.ack.hex(" "))
             self._rx = (peer, epoch, envelope.time)
-            fates, self.engine.fates = self.engine.fates, []
+            fates = self.engine.told.take()
             if envelope.time is not None:
                 for m in envelope.messages:
                     if m.kind == env.FRAGMENT and m.body:

@@ -116,6 +116,28 @@ def packet_peers(messages: list[Sent], destinations: dict[int, frozenset[int]] |
     return to
 
 
+class Told:
+    """Command messages' fates as reports settle their packets (docs/wire-format.md section
+    15.6, "A command's fate"): for the `watched` keys, each whole message's (key, ref,
+    arrived) in `fates` until taken. A packet's are told once: one overtaken (lost, as a
+    later report shows under turns) is not told again when a report names it."""
+
+    def __init__(self):
+        self.watched: frozenset[int] = frozenset()
+        self.fates: list[tuple[int, Any, bool]] = []
+
+    def tell(self, packet: _Packet, arrived: bool) -> None:
+        if packet.told or not self.watched:
+            return
+        packet.told = True
+        self.fates += [(m.key, m.ref, arrived) for m in packet.messages
+                       if m.key in self.watched and m.tail is None]
+
+    def take(self) -> list[tuple[int, Any, bool]]:
+        out, self.fates = self.fates, []
+        return out
+
+
 @dataclass
 class EntryLedger:
     """Per entry (link key), on the sending side; all counts are messages."""
@@ -169,10 +191,7 @@ class ReliableLink(Receiving):
         self._moved: Sent | None = None     # a message the next packet carries whole (cut)
         self.spare = Copies()               # copies of reliable messages, the measured loss
         self.reported_at = -float("inf")    # when the last report about our packets came
-        # command messages' fates as reports tell them (docs/wire-format.md section 15.6,
-        # "A command's fate"): keys watched, and (key, ref, arrived) not yet taken (`told`)
-        self.watched: frozenset[int] = frozenset()
-        self.fates: list[tuple[int, Any, bool]] = []
+        self.told = Told()                  # command messages' fates, as reports settle them
 
     def entry(self, key: int) -> EntryLedger:
         return self.ledger.setdefault(key, EntryLedger())
@@ -257,7 +276,7 @@ class ReliableLink(Receiving):
         arrived: its reliable messages go again now. It stays outstanding, as after a timeout
         (a later report names its fate for the ledger; should it have arrived after all, the
         copy is `spurious` and delivered once)."""
-        self._tell(packet, False)
+        self.told.tell(packet, False)
         if packet.timed_out or all(m.deadline is None for m in packet.messages):
             return
         self._give_up(packet)
@@ -284,19 +303,9 @@ class ReliableLink(Receiving):
         while len(self._fates) > FATES_KEPT:
             self._fates.popitem(last=False)
 
-    def _tell(self, packet: _Packet, arrived: bool) -> None:
-        """The fate of `packet`'s whole command messages (`watched` keys), told once: a
-        packet overtaken (lost, as a later report shows under turns) is not told again when
-        a report names it."""
-        if packet.told or not self.watched:
-            return
-        packet.told = True
-        self.fates += [(m.key, m.ref, arrived) for m in packet.messages
-                       if m.key in self.watched and m.tail is None]
-
     def _delivered_packet(self, packet: _Packet) -> None:
         self._settled(packet.number, True)
-        self._tell(packet, True)
+        self.told.tell(packet, True)
         for m in packet.messages:
             if m.key == REPORT_KEY:
                 self.confirmed.append(m.ref)
@@ -328,7 +337,7 @@ class ReliableLink(Receiving):
 
     def _lost(self, packet: _Packet, now: float) -> None:
         self._settled(packet.number, False)
-        self._tell(packet, False)
+        self.told.tell(packet, False)
         self.spare.gone(packet)
         for m in packet.messages:
             if m.key == REPORT_KEY:
