@@ -76,10 +76,13 @@ class GoalAnswers:
             counters.other_sides += 1       # an answer or result for another client side
             return
         if code in RESULTS:
-            # Acknowledged whatever became of it: a copy means our last ack was lost.
-            if self.w.send(ident, codec.encode_result_status(handle, received=True)):
-                counters.result_acks += 1
             pending = table.complete(ident, handle)
+            # Acknowledged, a copy whatever became of it (our last ack was lost). Where the
+            # link's reports tell the server side that a result arrived (fates.py), the
+            # report acknowledges the first: a copy comes only when the report was lost.
+            if pending is None or not self.w.reports:
+                if self.w.send(ident, codec.encode_result_status(handle, received=True)):
+                    counters.result_acks += 1
             if pending is None:
                 self._no_goal(ident, handle)
                 return

@@ -140,7 +140,7 @@ class BridgeNode(Node):
             w.waiting, w.withdraw = scheduler.waiting, scheduler.withdraw
             w.turns = own_turns(self.mac)
         if self.reliability is not None:     # fates.py: each side repairs its own leg
-            w.repeat, self.reliability.on_fate = self.reliability.repeat, w.fates.told
+            w.repeat, self.reliability.on_fate, w.reports = self.reliability.repeat, w.fates.told, True
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery

@@ -57,8 +57,10 @@ class Wiring:
     turns: Callable[[], int | None] = lambda: None
     # the link's reliability: a command offered again gets a copy in its turn (echoes.py)
     repeat: Callable[[int, bytes], None] = lambda key, payload: None
-    # what the peer's reports told of our command messages (fates.py; made in __post_init__)
+    # what the peer's reports told of our command messages (fates.py; made in __post_init__),
+    # and whether the link has reports (wire format 2): they acknowledge a result's arrival
     fates: Fates = field(init=False)
+    reports: bool = False
     # answer head -> (key, copy): a copy the answer takes back on arrival (take_back)
     answered_by: OrderedDict = field(default_factory=OrderedDict)
     said: set[str] = field(default_factory=set)
