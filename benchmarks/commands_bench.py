@@ -327,6 +327,10 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
                         extra += n + OVERHEAD * copies[key]
                         kinds["in-turn copy"] += n + OVERHEAD * copies[key]
             collisions = sum(c["lost_collision"] for c in emu.all_counters().values())
+            # every A part written (reports on topics' and commands' packets alike: 15.2)
+            reports = sum(b.link.stats().get("reliability", {}).get("report_bytes", 0)
+                          for b in bridges.values())
+            fates = sum((Counter(b.wiring.fates.stats()) for b in bridges.values()), Counter())
             if TRACE is not None:
                 for name, b in bridges.items():
                     TRACE.write(json.dumps({"ev": "mac", "side": name, **b.link.stats()["mac"]}) + "\n")
@@ -342,6 +346,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
     return {"calls": f"{ok_calls}/{calls}", "goals": f"{ok_goals}/{goals}", "dup": dup,
             "share": extra / written if written else 0.0, "capacity": extra / capacity,
             "time": elapsed, "collisions": collisions,
+            "reports": reports / written if written else 0.0, "fates": dict(fates),
             "kinds": {k: v / written if written else 0.0 for k, v in sorted(kinds.items())}}
 
 
@@ -382,17 +387,20 @@ def main() -> int:
         return 0
     packages = {mac: build_package(mac) for mac in macs}
     print("| PER | mac | mode | calls ok | goals ok (real result) | duplicate runs | "
-          "retry+ack bytes / bytes written | / link capacity | collisions | s |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "retry+ack bytes / bytes written | / link capacity | reports / bytes written | "
+          "collisions | s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for per in (float(p) for p in args.per.split(",")):
         for mac in macs:
             for retries in (True,) if args.no_reference else (True, False):
                 r = run(packages[mac], per, args.seed, args.calls, args.goals, retries, mac)
                 print(f"| {per:.0%} | {mac} | {'retries' if retries else 'reference'} | "
                       f"{r['calls']} | {r['goals']} | {r['dup']} | {r['share']:.1%} | "
-                      f"{r['capacity']:.1%} | {r['collisions']} | {r['time']:.0f} |", flush=True)
+                      f"{r['capacity']:.1%} | {r['reports']:.1%} | {r['collisions']} | "
+                      f"{r['time']:.0f} |", flush=True)
                 if args.breakdown:
                     print("  retry+ack bytes: " + ", ".join(f"{k} {v:.1%}" for k, v in r["kinds"].items()))
+                    print("  command fates told: " + ", ".join(f"{k} {v}" for k, v in r["fates"].items()))
     return 0
 
 

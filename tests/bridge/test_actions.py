@@ -200,6 +200,45 @@ def test_a_result_lost_once_is_sent_again_and_acknowledged(pair):
     assert bridges["vehicle"].action_servers.results[9].unacked == {}
 
 
+def test_with_reports_a_client_side_acknowledges_only_a_copy_of_a_result(pair):
+    """The report naming the result's packet acknowledges the first (fates.py); the server
+    side here reads no reports, so it sends the result again, and that copy is acknowledged."""
+    surface, vehicle, bridges, links = pair
+    bridges["surface"].wiring.reports = True
+    fib_server(vehicle.node("real"), [])
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    future = send_goal(client, 5).get_result_async()
+    wait_for(future.done, what="the result")
+    wait_for(lambda: counted(bridges["vehicle"])["results_acked"] == 1, what="the copy's ack")
+    assert counted(bridges["vehicle"])["results_resent"] >= 1
+    assert counted(bridges["surface"])["result_acks"] == 1
+
+
+def test_a_result_told_arrived_is_done_without_its_acknowledgement(pair):
+    surface, vehicle, bridges, links = pair
+    vb = bridges["vehicle"]
+    bridges["surface"].wiring.reports = True           # the client side acknowledges no first
+    fib_server(vehicle.node("real"), [])
+    link = links.links["vehicle"]
+    offer = link.offer
+
+    def told(key, payload):                            # the peer's report: it arrived
+        ok = offer(key, payload)
+        if payload[0] == 3 and len(payload) > 4:
+            vb.wiring.fates.told(key, payload, True)
+        return ok
+    link.offer = told
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    future = send_goal(client, 5).get_result_async()
+    wait_for(future.done, what="the result")
+    wait_for(lambda: counted(vb)["results_told_arrived"] == 1, what="the result done")
+    time.sleep(1.0)                                    # past its RTO (accept_timeout / 4)
+    assert counted(vb)["results_resent"] == 0 and vb.action_servers.results[9].unacked == {}
+    assert counted(bridges["surface"])["result_acks"] == 0
+
+
 def test_a_client_side_asks_for_a_result_the_server_side_does_not_know(pair):
     surface, vehicle, bridges, links = pair
     links.links["vehicle"].mute = True                 # the real result never comes back

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 from uwgen.bridge.copies import copy_due, own_turns
+from uwgen.bridge.fates import Fates
 from uwgen.bridge.wiring import Wiring
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.clock import ManualClock
@@ -27,8 +28,9 @@ class Leg:
 def link(turns=None):
     """A wiring's view of the link: what waits in it, and the own turns ended."""
     state = SimpleNamespace(waiting=set(), turns=turns)
+    fates = Fates(ManualClock(), withdraw=lambda k, p: False, offer_again=lambda k, p, until: True)
     return state, SimpleNamespace(waiting=lambda k, p: (k, p) in state.waiting,
-                                  turns=lambda: state.turns)
+                                  turns=lambda: state.turns, fates=fates)
 
 
 def test_without_turns_a_copy_is_due_on_its_timer():

@@ -76,10 +76,13 @@ class GoalAnswers:
             counters.other_sides += 1       # an answer or result for another client side
             return
         if code in RESULTS:
-            # Acknowledged whatever became of it: a copy means our last ack was lost.
-            if self.w.send(ident, codec.encode_result_status(handle, received=True)):
-                counters.result_acks += 1
             pending = table.complete(ident, handle)
+            # Acknowledged, a copy whatever became of it (our last ack was lost). Where the
+            # link's reports tell the server side that a result arrived (fates.py), the
+            # report acknowledges the first: a copy comes only when the report was lost.
+            if pending is None or not self.w.reports:
+                if self.w.send(ident, codec.encode_result_status(handle, received=True)):
+                    counters.result_acks += 1
             if pending is None:
                 self._no_goal(ident, handle)
                 return
@@ -219,7 +222,8 @@ class GoalAnswers:
                     state.next_send = now + rtt.rto
                     counters.goal_resends += 1
                     if self.w.send(ident, state.payload):   # its answer or result takes it back
-                        self.w.expect(pack_items([3, ident, state.handle]), ident, state.payload)
+                        self.w.expect(pack_items([3, ident, state.handle]), ident, state.payload,
+                                      echo=self.w.urgent(state.sent_at + codec.accept_timeout))
         for state in list(self._states.values()):
             if state.cancel is not None and not state.cancel.done() and state.cancel_deadline <= now:
                 codec = self.offered[state.ident]

@@ -102,8 +102,11 @@ class ActionServers:
 
     def _answer(self, ident: int, handle: int, code: int, again: bool = False) -> None:
         codec = self.served[ident][0]
-        if self._offer(ident, codec.encode_answer(handle, code), "answer", again=again):
+        answer = codec.encode_answer(handle, code)
+        if self._offer(ident, answer, "answer", again=again):
             self.counters[ident].answers += 1
+            # a lost answer goes again at once, within the goal's time (fates.py)
+            self.w.fates.repairable(ident, answer, self.w.clock.now() + codec.accept_timeout)
 
     def _result(self, ident: int, handle: int, status: int, result: Any, entry: Served) -> None:
         codec = self.served[ident][0]
@@ -114,6 +117,7 @@ class ActionServers:
             self.w.throttle.report(f"aenc{ident}", f"{codec.name}: result of goal {handle} cannot "
                                                    f"be encoded ({exc}); reported aborted")
             payload = codec.encode_result(handle, ABORTED, codec.ros_class().Result())
+        self.w.fates.forget(ident, payload)       # its bytes may repeat an old result's
         if self._offer(ident, payload, "result"):
             self.counters[ident].results_sent += 1
         self.results[ident].sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(),
@@ -197,12 +201,12 @@ class ActionServers:
         entry = self.goals[ident].get(handle)
         if entry is not None:
             if entry.goal_handle is not None:
-                self._answer(ident, handle, ACCEPTED, again=True)     # still running
+                self._answer(ident, handle, ACCEPTED)     # still running (asked: no hurry)
             return
         recent = self.results[ident].result_of(handle)
         if recent is not None:
             counters.results_resent += 1
-            self._offer(ident, recent, "result", again=True)
+            self._offer(ident, recent, "result")
             return
         finished = self.watches[ident].finished_goal(handle)
         if finished is not None:                  # it finished while no bridge watched it
@@ -272,6 +276,10 @@ class ActionServers:
         """Results not acknowledged go again when a copy is due (copies.py), until the book
         gives them up."""
         counters, book = self.counters[ident], self.results[ident]
+        for handle, unacked in list(book.unacked.items()):
+            if self.w.fates.arrived(ident, unacked.payload):     # told by the link (fates.py)
+                book.acknowledged(handle, now)
+                counters.results_told_arrived += 1
         for payload in book.due(now, lambda u: copy_due(self.w, ident, u.payload, u, now, book.rtt.rto)):
             if payload is None:
                 counters.results_unacked += 1
@@ -280,7 +288,9 @@ class ActionServers:
             if self._offer(ident, payload, "result"):     # its acknowledgement takes it back
                 codec = self.served[ident][0]
                 handle = codec.decode_response(payload, ros=False)[0]
-                self.w.expect(codec.encode_result_status(handle, received=True), ident, payload)
+                # no copy in its turn: a result has result_timeout, many rounds (echoes.py)
+                self.w.expect(codec.encode_result_status(handle, received=True), ident, payload,
+                              echo=False)
 
     def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
         """Answer a goal that came again; True when it was one (then it is not run)."""
@@ -288,13 +298,16 @@ class ActionServers:
         if entry is not None:
             if entry.goal_handle is not None and entry.payload == payload:
                 self.counters[ident].repeated_replies += 1
-                self._answer(ident, handle, ACCEPTED, again=True)   # the first answer was lost
+                accept = self.served[ident][0].accept_timeout   # the first answer was lost
+                self._answer(ident, handle, ACCEPTED, again=self.w.urgent(entry.arrived + accept))
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
             return self._copy_of_finished(ident, handle, payload, self.w.clock.now())
         self.counters[ident].repeated_replies += 1
-        self._offer(ident, result, "result", again=True)   # the answer and result were lost
+        arrived = self.results[ident].recent[handle].arrived   # the answer and result were lost
+        self._offer(ident, result, "result",
+                    again=self.w.urgent(arrived + self.served[ident][0].accept_timeout))
         return True
 
     def _copy_of_finished(self, ident: int, handle: int, payload: bytes, came: float) -> bool:

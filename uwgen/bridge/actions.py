@@ -129,6 +129,7 @@ class ActionStandIns(GoalAnswers):
                 counters.refused += 1
                 log.error(f"{codec.name}: goal rejected, cannot be encoded: {exc}")
                 return GoalResponse.REJECT
+            self.w.fates.forget(codec.id, payload)       # its bytes may repeat an old goal's
             if not self.w.send(codec.id, payload):
                 table.abandon(codec.id, state.handle)
                 counters.refused += 1

@@ -13,7 +13,9 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   turn is missed), and a copy timed on it leaves just before its answer or a round late.
 - Other MACs (none, TDMA): the retransmission timer (`uwgen.runtime.delivery.reliable
   .command_rtt`); when it fires while the message still waits in the link, the copy is put
-  off by one more timeout.
+  off by one more timeout. A packet told lost (`uwgen.bridge.fates`) makes it due at once.
+- A copy that falls due after the peer's report told the message arrived is spared once
+  (`Fates.spare`): its answer is on its way, or repaired by the side that has it.
 
 `Leg` is what the parts keep of each message waiting for its answer: `next_send` (the
 timer) and `turn` (the own turns ended while it, or its last copy, still waited in the link).
@@ -36,10 +38,10 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
     `rto`: the timer's next wait, used when it fires while the message still waits."""
     turns = w.turns()
     if turns is None:
-        if leg.next_send > now:
+        if leg.next_send > now and not w.fates.lost(key, payload):
             return False
-        if w.waiting(key, payload):
-            leg.next_send = now + rto        # it has not left yet: no copy behind it
+        if w.waiting(key, payload) or w.fates.spare(key, payload):
+            leg.next_send = now + rto        # not left yet, or arrived: no copy behind it
             return False
         return True
     if w.waiting(key, payload) or leg.turn is None:
@@ -48,7 +50,7 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
     if turns <= leg.turn:
         return False                         # the turn that carried it has not ended
     leg.turn = turns                         # the copy waits from now for the next own turn
-    return True
+    return not w.fates.spare(key, payload)
 
 
 def own_turns(mac) -> Callable[[], int | None]:

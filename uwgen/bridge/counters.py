@@ -99,6 +99,7 @@ class ActionCounters:
     results_sent: int = 0     # results offered to the link
     results_resent: int = 0   # results sent again: unacknowledged within the RTO, or asked for
     results_acked: int = 0    # results the client side acknowledged
+    results_told_arrived: int = 0   # results the link's reports told arrived (fates.py): done
     results_unacked: int = 0  # results never acknowledged within 2 accept_timeouts (given up)
     result_queries: int = 0   # requests for a result not (yet) received: sent by the client
                               # side, received by the server side

@@ -3,7 +3,7 @@
 The node only wires parts to rclpy and the link; each part reads on its own:
 
 - `topics.TopicBridge`: subscriptions that send, publishers of what arrives, echo guard;
-- `services.StandIns` / `services.Servers`: bridged service calls, both sides;
+- `services.StandIns` / `service_servers.Servers`: bridged service calls, both sides;
 - `actions.ActionStandIns` (what comes back: `action_answers.GoalAnswers`) /
   `action_servers.ActionServers`: bridged actions, both sides;
 - `discovery.RmwDiscovery`: rmw_desert beacons, when an entry is in profile rmw_desert;
@@ -42,7 +42,8 @@ from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.recorder import recorder_for
 from uwgen.bridge.reliability import farewell, link_ledger, reliability_for
 from uwgen.bridge.security import guard_for, link_security
-from uwgen.bridge.services import Servers, StandIns, service_status
+from uwgen.bridge.service_servers import Servers
+from uwgen.bridge.services import StandIns, service_status
 from uwgen.bridge.status import StatusReporter, channel_stats, link_stats_of
 from uwgen.bridge.topics import BRIDGE_NODE_PREFIX, TopicBridge
 from uwgen.bridge.wiring import Wiring, qos_profile
@@ -138,8 +139,8 @@ class BridgeNode(Node):
         if hasattr(scheduler, "waiting"):
             w.waiting, w.withdraw = scheduler.waiting, scheduler.withdraw
             w.turns = own_turns(self.mac)
-        if self.reliability is not None:
-            w.repeat = self.reliability.repeat
+        if self.reliability is not None:     # fates.py: each side repairs its own leg
+            w.repeat, self.reliability.on_fate, w.reports = self.reliability.repeat, w.fates.told, True
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery
@@ -263,6 +264,7 @@ class BridgeNode(Node):
     def status(self) -> dict:
         """Everything the bridge and its link counted, as a JSON-able dict."""
         link_stats = link_stats_of(self.link)
+        link_stats.get("reliability", {})["command_fates"] = self.wiring.fates.stats()
         channels = channel_stats(link_stats)
         for key, row in link_ledger(link_stats).items():   # what became of each copy sent
             channels.setdefault(key, {})["on_link"] = row

@@ -1,17 +1,11 @@
 """Bridged services of one side: stand-in services where the manifest's server is elsewhere
-(`StandIns`), a client of the real service where it is here (`Servers`).
+(`StandIns`; the real service's client where it is here is `uwgen.bridge.service_servers`).
 
 A call crosses as `[2, id, seq, ...]` and comes back as `[3, id, seq, ...]`; the seqs and
 deadlines of the calling side live in `uwgen.bridge.calls.CallTable`. Calls toward an
 rmw_desert-profile service use seqs 1..999; an rmw_desert server may answer only the
 latest of several outstanding requests, and the older calls then time out at their
 deadline like any unanswered call (counted).
-
-Waiting for the local server. A request can arrive before this bridge has discovered the
-real server (e.g. the first call after both sides started): it then waits, in arrival
-order, until the server is ready (bounded by WAIT_SHARE of the manifest timeout, counted
-from arrival, at most WAITING_LIMIT requests per service) instead of being dropped; only
-then is it counted `no_server`.
 
 Failed bridged calls (see docs/demo.md, "Service calls"). ROS 2 services have no error
 reply and rclpy cannot hand an exception to a remote client's future. When a bridged call
@@ -27,7 +21,6 @@ responses, hence not the default).
 from __future__ import annotations
 
 import random
-from collections import OrderedDict
 from dataclasses import asdict, dataclass
 from typing import Any, Callable
 
@@ -37,17 +30,13 @@ from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
 from uwgen.bridge.copies import copy_due
 from uwgen.bridge.counters import ServiceCounters
 from uwgen.bridge.dispatch import Dispatcher
-from uwgen.bridge.outcomes import ASKS, Asking, Handled, bare, query
+from uwgen.bridge.outcomes import ASKS, Asking, bare, query
+from uwgen.bridge.service_servers import Servers
 from uwgen.bridge.plan import TIMEOUT_REPLY_DEFAULT, is_rmw_desert
 from uwgen.bridge.wiring import Wiring
 from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE
 from uwgen.runtime.delivery.reliable import RttEstimator, command_rtt
 
-WAIT_SHARE = 0.5      # of the manifest timeout a request may wait for the local server (the
-                      # rest is for its trip and the response's: the caller's clock started
-                      # before it was sent)
-WAITING_LIMIT = 32    # requests per service waiting for the local server; more: no_server
-RECENT_REPLIES = 32   # answered requests per service whose response is kept for a copy
 
 
 @dataclass
@@ -148,6 +137,7 @@ class StandIns:
                 self.calls.abandon(codec.id, pending.seq)
                 log.error(f"{codec.name}: call failed, request cannot be encoded: {exc}")
                 return self._failed_reply(response)
+            self.w.fates.forget(codec.id, payload)
             if not self.w.send(codec.id, payload):
                 counters.refused += 1
                 self.calls.abandon(codec.id, pending.seq)
@@ -213,7 +203,9 @@ class StandIns:
             outgoing.next_send = now + rtt.rto
             self.counters[ident].request_resends += 1
             if self.w.send(ident, outgoing.payload):      # same seq: served once there
-                self.w.expect(query(3, ident, seq), ident, outgoing.payload)
+                pending = self.calls.get(ident, seq)
+                self.w.expect(query(3, ident, seq), ident, outgoing.payload,
+                              echo=pending is not None and self.w.urgent(pending.deadline))
         self._ask(now)
         for pending in self.calls.expire():
             self.outgoing.pop((pending.service_id, pending.seq), None)
@@ -247,166 +239,6 @@ class StandIns:
             asked.next_ask = now + self.rtt[ident].rto
             self.counters[ident].outcome_queries += 1
             self.w.send(ident, query(2, ident, seq))
-
-
-class Servers:
-    """Clients of the real services served on this side: request in, response out."""
-
-    def __init__(self, wiring: Wiring, codecs: list[Any], counters: dict[int, ServiceCounters]):
-        self.w = wiring
-        self.codecs = codecs
-        self.counters = counters
-        self.served: dict[int, tuple[Any, Any]] = {}   # id -> (codec, client)
-        self.serving: dict[int, dict[int, tuple[Future, float]]] = {}  # id -> seq -> call
-        # id -> seq -> (request, deadline): requests waiting for the local server
-        self.waiting: dict[int, dict[int, tuple[Any, float]]] = {}
-        # id -> seq -> (response payload, when): answered requests, for copies of them
-        self.replied: dict[int, OrderedDict[int, tuple[bytes, float]]] = {}
-        self.handled = Handled()      # seqs handed to the local server (outcome queries)
-        for codec in codecs:
-            counters[codec.id] = ServiceCounters()
-            cls = wiring.ros_class(codec, "srv")
-            if cls is None:
-                continue
-            client = wiring.node.create_client(cls, codec.name, callback_group=wiring.main_group)
-            self.served[codec.id] = (codec, client)
-            wiring.loops.watch_server(codec.name)
-            self.serving[codec.id] = {}
-            self.waiting[codec.id] = {}
-            self.replied[codec.id] = OrderedDict()
-
-    def register(self, dispatcher: Dispatcher) -> None:
-        for ident in self.served:
-            dispatcher.route(KIND_REQUEST, ident, self.serve)
-            dispatcher.sends(KIND_RESPONSE, ident)
-
-    def serve(self, ident: int, payload: bytes) -> None:
-        codec, client = self.served[ident]
-        counters = self.counters[ident]
-        head = bare(payload)
-        if head is not None and head[0] == 2 and not is_rmw_desert(codec):
-            self._outcome(ident, head[2])
-            return
-        try:
-            seq, request = codec.decode_request(payload)
-        except ValueError as exc:
-            counters.decode_errors += 1
-            self.w.say_once(f"dreq{ident}", f"{codec.name}: request dropped, does not decode: {exc}")
-            return
-        counters.requests += 1
-        if self.w.loops.blocked(codec.name):
-            counters.loop_guard += 1      # our call would reach another bridge's stand-in
-            return
-        if seq in self.serving[ident] or seq in self.waiting[ident]:
-            counters.duplicate_requests += 1
-            return
-        now = self.w.clock.now()
-        handled = self.handled.when(ident, seq)
-        if handled is not None and now - handled < 2 * codec.timeout:
-            # A copy (its response was lost): never run again. A copy is never older than
-            # the call's timeout (the link refuses it, wire-format 15.5); twice that covers
-            # a far restart's new calls reusing the seq (a random start in 2^16).
-            counters.duplicate_requests += 1
-            replied = self.replied[ident].get(seq)
-            if replied is not None:
-                counters.repeated_replies += 1
-                self.w.offer_once(ident, replied[0], again=True)   # not twice in one packet
-            return
-        if not client.service_is_ready():
-            if len(self.waiting[ident]) >= WAITING_LIMIT:
-                counters.no_server += 1
-                self.w.throttle.report(f"noserver{ident}", f"{codec.name}: request seq {seq} not "
-                                       f"served: no local server and {WAITING_LIMIT} requests "
-                                       "already wait for one (the caller times out)")
-                return
-            counters.waited += 1
-            self.waiting[ident][seq] = (request, now + WAIT_SHARE * codec.timeout)
-            return
-        self._call(ident, seq, request, now + codec.timeout)
-
-    def _outcome(self, ident: int, seq: int) -> None:
-        """An outcome query: the response again, 'did not run' (`[3, id, seq]`), or nothing
-        (running still, or ran without a response to give)."""
-        replied = self.replied[ident].get(seq)
-        if replied is not None:
-            reply = replied[0]
-        elif seq in self.serving[ident] or seq in self.waiting[ident] or (ident, seq) in self.handled:
-            return
-        else:
-            reply = query(3, ident, seq)
-        if self.w.send(ident, reply):
-            self.counters[ident].outcome_answers += 1
-
-    def _call(self, ident: int, seq: int, request: Any, deadline: float) -> None:
-        self.handled.add(ident, seq, self.w.clock.now())
-        future = self.served[ident][1].call_async(request)
-        self.serving[ident][seq] = (future, deadline)
-        future.add_done_callback(lambda f: self._reply(ident, seq, f))
-
-    def _serve_waiting(self, now: float) -> None:
-        """Call the requests whose server has appeared; give up those past their deadline."""
-        for ident, waiting in self.waiting.items():
-            if not waiting:
-                continue
-            codec, client = self.served[ident]
-            ready = client.service_is_ready()
-            for seq, (request, wait_until) in list(waiting.items()):
-                if ready:
-                    del waiting[seq]
-                    self._call(ident, seq, request, now + codec.timeout)
-                elif wait_until <= now:
-                    del waiting[seq]
-                    self.counters[ident].no_server += 1
-                    self.w.throttle.report(
-                        f"noserver{ident}", f"{codec.name}: request seq {seq} not served: no local "
-                        f"server appeared within {WAIT_SHARE * codec.timeout:g} s (the caller "
-                        "times out)")
-
-    def _reply(self, ident: int, seq: int, future: Future) -> None:
-        codec, _ = self.served[ident]
-        counters = self.counters[ident]
-        log = self.w.log
-        entry = self.serving[ident].get(seq)
-        if entry is None or entry[0] is not future:
-            return  # already timed out
-        del self.serving[ident][seq]
-        if future.cancelled():
-            return
-        exc = future.exception()
-        if exc is not None:
-            counters.server_errors += 1
-            self.w.throttle.report(f"srverr{ident}", f"{codec.name}: local call for seq {seq} failed: {exc}")
-            return
-        try:
-            payload = codec.encode_response(seq, future.result())
-        except ValueError as exc:
-            counters.server_errors += 1
-            self.w.throttle.report(f"srvenc{ident}", f"{codec.name}: response for seq {seq} cannot be encoded: {exc}")
-            return
-        replied = self.replied[ident]
-        replied[seq] = (payload, self.w.clock.now())
-        replied.move_to_end(seq)
-        while len(replied) > RECENT_REPLIES:
-            replied.popitem(last=False)
-        if self.w.send(ident, payload):
-            counters.replies += 1
-        else:
-            counters.reply_refused += 1
-            self.w.throttle.report(f"srvref{ident}", f"{codec.name}: response for seq {seq} refused by the link")
-
-    def expire(self) -> None:
-        now = self.w.clock.now()
-        self._serve_waiting(now)
-        for ident, serving in self.serving.items():
-            codec, client = self.served[ident]
-            for seq, (future, deadline) in list(serving.items()):
-                if deadline <= now:
-                    del serving[seq]
-                    client.remove_pending_request(future)
-                    future.cancel()
-                    self.counters[ident].server_timeouts += 1
-                    self.w.throttle.report(f"srvtimeout{ident}", f"{codec.name}: local server did not "
-                                           f"answer seq {seq} within {codec.timeout:g} s")
 
 
 def service_status(standins: StandIns, servers: Servers, channels: dict[int, dict],

@@ -54,6 +54,7 @@ log = logging.getLogger("uwgen.link.reliability")
 
 COUNTERS = ("stale", "clock_offset", "unexplained_delay", "unmeasured", "offset_samples", "bad_heads", "bad_acks", "untimed", "restarts_seen",
             "duplicate_packets")
+COMMAND_KINDS = (2, 3)            # a request's and an answer's message kinds (wire format 1)
 DEFAULT_DEADLINE = 120.0          # seconds: a reliable entry without a ttl
 FORGET_AFTER = 2048               # packets: older ones cannot be named unambiguously (12 bits)
 TRANSFERS_KEPT = 64              # fragmented messages whose first packet time is kept
@@ -127,6 +128,11 @@ class Reliability:
         self._timed = False                           # the packet being built needs T
         self.engine.spare.limit = copies              # most copies in spare room (copies.py)
         self.echoes = Echoes(frozenset(commands), own_span, self.heads, self.engine.spare)
+        # a command's fate, as the peer's reports tell it, goes to the bridge (section 15.6, "A
+        # command's fate"): (key, payload as offered, arrived), on the link's thread, unlocked
+        self.engine.told.watched = frozenset(commands)
+        self.on_fate: Callable[[int, bytes, bool], None] | None = None
+        self.report_bytes = 0                         # A parts written (with their length byte)
         self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
@@ -207,6 +213,7 @@ class Reliability:
             ack = self.acks.a_part(self._epochs, now, self._room)
             if ack:
                 out["ack"] = ack
+                self.report_bytes += 1 + len(ack)
                 self.acks.final = False              # the last word has left (farewell)
             if self._sync:
                 out["sync"] = self.send_epoch.part(self._building, now)
@@ -304,7 +311,10 @@ class Reliability:
         with self._lock:
             peer = envelope.sender
             epoch = self._epoch(envelope)
-            eliciting = any(m.id in self.heads.numbered and m.kind == 0 for m in envelope.messages)
+            # a reliable message, or a command (its sender repairs it from our report: 15.6)
+            eliciting = any(m.id in self.heads.numbered and m.kind == 0
+                            or m.id in self.engine.told.watched and m.kind in COMMAND_KINDS
+                            for m in envelope.messages)
             # the clock exchange (clock_offset.py) completes at once: a packet with T from a
             # peer whose offset is not measured is reported without waiting, and a report
             # with T is answered while we have sent fewer than CLOCK_REPLIES (a few per start)
@@ -333,6 +343,7 @@ class Reliability:
                               "or names packets never sent: %s", self.name, self.judge.who(peer),
                               envelope.ack.hex(" "))
             self._rx = (peer, epoch, envelope.time)
+            fates = self.engine.told.take()
             if envelope.time is not None:
                 for m in envelope.messages:
                     if m.kind == env.FRAGMENT and m.body:
@@ -343,7 +354,20 @@ class Reliability:
                         self._transfer_t[key] = envelope.time if first is None else min(first, envelope.time)
                         while len(self._transfer_t) > TRANSFERS_KEPT:
                             self._transfer_t.popitem(last=False)
-            return True
+        self._tell(fates)
+        return True
+
+    def _tell(self, fates: list[tuple[int, bytes, bool]]) -> None:
+        """Hand the commands' fates a report told to the bridge (outside the lock: it may
+        take a copy back from the link's queue or offer an answer again)."""
+        if self.on_fate is None:
+            return
+        for key, payload, arrived in fates:
+            try:
+                bare = self.heads.take(payload).payload
+            except HeadError:
+                continue
+            self.on_fate(key, bare, arrived)
 
     def _epoch(self, envelope: env.Envelope) -> bytes:
         """The sender's epoch (epoch.PeerEpochs), acting on a stand-in named or a restart."""
@@ -415,6 +439,7 @@ class Reliability:
                                     "fast_resends": self.engine.fast_resends,
                                     "timer_resends": self.engine.timer_resends,
                                     "copies": self.engine.spare.sent,
+                                    "report_bytes": self.report_bytes,
                                     **self.echoes.stats(),
                                     "clock_offsets": {p: o.as_dict() for p, o in
                                                       self.offsets.peers().items()}}}

@@ -116,6 +116,28 @@ def packet_peers(messages: list[Sent], destinations: dict[int, frozenset[int]] |
     return to
 
 
+class Told:
+    """Command messages' fates as reports settle their packets (docs/wire-format.md section
+    15.6, "A command's fate"): for the `watched` keys, each whole message's (key, ref,
+    arrived) in `fates` until taken. A packet's are told once: one overtaken (lost, as a
+    later report shows under turns) is not told again when a report names it."""
+
+    def __init__(self):
+        self.watched: frozenset[int] = frozenset()
+        self.fates: list[tuple[int, Any, bool]] = []
+
+    def tell(self, packet: _Packet, arrived: bool) -> None:
+        if packet.told or not self.watched:
+            return
+        packet.told = True
+        self.fates += [(m.key, m.ref, arrived) for m in packet.messages
+                       if m.key in self.watched and m.tail is None]
+
+    def take(self) -> list[tuple[int, Any, bool]]:
+        out, self.fates = self.fates, []
+        return out
+
+
 @dataclass
 class EntryLedger:
     """Per entry (link key), on the sending side; all counts are messages."""
@@ -138,6 +160,7 @@ class _Packet:
     timed_out: bool = False
     fate_unknown: bool = False      # sent before the peer's restart was seen
     waiting: set[int] | None = None   # peers whose ack it still needs (None: anyone's)
+    told: bool = False              # its command messages' fate was told (ReliableLink._tell)
 
     def awaits(self, reporter: int | None) -> bool:
         """Whether a report of `reporter` speaks for this packet."""
@@ -168,6 +191,7 @@ class ReliableLink(Receiving):
         self._moved: Sent | None = None     # a message the next packet carries whole (cut)
         self.spare = Copies()               # copies of reliable messages, the measured loss
         self.reported_at = -float("inf")    # when the last report about our packets came
+        self.told = Told()                  # command messages' fates, as reports settle them
 
     def entry(self, key: int) -> EntryLedger:
         return self.ledger.setdefault(key, EntryLedger())
@@ -252,6 +276,7 @@ class ReliableLink(Receiving):
         arrived: its reliable messages go again now. It stays outstanding, as after a timeout
         (a later report names its fate for the ledger; should it have arrived after all, the
         copy is `spurious` and delivered once)."""
+        self.told.tell(packet, False)
         if packet.timed_out or all(m.deadline is None for m in packet.messages):
             return
         self._give_up(packet)
@@ -280,6 +305,7 @@ class ReliableLink(Receiving):
 
     def _delivered_packet(self, packet: _Packet) -> None:
         self._settled(packet.number, True)
+        self.told.tell(packet, True)
         for m in packet.messages:
             if m.key == REPORT_KEY:
                 self.confirmed.append(m.ref)
@@ -311,6 +337,7 @@ class ReliableLink(Receiving):
 
     def _lost(self, packet: _Packet, now: float) -> None:
         self._settled(packet.number, False)
+        self.told.tell(packet, False)
         self.spare.gone(packet)
         for m in packet.messages:
             if m.key == REPORT_KEY:

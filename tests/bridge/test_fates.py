@@ -1,0 +1,181 @@
+"""Each side repairs its own leg from the fates the peer's reports tell (uwgen.bridge.fates;
+docs/wire-format.md section 15.6, "A command's fate"): a copy of a message that arrived is
+taken back or spared once; a lost answer goes again at once from the side that has it; a
+lost request's copy is due at once on a timer."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+from uwgen.bridge.copies import copy_due
+from uwgen.bridge.fates import Fates
+from uwgen.runtime.clock import ManualClock
+
+CALL = 20
+REQUEST = bytes((2, CALL, 7, 1))
+RESPONSE = bytes((3, CALL, 7, 3))
+
+
+@dataclass
+class Leg:
+    next_send: float = 3.0
+    turn: int | None = None
+
+
+def wired(turns=None):
+    """Fates over a link's queue (`waiting`: what waits in it) and the own turns ended."""
+    clock = ManualClock()
+    state = SimpleNamespace(waiting=set(), turns=turns, offered=[])
+
+    def withdraw(key, payload):
+        if (key, payload) in state.waiting:
+            state.waiting.discard((key, payload))
+            return True
+        return False
+
+    def offer_again(key, payload, until):
+        state.offered.append((key, payload))
+        return True
+    fates = Fates(clock, withdraw, offer_again)
+    w = SimpleNamespace(waiting=lambda k, p: (k, p) in state.waiting, turns=lambda: state.turns,
+                        fates=fates)
+    return state, w, clock
+
+
+def test_an_arrival_takes_back_the_copy_waiting_in_the_link():
+    state, w, _ = wired(turns=3)
+    state.waiting.add((CALL, REQUEST))               # the copy offered as its turn ended
+    w.fates.told(CALL, REQUEST, True)                # the peer's report: the first arrived
+    assert state.waiting == set() and w.fates.stats()["spared"] == 1
+
+
+def test_an_arrival_told_before_the_copy_falls_due_spares_one_copy_only():
+    state, w, _ = wired(turns=3)
+    leg = Leg(turn=3)
+    w.fates.told(CALL, REQUEST, True)
+    state.turns = 4
+    assert not copy_due(w, CALL, REQUEST, leg, 10.0, rto=3.0)   # the peer has it
+    state.turns = 5                                             # a round without the answer
+    assert copy_due(w, CALL, REQUEST, leg, 20.0, rto=3.0)       # sent again: the fallback
+
+
+def test_on_a_timer_a_lost_request_is_due_at_once_and_an_arrived_one_waits_a_timeout():
+    _, w, _ = wired()
+    leg = Leg(next_send=3.0)
+    assert not copy_due(w, CALL, REQUEST, leg, 1.0, rto=3.0)
+    w.fates.told(CALL, REQUEST, False)
+    assert copy_due(w, CALL, REQUEST, leg, 1.0, rto=3.0)        # not at 3.0
+    w.fates.told(CALL, REQUEST, True)                           # its copy arrived
+    assert not copy_due(w, CALL, REQUEST, leg, 3.0, rto=3.0) and leg.next_send == 6.0
+
+
+def test_a_lost_answer_is_offered_again_until_its_callers_deadline():
+    state, w, clock = wired()
+    w.fates.repairable(CALL, RESPONSE, until=12.0)
+    w.fates.told(CALL, RESPONSE, False)
+    assert state.offered == [(CALL, RESPONSE)] and w.fates.stats()["repaired"] == 1
+    clock.advance(12.0)
+    w.fates.told(CALL, RESPONSE, False)                         # too late: the call is over
+    assert state.offered == [(CALL, RESPONSE)]
+
+
+def test_an_answer_that_arrived_is_not_repaired_when_another_copy_is_lost():
+    state, w, _ = wired()
+    w.fates.repairable(CALL, RESPONSE, until=12.0)
+    w.fates.told(CALL, RESPONSE, True)
+    w.fates.told(CALL, RESPONSE, False)                         # its repeat's packet, lost
+    assert state.offered == []
+
+
+def test_a_message_nobody_registered_is_not_offered_again_when_lost():
+    state, w, _ = wired()
+    w.fates.told(CALL, REQUEST, False)                          # a request: its leg copies it
+    assert state.offered == [] and w.fates.stats()["lost"] == 1
+
+
+# -- two links under turns (a ManualClock): the vehicle's answer is lost ----------------------
+
+def answer_lost_over_turns(fates_on: bool):
+    """A call at 5 s over turns at 1000 m whose first answer packet is lost. Returns the
+    times the vehicle wrote the answer, the times the surface wrote the request, and when the
+    answer reached the surface (None: not by 20 s)."""
+    from uwgen.emulator import NodeSpec, Scenario
+    from uwgen.emulator.duplex import DuplexSim
+    from uwgen.manifest.model import LinkConfig, LinkPolicy, MacConfig
+    from uwgen.runtime.delivery.reliability import Reliability
+    from uwgen.runtime.link.mac import mac_for
+    turns = MacConfig(mode="turns", range=1000.0, leader="surface",
+                      packets=(("surface", 4), ("vehicle", 2)), bitrate=4800.0)
+    senders = {"surface": 1, "vehicle": 2}
+    scen = Scenario(nodes=[NodeSpec("surface", position=(0, 0, 0), dest="vehicle"),
+                           NodeSpec("vehicle", position=(1000, 0, 0), dest="surface")],
+                    period=0.2, max_read_length=64, bitrate=4800.0)
+    clock = ManualClock()
+    macs = {side: mac_for(turns, side, senders, LinkConfig(64, 0.2)) for side in senders}
+    rel: dict[str, Reliability] = {}
+
+    def hooks_for(side):
+        rel[side] = Reliability(senders[side], period=0.2, reliable={}, max_ages={},
+                                name=side, max_read_length=64,
+                                other_overhead=macs[side].overhead, turn_gap=macs[side].turn_gap(),
+                                settled_by=macs[side].settled_by, commands=frozenset({CALL}),
+                                own_span=macs[side].own_span())
+        for _ in range(64):
+            rel[side].engine.spare.settled(True)          # no loss measured: no copies in turn
+        return rel[side].hooks()
+    sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,
+                    clock=clock, step=0.025,
+                    link_kw_for=lambda side: {"mac": macs[side], "sender_id": senders[side]})
+    wrote: dict[str, list[float]] = {s: [] for s in senders}
+    for side, link in sim.links.items():
+        sent = link.hooks.sent
+
+        def spy(number, picked, now, side=side, sent=sent):
+            if any(key == CALL for key, _ in picked):
+                if side == "vehicle" and not wrote[side]:
+                    sim.drop(side, sim.written[side])        # the first answer is lost
+                wrote[side].append(now)
+            return sent(number, picked, now)
+        link.hooks.sent = spy
+        link.add_channel(CALL, LinkPolicy(queue="fifo", depth=8, ttl=12.0))
+    vehicle = Fates(clock, withdraw=sim.links["vehicle"].scheduler.withdraw,
+                    offer_again=lambda k, p, until: sim.links["vehicle"].offer(k, p))
+    if fates_on:
+        rel["vehicle"].on_fate = vehicle.told
+    sim.at(5.0, lambda: sim.links["surface"].offer(CALL, REQUEST))
+    state = {"answered": False, "back": None}
+
+    def serve():                                # the vehicle's bridge answers once
+        if not state["answered"] and any(p == REQUEST for _, p in sim.received["vehicle"]):
+            state["answered"] = True
+            sim.links["vehicle"].offer(CALL, RESPONSE)
+            vehicle.repairable(CALL, RESPONSE, until=clock.now() + 12.0)
+        if state["back"] is None and any(p == RESPONSE for _, p in sim.received["surface"]):
+            state["back"] = clock.now()
+    for k in range(400):
+        sim.at(0.05 * k, serve)
+    sim.run(20.0)
+    return wrote["vehicle"], wrote["surface"], state["back"], vehicle
+
+
+def test_under_turns_a_lost_answer_goes_again_in_the_next_turn_without_the_request_again():
+    answers, requests, back, fates = answer_lost_over_turns(fates_on=True)
+    assert len(requests) == 1                        # the caller sent nothing again
+    assert len(answers) == 2 and back is not None    # the vehicle repaired its own leg
+    assert fates.stats()["repaired"] == 1
+
+
+def test_without_fates_a_lost_answer_waits_for_a_copy_of_the_request():
+    answers, requests, back, _ = answer_lost_over_turns(fates_on=False)
+    assert len(answers) == 1 and back is None        # nobody sends anything again here
+
+
+def test_a_command_sent_again_gets_its_copy_in_turn_only_in_its_last_rounds():
+    from uwgen.bridge.wiring import URGENT_ROUNDS, Wiring
+    clock = ManualClock(100.0)
+    w = SimpleNamespace(clock=clock, turn_gap=3.0)
+    urgent = lambda deadline: Wiring.urgent(w, deadline)      # noqa: E731
+    assert not urgent(100.0 + URGENT_ROUNDS * 3.0)           # rounds left for a repair alone
+    assert urgent(100.0 + URGENT_ROUNDS * 3.0 - 0.1)
+    w.turn_gap = 0.0                                          # no MAC: no turn to copy in
+    assert not urgent(100.5)

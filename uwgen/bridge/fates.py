@@ -1,0 +1,124 @@
+"""What the peer's reports tell of this side's command messages (docs/wire-format.md section
+15.6, "A command's fate"): a request, goal, answer or result arrived, or its packet was lost.
+
+The link numbers every packet and the peer reports which arrived (section 15.2); the link
+knows which messages each packet carried, so it tells the bridge each command message's fate
+(`uwgen.runtime.delivery.reliability.Reliability.on_fate`, on the link's thread). A copy sent
+blind each round (`uwgen.bridge.copies`) repairs a lost request and a lost answer alike, by
+sending the request again; told fates let each side repair its own leg, as LTP's report
+segments let a sender retransmit exactly what is missing:
+
+- **arrived**: an equal payload still waiting in the link is a copy nobody needs (the peer
+  has the message, and answers from what it keeps): it is taken back before it leaves
+  (`spared`). Told too late for that (the copy was not offered yet), the arrival spares the
+  next copy that falls due (`copy_due` asks `spare`): once per arrival, so a message whose
+  answer keeps being lost still goes again every other round, a fallback for what the link
+  cannot see (the peer's judge refused it; its bridge started again). A result told arrived
+  is acknowledged as by the client side's word (`uwgen.bridge.action_servers`): the client side
+  has it, or asks for it again (section 13, *result status*);
+- **lost**: an answer (a service's response, a goal's answer) is offered again by the side
+  that has it (`repairable`, until its caller's deadline), at once: the caller need not send
+  its request again for it (`repaired`); a request, goal or result waiting for its answer is
+  due again at once under a timer (`copy_due` asks `lost`) instead of after its timeout.
+
+A fate names a message by its bytes as the bridge offered them (no head): a command's bytes
+are unique while it is alive (its seq or handle), and what is kept is bounded (KEPT).
+"""
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
+
+from uwgen.runtime.clock import Clock
+
+KEPT = 256            # fates and repairable answers remembered (a turn carries a few)
+
+
+class Fates:
+    """The fates told of this side's command messages, and the answers it repairs."""
+
+    def __init__(self, clock: Clock, withdraw: Callable[[int, bytes], bool],
+                 offer_again: Callable[[int, bytes, float], bool]):
+        self.clock, self.withdraw, self.offer_again = clock, withdraw, offer_again
+        self._lock = threading.Lock()
+        self._arrived: OrderedDict[tuple[int, bytes], None] = OrderedDict()
+        self._lost: OrderedDict[tuple[int, bytes], None] = OrderedDict()
+        self._repairable: OrderedDict[tuple[int, bytes], float] = OrderedDict()   # -> until
+        self._seen: OrderedDict[tuple[int, bytes], None] = OrderedDict()   # arrived, kept
+        self.counts = {"arrived": 0, "lost": 0, "spared": 0, "repaired": 0}
+
+    def told(self, key: int, payload: bytes, arrived: bool) -> None:
+        """The link's report: `payload` (channel `key`) arrived, or its packet was lost. On
+        the link's thread."""
+        item = (key, bytes(payload))
+        if arrived:
+            spared = self.withdraw(key, item[1])          # a copy waiting: not needed
+            with self._lock:
+                self.counts["arrived"] += 1
+                self._lost.pop(item, None)
+                self._repairable.pop(item, None)          # the peer has it: nothing to repair
+                _remember(self._seen, item)
+                if spared:
+                    self.counts["spared"] += 1
+                else:
+                    _remember(self._arrived, item)
+            return
+        with self._lock:
+            self.counts["lost"] += 1
+            until = self._repairable.get(item)
+            repair = until is not None and self.clock.now() < until
+            if not repair:
+                _remember(self._lost, item)
+        if repair and self.offer_again(key, item[1], until):
+            with self._lock:
+                self.counts["repaired"] += 1
+
+    def forget(self, key: int, payload: bytes) -> None:
+        """`payload` is offered anew (a new goal or result may repeat an old one's bytes on a
+        reused handle): what was told of earlier ones is not about it."""
+        with self._lock:
+            item = (key, bytes(payload))
+            for table in (self._arrived, self._lost, self._seen, self._repairable):
+                table.pop(item, None)
+
+    def arrived(self, key: int, payload: bytes) -> bool:
+        """Whether the peer's reports told that `payload` arrived since it was offered anew."""
+        with self._lock:
+            return (key, bytes(payload)) in self._seen
+
+    def repairable(self, key: int, payload: bytes, until: float) -> None:
+        """An answer this side sent: offered again when its packet is told lost, until
+        `until` (its caller's deadline)."""
+        with self._lock:
+            item = (key, bytes(payload))
+            self._arrived.pop(item, None)
+            self._seen.pop(item, None)
+            self._repairable[item] = until
+            self._repairable.move_to_end(item)
+            while len(self._repairable) > KEPT:
+                self._repairable.popitem(last=False)
+
+    def spare(self, key: int, payload: bytes) -> bool:
+        """True, once per arrival told, when a copy of `payload` falls due: the peer has it."""
+        with self._lock:
+            if self._arrived.pop((key, bytes(payload)), 0) is None:
+                self.counts["spared"] += 1
+                return True
+            return False
+
+    def lost(self, key: int, payload: bytes) -> bool:
+        """True, once per loss told, when `payload`'s packet was lost: its copy is due now."""
+        with self._lock:
+            return self._lost.pop((key, bytes(payload)), 0) is None
+
+    def stats(self) -> dict[str, int]:
+        with self._lock:
+            return dict(self.counts)
+
+
+def _remember(table: OrderedDict, item: tuple[int, bytes]) -> None:
+    table[item] = None
+    table.move_to_end(item)
+    while len(table) > KEPT:
+        table.popitem(last=False)
