@@ -16,6 +16,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan
+from uwgen.bridge.rosnode import destroy_waitables
 
 from .fakes import next_domain
 
@@ -65,7 +66,7 @@ class RosSide:
         # node, and Node.destroy_node leaves them (waitables) to garbage collection, maybe
         # never in a test run. A later test in the same domain then saw this side's bridge
         # or action server in its graph (its loop guard stopped bridging, a goal went to the
-        # old server). The bridge destroys its own (BridgeNode.destroy_node); the test's
+        # old server). The bridge destroys its own (uwgen.bridge.rosnode); the test's
         # nodes have theirs destroyed here.
         self.nodes.clear()
         self.context.destroy()
@@ -74,10 +75,7 @@ class RosSide:
 
 def destroy_with_waitables(node) -> None:
     """Destroy `node` and the action clients and servers made on it."""
-    for waitable in list(node.waitables):
-        destroy = getattr(waitable, "destroy", None)
-        if destroy is not None:
-            destroy()
+    destroy_waitables(node)
     node.destroy_node()
 
 

@@ -8,6 +8,8 @@ there. The RECENT_RESULTS last results are also kept, with the goal's bytes, so 
 that comes again after its answer and result were lost gets its result again instead of a
 second run, and a client side that asks for a result it missed gets it.
 
+`Served` is the record of one goal from the link while it is at the local server.
+
 No rclpy here: `ActionServers` decides what to send and when a goal ends; this book only
 remembers, times (an injectable clock's `now` is passed in) and counts round trips.
 """
@@ -16,6 +18,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 from uwgen.runtime.delivery.reliable import RttEstimator
 
@@ -35,6 +38,19 @@ class Unacked:
     until: float                  # no copy after this: the client side may reuse the handle
     sends: int = 1
     turn: int | None = None       # own turns ended while it waited in the link (copies.py)
+
+
+@dataclass
+class Served:
+    """One goal from the link, at the real server (server side)."""
+
+    sent: Any                     # rclpy Future of send_goal_async: -> ClientGoalHandle
+    deadline: float               # (None: waiting for the local server or its goal list)
+    payload: bytes = b""          # the goal as it came (a repeat has the same bytes)
+    arrived: float = 0.0          # when it first came
+    goal_handle: Any = None       # ClientGoalHandle, once accepted
+    cancel_wanted: bool = False   # a cancel came before the local server answered
+    goal: Any = None              # the goal message while it waits for the local server
 
 
 @dataclass(frozen=True)

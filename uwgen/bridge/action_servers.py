@@ -21,13 +21,13 @@ goals gets them reported aborted after SERVER_GONE_GRACE.
 from __future__ import annotations
 
 import random
-from dataclasses import dataclass
 from typing import Any
 
 from rclpy.action import ActionClient
 from rclpy.task import Future
 
-from uwgen.bridge.action_results import REPEAT_WINDOW, ResultBook
+from uwgen.bridge.action_results import ResultBook, Served
+from uwgen.bridge.adoption import GoalAdoption
 from uwgen.bridge.copies import copy_due
 from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
@@ -41,20 +41,7 @@ from uwgen.runtime.wire.table import (ABORTED, ACCEPTED, CANCEL_REFUSED, CANCELI
 SERVER_GONE_GRACE = 1.0   # seconds the local server may be missing before its goals abort
 
 
-@dataclass
-class Served:
-    """One goal from the link, at the real server (server side)."""
-
-    sent: Future | None           # send_goal_async: -> ClientGoalHandle (None: waiting for
-    deadline: float               # the local server to be discovered)
-    payload: bytes = b""          # the goal as it came (a repeat has the same bytes)
-    arrived: float = 0.0          # when it first came
-    goal_handle: Any = None       # ClientGoalHandle, once accepted
-    cancel_wanted: bool = False   # a cancel came before the local server answered
-    goal: Any = None              # the goal message while it waits for the local server
-
-
-class ActionServers:
+class ActionServers(GoalAdoption):
     def __init__(self, wiring: Wiring, codecs: list[Any], counters: dict[int, ActionCounters]):
         self.w = wiring
         self.codecs = codecs
@@ -226,52 +213,6 @@ class ActionServers:
         self._answer(ident, handle, REJECTED)
         counters.lost_goals += 1
 
-    def _adopt(self, ident: int, handle: int, uuid: bytes, info: Any, done: bool = False,
-               payload: bytes = b"", arrived: float | None = None) -> None:
-        """A goal a previous start of this bridge sent the local server, still running: adopt
-        it (its result goes to the client side under its handle), or cancel it when its
-        handle is busy with a newer goal (orphans.py). `done`: it finished while no bridge
-        watched it, and the client side asks for its result or copies it: the local server's
-        kept result (get_result) goes to it, kept as the goal's (`payload` as it came at
-        `arrived`) for its later copies."""
-        from rclpy.action.client import ClientGoalHandle
-        from unique_identifier_msgs.msg import UUID
-        codec, client = self.served[ident]
-        response = codec.ros_class().Impl.SendGoalService.Response(accepted=True, stamp=info.stamp)
-        goal_handle = ClientGoalHandle(client, UUID(uuid=list(uuid)), response)
-        self.own_uuids.add(uuid)
-        held = self.goals[ident].get(handle)
-        if held is not None and held.sent is None:
-            # held for the list (on_request): the copy of this goal, not a new one
-            del self.goals[ident][handle]
-            self.counters[ident].duplicate_goals += 1
-        elif handle in self.goals[ident]:
-            self.counters[ident].orphans_cancelled += 1
-            self.w.log.warning(f"{codec.name}: a goal (handle {handle}) that a previous start of "
-                               "this bridge left on the local server is cancelled: its handle "
-                               "carries a newer goal")
-            client._cancel_goal_async(goal_handle)
-            return
-        now = self.w.clock.now()
-        sent: Future = Future()
-        sent.set_result(goal_handle)
-        self.goals[ident][handle] = Served(sent, now + codec.result_timeout, payload=payload,
-                                           arrived=now if arrived is None else arrived,
-                                           goal_handle=goal_handle)
-        if done:
-            self.counters[ident].orphans_finished += 1
-            self.w.log.warning(f"{codec.name}: goal {handle} finished on the local server while "
-                               "this bridge was down; its result, kept by the server, goes to "
-                               "the client side")
-        else:
-            self.counters[ident].orphans_adopted += 1
-            self.w.log.warning(f"{codec.name}: adopted goal {handle}, which a previous start of "
-                               "this bridge left running on the local server: its result goes "
-                               f"to the client side, and it is cancelled if not done within "
-                               f"{codec.result_timeout:g} s")
-        goal_handle.get_result_async().add_done_callback(
-            lambda f: self._finished(ident, handle, goal_handle, f))
-
     def _resend_results(self, ident: int, now: float) -> None:
         """Results not acknowledged go again when a copy is due (copies.py), until the book
         gives them up."""
@@ -308,21 +249,6 @@ class ActionServers:
         arrived = self.results[ident].recent[handle].arrived   # the answer and result were lost
         self._offer(ident, result, "result",
                     again=self.w.urgent(arrived + self.served[ident][0].accept_timeout))
-        return True
-
-    def _copy_of_finished(self, ident: int, handle: int, payload: bytes, came: float) -> bool:
-        """Whether `payload`, come at `came`, copies a goal that finished on the local server
-        while no bridge watched it, by the rule of ResultBook.repeat_of (orphans.py); if so
-        it is answered accepted and the goal's kept result follows (counted duplicate_goals
-        by the caller, or by _adopt for a held copy)."""
-        window = REPEAT_WINDOW * self.served[ident][0].accept_timeout
-        wall_came = self.w.wall() - (self.w.clock.now() - came)
-        found = self.watches[ident].repeat_of(handle, payload, wall_came, window)
-        if found is None:
-            return False
-        uuid, info, age = found
-        self._adopt(ident, handle, uuid, info, done=True, payload=payload, arrived=came - age)
-        self._answer(ident, handle, ACCEPTED, again=True)
         return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:

@@ -26,7 +26,6 @@ from dataclasses import asdict
 from typing import Any, Callable
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.node import Node
 
 from uwgen.runtime.delivery import ledger
 from uwgen.bridge.action_servers import ActionServers
@@ -41,6 +40,7 @@ from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.recorder import recorder_for
 from uwgen.bridge.reliability import farewell, link_ledger, reliability_for
+from uwgen.bridge.rosnode import WholeNode
 from uwgen.bridge.security import guard_for, link_security
 from uwgen.bridge.service_servers import Servers
 from uwgen.bridge.services import StandIns, service_status
@@ -71,7 +71,7 @@ def node_name_for(plan: BridgePlan) -> str:
     return f"{BRIDGE_NODE_PREFIX}{plan.network}_{plan.side}".replace("-", "_")
 
 
-class BridgeNode(Node):
+class BridgeNode(WholeNode):
     """Carries one side's manifest topics, services and actions over its DESERT link."""
 
     def __init__(self, plan: BridgePlan, options: BridgeOptions | None = None, *,
@@ -317,16 +317,6 @@ class BridgeNode(Node):
             except Exception as exc:  # rclpy after its context was shut down
                 self._log.debug(f"destroy_node after shutdown: {exc}")
         return status
-
-    def destroy_node(self) -> None:
-        """Release every ROS entity, the action clients and servers too: they are waitables,
-        which Node.destroy_node leaves, and while one lives the node stays in the graph (its
-        context's DDS participant with it, until garbage collection frees them)."""
-        for waitable in list(self.waitables):
-            destroy = getattr(waitable, "destroy", None)
-            if destroy is not None:
-                destroy()
-        super().destroy_node()
 
     def _flush_discovery(self) -> bool:
         """Wait (bounded) until the disconnect beacons have left; see RmwDiscovery.flush."""
