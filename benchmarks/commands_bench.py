@@ -157,7 +157,8 @@ class Overhead:
 
         def kind(key: int, payload: bytes, status: bool) -> str:
             what = {(20, 2): "request copy", (20, 3): "response copy", (9, 2): "goal copy",
-                    (9, 3): "goal answer/result copy"}.get((key, payload[0]), f"id {key} copy")
+                    (9, 3): "goal answer copy" if len(payload) <= 5 else "result copy"
+                    }.get((key, payload[0]), f"id {key} copy")
             return "result ack/query" if status else what
 
         def counted(key: int, payload: bytes, **kw) -> bool:
