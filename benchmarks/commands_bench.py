@@ -11,7 +11,11 @@ real result (the server's own response / Fibonacci sequence), duplicate executio
 real server (a request or goal run more than once), and the air time spent on retries and
 acknowledgements (copies of requests, goals, results and answers, the bridge's and the
 link's copies in the same turn (uwgen.runtime.delivery.echoes); result acknowledgements and
-requests; 4 bytes of framing each) as a share of all bytes the two sides wrote.
+requests; 4 bytes of framing each) as a share of all bytes the two sides wrote, and beside
+it the bytes of every report the two sides wrote (the A parts of wire-format 15.2: they
+acknowledge topics' packets and commands' alike, and tell each command's fate, 15.6).
+`--breakdown` also prints the fates the reports told (arrived, lost; copies spared, answers
+repaired).
 
 Modes: `retries` is this build; `reference` is the same build with the commands' retries off
 (no request copies, no result copies, no result acknowledgements or requests; goals are
@@ -153,7 +157,8 @@ class Overhead:
 
         def kind(key: int, payload: bytes, status: bool) -> str:
             what = {(20, 2): "request copy", (20, 3): "response copy", (9, 2): "goal copy",
-                    (9, 3): "goal answer/result copy"}.get((key, payload[0]), f"id {key} copy")
+                    (9, 3): "goal answer copy" if len(payload) <= 5 else "result copy"
+                    }.get((key, payload[0]), f"id {key} copy")
             return "result ack/query" if status else what
 
         def counted(key: int, payload: bytes, **kw) -> bool:

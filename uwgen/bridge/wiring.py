@@ -21,7 +21,7 @@ from uwgen.manifest.model import Qos
 from uwgen.runtime.clock import Clock
 
 EXPECTED = 64                # copies an arriving answer may take back (Wiring.expect)
-URGENT_ROUNDS = 2.0          # a command sent again with fewer MAC rounds left before its
+URGENT_ROUNDS = 2.5          # a command sent again with fewer MAC rounds left before its
                              # caller's deadline gets its copy in its turn (Wiring.urgent)
 Send = Callable[..., bool]   # (id, payload, published=None) -> accepted
 
