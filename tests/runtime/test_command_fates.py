@@ -81,3 +81,21 @@ def test_the_bridge_is_told_the_fate_as_it_offered_the_command_without_its_head(
     surface.received(env.Envelope(sender=2, number=0, ack=ack), 1.5)
     assert told == [(CALL, REQUEST, True)]
     assert vehicle.stats()["reliability"]["report_bytes"] == 1 + len(ack)
+
+
+def test_a_cut_command_named_with_its_tail_in_one_report_is_told_arrived():
+    link = engine()
+    link.sent(0, [Sent(CALL, REQUEST, None)], 0.0)
+    link.cut(0)
+    link.sent(1, [Sent(TOPIC, b"t", None)], 0.2)
+    link.acked(report(1, 0b1000_0000), 1.0)           # both at once: the tail settles first
+    assert link.told.fates == [(CALL, REQUEST, True)]
+
+
+def test_a_cut_command_whose_head_is_lost_is_told_lost():
+    link = engine()
+    link.sent(0, [Sent(CALL, REQUEST, None)], 0.0)
+    link.cut(0)
+    link.sent(1, [Sent(TOPIC, b"t", None)], 0.2)
+    link.acked(report(1, 0b0000_0000), 1.0)
+    assert link.told.fates == [(CALL, REQUEST, False)]

@@ -127,11 +127,17 @@ class Told:
         self.fates: list[tuple[int, Any, bool]] = []
 
     def tell(self, packet: _Packet, arrived: bool) -> None:
+        """A cut message arrived only with its tail (`cut`), but is lost with its head."""
         if packet.told or not self.watched:
             return
         packet.told = True
         self.fates += [(m.key, m.ref, arrived) for m in packet.messages
-                       if m.key in self.watched and m.tail is None]
+                       if m.key in self.watched and (m.tail is None or not arrived)]
+
+    def cut(self, m: Sent, arrived: bool) -> None:
+        """A cut message whose head arrived after its tail's packet had settled."""
+        if m.key in self.watched:
+            self.fates.append((m.key, m.ref, arrived))
 
     def take(self) -> list[tuple[int, Any, bool]]:
         out, self.fates = self.fates, []
@@ -321,6 +327,7 @@ class ReliableLink(Receiving):
                 if fate is None:
                     self.entry(m.key).unacknowledged += 1
                     continue
+                self.told.cut(m, fate)
                 if not fate:
                     self.entry(m.key).lost_on_link += 1
                     continue
