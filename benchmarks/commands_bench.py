@@ -12,7 +12,9 @@ real server (a request or goal run more than once), and the air time spent on re
 acknowledgements (copies of requests, goals, results and answers, the bridge's and the
 link's copies in the same turn (uwgen.runtime.delivery.echoes); result acknowledgements and
 requests; 4 bytes of framing each) as a share of all bytes the two sides wrote, and beside
-it the bytes of every report the two sides wrote (the A parts of wire-format 15.2: they
+it the floor: the least any repair could send for the same commands over a channel that
+erases that share of packets (PER / (1 - PER) of the commands' first copies: a lower bound),
+and the bytes of every report the two sides wrote (the A parts of wire-format 15.2: they
 acknowledge topics' packets and commands' alike, and tell each command's fate, 15.6).
 `--breakdown` also prints the fates the reports told (arrived, lost; copies spared, answers
 repaired).
@@ -151,6 +153,7 @@ class Overhead:
 
     def __init__(self, bridge: BridgeNode, retries: bool):
         self.bytes = 0
+        self.first = 0                        # bytes of commands' first copies (the floor)
         self.kinds: Counter = Counter()       # bytes by what they are (--breakdown)
         self.seen: set[tuple[int, bytes]] = set()
         send = bridge.wiring.send
@@ -169,6 +172,8 @@ class Overhead:
                 if status or (key, payload) in self.seen:
                     self.bytes += len(payload) + OVERHEAD
                     self.kinds[kind(key, payload, status)] += len(payload) + OVERHEAD
+                else:
+                    self.first += len(payload) + OVERHEAD
                 self.seen.add((key, payload))
             return send(key, payload, **kw)
         bridge.wiring.send = counted
@@ -323,6 +328,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             time.sleep(1.0)
             written = sum(b.link.stats()["connection"]["bytes_sent"] for b in bridges.values())
             extra = sum(o.bytes for o in overhead.values())
+            first = sum(o.first for o in overhead.values())
             kinds = sum((o.kinds for o in overhead.values()), Counter())
             for b in bridges.values():    # the link's copies of commands in their own turn
                 rel = b.link.stats().get("reliability", {})
@@ -350,6 +356,10 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
     capacity = 2 * elapsed / 0.2 * (64 + OVERHEAD)
     return {"calls": f"{ok_calls}/{calls}", "goals": f"{ok_goals}/{goals}", "dup": dup,
             "share": extra / written if written else 0.0, "capacity": extra / capacity,
+            # the least any repair can send over a channel that erases a share `per` of the
+            # packets: per / (1 - per) of the commands' bytes sent once (a lower bound: a
+            # message cut across two packets is lost more often, and so are copies)
+            "floor": first * per / (1 - per) / written if written and per < 1 else 0.0,
             "time": elapsed, "collisions": collisions,
             "reports": reports / written if written else 0.0, "fates": dict(fates),
             "kinds": {k: v / written if written else 0.0 for k, v in sorted(kinds.items())}}
@@ -392,15 +402,16 @@ def main() -> int:
         return 0
     packages = {mac: build_package(mac) for mac in macs}
     print("| PER | mac | mode | calls ok | goals ok (real result) | duplicate runs | "
-          "retry+ack bytes / bytes written | / link capacity | reports / bytes written | "
+          "retry+ack bytes / bytes written | floor | / link capacity | reports / bytes written | "
           "collisions | s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for per in (float(p) for p in args.per.split(",")):
         for mac in macs:
             for retries in (True,) if args.no_reference else (True, False):
                 r = run(packages[mac], per, args.seed, args.calls, args.goals, retries, mac)
                 print(f"| {per:.0%} | {mac} | {'retries' if retries else 'reference'} | "
                       f"{r['calls']} | {r['goals']} | {r['dup']} | {r['share']:.1%} | "
+                      f"{r['floor']:.1%} | "
                       f"{r['capacity']:.1%} | {r['reports']:.1%} | {r['collisions']} | "
                       f"{r['time']:.0f} |", flush=True)
                 if args.breakdown:
