@@ -179,3 +179,12 @@ def test_a_command_sent_again_gets_its_copy_in_turn_only_in_its_last_rounds():
     assert urgent(100.0 + URGENT_ROUNDS * 3.0 - 0.1)
     w.turn_gap = 0.0                                          # no MAC: no turn to copy in
     assert not urgent(100.5)
+
+
+def test_the_serving_side_counts_its_callers_deadline_from_before_the_request_came():
+    from uwgen.bridge.wiring import Wiring
+    w = SimpleNamespace(turn_gap=3.0, round_trip=1.4)
+    # it came about half a round (its wait for its turn) and a trip after the call began
+    assert Wiring.callers_deadline(w, 50.0, 12.0) == 50.0 + 12.0 - (3.0 + 1.4) / 2
+    w.round_trip = None                                       # no MAC figure: the turn alone
+    assert Wiring.callers_deadline(w, 50.0, 12.0) == 50.0 + 12.0 - 1.5

@@ -93,7 +93,9 @@ class ActionServers(GoalAdoption):
         if self._offer(ident, answer, "answer", again=again):
             self.counters[ident].answers += 1
             # a lost answer goes again at once, within the goal's time (fates.py)
-            self.w.fates.repairable(ident, answer, self.w.clock.now() + codec.accept_timeout)
+            entry = self.goals[ident].get(handle)
+            came = entry.arrived if entry is not None else self.w.clock.now()
+            self.w.fates.repairable(ident, answer, self.w.callers_deadline(came, codec.accept_timeout))
 
     def _result(self, ident: int, handle: int, status: int, result: Any, entry: Served) -> None:
         codec = self.served[ident][0]
@@ -240,7 +242,8 @@ class ActionServers(GoalAdoption):
             if entry.goal_handle is not None and entry.payload == payload:
                 self.counters[ident].repeated_replies += 1
                 accept = self.served[ident][0].accept_timeout   # the first answer was lost
-                self._answer(ident, handle, ACCEPTED, again=self.w.urgent(entry.arrived + accept))
+                self._answer(ident, handle, ACCEPTED,
+                             again=self.w.urgent(self.w.callers_deadline(entry.arrived, accept)))
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
@@ -248,7 +251,8 @@ class ActionServers(GoalAdoption):
         self.counters[ident].repeated_replies += 1
         arrived = self.results[ident].recent[handle].arrived   # the answer and result were lost
         self._offer(ident, result, "result",
-                    again=self.w.urgent(arrived + self.served[ident][0].accept_timeout))
+                    again=self.w.urgent(self.w.callers_deadline(
+                        arrived, self.served[ident][0].accept_timeout)))
         return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:

@@ -91,7 +91,7 @@ class Servers:
             if replied is not None:
                 counters.repeated_replies += 1
                 self.w.offer_once(ident, replied[0],                # not twice in one packet
-                                  again=self.w.urgent(handled + codec.timeout))
+                                  again=self.w.urgent(self.w.callers_deadline(handled, codec.timeout)))
             return
         if not client.service_is_ready():
             if len(self.waiting[ident]) >= WAITING_LIMIT:
@@ -172,7 +172,9 @@ class Servers:
         if self.w.send(ident, payload):
             counters.replies += 1
             # a lost response goes again at once, within the call's time (fates.py)
-            self.w.fates.repairable(ident, payload, self.w.clock.now() + codec.timeout)
+            came = self.handled.when(ident, seq)
+            self.w.fates.repairable(ident, payload, self.w.callers_deadline(
+                self.w.clock.now() if came is None else came, codec.timeout))
         else:
             counters.reply_refused += 1
             self.w.throttle.report(f"srvref{ident}", f"{codec.name}: response for seq {seq} refused by the link")

@@ -91,6 +91,12 @@ class Wiring:
         bytes written (docs/wire-format.md section 15.6). Never without a MAC (no turn)."""
         return deadline - self.clock.now() < URGENT_ROUNDS * self.turn_gap
 
+    def callers_deadline(self, came: float, timeout: float) -> float:
+        """The caller's deadline as the serving side can tell it: the request or goal first
+        came at `came`, about half a round of the MAC and a trip after the call began (it
+        waited for its side's turn, then crossed: (`turn_gap` + `round_trip`) / 2)."""
+        return came + timeout - (self.turn_gap + (self.round_trip or 0.0)) / 2
+
     def expect(self, answer: bytes, key: int, copy: bytes, echo: bool = True) -> None:
         """A copy `copy` (channel `key`) was offered: the payload arriving that starts with
         `answer` (its response, goal answer or result, or a result's acknowledgement) takes
