@@ -99,34 +99,14 @@ def answer_lost_over_turns(fates_on: bool):
     """A call at 5 s over turns at 1000 m whose first answer packet is lost. Returns the
     times the vehicle wrote the answer, the times the surface wrote the request, and when the
     answer reached the surface (None: not by 20 s)."""
-    from uwgen.emulator import NodeSpec, Scenario
-    from uwgen.emulator.duplex import DuplexSim
-    from uwgen.manifest.model import LinkConfig, LinkPolicy, MacConfig
-    from uwgen.runtime.delivery.reliability import Reliability
-    from uwgen.runtime.link.mac import mac_for
-    turns = MacConfig(mode="turns", range=1000.0, leader="surface",
-                      packets=(("surface", 4), ("vehicle", 2)), bitrate=4800.0)
-    senders = {"surface": 1, "vehicle": 2}
-    scen = Scenario(nodes=[NodeSpec("surface", position=(0, 0, 0), dest="vehicle"),
-                           NodeSpec("vehicle", position=(1000, 0, 0), dest="surface")],
-                    period=0.2, max_read_length=64, bitrate=4800.0)
-    clock = ManualClock()
-    macs = {side: mac_for(turns, side, senders, LinkConfig(64, 0.2)) for side in senders}
-    rel: dict[str, Reliability] = {}
+    from tests.runtime.turns_pair import SENDERS, turns_pair
+    from uwgen.manifest.model import LinkPolicy
 
-    def hooks_for(side):
-        rel[side] = Reliability(senders[side], period=0.2, reliable={}, max_ages={},
-                                name=side, max_read_length=64,
-                                other_overhead=macs[side].overhead, turn_gap=macs[side].turn_gap(),
-                                settled_by=macs[side].settled_by, commands=frozenset({CALL}),
-                                own_span=macs[side].own_span())
+    def settle(rel) -> None:
         for _ in range(64):
-            rel[side].engine.spare.settled(True)          # no loss measured: no copies in turn
-        return rel[side].hooks()
-    sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,
-                    clock=clock, step=0.025,
-                    link_kw_for=lambda side: {"mac": macs[side], "sender_id": senders[side]})
-    wrote: dict[str, list[float]] = {s: [] for s in senders}
+            rel.engine.spare.settled(True)               # no loss measured: no copies in turn
+    sim, clock, rel = turns_pair(frozenset({CALL}), {}, settle)
+    wrote: dict[str, list[float]] = {s: [] for s in SENDERS}
     for side, link in sim.links.items():
         sent = link.hooks.sent
 

@@ -5,14 +5,11 @@ same turn or slot, never later, never twice; under turns a lost packet then cost
 nothing. Explicit times, and two links on a ManualClock."""
 from __future__ import annotations
 
-from uwgen.emulator import NodeSpec, Scenario
-from uwgen.emulator.duplex import DuplexSim
-from uwgen.manifest.model import LinkConfig, LinkPolicy, MacConfig
-from uwgen.runtime.clock import ManualClock
+from tests.runtime.turns_pair import SENDERS, turns_pair
+from uwgen.manifest.model import LinkPolicy
 from uwgen.runtime.delivery.copies import LOSS_WINDOW, MEASURED
 from uwgen.runtime.delivery.echoes import Echoes
 from uwgen.runtime.delivery.reliability import Reliability
-from uwgen.runtime.link.mac import mac_for
 from uwgen.runtime.wire.heads import Heads
 
 CALL = 20                                   # a service's channel (requests and responses)
@@ -112,43 +109,15 @@ def test_at_a_start_before_the_loss_is_known_a_command_is_copied():
 
 # -- two links under turns (a ManualClock) ----------------------------------------------------
 
-TURNS = MacConfig(mode="turns", range=1000.0, leader="surface",
-                  packets=(("surface", 4), ("vehicle", 2)), bitrate=4800.0)
-SENDERS = {"surface": 1, "vehicle": 2}
-
-
-class Wall:
-    def __init__(self, clock: ManualClock):
-        self.clock = clock
-
-    def now(self) -> float:
-        return 1.7e9 + self.clock.now()
-
-
 def call_over_turns(lossy: bool):
     """A call at 5 s over turns at 1000 m; the surface's packet carrying the request is lost.
     Returns (surface packets carrying it, vehicle packets carrying the answer, each as
     (time, number), when the request reached the vehicle, the two links' reliabilities, the
     payloads the surface received)."""
-    scen = Scenario(nodes=[NodeSpec("surface", position=(0, 0, 0), dest="vehicle"),
-                           NodeSpec("vehicle", position=(1000, 0, 0), dest="surface")],
-                    period=0.2, max_read_length=64, bitrate=4800.0)
-    clock = ManualClock()
-    macs = {side: mac_for(TURNS, side, SENDERS, LinkConfig(64, 0.2)) for side in SENDERS}
-    rel: dict[str, Reliability] = {}
-
-    def hooks_for(side):
-        rel[side] = Reliability(SENDERS[side], period=0.2, reliable={}, max_ages={CALL: 12.0},
-                                wall=Wall(clock), name=side, max_read_length=64,
-                                other_overhead=macs[side].overhead, turn_gap=macs[side].turn_gap(),
-                                settled_by=macs[side].settled_by, commands=frozenset({CALL}),
-                                own_span=macs[side].own_span())
+    def settle(rel: Reliability) -> None:
         for k in range(LOSS_WINDOW):                 # measured: lossy (1 in 8) or not
-            rel[side].engine.spare.settled(not (lossy and k % 8 == 0))
-        return rel[side].hooks()
-    sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,
-                    clock=clock, step=0.025,
-                    link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})
+            rel.engine.spare.settled(not (lossy and k % 8 == 0))
+    sim, clock, rel = turns_pair(frozenset({CALL}), {CALL: 12.0}, settle)
     carried: dict[str, list[tuple[float, int]]] = {s: [] for s in SENDERS}
     for side, link in sim.links.items():
         sent = link.hooks.sent
