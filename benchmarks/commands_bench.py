@@ -147,6 +147,12 @@ def result_status(payload: bytes) -> bool:
     return payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18
 
 
+COPY_WINDOW = 60.0   # s: a payload offered again within this is a copy; later, a new message
+                     # with equal bytes (a goal's answer, `3 9 handle 1`, recurs on every goal
+                     # of a reused handle, minutes apart; copies go within a goal's life:
+                     # result_timeout and 2 accept_timeouts, 54 s)
+
+
 class Overhead:
     """Counts the bytes a bridge offers on command ids that are retries or acks (a copy taken
     back before it left, LinkScheduler.withdraw, is not counted)."""
@@ -155,7 +161,8 @@ class Overhead:
         self.bytes = 0
         self.first = 0                        # bytes of commands' first copies (the floor)
         self.kinds: Counter = Counter()       # bytes by what they are (--breakdown)
-        self.seen: set[tuple[int, bytes]] = set()
+        # (key, payload) -> (when last offered, whether that was a copy)
+        self.seen: dict[tuple[int, bytes], tuple[float, bool]] = {}
         send = bridge.wiring.send
 
         def kind(key: int, payload: bytes, status: bool) -> str:
@@ -169,19 +176,21 @@ class Overhead:
                 status = result_status(payload)
                 if status and not retries:
                     return True                     # reference: no result status at all
-                if status or (key, payload) in self.seen:
+                now = time.monotonic()
+                copy = status or now - self.seen.get((key, payload), (-COPY_WINDOW, False))[0] < COPY_WINDOW
+                if copy:
                     self.bytes += len(payload) + OVERHEAD
                     self.kinds[kind(key, payload, status)] += len(payload) + OVERHEAD
                 else:
                     self.first += len(payload) + OVERHEAD
-                self.seen.add((key, payload))
+                self.seen[(key, payload)] = (now, copy)
             return send(key, payload, **kw)
         bridge.wiring.send = counted
         withdraw = bridge.wiring.withdraw
 
         def withdrawn(key: int, payload: bytes) -> bool:   # taken back before it left: no air time
             taken = withdraw(key, payload)
-            if taken and key in COMMAND_IDS and (key, payload) in self.seen:
+            if taken and key in COMMAND_IDS and self.seen.get((key, payload), (0, False))[1]:
                 self.bytes -= len(payload) + OVERHEAD
                 self.kinds[kind(key, payload, result_status(payload))] -= len(payload) + OVERHEAD
             return taken
