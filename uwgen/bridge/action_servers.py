@@ -154,8 +154,8 @@ class ActionServers(GoalAdoption):
     def _send_goal(self, ident: int, handle: int, entry: Served) -> None:
         from unique_identifier_msgs.msg import UUID
         client = self.served[ident][1]
-        arrived = self.w.wall() - (self.w.clock.now() - entry.arrived)
-        uuid = goal_uuid(ident, handle, self._rng, entry.payload, arrived)   # orphans.py
+        uuid = goal_uuid(ident, handle, self._rng, entry.payload,            # orphans.py
+                         self.w.wall_at(entry.arrived))
         self.own_uuids.add(uuid)
         entry.sent = client.send_goal_async(
             entry.goal, feedback_callback=lambda fb: self._feedback(ident, handle, fb),

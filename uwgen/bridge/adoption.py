@@ -86,8 +86,7 @@ class GoalAdoption:
         it is answered accepted and the goal's kept result follows (counted duplicate_goals
         by the caller, or by _adopt for a held copy)."""
         window = REPEAT_WINDOW * self.served[ident][0].accept_timeout
-        wall_came = self.w.wall() - (self.w.clock.now() - came)
-        found = self.watches[ident].repeat_of(handle, payload, wall_came, window)
+        found = self.watches[ident].repeat_of(handle, payload, self.w.wall_at(came), window)
         if found is None:
             return False
         uuid, info, age = found

@@ -91,6 +91,11 @@ class Wiring:
         bytes written (docs/wire-format.md section 15.6). Never without a MAC (no turn)."""
         return deadline - self.clock.now() < URGENT_ROUNDS * self.turn_gap
 
+    def wall_at(self, t: float) -> float:
+        """The system clock's reading (what ROS stamps with; a restart does not reset it) at
+        `t` on the bridge's clock."""
+        return self.wall() - (self.clock.now() - t)
+
     def callers_deadline(self, came: float, timeout: float) -> float:
         """The caller's deadline as the serving side can tell it: the request or goal first
         came at `came`, about half a round of the MAC and a trip after the call began (it
