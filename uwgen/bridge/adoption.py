@@ -92,5 +92,6 @@ class GoalAdoption:
         uuid, info, age = found
         self._adopt(ident, handle, uuid, info, done=True, payload=payload, arrived=came - age)
         accept = self.served[ident][0].accept_timeout         # its answer was lost
-        self._answer(ident, handle, ACCEPTED, again=self.w.urgent(came - age + accept))
+        self._answer(ident, handle, ACCEPTED,
+                     again=self.w.urgent(self.w.callers_deadline(came - age, accept)))
         return True
