@@ -42,10 +42,10 @@ class Fates:
                  offer_again: Callable[[int, bytes, float], bool]):
         self.clock, self.withdraw, self.offer_again = clock, withdraw, offer_again
         self._lock = threading.Lock()
-        self._arrived: OrderedDict[tuple[int, bytes], None] = OrderedDict()
-        self._lost: OrderedDict[tuple[int, bytes], None] = OrderedDict()
+        # told arrived -> whether that arrival may still spare a copy (`spare`, once)
+        self._arrived: OrderedDict[tuple[int, bytes], bool] = OrderedDict()
+        self._lost: OrderedDict[tuple[int, bytes], bool] = OrderedDict()
         self._repairable: OrderedDict[tuple[int, bytes], float] = OrderedDict()   # -> until
-        self._seen: OrderedDict[tuple[int, bytes], None] = OrderedDict()   # arrived, kept
         self.counts = {"arrived": 0, "lost": 0, "spared": 0, "repaired": 0}
 
     def told(self, key: int, payload: bytes, arrived: bool) -> None:
@@ -58,18 +58,15 @@ class Fates:
                 self.counts["arrived"] += 1
                 self._lost.pop(item, None)
                 self._repairable.pop(item, None)          # the peer has it: nothing to repair
-                _remember(self._seen, item)
-                if spared:
-                    self.counts["spared"] += 1
-                else:
-                    _remember(self._arrived, item)
+                self.counts["spared"] += spared
+                _remember(self._arrived, item, not spared)
             return
         with self._lock:
             self.counts["lost"] += 1
             until = self._repairable.get(item)
             repair = until is not None and self.clock.now() < until
             if not repair:
-                _remember(self._lost, item)
+                _remember(self._lost, item, True)
         if repair and self.offer_again(key, item[1], until):
             with self._lock:
                 self.counts["repaired"] += 1
@@ -79,13 +76,13 @@ class Fates:
         reused handle): what was told of earlier ones is not about it."""
         with self._lock:
             item = (key, bytes(payload))
-            for table in (self._arrived, self._lost, self._seen, self._repairable):
+            for table in (self._arrived, self._lost, self._repairable):
                 table.pop(item, None)
 
     def arrived(self, key: int, payload: bytes) -> bool:
         """Whether the peer's reports told that `payload` arrived since it was offered anew."""
         with self._lock:
-            return (key, bytes(payload)) in self._seen
+            return (key, bytes(payload)) in self._arrived
 
     def repairable(self, key: int, payload: bytes, until: float) -> None:
         """An answer this side sent: offered again when its packet is told lost, until
@@ -93,7 +90,6 @@ class Fates:
         with self._lock:
             item = (key, bytes(payload))
             self._arrived.pop(item, None)
-            self._seen.pop(item, None)
             self._repairable[item] = until
             self._repairable.move_to_end(item)
             while len(self._repairable) > KEPT:
@@ -101,24 +97,26 @@ class Fates:
 
     def spare(self, key: int, payload: bytes) -> bool:
         """True, once per arrival told, when a copy of `payload` falls due: the peer has it."""
+        item = (key, bytes(payload))
         with self._lock:
-            if self._arrived.pop((key, bytes(payload)), 0) is None:
-                self.counts["spared"] += 1
-                return True
-            return False
+            if not self._arrived.get(item):
+                return False
+            self._arrived[item] = False
+            self.counts["spared"] += 1
+            return True
 
     def lost(self, key: int, payload: bytes) -> bool:
         """True, once per loss told, when `payload`'s packet was lost: its copy is due now."""
         with self._lock:
-            return self._lost.pop((key, bytes(payload)), 0) is None
+            return self._lost.pop((key, bytes(payload)), False)
 
     def stats(self) -> dict[str, int]:
         with self._lock:
             return dict(self.counts)
 
 
-def _remember(table: OrderedDict, item: tuple[int, bytes]) -> None:
-    table[item] = None
+def _remember(table: OrderedDict, item: tuple[int, bytes], value: bool) -> None:
+    table[item] = value
     table.move_to_end(item)
     while len(table) > KEPT:
         table.popitem(last=False)
