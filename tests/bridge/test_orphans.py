@@ -6,6 +6,7 @@ from __future__ import annotations
 import random
 import threading
 import time
+from contextlib import contextmanager
 
 import pytest
 from action_msgs.msg import GoalStatus
@@ -60,6 +61,20 @@ def goal_then_kill(surface, vehicle, bridges, delay: float):
     assert goal_handle.accepted
     kill(vehicle, bridges["vehicle"])
     return results, goal_handle
+
+
+@contextmanager
+def killed_mid_goal(codec, delay: float):
+    """Both bridges of a fresh pair serving `codec`, a goal of `delay` s accepted, then the
+    server-side bridge killed: (start a new server-side bridge, the link pair, the goals the
+    real server ran, the caller's goal handle)."""
+    package = fake_package([])
+    package.ACTIONS = {9: codec}
+    links = LinkPair()
+    with ros_sides("surface", "vehicle") as (surface, vehicle):
+        bridges = {s.name: start_bridge(s, package, links.factory) for s in (surface, vehicle)}
+        results, goal_handle = goal_then_kill(surface, vehicle, bridges, delay=delay)
+        yield (lambda: start_bridge(vehicle, package, links.factory)), links, results, goal_handle
 
 
 @pytest.mark.parametrize("down", [0.0, 1.0], ids=["restarted at once", "restarted later"])
@@ -164,15 +179,10 @@ def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal
     publisher shown unmatched, until the copy has come). The copy is held, not sent; the
     list shows the goal running; the running goal is adopted and the copy dropped: the goal
     runs once and the caller gets its result."""
-    package = fake_package([])
-    package.ACTIONS = {9: patient_fib_codec}
-    links = LinkPair()
-    with ros_sides("surface", "vehicle") as (surface, vehicle):
-        bridges = {s.name: start_bridge(s, package, links.factory) for s in (surface, vehicle)}
-        results, goal_handle = goal_then_kill(surface, vehicle, bridges, delay=2.5)
+    with killed_mid_goal(patient_fib_codec, delay=2.5) as (restart, links, results, goal_handle):
         assert results == [5]
         release = hold_list(monkeypatch)
-        again = start_bridge(vehicle, package, links.factory)
+        again = restart()
         copy_held(again, links, results)
         release(again)
         wait_for(lambda: counted(again)["orphans_adopted"] == 1, what="the running goal adopted")
@@ -203,15 +213,10 @@ def finished_while_down(slow_fib_codec):
     on the local server meanwhile (its answer and result never left): (start a new
     server-side bridge, the link pair, the goals the real server ran, the caller's goal
     handle)."""
-    package = fake_package([])
-    package.ACTIONS = {9: slow_fib_codec}
-    links = LinkPair()
-    with ros_sides("surface", "vehicle") as (surface, vehicle):
-        bridges = {s.name: start_bridge(s, package, links.factory) for s in (surface, vehicle)}
-        results, goal_handle = goal_then_kill(surface, vehicle, bridges, delay=0.2)
+    with killed_mid_goal(slow_fib_codec, delay=0.2) as (restart, links, results, goal_handle):
         time.sleep(1.0)                                    # it finishes meanwhile
         assert results == [5]
-        yield (lambda: start_bridge(vehicle, package, links.factory)), links, results, goal_handle
+        yield restart, links, results, goal_handle
 
 
 def listed_finished(again, goal: bytes) -> None:
