@@ -25,8 +25,9 @@ still sent again while unanswered, as wire format 1 always did).
 
 The link is the demo's: 64 B every 0.2 s, 4800 bit/s, 1000 m (about 0.67 s each way).
 
-`--trace FILE` writes a JSON line per command payload offered and arriving, per refusal of
-the receiving judge and per packet taken for writing (its number and its messages' heads);
+`--trace FILE` writes a JSON line per command payload offered, taken back and arriving, per
+refusal of the receiving judge and per packet taken for writing (its number, its size, its
+messages' heads and each message as the bridge offered it: air time, first or copy);
 `benchmarks/trace_commands.py FILE` prints, for each failed call or goal, what became of
 its messages (each leg's copies, the packets that carried them, what arrived, refusals).
 
@@ -245,9 +246,25 @@ def trace(side: str, bridge: BridgeNode) -> None:
             except Exception:
                 continue
             put(ev="packet", no=e.number, ack=e.ack is not None, c=(e.control or b"").hex(),
-                m=[envelope.to_v1(m)[:6].hex() for m in e.messages])
+                m=[envelope.to_v1(m)[:6].hex() for m in e.messages],
+                bare=[bare(envelope.to_v1(m)) for m in e.messages], n=len(frame))
         return batch
     bridge.link.connection.outbox.take = taking
+
+    def bare(v1: bytes) -> str:      # a message as the bridge offered it (its head taken off)
+        try:
+            return bytes(heads.take(v1).payload)[:12].hex()
+        except Exception:
+            return v1[:12].hex()
+    heads = bridge.reliability.heads if bridge.reliability is not None else None
+    withdraw = bridge.wiring.withdraw
+
+    def withdrawing(key, payload):
+        taken = withdraw(key, payload)
+        if taken and key in COMMAND_IDS:
+            put(ev="withdrawn", key=key, p=bytes(payload)[:12].hex())
+        return taken
+    bridge.wiring.withdraw = withdrawing
 
 
 def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
