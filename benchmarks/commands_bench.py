@@ -356,13 +356,13 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             extra = sum(o.bytes for o in overhead.values())
             first = sum(o.first for o in overhead.values())
             kinds = sum((o.kinds for o in overhead.values()), Counter())
-            for b in bridges.values():    # the link's copies of commands in their own turn
+            for name, b in bridges.items():    # the link's copies of commands in their own turn
                 rel = b.link.stats().get("reliability", {})
                 copies = rel.get("command_copies", {})
                 for key, n in rel.get("command_copy_bytes", {}).items():
                     if int(key) in COMMAND_IDS:            # framing counted per copy, as above
                         extra += n + OVERHEAD * copies[key]
-                        kinds["in-turn copy"] += n + OVERHEAD * copies[key]
+                        kinds[f"in-turn copy ({name})"] += n + OVERHEAD * copies[key]
             collisions = sum(c["lost_collision"] for c in emu.all_counters().values())
             # every A part written (reports on topics' and commands' packets alike: 15.2)
             reports = sum(b.link.stats().get("reliability", {}).get("report_bytes", 0)
