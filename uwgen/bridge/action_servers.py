@@ -243,7 +243,7 @@ class ActionServers(GoalAdoption):
                 self.counters[ident].repeated_replies += 1
                 accept = self.served[ident][0].accept_timeout   # the first answer was lost
                 self._answer(ident, handle, ACCEPTED,
-                             again=self.w.urgent(self.w.callers_deadline(entry.arrived, accept)))
+                             again=self.w.answer_urgent(entry.arrived, accept))
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
@@ -251,8 +251,7 @@ class ActionServers(GoalAdoption):
         self.counters[ident].repeated_replies += 1
         arrived = self.results[ident].recent[handle].arrived   # the answer and result were lost
         self._offer(ident, result, "result",
-                    again=self.w.urgent(self.w.callers_deadline(
-                        arrived, self.served[ident][0].accept_timeout)))
+                    again=self.w.answer_urgent(arrived, self.served[ident][0].accept_timeout))
         return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:
