@@ -109,6 +109,8 @@ class ActionServers(GoalAdoption):
         self.w.fates.forget(ident, payload)       # its bytes may repeat an old result's
         if self._offer(ident, payload, "result"):
             self.counters[ident].results_sent += 1
+            # the result is the goal's answer too: a lost answer is not repaired (fates.py)
+            self.w.fates.answered_by(ident, codec.encode_answer(handle, ACCEPTED))
         self.results[ident].sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(),
                                  self.w.turns())
 
