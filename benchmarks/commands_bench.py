@@ -16,8 +16,8 @@ it the floor: the least any repair could send for the same commands over a chann
 erases that share of packets (PER / (1 - PER) of the commands' first copies: a lower bound),
 and the bytes of every report the two sides wrote (the A parts of wire-format 15.2: they
 acknowledge topics' packets and commands' alike, and tell each command's fate, 15.6).
-`--breakdown` also prints the fates the reports told (arrived, lost; copies spared, answers
-repaired).
+`--breakdown` also prints the retry and acknowledgement bytes by kind, each kind's own floor,
+and the fates the reports told (arrived, lost; copies spared, answers repaired).
 
 Modes: `retries` is this build; `reference` is the same build with the commands' retries off
 (no request copies, no result copies, no result acknowledgements or requests; goals are
@@ -162,6 +162,7 @@ class Overhead:
         self.bytes = 0
         self.first = 0                        # bytes of commands' first copies (the floor)
         self.kinds: Counter = Counter()       # bytes by what they are (--breakdown)
+        self.firsts: Counter = Counter()      # first copies' bytes by what they are
         # (key, payload) -> (when last offered, whether that was a copy)
         self.seen: dict[tuple[int, bytes], tuple[float, bool]] = {}
         send = bridge.wiring.send
@@ -184,6 +185,7 @@ class Overhead:
                     self.kinds[kind(key, payload, status)] += len(payload) + OVERHEAD
                 else:
                     self.first += len(payload) + OVERHEAD
+                    self.firsts[kind(key, payload, status)[:-len(" copy")]] += len(payload) + OVERHEAD
                 self.seen[(key, payload)] = (now, copy)
             return send(key, payload, **kw)
         bridge.wiring.send = counted
@@ -356,6 +358,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             extra = sum(o.bytes for o in overhead.values())
             first = sum(o.first for o in overhead.values())
             kinds = sum((o.kinds for o in overhead.values()), Counter())
+            firsts = sum((o.firsts for o in overhead.values()), Counter())
             for name, b in bridges.items():    # the link's copies of commands in their own turn
                 rel = b.link.stats().get("reliability", {})
                 copies = rel.get("command_copies", {})
@@ -388,7 +391,10 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             "floor": first * per / (1 - per) / written if written and per < 1 else 0.0,
             "time": elapsed, "collisions": collisions,
             "reports": reports / written if written else 0.0, "fates": dict(fates),
-            "kinds": {k: v / written if written else 0.0 for k, v in sorted(kinds.items())}}
+            "kinds": {k: v / written if written else 0.0 for k, v in sorted(kinds.items())},
+            # each kind's own floor: what its first copies would need over that channel
+            "floors": {k: v * per / (1 - per) / written if written and per < 1 else 0.0
+                       for k, v in sorted(firsts.items())}}
 
 
 def main() -> int:
@@ -442,6 +448,7 @@ def main() -> int:
                       f"{r['time']:.0f} |", flush=True)
                 if args.breakdown:
                     print("  retry+ack bytes: " + ", ".join(f"{k} {v:.1%}" for k, v in r["kinds"].items()))
+                    print("  floor by kind: " + ", ".join(f"{k} {v:.1%}" for k, v in r["floors"].items()))
                     print("  command fates told: " + ", ".join(f"{k} {v}" for k, v in r["fates"].items()))
     return 0
 
