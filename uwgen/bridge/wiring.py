@@ -24,7 +24,7 @@ EXPECTED = 64                # copies an arriving answer may take back (Wiring.e
 URGENT_ROUNDS = 2.5          # a command sent again with fewer MAC rounds left before its
                              # caller's deadline gets its copy in its turn (Wiring.urgent):
                              # a request or goal, whose answer must still come back
-ANSWER_URGENT_ROUNDS = 1.5   # an answer (response, goal answer): the call's last leg
+ANSWER_URGENT_ROUNDS = 2.0   # an answer (response, goal answer): the call's last leg
 Send = Callable[..., bool]   # (id, payload, published=None) -> accepted
 
 
@@ -90,9 +90,10 @@ class Wiring:
         then it also gets a copy in its own turn (uwgen.runtime.delivery.echoes), so the leg
         fails about 1 time in 25 at 20 % loss, not 1 in 5. A lost copy is known a round later
         (the peer's report) and sent again in the next own turn, so a request or goal needs
-        that round and its answer's leg besides: URGENT_ROUNDS; an `answer` (a service's
-        response, a goal's answer: the serving side's repair) is the call's last leg and
-        needs one round less, ANSWER_URGENT_ROUNDS. Earlier repairs go alone: a call has
+        that round and its answer's leg besides (half a round and a trip): URGENT_ROUNDS; an
+        `answer` (a service's response, a goal's answer: the serving side's repair) is the
+        call's last leg and needs that much less, ANSWER_URGENT_ROUNDS (half a round of it
+        kept as a margin for a turn lost on the way). Earlier repairs go alone: a call has
         rounds left for them, and a copy of every repair cost a third of the bytes written
         (docs/wire-format.md section 15.6). Never without a MAC (no turn)."""
         rounds = ANSWER_URGENT_ROUNDS if answer else URGENT_ROUNDS
