@@ -99,3 +99,54 @@ def test_a_cut_command_whose_head_is_lost_is_told_lost():
     link.sent(1, [Sent(TOPIC, b"t", None)], 0.2)
     link.acked(report(1, 0b0000_0000), 1.0)
     assert link.told.fates == [(CALL, REQUEST, False)]
+
+
+# -- where a follower's report rides (two links under turns, a ManualClock) -------------------
+
+def answer_packet_lost(reports_apart: bool) -> list[tuple[int, bytes, bool]]:
+    """A call at 5 s over turns; the vehicle answers with a reading behind it (its turn takes
+    two packets) and the packet carrying the answer is lost. Returns the fates the surface
+    was told by that turn. `reports_apart`: the vehicle's reports leave the packets
+    carrying commands when another packet of its turn follows (the MAC's `turn_goes_on`),
+    else they ride its first."""
+    from uwgen.manifest.model import LinkPolicy
+
+    from tests.runtime.turns_pair import turns_pair
+    reading = bytes((0, TOPIC)) + bytes(50)
+    response = bytes((3, CALL, 7)) + bytes(12)
+    sim, clock, rel = turns_pair(frozenset({CALL}), {CALL: 12.0}, lambda r: None)
+    if not reports_apart:
+        rel["vehicle"].turn_goes_on = lambda now: False
+    told: list[tuple[int, bytes, bool]] = []
+    rel["surface"].on_fate = lambda key, payload, arrived: told.append((key, payload, arrived)) \
+        if clock.now() < answered[0] + 2.5 else None      # in that turn, not the next one
+    vehicle = sim.links["vehicle"]
+    sent = vehicle.hooks.sent
+
+    def lose_the_answer(number, picked, now):
+        if any(key == CALL for key, _ in picked) and not sim._drops["vehicle"]:
+            sim.drop("vehicle", sim.written["vehicle"])
+        return sent(number, picked, now)
+    vehicle.hooks.sent = lose_the_answer
+    for link in sim.links.values():             # the answer goes first in the turn
+        link.add_channel(CALL, LinkPolicy(queue="fifo", depth=8, ttl=12.0, priority=5))
+    vehicle.add_channel(TOPIC, LinkPolicy(queue="fifo", depth=8))
+    sim.at(5.0, lambda: sim.links["surface"].offer(CALL, REQUEST))
+
+    answered: list[float] = []
+
+    def serve():                                # the vehicle's bridge answers, a reading behind
+        if not answered and any(p[:3] == REQUEST[:3] for _, p in sim.received["vehicle"]):
+            answered.append(clock.now())
+            vehicle.offer(CALL, response)
+            vehicle.offer(TOPIC, reading)
+    for k in range(200):
+        sim.at(5.0 + 0.05 * k, serve)
+    sim.run(12.0)
+    assert sim._drops["vehicle"] and answered   # the answer's packet was lost
+    return told
+
+
+def test_a_followers_report_rides_apart_from_its_answers_so_it_outlives_a_lost_answer():
+    assert (CALL, REQUEST, True) in answer_packet_lost(reports_apart=True)
+    assert (CALL, REQUEST, True) not in answer_packet_lost(reports_apart=False)
