@@ -19,8 +19,9 @@ segments let a sender retransmit exactly what is missing:
 - **lost**: an answer (a service's response, a goal's answer) is offered again by the side
   that has it (`repairable`, until its caller's deadline), at once: the caller need not send
   its request again for it (`repaired`); not a goal's answer once its result was offered
-  (`answered_by`: the result says accepted, and goes again itself); a request, goal or result waiting for its answer is
-  due again at once under a timer (`copy_due` asks `lost`) instead of after its timeout.
+  (`answered_by`: the result says accepted, and goes again itself); a request, goal or
+  result waiting for its answer is due again at once under a timer (`copy_due` asks
+  `lost`) instead of after its timeout.
 
 A fate names a message by its bytes as the bridge offered them (no head): a command's bytes
 are unique while it is alive (its seq or handle), and what is kept is bounded (KEPT).
