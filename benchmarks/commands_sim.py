@@ -93,8 +93,7 @@ def topic_run(per: float, seed: int, reliable: bool, seconds: float = 600.0,
                                     max_ages={i: p.ttl for _, i, _, _, p in TOPIC_MIX} | {MISSION: 30.0},
                                     wall=_Wall(clock), name=side, max_read_length=64,
                                     other_overhead=macs[side].overhead,
-                                    turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by,
-                                    turn_goes_on=macs[side].turn_goes_on)
+                                    turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by)
         hooks = r.hooks()
 
         def counted(source):                # re-sends and copies in spare room: repair bytes
@@ -182,8 +181,7 @@ def ledger_run(mac: str, seconds: float = 300.0, per: float = 0.0, seed: int = 5
     def hooks_for(side: str):
         rel[side] = Reliability(SENDERS[side], period=0.2, reliable={}, max_ages={}, wall=_Wall(clock),
                                 name=side, max_read_length=64, other_overhead=macs[side].overhead,
-                                turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by,
-                                turn_goes_on=macs[side].turn_goes_on)
+                                turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by)
         return rel[side].hooks()
     sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2, clock=clock,
                     step=0.025, link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})

@@ -43,8 +43,7 @@ def turns_pair(commands: frozenset[int], max_ages: dict[int, float],
                                 wall=Wall(clock), name=side, max_read_length=64,
                                 other_overhead=macs[side].overhead, turn_gap=macs[side].turn_gap(),
                                 settled_by=macs[side].settled_by, commands=commands,
-                                own_span=macs[side].own_span(),
-                                turn_goes_on=macs[side].turn_goes_on)
+                                own_span=macs[side].own_span())
         settle(rel[side])
         return rel[side].hooks()
     sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2,

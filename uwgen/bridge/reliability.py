@@ -70,23 +70,21 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
                     wall: Clock | Callable[[], float] = WALL_CLOCK, *,
                     other_overhead: int = 0, turn_gap: float = 0.0,
                     settled_by: Callable[[int, float], float | None] | None = None,
-                    own_span: float = 0.0,
-                    turn_goes_on: Callable[[float], bool] | None = None) -> Reliability | None:
+                    own_span: float = 0.0) -> Reliability | None:
     """The link's reliability of this side (None on wire format 1). `wall`: the wall clock
     T is stamped with and checked against (a Clock, or a function giving seconds);
     `other_overhead`: what the hooks joined with it (the per-packet seal, the MAC) add to a
     packet; `turn_gap`: the MAC's longest wait for the peer's turn and `settled_by` what a
     peer's answer covers of this side's packets, `own_span` how long its own turn or slot
     lasts (uwgen.runtime.link.mac): its services' and actions' messages get a copy in spare
-    room within it (uwgen.runtime.delivery.echoes); `turn_goes_on` whether another packet of
-    the own turn follows the one being built (the MAC's: reports leave commands' packets)."""
+    room within it (uwgen.runtime.delivery.echoes)."""
     if plan.wire_format != 2:
         return None
     clock = wall if hasattr(wall, "now") else _Wall(wall)
     return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
                        max_read_length=link.max_read_length, other_overhead=other_overhead,
-                       turn_gap=turn_gap, settled_by=settled_by, turn_goes_on=turn_goes_on,
+                       turn_gap=turn_gap, settled_by=settled_by,
                        commands=command_keys(plan), own_span=own_span,
                        destinations=destinations(plan, plan.side_ids),
                        peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},

@@ -21,7 +21,6 @@ from GPS or NTP at the surface. Everything here is pure: clocks are passed in.
 """
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass
 
 TICKS_PER_SECOND = 32
@@ -62,25 +61,3 @@ class Freshness:
     def fresh(self, time24: int, wall: float, max_age: float) -> bool:
         age = self.age(time24, wall)
         return -self.tolerance <= age <= max_age + self.tolerance
-
-
-TRANSFERS_KEPT = 64       # fragmented messages whose first packet's T is kept
-
-
-class TransferTimes:
-    """The T a fragmented message is judged by (wire-format.md section 15.5): its age item was
-    written with its first fragment, so the oldest T seen among its transfer's packets, per
-    (sender, epoch, transfer); the last TRANSFERS_KEPT transfers are kept."""
-
-    def __init__(self):
-        self._t: OrderedDict[tuple[int, bytes, int], int] = OrderedDict()
-
-    def heard(self, transfer: tuple[int, bytes, int], time24: int) -> None:
-        first = self._t.get(transfer)
-        self._t[transfer] = time24 if first is None else min(first, time24)
-        while len(self._t) > TRANSFERS_KEPT:
-            self._t.popitem(last=False)
-
-    def take(self, transfer: tuple[int, bytes, int], default: int | None) -> int | None:
-        """The T of a transfer whose message is now whole (`default`: none was seen)."""
-        return self._t.pop(transfer, default)

@@ -31,13 +31,14 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import asdict, replace
 
 from uwgen.runtime.wire import envelope as env
 from uwgen.runtime.clock import WALL_CLOCK, Clock
 from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD, SHORT_OVERHEAD
-from uwgen.runtime.delivery.freshness import MAX_AGE, TICKS_PER_SECOND, TransferTimes, stamp
+from uwgen.runtime.delivery.freshness import MAX_AGE, TICKS_PER_SECOND, stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
@@ -56,6 +57,7 @@ COUNTERS = ("stale", "clock_offset", "unexplained_delay", "unmeasured", "offset_
 COMMAND_KINDS = (2, 3)            # a request's and an answer's message kinds (wire format 1)
 DEFAULT_DEADLINE = 120.0          # seconds: a reliable entry without a ttl
 FORGET_AFTER = 2048               # packets: older ones cannot be named unambiguously (12 bits)
+TRANSFERS_KEPT = 64              # fragmented messages whose first packet time is kept
 # T, and an A part of one report (acks.A_ROOM): the most the hooks add to a packet.
 OVERHEAD = env.TIME_LEN + A_ROOM
 PROBES, PROBE_EVERY = 10, 1.0     # packets with T alone while no peer's offset is known
@@ -76,17 +78,12 @@ class Reliability:
                  clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
                  settled_by: Callable[[int, float], float | None] | None = None,
-                 copies: int = 3, commands: frozenset[int] = frozenset(), own_span: float = 0.0,
-                 turn_goes_on: Callable[[float], bool] | None = None):
+                 copies: int = 3, commands: frozenset[int] = frozenset(), own_span: float = 0.0):
         self.sender, self.name, self.wall = sender, name, wall
         # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
         # peer or been lost before the peer's packet heard now was built (turns: the peer
         # answers in a turn that began after them); a report there names a loss at once
         self.settled_by = settled_by or (lambda peer, now: None)
-        # the MAC's `turn_goes_on(now)`: a later packet of the own turn follows the one being
-        # built; reports then leave a packet carrying commands for it (section 15.2)
-        self.turn_goes_on = turn_goes_on or (lambda now: False)
-        self._commands_here = False                   # the packet being built carries one
         # wire id -> the peers (sender ids) its messages are for, on a channel shared by more
         # than two sides (a fleet): a packet is acknowledged by each of them (ReliableLink).
         # None: two sides, the first report settles a packet.
@@ -141,7 +138,7 @@ class Reliability:
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
         self._rx: tuple[int, bytes, int | None] | None = None
-        self._transfer_t = TransferTimes()            # a fragmented message's T (15.5)
+        self._transfer_t: OrderedDict[tuple[int, bytes, int], int] = OrderedDict()
 
     def hooks(self) -> PacketHooks:
         # Unsealed: this side numbers the packets (K names its epoch). K is not in `overhead`
@@ -196,7 +193,6 @@ class Reliability:
 
     def carrying(self, picked: list[tuple[int, bytes]], now: float, fresh: bool = True) -> None:
         self._timed = any(wire_id(key) in self.max_ages for key, _ in picked)
-        self._commands_here = any(key in self.engine.told.watched for key, _ in picked)
         self.echoes.carrying(picked)
         # T also goes with the A part on the first packets and then now and then, so the
         # peer measures our clock's offset (clock_offset.py)
@@ -212,12 +208,9 @@ class Reliability:
                       - (env.SYNC_LEN if self._sync else 0))
 
     def parts(self, now: float) -> dict:
-        # a report beside commands is lost with them (an answer and the report that would
-        # spare its request's copy): it rides a later packet of the turn instead, if one comes
-        later = self._commands_here and self.turn_goes_on(now)   # outside the lock: the backlog
         with self._lock:
             out: dict = {}
-            ack = b"" if later and not self.acks.final else self.acks.a_part(self._epochs, now, self._room)
+            ack = self.acks.a_part(self._epochs, now, self._room)
             if ack:
                 out["ack"] = ack
                 self.report_bytes += 1 + len(ack)
@@ -354,7 +347,13 @@ class Reliability:
             if envelope.time is not None:
                 for m in envelope.messages:
                     if m.kind == env.FRAGMENT and m.body:
-                        self._transfer_t.heard((peer, epoch, m.body[0]), envelope.time)
+                        # a fragmented message's age item was written with its first fragment:
+                        # it is judged by the T of the oldest packet of its transfer seen
+                        key = (peer, epoch, m.body[0])
+                        first = self._transfer_t.get(key)
+                        self._transfer_t[key] = envelope.time if first is None else min(first, envelope.time)
+                        while len(self._transfer_t) > TRANSFERS_KEPT:
+                            self._transfer_t.popitem(last=False)
         self._tell(fates)
         return True
 
@@ -406,7 +405,7 @@ class Reliability:
             ident = env.from_v1(got.payload).id if got.number is not None or got.age is not None else None
             peer, epoch, time24 = self._rx if self._rx is not None else (-1, b"", None)
             if transfer is not None:
-                time24 = self._transfer_t.take((peer, epoch, transfer), time24)
+                time24 = self._transfer_t.pop((peer, epoch, transfer), time24)
             if got.number is not None and not self.engine.deliver_once(peer, epoch, ident, got.number):
                 return None
             if got.age is not None and self.judge.refuses(ident, peer, time24, got.age):

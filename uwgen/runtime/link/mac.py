@@ -98,12 +98,6 @@ class Mac:
         report in that packet as naming all of them (a packet it does not name was lost)."""
         return None
 
-    def turn_goes_on(self, now: float) -> bool:
-        """Whether another packet of this side's own turn surely follows the one being built
-        (delivery may put its reports there: section 15.2). Asked before `parts`, outside
-        delivery's lock (it reads the backlog)."""
-        return False
-
     def stats(self) -> dict:
         return {"mode": self.mode}
 
@@ -271,7 +265,8 @@ class TurnMac(Mac):
         # The leader keeps its turn while its packets carry messages (a command stream
         # offered at the link's pace fills it); a follower while more is queued and its
         # window leaves room for another packet.
-        more = self.carries if self.leading else self._more(now)
+        more = (self.carries if self.leading
+                else self.backlog(now) and now + self.interval <= self._turn_until)
         noticed = self.leading and self._noticed_at is not None   # this packet grants
         if self.leading and self.followers and not noticed and self._sent < self._granted \
                 and (not more or self._sent == self._granted - 1):
@@ -294,18 +289,6 @@ class TurnMac(Mac):
         else:
             self._closing = MacItem(TURN_END, self.me)
         return encode_items([self._closing])
-
-    def _more(self, now: float) -> bool:
-        """Follower: another packet of its turn follows the one being built (more is queued
-        and its window leaves room for it)."""
-        return self.backlog(now) and now + self.interval <= self._turn_until
-
-    def turn_goes_on(self, now: float) -> bool:
-        """A follower whose turn is not over after this packet (as `parts` will decide). Not
-        the leader: it keeps its turn while it has messages, so its next packet may not come."""
-        self._expire(now)
-        return (not self.leading and self._holding
-                and self._sent + 1 < self._granted and self._more(now))
 
     def wrote(self, now: float, nbytes: int) -> None:
         closing, self._closing = self._closing, None
