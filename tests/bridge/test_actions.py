@@ -13,6 +13,7 @@ from test_msgs.action import Fibonacci
 from uwgen.bridge.orphans import STATUS_GRACE
 from uwgen.codegen import generate
 from uwgen.runtime.wire.codec import pack_items
+from uwgen.runtime.wire.table import ACCEPTED
 
 from .fakes import LinkPair, fake_package, wait_for
 from .harness import ros_sides, start_bridge
@@ -237,6 +238,38 @@ def test_a_result_told_arrived_is_done_without_its_acknowledgement(pair):
     time.sleep(1.0)                                    # past its RTO (accept_timeout / 4)
     assert counted(vb)["results_resent"] == 0 and vb.action_servers.results[9].unacked == {}
     assert counted(bridges["surface"])["result_acks"] == 0
+
+
+def test_a_lost_goal_answer_is_repaired_while_the_goal_runs_not_once_its_result_went(pair, fib_codec):
+    """The result says accepted too (the client side takes it for the answer, section 13):
+    told lost after the result was offered, the answer is not offered again (fates.py)."""
+    surface, vehicle, bridges, links = pair
+    vb = bridges["vehicle"]
+    vb.wiring.callers_deadline = lambda came, timeout: came + 60.0   # a slow caller: time to repair
+    fib_server(vehicle.node("real"), [], delay=1.5)
+    link = links.links["vehicle"]
+    offered, offer = [], link.offer
+
+    def recording(key, payload):
+        offered.append(bytes(payload))
+        return offer(key, payload)
+    link.offer = recording
+
+    def answers():
+        return [p for p in offered if p[:2] == bytes([3, 9]) and fib_codec.decode_response(p)[1] == ACCEPTED]
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    sent = client.send_goal_async(Fibonacci.Goal(order=5))
+    wait_for(lambda: answers(), what="the goal's answer")
+    answer = answers()[0]
+    vb.wiring.fates.told(9, answer, False)             # its packet lost: the goal still runs
+    assert len(answers()) == 2 and vb.wiring.fates.stats()["repaired"] == 1
+    wait_for(sent.done, what="the goal accepted")
+    future = sent.result().get_result_async()
+    wait_for(future.done, what="the result")
+    before = len(answers())                            # (and replies to result requests)
+    vb.wiring.fates.told(9, answer, False)             # the last answer's packet lost
+    assert len(answers()) == before and vb.wiring.fates.stats()["repaired"] == 1
 
 
 def test_a_client_side_asks_for_a_result_the_server_side_does_not_know(pair):

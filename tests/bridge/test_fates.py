@@ -161,6 +161,21 @@ def test_a_command_sent_again_gets_its_copy_in_turn_only_in_its_last_rounds():
     assert not urgent(100.5)
 
 
+def test_an_answer_given_again_gets_its_copy_in_turn_only_in_the_calls_last_round():
+    from uwgen.bridge.wiring import ANSWER_URGENT_ROUNDS, URGENT_ROUNDS, Wiring
+    clock = ManualClock(100.0)
+    w = SimpleNamespace(clock=clock, turn_gap=3.0, round_trip=1.0)
+    w.urgent = lambda deadline, answer=False: Wiring.urgent(w, deadline, answer)  # noqa: E731
+    w.callers_deadline = lambda came, timeout: Wiring.callers_deadline(w, came, timeout)  # noqa: E731
+    assert ANSWER_URGENT_ROUNDS < URGENT_ROUNDS              # the answer's own leg is the last
+    left = (ANSWER_URGENT_ROUNDS + URGENT_ROUNDS) / 2 * 3.0   # a round to repair its loss, and more
+    assert Wiring.urgent(w, 100.0 + left)                     # a request's copy: urgent
+    assert not Wiring.urgent(w, 100.0 + left, answer=True)    # an answer: goes alone
+    assert Wiring.urgent(w, 100.0 + ANSWER_URGENT_ROUNDS * 3.0 - 0.1, answer=True)
+    # the serving side counts from the request's arrival, less half a round and a trip
+    # (callers_deadline): a 12 s call whose request came at 96 ends at 106, 6 s from now
+    assert not Wiring.answer_urgent(w, 96.0, 12.0)
+    assert Wiring.answer_urgent(w, 94.0, 12.0)               # 4 s left: under 2 rounds
 def test_the_serving_side_counts_its_callers_deadline_from_before_the_request_came():
     from uwgen.bridge.wiring import Wiring
     w = SimpleNamespace(turn_gap=3.0, round_trip=1.4)

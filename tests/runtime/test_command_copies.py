@@ -1,6 +1,6 @@
 """A command's copy in its own turn (uwgen.runtime.delivery.echoes; docs/wire-format.md
-section 15.6): at a measured loss a request, an answer or a result the bridge sends again
-(and, at a start, any command) goes once more in the spare room of a later packet of the
+section 15.6): at a measured loss (or at a start, before the loss is known) a request, an
+answer or a result the bridge sends again goes once more in the spare room of a later packet of the
 same turn or slot, never later, never twice; under turns a lost packet then costs it
 nothing. Explicit times, and two links on a ManualClock."""
 from __future__ import annotations
@@ -47,13 +47,14 @@ def test_a_command_sent_again_gets_one_copy_in_its_own_turn_its_age_moved_on():
     assert e.pick(10.6, 64) is None and e.sent == {CALL: 1}
 
 
-def test_a_command_sent_the_first_time_gets_no_copy_once_the_loss_is_known():
-    e, heads = echoes()
-    e.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
-    assert e.pick(0.2, 64) is None and not e.waiting(0.2)
-    start, heads = echoes(spare=_Lossy(0, measured=False))   # at a start: every command
-    start.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
-    assert start.waiting(0.2) and start.pick(0.2, 64) is not None
+def test_a_command_sent_the_first_time_gets_no_copy_even_before_the_loss_is_known():
+    for spare in (_Lossy(), _Lossy(0, measured=False)):     # lossy; a start, loss unknown
+        e, heads = echoes(spare=spare)
+        e.left(0, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.0)
+        assert e.pick(0.2, 64) is None and not e.waiting(0.2)
+        e.repeat(CALL, RESPONSE)                             # sent again: copied, loss unknown
+        e.left(1, [(CALL, heads.add(RESPONSE, 0.0)[0])], 0.3)
+        assert e.waiting(0.4) and e.pick(0.4, 64) is not None
 
 
 def test_no_copy_after_its_own_turn_or_where_it_does_not_fit():
@@ -70,7 +71,9 @@ def test_no_copy_after_its_own_turn_or_where_it_does_not_fit():
 
 
 def test_topics_feedback_and_a_cut_command_are_not_copied():
-    e, heads = echoes(spare=_Lossy(measured=False))        # every command: none of these
+    e, heads = echoes(spare=_Lossy(measured=False))
+    for key, payload in ((4, bytes((0, 4, 1))), (256 + CALL, bytes((0, CALL, 1))), (CALL, REQUEST)):
+        e.repeat(key, payload)                              # sent again: none of these
     e.left(0, [(4, bytes((0, 4, 1))), (256 + CALL, bytes((0, CALL, 1)))], 0.0)
     assert e.pick(0.2, 64) is None                          # a topic, an action's feedback
     e.left(1, [(CALL, heads.add(REQUEST, 0.0)[0])], 0.2)
@@ -98,9 +101,10 @@ def test_the_link_copies_a_command_only_at_a_measured_loss_and_even_in_a_packet_
     assert key == CALL and rel.stats()["reliability"]["command_copies"] == {CALL: 1}
 
 
-def test_at_a_start_before_the_loss_is_known_a_command_is_copied():
-    rel = command_link()                                    # nothing settled yet
+def test_at_a_start_before_the_loss_is_known_a_command_sent_again_is_copied():
+    rel = command_link()                                    # nothing settled yet: lossy
     assert rel.copy(0.2, 60) is not None
+    rel.repeat(CALL, RESPONSE)
     for _ in range(MEASURED):
         rel.engine.spare.settled(True)
     rel.sent(1, [(CALL, rel.stamp(CALL, RESPONSE, 0.3, 0.3))], 0.3)

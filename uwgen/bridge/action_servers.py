@@ -109,6 +109,8 @@ class ActionServers(GoalAdoption):
         self.w.fates.forget(ident, payload)       # its bytes may repeat an old result's
         if self._offer(ident, payload, "result"):
             self.counters[ident].results_sent += 1
+            # the result is the goal's answer too: a lost answer is not repaired (fates.py)
+            self.w.fates.answered_by(ident, codec.encode_answer(handle, ACCEPTED))
         self.results[ident].sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(),
                                  self.w.turns())
 
@@ -243,7 +245,7 @@ class ActionServers(GoalAdoption):
                 self.counters[ident].repeated_replies += 1
                 accept = self.served[ident][0].accept_timeout   # the first answer was lost
                 self._answer(ident, handle, ACCEPTED,
-                             again=self.w.urgent(self.w.callers_deadline(entry.arrived, accept)))
+                             again=self.w.answer_urgent(entry.arrived, accept))
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
@@ -251,8 +253,7 @@ class ActionServers(GoalAdoption):
         self.counters[ident].repeated_replies += 1
         arrived = self.results[ident].recent[handle].arrived   # the answer and result were lost
         self._offer(ident, result, "result",
-                    again=self.w.urgent(self.w.callers_deadline(
-                        arrived, self.served[ident][0].accept_timeout)))
+                    again=self.w.answer_urgent(arrived, self.served[ident][0].accept_timeout))
         return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:

@@ -18,8 +18,10 @@ segments let a sender retransmit exactly what is missing:
   has it, or asks for it again (section 13, *result status*);
 - **lost**: an answer (a service's response, a goal's answer) is offered again by the side
   that has it (`repairable`, until its caller's deadline), at once: the caller need not send
-  its request again for it (`repaired`); a request, goal or result waiting for its answer is
-  due again at once under a timer (`copy_due` asks `lost`) instead of after its timeout.
+  its request again for it (`repaired`); not a goal's answer once its result was offered
+  (`answered_by`: the result says accepted, and goes again itself); a request, goal or
+  result waiting for its answer is due again at once under a timer (`copy_due` asks
+  `lost`) instead of after its timeout.
 
 A fate names a message by its bytes as the bridge offered them (no head): a command's bytes
 are unique while it is alive (its seq or handle), and what is kept is bounded (KEPT).
@@ -94,6 +96,12 @@ class Fates:
             self._repairable.move_to_end(item)
             while len(self._repairable) > KEPT:
                 self._repairable.popitem(last=False)
+
+    def answered_by(self, key: int, payload: bytes) -> None:
+        """A later message answers for `payload` (a goal's result: the client side takes it
+        as the goal's acceptance, section 13): told lost now, it is not offered again."""
+        with self._lock:
+            self._repairable.pop((key, bytes(payload)), None)
 
     def spare(self, key: int, payload: bytes) -> bool:
         """True, once per arrival told, when a copy of `payload` falls due: the peer has it."""

@@ -91,7 +91,7 @@ class Servers:
             if replied is not None:
                 counters.repeated_replies += 1
                 self.w.offer_once(ident, replied[0],                # not twice in one packet
-                                  again=self.w.urgent(self.w.callers_deadline(handled, codec.timeout)))
+                                  again=self.w.answer_urgent(handled, codec.timeout))
             return
         if not client.service_is_ready():
             if len(self.waiting[ident]) >= WAITING_LIMIT:

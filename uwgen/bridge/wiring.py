@@ -22,7 +22,9 @@ from uwgen.runtime.clock import Clock
 
 EXPECTED = 64                # copies an arriving answer may take back (Wiring.expect)
 URGENT_ROUNDS = 2.5          # a command sent again with fewer MAC rounds left before its
-                             # caller's deadline gets its copy in its turn (Wiring.urgent)
+                             # caller's deadline gets its copy in its turn (Wiring.urgent):
+                             # a request or goal, whose answer must still come back
+ANSWER_URGENT_ROUNDS = 2.0   # an answer (response, goal answer): the call's last leg
 Send = Callable[..., bool]   # (id, payload, published=None) -> accepted
 
 
@@ -72,7 +74,7 @@ class Wiring:
         self.loops = LoopGuard(self.node, self.log)
         self.fates = Fates(self.clock, lambda key, payload: self.withdraw(key, payload),
                            lambda key, payload, until: self.offer_once(
-                               key, payload, again=self.urgent(until)))
+                               key, payload, again=self.urgent(until, answer=True)))
 
     def offer_once(self, key: int, payload: bytes, again: bool = False) -> bool:
         """Offer a command message unless an equal one still waits in the link (it would
@@ -82,14 +84,25 @@ class Wiring:
             self.repeat(key, payload)
         return self.waiting(key, payload) or self.send(key, payload)
 
-    def urgent(self, deadline: float) -> bool:
-        """Whether a command sent again now has fewer than URGENT_ROUNDS rounds of the MAC
-        (`turn_gap`: a round of turns, a TDMA frame) left before `deadline`, its caller's: then
-        it also gets a copy in its own turn (uwgen.runtime.delivery.echoes), so each leg of its
-        last rounds fails about 1 time in 25 at 20 % loss, not 1 in 5. Earlier repairs go
-        alone: a call has rounds left for them, and a copy of every repair cost a third of the
-        bytes written (docs/wire-format.md section 15.6). Never without a MAC (no turn)."""
-        return deadline - self.clock.now() < URGENT_ROUNDS * self.turn_gap
+    def urgent(self, deadline: float, answer: bool = False) -> bool:
+        """Whether a command sent again now has too few rounds of the MAC (`turn_gap`: a round
+        of turns, a TDMA frame) left before `deadline`, its caller's, to repair another loss:
+        then it also gets a copy in its own turn (uwgen.runtime.delivery.echoes), so the leg
+        fails about 1 time in 25 at 20 % loss, not 1 in 5. A lost copy is known a round later
+        (the peer's report) and sent again in the next own turn, so a request or goal needs
+        that round and its answer's leg besides (half a round and a trip): URGENT_ROUNDS; an
+        `answer` (a service's response, a goal's answer: the serving side's repair) is the
+        call's last leg and needs that much less, ANSWER_URGENT_ROUNDS (half a round of it
+        kept as a margin for a turn lost on the way). Earlier repairs go alone: a call has
+        rounds left for them, and a copy of every repair cost a third of the bytes written
+        (docs/wire-format.md section 15.6). Never without a MAC (no turn)."""
+        rounds = ANSWER_URGENT_ROUNDS if answer else URGENT_ROUNDS
+        return deadline - self.clock.now() < rounds * self.turn_gap
+
+    def answer_urgent(self, came: float, timeout: float) -> bool:
+        """Whether the serving side's answer to a request or goal that first came at `came`
+        (the caller's `timeout`), given again now, is urgent (`urgent`, an answer)."""
+        return self.urgent(self.callers_deadline(came, timeout), answer=True)
 
     def wall_at(self, t: float) -> float:
         """The system clock's reading (what ROS stamps with; a restart does not reset it) at

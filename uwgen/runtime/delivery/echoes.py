@@ -10,9 +10,9 @@ each fail one time in five, a call gets about 0.6 of a chance a round, and a 12 
 holds 3 to 4 rounds: about 2 calls in 100 fail. A command that has already lost a round is
 the one whose next loss fails it: what the bridge sends again (`repeat`) also goes once more
 in the room a later packet of the **same own turn or slot** leaves after its fresh messages,
-so each of its legs fails one time in 25 and a round about one in 8. So does every command
-while too few packets have settled for the loss to be known (`copies.MEASURED`: a start).
-Copies go only at the loss from which reliable topics get theirs (`copies.COPY_LOSS`), within
+so each of its legs fails one time in 25 and a round about one in 8. Copies go only at the
+loss from which reliable topics get theirs (`copies.COPY_LOSS`), or while too few packets have
+settled for the loss to be known (`copies.MEASURED`: a start, taken for lossy), within
 `window` seconds of the packet that carried the command (the MAC's `own_span`: a turn's
 packets, a TDMA slot; a later turn is the bridge's copy). They may ride a packet that leaves
 for its parts alone, and a follower writes one more packet of its turn for one. The
@@ -44,7 +44,7 @@ class Echoes:
         self._picked: set[int] = set()        # id() of the copies handed out for this packet
         # the packet being built: id() of its commands that get a copy -> (key, payload) as
         # the bridge offered it (read once, in `carrying`; `left` records them)
-        self._building: dict[int, tuple[int, bytes] | None] = {}
+        self._building: dict[int, tuple[int, bytes]] = {}
         self.sent: dict[int, int] = {}         # channel key -> copies sent
         self.bytes: dict[int, int] = {}        # channel key -> bytes of its copies
 
@@ -55,13 +55,11 @@ class Echoes:
         while len(self._repeats) > REPEATS:
             self._repeats.popitem(last=False)
 
-    def _repeated(self, key: int, payload: bytes) -> tuple[int, bytes] | None | bool:
+    def _repeated(self, key: int, payload: bytes) -> tuple[int, bytes] | bool:
         """Whether a command leaving now gets its copy: its entry in the repeats (key, the
-        payload as offered), None while the loss is not known (every command), or False."""
+        payload as offered), or False."""
         if key not in self.keys or id(payload) in self._picked:
             return False
-        if not self.spare.measured():
-            return None
         try:
             bare = (key, self.heads.take(payload).payload)
         except HeadError:
