@@ -166,20 +166,104 @@ def test_an_answer_given_again_gets_its_copy_in_turn_only_in_the_calls_last_roun
     clock = ManualClock(100.0)
     w = SimpleNamespace(clock=clock, turn_gap=3.0, round_trip=1.0)
     w.urgent = lambda deadline, answer=False: Wiring.urgent(w, deadline, answer)  # noqa: E731
-    w.callers_deadline = lambda came, timeout: Wiring.callers_deadline(w, came, timeout)  # noqa: E731
+    w.callers_deadline = Wiring.callers_deadline
     assert ANSWER_URGENT_ROUNDS < URGENT_ROUNDS              # the answer's own leg is the last
     left = (ANSWER_URGENT_ROUNDS + URGENT_ROUNDS) / 2 * 3.0   # a round to repair its loss, and more
     assert Wiring.urgent(w, 100.0 + left)                     # a request's copy: urgent
     assert not Wiring.urgent(w, 100.0 + left, answer=True)    # an answer: goes alone
     assert Wiring.urgent(w, 100.0 + ANSWER_URGENT_ROUNDS * 3.0 - 0.1, answer=True)
-    # the serving side counts from the request's arrival, less half a round and a trip
-    # (callers_deadline): a 12 s call whose request came at 96 ends at 106, 6 s from now
-    assert not Wiring.answer_urgent(w, 96.0, 12.0)
-    assert Wiring.answer_urgent(w, 94.0, 12.0)               # 4 s left: under 2 rounds
-def test_the_serving_side_counts_its_callers_deadline_from_before_the_request_came():
+    # a 12 s call that began at 94 ends at 106, 6 s (2 rounds) from now
+    assert not Wiring.answer_urgent(w, 94.0, 12.0)
+    assert Wiring.answer_urgent(w, 92.0, 12.0)               # 4 s left: under 2 rounds
+
+
+def _wiring(began_at=None):
     from uwgen.bridge.wiring import Wiring
-    w = SimpleNamespace(turn_gap=3.0, round_trip=1.4)
+    sent = []
+    w = Wiring(node=None, send=lambda k, p, published=None: sent.append((k, p)) or True,
+               clock=ManualClock(100.0), options=None,
+               log=SimpleNamespace(error=print, warning=print), main_group=None,
+               service_group=None, turn_gap=3.0, round_trip=1.4)
+    if began_at is not None:
+        w.began_at = began_at
+    return w, sent
+
+
+def test_without_an_age_item_the_serving_side_counts_from_before_the_request_came():
+    w, _ = _wiring()
     # it came about half a round (its wait for its turn) and a trip after the call began
-    assert Wiring.callers_deadline(w, 50.0, 12.0) == 50.0 + 12.0 - (3.0 + 1.4) / 2
+    assert w.began(REQUEST, 50.0) == 50.0 - (3.0 + 1.4) / 2
     w.round_trip = None                                       # no MAC figure: the turn alone
-    assert Wiring.callers_deadline(w, 50.0, 12.0) == 50.0 + 12.0 - 1.5
+    assert w.began(REQUEST, 50.0) == 50.0 - 1.5
+    assert w.callers_deadline(48.5, 12.0) == 60.5
+
+
+def test_the_serving_side_times_its_callers_deadline_on_the_age_item_of_the_copy_that_came():
+    # the request's first two copies were lost: the copy that came at 50 says (its age
+    # item, every copy carrying its call's) that the call began 7.4 s before
+    w, _ = _wiring(began_at=lambda payload: 42.6 if payload == REQUEST else None)
+    assert w.began(REQUEST, 50.0) == 42.6
+    assert w.callers_deadline(w.began(REQUEST, 50.0), 12.0) == 42.6 + 12.0    # not 59.8
+    assert w.began(bytes((2, CALL, 8, 1)), 50.0) == 50.0 - (3.0 + 1.4) / 2   # not kept: as before
+
+
+class _Done:
+    """A local call's future, answered."""
+
+    def __init__(self, result):
+        self._result = result
+
+    def add_done_callback(self, cb):
+        self.cb = cb
+
+    def cancelled(self):
+        return False
+
+    def exception(self):
+        return None
+
+    def result(self):
+        return self._result
+
+
+def _server(w):
+    """The serving side of /echo (id 20, timeout 12 s) over `w`, its local server a fake."""
+    from uwgen.bridge.service_servers import Servers
+    codec = SimpleNamespace(id=CALL, name="/echo", timeout=12.0, type_name="t",
+                            decode_request=lambda p: (p[2], "request"),
+                            encode_response=lambda seq, r: bytes((3, CALL, seq, 3)))
+    calls = []
+    client = SimpleNamespace(service_is_ready=lambda: True,
+                             call_async=lambda request: calls.append(_Done("reply")) or calls[-1])
+    w.ros_class = lambda codec, kind: object
+    w.node = SimpleNamespace(create_client=lambda *a, **k: client)
+    w.loops = SimpleNamespace(watch_server=lambda name: None, blocked=lambda name: False)
+    return Servers(w, [codec], {}), calls
+
+
+def test_the_response_to_a_request_that_came_late_gets_its_copy_in_its_turn_from_the_first():
+    repeated = []
+    # came at 100, its call began 7.5 s before (two rounds lost): 4.5 s, under 2 rounds, left
+    w, sent = _wiring(began_at=lambda payload: 92.5)
+    w.repeat = lambda key, payload: repeated.append((key, payload))
+    servers, calls = _server(w)
+    servers.serve(CALL, REQUEST + b"\x00")
+    calls[-1].cb(calls[-1])                                   # the local server answered
+    assert sent == [(CALL, RESPONSE)] and repeated == [(CALL, RESPONSE)]
+    # its repair, told lost, goes until the caller's real deadline, not a round later
+    w.clock.set(104.4)
+    w.fates.told(CALL, RESPONSE, False)
+    assert sent[-1] == (CALL, RESPONSE) and len(sent) == 2
+    w.clock.set(104.6)
+    w.fates.told(CALL, RESPONSE, False)
+    assert len(sent) == 2
+
+
+def test_the_response_to_a_request_that_came_in_its_first_round_goes_alone():
+    repeated = []
+    w, sent = _wiring(began_at=lambda payload: 98.6)          # 1.4 s old: it crossed once
+    w.repeat = lambda key, payload: repeated.append((key, payload))
+    servers, calls = _server(w)
+    servers.serve(CALL, REQUEST + b"\x00")
+    calls[-1].cb(calls[-1])
+    assert sent == [(CALL, RESPONSE)] and repeated == []

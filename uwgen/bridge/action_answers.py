@@ -221,7 +221,8 @@ class GoalAnswers:
                     state.sends += 1
                     state.next_send = now + rtt.rto
                     counters.goal_resends += 1
-                    if self.w.send(ident, state.payload):   # its answer or result takes it back
+                    # its answer or result takes it back; its age item is the goal's
+                    if self.w.send(ident, state.payload, published=state.sent_at):
                         self.w.expect(pack_items([3, ident, state.handle]), ident, state.payload,
                                       echo=self.w.urgent(state.sent_at + codec.accept_timeout))
         for state in list(self._states.values()):

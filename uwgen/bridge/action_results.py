@@ -51,6 +51,7 @@ class Served:
     goal_handle: Any = None       # ClientGoalHandle, once accepted
     cancel_wanted: bool = False   # a cancel came before the local server answered
     goal: Any = None              # the goal message while it waits for the local server
+    began: float | None = None    # when it began on the client side (Wiring.began)
 
 
 @dataclass(frozen=True)

@@ -90,12 +90,20 @@ class ActionServers(GoalAdoption):
     def _answer(self, ident: int, handle: int, code: int, again: bool = False) -> None:
         codec = self.served[ident][0]
         answer = codec.encode_answer(handle, code)
-        if self._offer(ident, answer, "answer", again=again):
+        began = self._began(ident, handle)
+        # a goal that came late (its first copies lost): its answer is urgent from the first
+        if self._offer(ident, answer, "answer",
+                       again=again or self.w.answer_urgent(began, codec.accept_timeout)):
             self.counters[ident].answers += 1
             # a lost answer goes again at once, within the goal's time (fates.py)
-            entry = self.goals[ident].get(handle)
-            came = entry.arrived if entry is not None else self.w.clock.now()
-            self.w.fates.repairable(ident, answer, self.w.callers_deadline(came, codec.accept_timeout))
+            self.w.fates.repairable(ident, answer, self.w.callers_deadline(began, codec.accept_timeout))
+
+    def _began(self, ident: int, handle: int) -> float:
+        """When the goal on `handle` began on the client side (Wiring.began)."""
+        entry = self.goals[ident].get(handle)
+        if entry is not None and entry.began is not None:
+            return entry.began
+        return self.w.began(b"", entry.arrived if entry is not None else self.w.clock.now())
 
     def _result(self, ident: int, handle: int, status: int, result: Any, entry: Served) -> None:
         codec = self.served[ident][0]
@@ -147,7 +155,7 @@ class ActionServers(GoalAdoption):
         # accept_timeout: the client side's clock started before the goal's trip, and the
         # answer needs one too.
         entry = goals[handle] = Served(None, now + codec.accept_timeout / 2, payload=payload,
-                                       arrived=now, goal=goal)
+                                       arrived=now, goal=goal, began=self.w.began(payload, now))
         if client.server_is_ready() and self.watches[ident].listed(now):
             self._send_goal(ident, handle, entry)
         else:
@@ -245,15 +253,15 @@ class ActionServers(GoalAdoption):
                 self.counters[ident].repeated_replies += 1
                 accept = self.served[ident][0].accept_timeout   # the first answer was lost
                 self._answer(ident, handle, ACCEPTED,
-                             again=self.w.answer_urgent(entry.arrived, accept))
+                             again=self.w.answer_urgent(self._began(ident, handle), accept))
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
             return self._copy_of_finished(ident, handle, payload, self.w.clock.now())
         self.counters[ident].repeated_replies += 1
         arrived = self.results[ident].recent[handle].arrived   # the answer and result were lost
-        self._offer(ident, result, "result",
-                    again=self.w.answer_urgent(arrived, self.served[ident][0].accept_timeout))
+        self._offer(ident, result, "result", again=self.w.answer_urgent(
+            self.w.began(payload, arrived), self.served[ident][0].accept_timeout))
         return True
 
     def _answered(self, ident: int, handle: int, sent: Future) -> None:

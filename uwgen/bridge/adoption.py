@@ -93,5 +93,5 @@ class GoalAdoption:
         self._adopt(ident, handle, uuid, info, done=True, payload=payload, arrived=came - age)
         accept = self.served[ident][0].accept_timeout         # its answer was lost
         self._answer(ident, handle, ACCEPTED,
-                     again=self.w.answer_urgent(came - age, accept))
+                     again=self.w.answer_urgent(self.w.began(payload, came - age), accept))
         return True

@@ -39,7 +39,7 @@ from uwgen.bridge.medium import link_mac, mac_round_trip, warn_deadlines
 from uwgen.bridge.plan import BridgeOptions, BridgePlan, PlanError
 from uwgen.bridge.schema import SCHEMA_TICK, attach_schema, logger_say
 from uwgen.bridge.recorder import recorder_for
-from uwgen.bridge.reliability import farewell, link_ledger, reliability_for
+from uwgen.bridge.reliability import farewell, link_ledger, reliability_for, wire_commands
 from uwgen.bridge.rosnode import WholeNode
 from uwgen.bridge.security import guard_for, link_security
 from uwgen.bridge.service_servers import Servers
@@ -140,7 +140,7 @@ class BridgeNode(WholeNode):
             w.waiting, w.withdraw = scheduler.waiting, scheduler.withdraw
             w.turns = own_turns(self.mac)
         if self.reliability is not None:     # fates.py: each side repairs its own leg
-            w.repeat, self.reliability.on_fate, w.reports = self.reliability.repeat, w.fates.told, True
+            wire_commands(w, self.reliability)
         self.rmw_discovery = None   # RmwDiscovery when any entry is rmw_desert
         if plan.uses_rmw_desert:
             from uwgen.bridge.discovery import RmwDiscovery

@@ -94,6 +94,15 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
                        clock_exchange=True)
 
 
+def wire_commands(w: Any, reliability: Reliability) -> None:
+    """What the bridge's commands get from the link's reliability (docs/wire-format.md
+    section 15.6): a copy in their turn when sent again (`repeat`), their fates as the peer's
+    reports tell them, the reports' word on a result's arrival, and when a command that came
+    began on its caller's side (its age item: `Wiring.began`)."""
+    w.repeat, reliability.on_fate, w.reports = reliability.repeat, w.fates.told, True
+    w.began_at = reliability.judge.began
+
+
 def link_ledger(link_stats: Any) -> dict[int, dict]:
     """The link's per-entry ledger from its stats (keys as ints; JSON may have made them text)."""
     ledger = link_stats.get("ledger") if isinstance(link_stats, dict) else None

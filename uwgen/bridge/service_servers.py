@@ -38,11 +38,13 @@ class Servers:
         self.counters = counters
         self.served: dict[int, tuple[Any, Any]] = {}   # id -> (codec, client)
         self.serving: dict[int, dict[int, tuple[Future, float]]] = {}  # id -> seq -> call
-        # id -> seq -> (request, deadline): requests waiting for the local server
-        self.waiting: dict[int, dict[int, tuple[Any, float]]] = {}
+        # id -> seq -> (request, deadline, began): requests waiting for the local server
+        self.waiting: dict[int, dict[int, tuple[Any, float, float]]] = {}
         # id -> seq -> (response payload, when): answered requests, for copies of them
         self.replied: dict[int, OrderedDict[int, tuple[bytes, float]]] = {}
-        self.handled = Handled()      # seqs handed to the local server (outcome queries)
+        # seqs handed to the local server (outcome queries), with when their calls began
+        # (Wiring.began: the caller's deadline is that + the timeout)
+        self.handled = Handled()
         for codec in codecs:
             counters[codec.id] = ServiceCounters()
             cls = wiring.ros_class(codec, "srv")
@@ -81,7 +83,7 @@ class Servers:
             counters.duplicate_requests += 1
             return
         now = self.w.clock.now()
-        handled = self.handled.when(ident, seq)
+        handled = self.handled.when(ident, seq)         # when its call began
         if handled is not None and now - handled < 2 * codec.timeout:
             # A copy (its response was lost): never run again. A copy is never older than
             # the call's timeout (the link refuses it, wire-format 15.5); twice that covers
@@ -101,9 +103,10 @@ class Servers:
                                        "already wait for one (the caller times out)")
                 return
             counters.waited += 1
-            self.waiting[ident][seq] = (request, now + WAIT_SHARE * codec.timeout)
+            self.waiting[ident][seq] = (request, now + WAIT_SHARE * codec.timeout,
+                                        self.w.began(payload, now))
             return
-        self._call(ident, seq, request, now + codec.timeout)
+        self._call(ident, seq, request, now + codec.timeout, self.w.began(payload, now))
 
     def _outcome(self, ident: int, seq: int) -> None:
         """An outcome query: the response again, 'did not run' (`[3, id, seq]`), or nothing
@@ -118,8 +121,8 @@ class Servers:
         if self.w.send(ident, reply):
             self.counters[ident].outcome_answers += 1
 
-    def _call(self, ident: int, seq: int, request: Any, deadline: float) -> None:
-        self.handled.add(ident, seq, self.w.clock.now())
+    def _call(self, ident: int, seq: int, request: Any, deadline: float, began: float) -> None:
+        self.handled.add(ident, seq, began)
         future = self.served[ident][1].call_async(request)
         self.serving[ident][seq] = (future, deadline)
         future.add_done_callback(lambda f: self._reply(ident, seq, f))
@@ -131,10 +134,10 @@ class Servers:
                 continue
             codec, client = self.served[ident]
             ready = client.service_is_ready()
-            for seq, (request, wait_until) in list(waiting.items()):
+            for seq, (request, wait_until, began) in list(waiting.items()):
                 if ready:
                     del waiting[seq]
-                    self._call(ident, seq, request, now + codec.timeout)
+                    self._call(ident, seq, request, now + codec.timeout, began)
                 elif wait_until <= now:
                     del waiting[seq]
                     self.counters[ident].no_server += 1
@@ -169,12 +172,17 @@ class Servers:
         replied.move_to_end(seq)
         while len(replied) > RECENT_REPLIES:
             replied.popitem(last=False)
+        began = self.handled.when(ident, seq)
+        if began is None:
+            began = self.w.began(b"", self.w.clock.now())
+        if self.w.answer_urgent(began, codec.timeout):
+            # the request came late (its first copies were lost): the response is the call's
+            # last leg with too few rounds left to repair it, and gets its copy in its turn
+            self.w.repeat(ident, payload)
         if self.w.send(ident, payload):
             counters.replies += 1
             # a lost response goes again at once, within the call's time (fates.py)
-            came = self.handled.when(ident, seq)
-            self.w.fates.repairable(ident, payload, self.w.callers_deadline(
-                self.w.clock.now() if came is None else came, codec.timeout))
+            self.w.fates.repairable(ident, payload, self.w.callers_deadline(began, codec.timeout))
         else:
             counters.reply_refused += 1
             self.w.throttle.report(f"srvref{ident}", f"{codec.name}: response for seq {seq} refused by the link")

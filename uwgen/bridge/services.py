@@ -202,7 +202,8 @@ class StandIns:
             outgoing.sends += 1
             outgoing.next_send = now + rtt.rto
             self.counters[ident].request_resends += 1
-            if self.w.send(ident, outgoing.payload):      # same seq: served once there
+            # same seq: served once there; its age item is the call's (wire-format 15.6)
+            if self.w.send(ident, outgoing.payload, published=outgoing.first_sent):
                 pending = self.calls.get(ident, seq)
                 self.w.expect(query(3, ident, seq), ident, outgoing.payload,
                               echo=pending is not None and self.w.urgent(pending.deadline))

@@ -59,6 +59,9 @@ class Wiring:
     turns: Callable[[], int | None] = lambda: None
     # the link's reliability: a command offered again gets a copy in its turn (echoes.py)
     repeat: Callable[[int, bytes], None] = lambda key, payload: None
+    # when a command that came began on its caller's side, from its age item (the link's
+    # judge: runtime.delivery.judge.AgeJudge.began); None when the link cannot tell
+    began_at: Callable[[bytes], float | None] = lambda payload: None
     # what the peer's reports told of our command messages (fates.py; made in __post_init__),
     # and whether the link has reports (wire format 2): they acknowledge a result's arrival
     fates: Fates = field(init=False)
@@ -99,21 +102,32 @@ class Wiring:
         rounds = ANSWER_URGENT_ROUNDS if answer else URGENT_ROUNDS
         return deadline - self.clock.now() < rounds * self.turn_gap
 
-    def answer_urgent(self, came: float, timeout: float) -> bool:
-        """Whether the serving side's answer to a request or goal that first came at `came`
-        (the caller's `timeout`), given again now, is urgent (`urgent`, an answer)."""
-        return self.urgent(self.callers_deadline(came, timeout), answer=True)
+    def answer_urgent(self, began: float, timeout: float) -> bool:
+        """Whether the serving side's answer to a request or goal whose call began at `began`
+        (`began`; the caller's `timeout`), given now, is urgent (`urgent`, an answer)."""
+        return self.urgent(self.callers_deadline(began, timeout), answer=True)
 
     def wall_at(self, t: float) -> float:
         """The system clock's reading (what ROS stamps with; a restart does not reset it) at
         `t` on the bridge's clock."""
         return self.wall() - (self.clock.now() - t)
 
-    def callers_deadline(self, came: float, timeout: float) -> float:
-        """The caller's deadline as the serving side can tell it: the request or goal first
-        came at `came`, about half a round of the MAC and a trip after the call began (it
-        waited for its side's turn, then crossed: (`turn_gap` + `round_trip`) / 2)."""
-        return came + timeout - (self.turn_gap + (self.round_trip or 0.0)) / 2
+    def began(self, payload: bytes, came: float) -> float:
+        """When the call of a request or goal `payload`, come at `came`, began on its
+        caller's side, as the serving side can tell it: from the age item of the copy that
+        came (every copy carries its call's age: docs/wire-format.md section 15.6), so a
+        call whose first copies were lost is known that much older; else (no age item, or a
+        payload the link's judge did not keep) its arrival less half a round of the MAC and
+        a trip (it waited for its side's turn, then crossed: (`turn_gap` + `round_trip`) / 2)."""
+        began = self.began_at(payload)
+        if began is not None:
+            return min(began, came)
+        return came - (self.turn_gap + (self.round_trip or 0.0)) / 2
+
+    @staticmethod
+    def callers_deadline(began: float, timeout: float) -> float:
+        """The caller's deadline for a call that began at `began` (`began`)."""
+        return began + timeout
 
     def expect(self, answer: bytes, key: int, copy: bytes, echo: bool = True) -> None:
         """A copy `copy` (channel `key`) was offered: the payload arriving that starts with

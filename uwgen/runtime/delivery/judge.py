@@ -6,13 +6,17 @@ section 8). `AgeJudge` holds the offsets (`clock_offset.ClockOffsets`), the rule
 from __future__ import annotations
 
 import logging
+from collections import OrderedDict
 from typing import Any
 
 from uwgen.runtime.clock import Clock
 from uwgen.runtime.delivery.clock_offset import ClockOffsets
 from uwgen.runtime.delivery.reliable import DELAY_UNIT, AckError, decode_reports, unwrap
-from uwgen.runtime.delivery.staleness import CLOCK_OFFSET, UNEXPLAINED, UNMEASURED, UNTIMED, Staleness
+from uwgen.runtime.delivery.staleness import (CLOCK_OFFSET, UNEXPLAINED, UNMEASURED, UNTIMED,
+                                              Staleness, Verdict)
 from uwgen.runtime.stats import Counters, log_count
+
+BEGUN = 64            # commands taken whose beginning is kept for the bridge (`began`)
 
 log = logging.getLogger("uwgen.link.reliability")
 
@@ -31,6 +35,9 @@ class AgeJudge:
         self.stale_by_id: dict[int, int] = {}
         self._offset_told: set[int] = set()
         self.first_offset_at: dict[int, float] = {}   # peer -> when its offset was first measured
+        self.verdict: Verdict | None = None             # the last message's (`refuses`)
+        # a command taken (its bytes as the bridge gets them) -> when it began (`taken`)
+        self._began: OrderedDict[bytes, float] = OrderedDict()
 
     def who(self, peer: int) -> str:
         """`sender 1 (surface)`: the peer's sender id (W) and, when known, its side."""
@@ -104,6 +111,7 @@ class AgeJudge:
     def refuses(self, ident: int, peer: int, time24: int | None, age: float) -> bool:
         max_age = self.max_ages[ident]
         verdict = self.staleness.judge(time24, age, max_age, self.wall.now(), self.offsets.of(peer))
+        self.verdict = verdict
         if verdict.refused is None:
             return False
         self.stale_by_id[ident] = self.stale_by_id.get(ident, 0) + 1
@@ -111,3 +119,21 @@ class AgeJudge:
         log_count(log, logging.WARNING, n, "[%s] refused a message of id %d from %s: %s (counted %s)",
                   self.name, ident, self.who(peer), self._why(verdict, age, max_age), verdict.refused)
         return True
+
+    def taken(self, payload: bytes, now: float) -> None:
+        """The command `payload` (its bytes as the bridge gets them), judged last
+        (`refuses`), was taken at `now` (the link's clock): it began its likely age before
+        (`Verdict.likely`). A command's copy carries its call's age (docs/wire-format.md
+        section 15.6), so the serving side times its caller's deadline on the copy that
+        came, not on its arrival. The last BEGUN are kept."""
+        if self.verdict is None or self.verdict.refused is not None:
+            return
+        self._began[bytes(payload)] = now - self.verdict.likely
+        self._began.move_to_end(bytes(payload))
+        while len(self._began) > BEGUN:
+            self._began.popitem(last=False)
+
+    def began(self, payload: bytes) -> float | None:
+        """When the command `payload` taken last began (`taken`), on the link's clock; None
+        when it is not among the last BEGUN taken. Any thread (one dict lookup)."""
+        return self._began.get(bytes(payload))

@@ -128,6 +128,7 @@ class Reliability:
         self._timed = False                           # the packet being built needs T
         self.engine.spare.limit = copies              # most copies in spare room (copies.py)
         self.echoes = Echoes(frozenset(commands), own_span, self.heads, self.engine.spare)
+        self._command_ids = frozenset(wire_id(k) for k in commands)
         # a command's fate, as the peer's reports tell it, goes to the bridge (section 15.6, "A
         # command's fate"): (key, payload as offered, arrived), on the link's thread, unlocked
         self.engine.told.watched = frozenset(commands)
@@ -408,8 +409,11 @@ class Reliability:
                 time24 = self._transfer_t.pop((peer, epoch, transfer), time24)
             if got.number is not None and not self.engine.deliver_once(peer, epoch, ident, got.number):
                 return None
-            if got.age is not None and self.judge.refuses(ident, peer, time24, got.age):
-                return None
+            if got.age is not None:
+                if self.judge.refuses(ident, peer, time24, got.age):
+                    return None
+                if ident in self._command_ids:         # when its call began (judge.taken)
+                    self.judge.taken(got.payload, now)
             return got.payload
 
     # -- reporting ---------------------------------------------------------------------------

@@ -52,10 +52,18 @@ class Verdict:
     age: float                    # the most the message can be old (seconds)
     transit: float | None = None  # the packet's transit as judged (offset taken off when known)
     offset: Offset | None = None  # the sender's measured offset used
+    item: float = 0.0             # the age item read (seconds)
 
     @property
     def stale(self) -> bool:
         return self.refused is not None
+
+    @property
+    def likely(self) -> float:
+        """The message's age as best known, not the bound `age`: its age item, half the
+        item's rounding and the transit (the offset taken off when measured, its error not
+        counted). What the receiver times a call's deadline on (`AgeJudge.taken`)."""
+        return self.item + AGE_UNIT / 2 + max(self.transit or 0.0, 0.0)
 
 
 @dataclass
@@ -77,11 +85,11 @@ class Staleness:
             transit = apparent + offset.offset
             most = age + AGE_UNIT + max(transit + offset.error, 0.0)
             if abs(offset.offset) > self.tolerance:
-                return Verdict(CLOCK_OFFSET, most, transit, offset)
-            return Verdict(STALE if most > max_age else None, most, transit, offset)
+                return Verdict(CLOCK_OFFSET, most, transit, offset, age)
+            return Verdict(STALE if most > max_age else None, most, transit, offset, age)
         most = age + AGE_UNIT + max(apparent + self.tolerance, 0.0)
         if self.measured_only:
-            return Verdict(UNMEASURED, most, apparent)
+            return Verdict(UNMEASURED, most, apparent, item=age)
         if not -self.tolerance <= apparent <= self.tolerance + self.max_transit:
-            return Verdict(UNEXPLAINED, most, apparent)
-        return Verdict(STALE if most > max_age else None, most, apparent)
+            return Verdict(UNEXPLAINED, most, apparent, item=age)
+        return Verdict(STALE if most > max_age else None, most, apparent, item=age)
