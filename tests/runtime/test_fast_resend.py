@@ -42,6 +42,37 @@ def test_a_gap_makes_the_next_packet_carry_a_report_before_the_ack_interval():
     assert not r.ack_only_due(SURFACE, 10.0)              # a gap never sends a packet alone
 
 
+def test_a_lost_report_that_named_a_missing_packet_goes_again_on_the_next_packet():
+    s, v = engine(SURFACE), engine(VEHICLE)
+    acks = AckPolicy(s, ack_delay=2.0, ack_interval=6.0)   # the surface's reports on the vehicle
+    s.received(VEHICLE, EPOCH, 0, 0.0, eliciting=False)
+    s.received(VEHICLE, EPOCH, 2, 0.5, eliciting=False)    # 1 (say, its response) is missing
+    assert 1 in decode_reports(acks.a_part({VEHICLE: EPOCH}, 1.0))[0].numbers()[1]
+    s.sent(0, acks.carried(), 1.0)                         # the packet with that report: lost
+    s.sent(1, [Sent(4, "cmd", None)], 1.2)
+    v.received(SURFACE, EPOCH, 1, 1.9, eliciting=False)
+    assert not acks.due({VEHICLE: EPOCH}, 2.0)             # nothing new to say on its own
+    s.acked(v.ack_for(SURFACE, 2.5), 3.0)                  # the vehicle's report: 0 was lost
+    acks.confirm()
+    assert acks.due({VEHICLE: EPOCH}, 3.1)                 # said again now, not at 7.0
+    again = decode_reports(acks.a_part({VEHICLE: EPOCH}, 3.1))[0]
+    assert again.largest == 2 and 1 in again.numbers()[1]
+
+
+def test_a_lost_report_with_nothing_missing_waits_for_the_ack_interval():
+    s, v = engine(SURFACE), engine(VEHICLE)
+    acks = AckPolicy(s, ack_delay=2.0, ack_interval=6.0)
+    s.received(VEHICLE, EPOCH, 0, 0.0, eliciting=False)
+    s.received(VEHICLE, EPOCH, 1, 0.5, eliciting=False)
+    assert acks.a_part({VEHICLE: EPOCH}, 1.0)
+    s.sent(0, acks.carried(), 1.0)                         # lost; it named no packet missing
+    s.sent(1, [Sent(4, "cmd", None)], 1.2)
+    v.received(SURFACE, EPOCH, 1, 1.9, eliciting=False)
+    s.acked(v.ack_for(SURFACE, 2.5), 3.0)
+    acks.confirm()
+    assert not acks.due({VEHICLE: EPOCH}, 3.1)
+
+
 def test_a_report_naming_a_later_packet_hands_the_message_back_at_once():
     s, r = engine(SURFACE), engine(VEHICLE)
     s.sent(0, [Sent(8, "mission", deadline=30.0)], 0.0)

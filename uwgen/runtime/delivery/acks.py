@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+from uwgen.runtime.delivery.receiving import RECEIVED_WINDOW
 from uwgen.runtime.delivery.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink, Sent
 
 BITMAP_ROOM = 2          # bitmap bytes a report may always carry: packets leave room for one
@@ -105,11 +106,25 @@ class AckPolicy:
         return out
 
     def confirm(self) -> None:
-        """After an A part was taken in: our reports the peer is now known to have received."""
+        """After an A part was taken in: our reports the peer is now known to have received,
+        and those whose packet it showed lost. A lost report that named a packet of the peer
+        missing (one no report the peer received named yet) goes again on the next packet
+        leaving, as a gap does (`gap`), not an `ack_interval` later: that packet may have
+        carried a command the peer repairs only when told it was lost (fates.py), and a
+        report lost with it otherwise costs the call two rounds."""
         for peer, epoch, largest in self.engine.confirmed:
             key = (peer, epoch)
             self._confirmed[key] = max(largest, self._confirmed.get(key, largest))
         self.engine.confirmed.clear()
+        for peer, epoch, largest in self.engine.reports_lost:
+            r = self.engine.receipts.get((peer, epoch))
+            if r is None or r.largest is None or r.gap:
+                continue
+            low = self._confirmed.get((peer, epoch), min(r.got, default=r.largest) - 1)
+            first = max(low + 1, r.largest - RECEIVED_WINDOW)   # what `got` remembers
+            if any(n not in r.got for n in range(first, min(largest, r.largest))):
+                r.gap = True
+        self.engine.reports_lost.clear()
 
     def alone(self, now: float) -> bool:
         """A packet with only the A part: a peer has waited `ack_delay` for the ack of a

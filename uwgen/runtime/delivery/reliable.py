@@ -191,6 +191,7 @@ class ReliableLink(Receiving):
         self.timer_resends = 0                         # reliable messages whose timer ran out
         self.bad_acks = 0
         self.confirmed: list[Any] = []                 # refs of our reports the peer received
+        self.reports_lost: list[Any] = []              # refs of our reports whose packet was lost
         # the fate of recently settled packets (True: acknowledged), for the tails of cut
         # messages whose head's packet settles after them
         self._fates: OrderedDict[int, bool] = OrderedDict()
@@ -348,6 +349,7 @@ class ReliableLink(Receiving):
         self.spare.gone(packet)
         for m in packet.messages:
             if m.key == REPORT_KEY:
+                self.reports_lost.append(m.ref)    # acks.AckPolicy.confirm: named again
                 continue
             if packet.fate_unknown:
                 self.entry(m.key).unknown += 1
