@@ -192,8 +192,7 @@ class ReliableLink(Receiving):
         self.bad_acks = 0
         self.confirmed: list[Any] = []                 # refs of our reports the peer received
         self.reports_lost: list[Any] = []              # refs of our reports whose packet was lost
-        # the fate of recently settled packets (True: acknowledged), for the tails of cut
-        # messages whose head's packet settles after them
+        # recently settled packets' fates (True: acked), for cut messages' tails settled later
         self._fates: OrderedDict[int, bool] = OrderedDict()
         self._moved: Sent | None = None     # a message the next packet carries whole (cut)
         self.spare = Copies()               # copies of reliable messages, the measured loss
