@@ -159,11 +159,11 @@ def drop_replies(link, count: int) -> list:
     """Make `link` lose its next `count` responses (kind 3); returns what it dropped."""
     dropped, offer = [], link.offer
 
-    def lossy(key, payload):
+    def lossy(key, payload, **kw):          # kw: published (a copy keeps its call's)
         if payload[0] == 3 and len(dropped) < count:
             dropped.append(payload)
             return True
-        return offer(key, payload)
+        return offer(key, payload, **kw)
     link.offer = lossy
     return dropped
 
@@ -172,11 +172,11 @@ def drop_results(link, count: int) -> list:
     """Make `link` lose its next `count` results (kind 3 with a status 4..6)."""
     dropped, offer = [], link.offer
 
-    def lossy(key, payload):
+    def lossy(key, payload, **kw):          # kw: published (a copy keeps its call's)
         if payload[0] == 3 and len(payload) > 4 and len(dropped) < count:
             dropped.append(payload)
             return True
-        return offer(key, payload)
+        return offer(key, payload, **kw)
     link.offer = lossy
     return dropped
 
@@ -250,9 +250,9 @@ def test_a_lost_goal_answer_is_repaired_while_the_goal_runs_not_once_its_result_
     link = links.links["vehicle"]
     offered, offer = [], link.offer
 
-    def recording(key, payload):
+    def recording(key, payload, **kw):
         offered.append(bytes(payload))
-        return offer(key, payload)
+        return offer(key, payload, **kw)
     link.offer = recording
 
     def answers():

@@ -245,11 +245,11 @@ def lose_next(link, kind: int, count: int = 1) -> list:
     """Make `link` lose its next `count` payloads of `kind`; returns what it lost."""
     lost, offer = [], link.offer
 
-    def lossy(key, payload):
+    def lossy(key, payload, **kw):          # kw: published (a copy keeps its call's)
         if payload[0] == kind and len(lost) < count:
             lost.append(payload)
             return True
-        return offer(key, payload)
+        return offer(key, payload, **kw)
     link.offer = lossy
     return lost
 
