@@ -196,14 +196,15 @@ class StandIns:
         now = self.w.clock.now()
         for (ident, seq), outgoing in list(self.outgoing.items()):
             rtt = self.rtt[ident]
-            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto):
+            pending = self.calls.get(ident, seq)
+            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto,
+                            None if pending is None else pending.deadline):
                 continue
             rtt.backoff()
             outgoing.sends += 1
             outgoing.next_send = now + rtt.rto
             self.counters[ident].request_resends += 1
             if self.w.send(ident, outgoing.payload):      # same seq: served once there
-                pending = self.calls.get(ident, seq)
                 self.w.expect(query(3, ident, seq), ident, outgoing.payload,
                               echo=pending is not None and self.w.urgent(pending.deadline))
         self._ask(now)
