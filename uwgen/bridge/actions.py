@@ -139,6 +139,8 @@ class ActionStandIns(GoalAnswers):
             state.payload = payload
             state.sent_at = self.w.clock.now()
             state.next_send = state.sent_at + self.rtt[codec.id].rto
+            self.w.fates.awaiting(codec.id, payload, state.sent_at + codec.accept_timeout,
+                                  lambda: not state.answer.done() and not state.asking)
             if await state.answer != ACCEPTED:
                 return GoalResponse.REJECT
             self._states[id(goal)] = state

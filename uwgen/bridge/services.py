@@ -147,8 +147,10 @@ class StandIns:
             rtt = self.rtt.get(codec.id)
             if rtt is not None:
                 now = self.w.clock.now()
-                self.outgoing[(codec.id, pending.seq)] = Outgoing(payload, now, now + rtt.rto,
-                                                                  turn=self.w.turns())
+                key = (codec.id, pending.seq)
+                self.outgoing[key] = Outgoing(payload, now, now + rtt.rto, turn=self.w.turns())
+                self.w.fates.awaiting(codec.id, payload, pending.deadline,
+                                      lambda: key in self.outgoing)
             result = await future
             if result is None:
                 return self._failed_reply(response)

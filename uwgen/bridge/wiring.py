@@ -72,9 +72,13 @@ class Wiring:
     def __post_init__(self) -> None:
         self.throttle = LogThrottle(self.log.error, self.clock, warn=self.log.warning)
         self.loops = LoopGuard(self.node, self.log)
+        # under turns a message awaiting its answer told lost is offered again on the link's
+        # thread (copies.py); on a timer `copy_due` sends it
         self.fates = Fates(self.clock, lambda key, payload: self.withdraw(key, payload),
                            lambda key, payload, until: self.offer_once(
-                               key, payload, again=self.urgent(until, answer=True)))
+                               key, payload, again=self.urgent(until, answer=True)),
+                           lambda key, payload, until: self.turns() is not None and self.offer_once(
+                               key, payload, again=self.urgent(until)))
 
     def offer_once(self, key: int, payload: bytes, again: bool = False) -> bool:
         """Offer a command message unless an equal one still waits in the link (it would
