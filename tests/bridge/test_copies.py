@@ -150,3 +150,16 @@ def test_an_arriving_answer_takes_its_copy_back_on_the_link_thread_and_only_its_
     assert taken == [(20, b"\x02\x14\x05req")]
     w.take_back(b"\x03\x14\x05resp")                 # a second answer: nothing left to take
     assert taken == [(20, b"\x02\x14\x05req")] and list(w.answered_by) == [b"\x03\x14\x06"]
+
+
+def test_a_message_awaiting_its_answer_told_lost_is_offered_at_once_under_turns_only():
+    for turns, offered in ((3, [(20, b"req")]), (None, [])):
+        sent = []
+        w = Wiring(node=None, send=lambda k, p: sent.append((k, p)) or True, clock=ManualClock(),
+                   options=None, log=SimpleNamespace(error=print, warning=print), main_group=None,
+                   service_group=None)
+        w.turns = lambda: turns
+        w.fates.awaiting(20, b"req", 12.0, lambda: True)
+        w.fates.told(20, b"req", arrived=False)
+        assert sent == offered
+        assert w.fates.lost(20, b"req") == (turns is None)       # a timer sends it then

@@ -183,3 +183,43 @@ def test_the_serving_side_counts_its_callers_deadline_from_before_the_request_ca
     assert Wiring.callers_deadline(w, 50.0, 12.0) == 50.0 + 12.0 - (3.0 + 1.4) / 2
     w.round_trip = None                                       # no MAC figure: the turn alone
     assert Wiring.callers_deadline(w, 50.0, 12.0) == 50.0 + 12.0 - 1.5
+
+
+def copier():
+    """Fates whose `copy_again` records what it offers (as under turns: taken)."""
+    clock = ManualClock()
+    copied = []
+    fates = Fates(clock, lambda k, p: False, lambda k, p, until: True,
+                  lambda k, p, until: copied.append((k, p, until)) or True)
+    return fates, copied, clock
+
+
+def test_a_request_awaiting_its_answer_told_lost_is_offered_again_at_once():
+    fates, copied, _ = copier()
+    fates.awaiting(CALL, REQUEST, 12.0, lambda: True)
+    fates.told(CALL, REQUEST, False)
+    assert copied == [(CALL, REQUEST, 12.0)] and fates.stats()["copied"] == 1
+    assert not fates.lost(CALL, REQUEST)             # offered: no copy left due on a timer
+
+
+def test_a_message_answered_past_its_deadline_or_told_arrived_is_not_offered_again():
+    fates, copied, clock = copier()
+    fates.awaiting(CALL, REQUEST, 12.0, lambda: False)           # answered meanwhile
+    fates.told(CALL, REQUEST, False)
+    other = bytes((2, CALL, 8, 1))
+    fates.awaiting(CALL, other, 12.0, lambda: True)
+    clock.advance(13.0)                                          # its deadline passed
+    fates.told(CALL, other, False)
+    third = bytes((2, CALL, 9, 1))
+    fates.awaiting(CALL, third, 30.0, lambda: True)
+    fates.told(CALL, third, True)                                # arrived: the peer has it
+    fates.told(CALL, third, False)                               # an older copy's loss
+    assert copied == []
+
+
+def test_a_copy_not_taken_on_the_link_thread_is_left_to_the_timer():
+    clock = ManualClock()
+    fates = Fates(clock, lambda k, p: False, lambda k, p, until: True, lambda k, p, until: False)
+    fates.awaiting(CALL, REQUEST, 12.0, lambda: True)
+    fates.told(CALL, REQUEST, False)
+    assert fates.lost(CALL, REQUEST) and fates.stats()["copied"] == 0
