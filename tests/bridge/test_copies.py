@@ -159,7 +159,11 @@ def test_a_message_awaiting_its_answer_told_lost_is_offered_at_once_under_turns_
                    options=None, log=SimpleNamespace(error=print, warning=print), main_group=None,
                    service_group=None)
         w.turns = lambda: turns
-        w.fates.awaiting(20, b"req", 12.0, lambda: True)
+        w.withdraw = lambda k, p: sent.remove((k, p)) is None
+        w.fates.awaiting(20, b"req", 12.0, lambda: True, b"\x03\x14\x07")
         w.fates.told(20, b"req", arrived=False)
         assert sent == offered
         assert w.fates.lost(20, b"req") == (turns is None)       # a timer sends it then
+        if turns is not None:
+            w.take_back(b"\x03\x14\x07resp")                   # its answer takes it back
+            assert sent == []

@@ -115,7 +115,8 @@ class ActionServers(GoalAdoption):
         book.sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(), self.w.turns())
         unacked = book.unacked[handle]
         self.w.fates.awaiting(ident, payload, unacked.until,
-                              lambda: book.unacked.get(handle) is unacked)
+                              lambda: book.unacked.get(handle) is unacked,
+                              codec.encode_result_status(handle, received=True))
 
     # -- the link (executor thread) --------------------------------------------------------
 

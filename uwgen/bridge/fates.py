@@ -45,7 +45,8 @@ class Fates:
 
     def __init__(self, clock: Clock, withdraw: Callable[[int, bytes], bool],
                  offer_again: Callable[[int, bytes, float], bool],
-                 copy_again: Callable[[int, bytes, float], bool] = lambda k, p, until: False):
+                 copy_again: Callable[[int, bytes, float, bytes], bool] =
+                 lambda k, p, until, answer: False):
         self.clock, self.withdraw, self.offer_again = clock, withdraw, offer_again
         self.copy_again = copy_again    # a message awaiting its answer, told lost: offered?
         self._lock = threading.Lock()
@@ -53,8 +54,9 @@ class Fates:
         self._arrived: OrderedDict[tuple[int, bytes], bool] = OrderedDict()
         self._lost: OrderedDict[tuple[int, bytes], bool] = OrderedDict()
         self._repairable: OrderedDict[tuple[int, bytes], float] = OrderedDict()   # -> until
-        # a request, goal or result waiting for its answer -> (until, whether it still waits)
-        self._awaiting: OrderedDict[tuple[int, bytes], tuple[float, Callable[[], bool]]] = \
+        # a request, goal or result waiting for its answer -> (until, whether it still waits,
+        # its answer's head)
+        self._awaiting: OrderedDict[tuple[int, bytes], tuple[float, Callable[[], bool], bytes]] = \
             OrderedDict()
         self.counts = {"arrived": 0, "lost": 0, "spared": 0, "repaired": 0, "copied": 0}
 
@@ -84,7 +86,7 @@ class Fates:
                     self.counts["repaired"] += 1
             return
         if waits is not None and now < waits[0] and waits[1]() \
-                and self.copy_again(key, item[1], waits[0]):
+                and self.copy_again(key, item[1], waits[0], waits[2]):
             with self._lock:
                 self.counts["copied"] += 1
             return
@@ -115,13 +117,14 @@ class Fates:
             while len(self._repairable) > KEPT:
                 self._repairable.popitem(last=False)
 
-    def awaiting(self, key: int, payload: bytes, until: float, alive: Callable[[], bool]) -> None:
-        """A request, goal or result this side sent waits for its answer until `until` (its
-        deadline), while `alive()` (read on the link's thread): told lost, it is offered again
-        at once (`copy_again`)."""
+    def awaiting(self, key: int, payload: bytes, until: float, alive: Callable[[], bool],
+                 answer: bytes) -> None:
+        """A request, goal or result this side sent waits for its answer (whose payload starts
+        with `answer`) until `until` (its deadline), while `alive()` (read on the link's
+        thread): told lost, it is offered again at once (`copy_again`)."""
         with self._lock:
             item = (key, bytes(payload))
-            self._awaiting[item] = (until, alive)
+            self._awaiting[item] = (until, alive, bytes(answer))
             self._awaiting.move_to_end(item)
             while len(self._awaiting) > KEPT:
                 self._awaiting.popitem(last=False)

@@ -150,7 +150,7 @@ class StandIns:
                 key = (codec.id, pending.seq)
                 self.outgoing[key] = Outgoing(payload, now, now + rtt.rto, turn=self.w.turns())
                 self.w.fates.awaiting(codec.id, payload, pending.deadline,
-                                      lambda: key in self.outgoing)
+                                      lambda: key in self.outgoing, query(3, *key))
             result = await future
             if result is None:
                 return self._failed_reply(response)

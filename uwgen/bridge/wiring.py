@@ -72,13 +72,10 @@ class Wiring:
     def __post_init__(self) -> None:
         self.throttle = LogThrottle(self.log.error, self.clock, warn=self.log.warning)
         self.loops = LoopGuard(self.node, self.log)
-        # under turns a message awaiting its answer told lost is offered again on the link's
-        # thread (copies.py); on a timer `copy_due` sends it
         self.fates = Fates(self.clock, lambda key, payload: self.withdraw(key, payload),
                            lambda key, payload, until: self.offer_once(
                                key, payload, again=self.urgent(until, answer=True)),
-                           lambda key, payload, until: self.turns() is not None and self.offer_once(
-                               key, payload, again=self.urgent(until)))
+                           self.copy_awaiting)
 
     def offer_once(self, key: int, payload: bytes, again: bool = False) -> bool:
         """Offer a command message unless an equal one still waits in the link (it would
@@ -87,6 +84,17 @@ class Wiring:
         if again:
             self.repeat(key, payload)
         return self.waiting(key, payload) or self.send(key, payload)
+
+    def copy_awaiting(self, key: int, payload: bytes, deadline: float, answer: bytes) -> bool:
+        """Under turns, a request, goal or result awaiting its answer (`answer`: the head it
+        starts with) told lost: offered again at once, on the link's thread, so it is in the
+        link before the own turn that follows the report builds its first packet (copies.py);
+        its answer takes it back, and it gets a copy in its turn when urgent. False on a
+        timer (no turns): `copy_due` sends it."""
+        if self.turns() is None or self.waiting(key, payload) or not self.send(key, payload):
+            return False
+        self.expect(answer, key, payload, echo=self.urgent(deadline))
+        return True
 
     def urgent(self, deadline: float, answer: bool = False) -> bool:
         """Whether a command sent again now has too few rounds of the MAC (`turn_gap`: a round
