@@ -31,7 +31,7 @@ def main() -> int:
         end = rounds[k + 1]["t"] if k + 1 < len(rounds) else float("inf")
         print(f"== round {i}: failed {failed.get(i, [])}")
         for r in rows:
-            if not start["t"] <= r["t"] < end or r.get("ev") in ("round",):
+            if "t" not in r or not start["t"] <= r["t"] < end or r.get("ev") in ("round",):
                 continue
             ev = r.get("ev")
             t = r["t"] - start["t"]

@@ -1,7 +1,8 @@
 """When a command's copy is due (uwgen.bridge.copies): never while an equal payload still
-waits in the link; under the turns MAC once per round, when the own turn that carried it has
-ended (whatever became of it there: lost, or delivered and refused by the receiving judge);
-otherwise on its timer."""
+waits in the link; under the turns MAC by the round, as the peer's report told its fate: at
+once when told lost, not when told arrived, a round later when nothing was told (unless
+urgent), every round once it was told arrived (delivered and refused by the receiving judge,
+or its answer lost again); otherwise on its timer."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -26,11 +27,13 @@ class Leg:
 
 
 def link(turns=None):
-    """A wiring's view of the link: what waits in it, and the own turns ended."""
-    state = SimpleNamespace(waiting=set(), turns=turns)
+    """A wiring's view of the link: what waits in it, the own turns ended, the fates told,
+    and urgency (fewer than 7 s left: 2.5 rounds of 2.8 s)."""
+    state = SimpleNamespace(waiting=set(), turns=turns, now=0.0)
     fates = Fates(ManualClock(), withdraw=lambda k, p: False, offer_again=lambda k, p, until: True)
     return state, SimpleNamespace(waiting=lambda k, p: (k, p) in state.waiting,
-                                  turns=lambda: state.turns, fates=fates)
+                                  turns=lambda: state.turns, fates=fates,
+                                  urgent=lambda deadline: deadline - state.now < 7.0)
 
 
 def test_without_turns_a_copy_is_due_on_its_timer():
@@ -51,25 +54,55 @@ def test_without_turns_a_copy_whose_message_still_waits_in_the_link_is_put_off_a
     assert copy_due(w, 20, b"req", leg, 5.5, rto=2.5)
 
 
-def test_under_turns_a_copy_is_due_once_the_turn_that_carried_it_has_ended_not_on_a_timer():
+def test_under_turns_a_copy_told_lost_is_due_once_its_turn_has_ended_not_on_a_timer():
     state, w = link(turns=7)
     leg = Leg(next_send=0.0, turn=7)                 # offered in turn 7: its timer is no matter
-    assert not copy_due(w, 20, b"req", leg, 100.0, rto=3.0)
-    state.turns = 8                                   # that turn ended: the peer's turn now
+    w.fates.told(20, b"req", arrived=False)
+    assert not copy_due(w, 20, b"req", leg, 100.0, rto=3.0)   # that turn has not ended
+    state.turns = 8
     assert copy_due(w, 20, b"req", leg, 100.0, rto=3.0)
     assert not copy_due(w, 20, b"req", leg, 100.0, rto=3.0)   # once a round
-    state.turns = 9
-    assert copy_due(w, 20, b"req", leg, 100.0, rto=3.0)
 
 
-def test_a_request_delivered_but_refused_there_unanswered_is_copied_the_next_round():
+def test_under_turns_a_copy_told_arrived_is_spared():
+    state, w = link(turns=7)
+    leg = Leg(turn=7)
+    state.turns = 8
+    w.fates.told(20, b"req", arrived=True)
+    assert not copy_due(w, 20, b"req", leg, 1.0, rto=3.0)
+
+
+def test_under_turns_with_nothing_told_the_copy_waits_a_round_for_the_next_report():
+    # the peer's report rode a packet that was lost: the request arrived four times in five,
+    # and the peer's next report names it again
+    state, w = link(turns=7)
+    leg = Leg(turn=7)
+    state.turns = 8
+    assert not copy_due(w, 20, b"req", leg, 1.0, rto=3.0, deadline=20.0)
+    state.turns = 9                                   # the next round told nothing either
+    assert copy_due(w, 20, b"req", leg, 4.0, rto=3.0, deadline=20.0)
+
+
+def test_under_turns_an_urgent_command_with_nothing_told_is_copied_at_once():
+    state, w = link(turns=7)
+    leg = Leg(turn=7)
+    state.turns, state.now = 8, 6.0
+    assert copy_due(w, 20, b"req", leg, 6.0, rto=3.0, deadline=12.0)
+
+
+def test_a_request_delivered_but_refused_there_unanswered_is_copied_every_round_but_one():
     # A request that arrived and was refused by the receiving judge (`unmeasured` before the
-    # clock exchange, `stale`, `untimed`) gets no answer: whether its packet was acknowledged
-    # does not matter, the round without an answer makes its copy due.
+    # clock exchange, `stale`, `untimed`) gets no answer: its arrival spares one copy, then
+    # a round without an answer makes the copy due, as does each round after.
     state, w = link(turns=0)
     leg = Leg(turn=0)
+    w.fates.told(20, b"req", arrived=True)
     state.turns = 1
-    assert copy_due(w, 20, b"req", leg, 1.0, rto=3.0)
+    assert not copy_due(w, 20, b"req", leg, 1.0, rto=3.0, deadline=20.0)
+    state.turns = 2
+    assert copy_due(w, 20, b"req", leg, 2.0, rto=3.0, deadline=20.0)
+    state.turns = 3
+    assert copy_due(w, 20, b"req", leg, 3.0, rto=3.0, deadline=20.0)
 
 
 def test_under_turns_a_message_that_missed_its_turn_is_copied_a_round_after_it_leaves():
@@ -81,6 +114,7 @@ def test_under_turns_a_message_that_missed_its_turn_is_copied_a_round_after_it_l
     assert leg.turn == 4
     state.waiting.clear()                            # it left in the turn that ends with 5
     assert not copy_due(w, 20, b"req", leg, 2.0, rto=3.0)
+    w.fates.told(20, b"req", arrived=False)
     state.turns = 5
     assert copy_due(w, 20, b"req", leg, 3.0, rto=3.0)
 
@@ -116,3 +150,22 @@ def test_an_arriving_answer_takes_its_copy_back_on_the_link_thread_and_only_its_
     assert taken == [(20, b"\x02\x14\x05req")]
     w.take_back(b"\x03\x14\x05resp")                 # a second answer: nothing left to take
     assert taken == [(20, b"\x02\x14\x05req")] and list(w.answered_by) == [b"\x03\x14\x06"]
+
+
+def test_a_message_awaiting_its_answer_told_lost_is_offered_at_once_under_turns_only():
+    for turns, offered in ((3, [(20, b"req", 40.0)]), (None, [])):
+        sent = []
+        w = Wiring(node=None, send=lambda k, p, published=None: sent.append((k, p, published)) or True,
+                   clock=ManualClock(),
+                   options=None, log=SimpleNamespace(error=print, warning=print), main_group=None,
+                   service_group=None)
+        w.turns = lambda: turns
+        w.withdraw = lambda k, p: sent.remove((k, p, 40.0)) is None
+        # its age item counts from its call's start, as every copy's
+        w.fates.awaiting(20, b"req", 12.0, lambda: True, b"\x03\x14\x07", published=40.0)
+        w.fates.told(20, b"req", arrived=False)
+        assert sent == offered
+        assert w.fates.lost(20, b"req") == (turns is None)       # a timer sends it then
+        if turns is not None:
+            w.take_back(b"\x03\x14\x07resp")                   # its answer takes it back
+            assert sent == []

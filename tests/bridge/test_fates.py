@@ -14,6 +14,7 @@ from uwgen.runtime.clock import ManualClock
 CALL = 20
 REQUEST = bytes((2, CALL, 7, 1))
 RESPONSE = bytes((3, CALL, 7, 3))
+ANSWER = RESPONSE[:3]
 
 
 @dataclass
@@ -267,3 +268,43 @@ def test_the_response_to_a_request_that_came_in_its_first_round_goes_alone():
     servers.serve(CALL, REQUEST + b"\x00")
     calls[-1].cb(calls[-1])
     assert sent == [(CALL, RESPONSE)] and repeated == []
+
+
+def copier():
+    """Fates whose `copy_again` records what it offers (as under turns: taken)."""
+    clock = ManualClock()
+    copied = []
+    fates = Fates(clock, lambda k, p: False, lambda k, p, until: True,
+                  lambda k, p, until, answer, published: copied.append((k, p, until)) or True)
+    return fates, copied, clock
+
+
+def test_a_request_awaiting_its_answer_told_lost_is_offered_again_at_once():
+    fates, copied, _ = copier()
+    fates.awaiting(CALL, REQUEST, 12.0, lambda: True, ANSWER)
+    fates.told(CALL, REQUEST, False)
+    assert copied == [(CALL, REQUEST, 12.0)] and fates.stats()["copied"] == 1
+    assert not fates.lost(CALL, REQUEST)             # offered: no copy left due on a timer
+
+
+def test_a_message_answered_past_its_deadline_or_told_arrived_is_not_offered_again():
+    fates, copied, clock = copier()
+    fates.awaiting(CALL, REQUEST, 12.0, lambda: False, ANSWER)    # answered meanwhile
+    fates.told(CALL, REQUEST, False)
+    other = bytes((2, CALL, 8, 1))
+    fates.awaiting(CALL, other, 12.0, lambda: True, ANSWER)
+    clock.advance(13.0)                                          # its deadline passed
+    fates.told(CALL, other, False)
+    third = bytes((2, CALL, 9, 1))
+    fates.awaiting(CALL, third, 30.0, lambda: True, ANSWER)
+    fates.told(CALL, third, True)                                # arrived: the peer has it
+    fates.told(CALL, third, False)                               # an older copy's loss
+    assert copied == []
+
+
+def test_a_copy_not_taken_on_the_link_thread_is_left_to_the_timer():
+    clock = ManualClock()
+    fates = Fates(clock, lambda k, p: False, lambda k, p, until: True, lambda k, p, until, a, published: False)
+    fates.awaiting(CALL, REQUEST, 12.0, lambda: True, ANSWER)
+    fates.told(CALL, REQUEST, False)
+    assert fates.lost(CALL, REQUEST) and fates.stats()["copied"] == 0

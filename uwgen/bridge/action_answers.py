@@ -215,7 +215,8 @@ class GoalAnswers:
                     counters.result_queries += 1
                     self.w.send(ident, codec.encode_result_status(state.handle, received=False))
                 if not state.answer.done() and not state.asking and state.payload \
-                        and copy_due(self.w, ident, state.payload, state, now, self.rtt[ident].rto):
+                        and copy_due(self.w, ident, state.payload, state, now, self.rtt[ident].rto,
+                                     state.sent_at + codec.accept_timeout):
                     rtt = self.rtt[ident]
                     rtt.backoff()
                     state.sends += 1

@@ -119,8 +119,12 @@ class ActionServers(GoalAdoption):
             self.counters[ident].results_sent += 1
             # the result is the goal's answer too: a lost answer is not repaired (fates.py)
             self.w.fates.answered_by(ident, codec.encode_answer(handle, ACCEPTED))
-        self.results[ident].sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(),
-                                 self.w.turns())
+        book = self.results[ident]
+        book.sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(), self.w.turns())
+        unacked = book.unacked[handle]
+        self.w.fates.awaiting(ident, payload, unacked.until,
+                              lambda: book.unacked.get(handle) is unacked,
+                              codec.encode_result_status(handle, received=True))
 
     # -- the link (executor thread) --------------------------------------------------------
 

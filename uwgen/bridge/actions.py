@@ -44,7 +44,7 @@ from uwgen.bridge.counters import ActionCounters
 from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.wiring import Wiring
 from uwgen.manifest.model import ACTION_HANDLES
-from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC
+from uwgen.runtime.wire.codec import KIND_REQUEST, KIND_RESPONSE, KIND_TOPIC, pack_items
 from uwgen.runtime.delivery.reliable import RttEstimator, command_rtt
 from uwgen.runtime.wire.table import ACCEPTED, CANCELED, CANCELING, SUCCEEDED
 
@@ -139,6 +139,9 @@ class ActionStandIns(GoalAnswers):
             state.payload = payload
             state.sent_at = self.w.clock.now()
             state.next_send = state.sent_at + self.rtt[codec.id].rto
+            self.w.fates.awaiting(codec.id, payload, state.sent_at + codec.accept_timeout,
+                                  lambda: not state.answer.done() and not state.asking,
+                                  pack_items([3, codec.id, state.handle]), state.sent_at)
             if await state.answer != ACCEPTED:
                 return GoalResponse.REJECT
             self._states[id(goal)] = state

@@ -4,13 +4,22 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
 
 - Never while an equal payload still waits in the link: it has not left, so a copy would
   ride the same packet (`Wiring.offer_once` offers nothing then).
-- Under the turns MAC, once per round: a copy is due when the own turn that carried the
-  message (or its last copy) has ended. The peer's turn follows that end, so its answer is
-  then on its way or lost, and the copy, offered at once, waits in the link through the
-  peer's turn and leaves first thing in the next own turn, unless the answer came
-  meanwhile: the answer takes the copy back (`Wiring.withdraw`) before it uses air time.
-  A timer cannot do this: a round is a turn and the peer's turn (seconds, and longer when a
-  turn is missed), and a copy timed on it leaves just before its answer or a round late.
+- Under the turns MAC, by the round: the peer's turn follows the end of the own turn that
+  carried the message (or its last copy), and its report tells the message's fate
+  (`uwgen.bridge.fates`). Told lost, the copy is due at once and leaves in the next own
+  turn; told arrived, none is (the answer is on its way, or repaired by the side that has
+  it). When nothing was told (the report rode a packet that was lost: most often the
+  peer's first, with the answer), the message arrived four times in five, and the peer's
+  next report tells again (its bitmap reaches back to its last report known to have
+  arrived), so the copy waits one more round: it is due once the next own turn has ended
+  too. A message told arrived before (its answer keeps being lost, or the peer's judge
+  refused it) is copied every round but the one its arrival spared. A command already
+  urgent (`Wiring.urgent`, its `deadline`) does not wait: its copy is offered as soon as its
+  own turn has ended, waits in the link through the peer's turn and leaves first thing in
+  the next own turn, unless its answer or its arrival came meanwhile and took it back
+  (`Wiring.withdraw`) before it used air time. A timer cannot do this: a round is a turn
+  and the peer's turn (seconds, and longer when a turn is missed), and a copy timed on it
+  leaves just before its answer or a round late.
 - Other MACs (none, TDMA): the retransmission timer (`uwgen.runtime.delivery.reliable
   .command_rtt`); when it fires while the message still waits in the link, the copy is put
   off by one more timeout. A packet told lost (`uwgen.bridge.fates`) makes it due at once.
@@ -33,9 +42,11 @@ class Leg(Protocol):
     turn: int | None
 
 
-def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: float) -> bool:
+def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: float,
+             deadline: float | None = None) -> bool:
     """True when the copy of `payload` (channel `key`) is to be offered now (module doc);
-    `rto`: the timer's next wait, used when it fires while the message still waits."""
+    `rto`: the timer's next wait, used when it fires while the message still waits;
+    `deadline`: its caller's (None: far off, as a result's)."""
     turns = w.turns()
     if turns is None:
         if leg.next_send > now and not w.fates.lost(key, payload):
@@ -49,8 +60,17 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
         return False
     if turns <= leg.turn:
         return False                         # the turn that carried it has not ended
+    if w.fates.lost(key, payload):
+        leg.turn = turns                     # told lost: the next own turn carries the copy
+        return True
+    if w.fates.spare(key, payload):
+        leg.turn = turns                     # told arrived: no copy this round
+        return False
+    if turns == leg.turn + 1 and not w.fates.arrived(key, payload) \
+            and not (deadline is not None and w.urgent(deadline)):
+        return False                         # nothing told yet: the peer's next report will
     leg.turn = turns                         # the copy waits from now for the next own turn
-    return not w.fates.spare(key, payload)
+    return True
 
 
 def own_turns(mac) -> Callable[[], int | None]:

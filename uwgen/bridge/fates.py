@@ -19,9 +19,12 @@ segments let a sender retransmit exactly what is missing:
 - **lost**: an answer (a service's response, a goal's answer) is offered again by the side
   that has it (`repairable`, until its caller's deadline), at once: the caller need not send
   its request again for it (`repaired`); not a goal's answer once its result was offered
-  (`answered_by`: the result says accepted, and goes again itself); a request, goal or
-  result waiting for its answer is due again at once under a timer (`copy_due` asks
-  `lost`) instead of after its timeout.
+  (`answered_by`: the result says accepted, and goes again itself). A request, goal or
+  result still waiting for its answer (`awaiting`) is offered again at once too, on the
+  link's thread (`copied`), so that under turns it is in the link before the own turn that
+  follows the report builds its first packet; when that copy is not taken (no turns: the
+  timer decides), it is due again at once under a timer (`copy_due` asks `lost`) instead of
+  after its timeout.
 
 A fate names a message by its bytes as the bridge offered them (no head): a command's bytes
 are unique while it is alive (its seq or handle), and what is kept is bounded (KEPT).
@@ -41,14 +44,21 @@ class Fates:
     """The fates told of this side's command messages, and the answers it repairs."""
 
     def __init__(self, clock: Clock, withdraw: Callable[[int, bytes], bool],
-                 offer_again: Callable[[int, bytes, float], bool]):
+                 offer_again: Callable[[int, bytes, float], bool],
+                 copy_again: Callable[[int, bytes, float, bytes, float | None], bool] =
+                 lambda k, p, until, answer, published: False):
         self.clock, self.withdraw, self.offer_again = clock, withdraw, offer_again
+        self.copy_again = copy_again    # a message awaiting its answer, told lost: offered?
         self._lock = threading.Lock()
         # told arrived -> whether that arrival may still spare a copy (`spare`, once)
         self._arrived: OrderedDict[tuple[int, bytes], bool] = OrderedDict()
         self._lost: OrderedDict[tuple[int, bytes], bool] = OrderedDict()
         self._repairable: OrderedDict[tuple[int, bytes], float] = OrderedDict()   # -> until
-        self.counts = {"arrived": 0, "lost": 0, "spared": 0, "repaired": 0}
+        # a request, goal or result waiting for its answer -> (until, whether it still waits,
+        # its answer's head, when its call began)
+        self._awaiting: OrderedDict[tuple[int, bytes],
+                                    tuple[float, Callable[[], bool], bytes, float | None]] = OrderedDict()
+        self.counts = {"arrived": 0, "lost": 0, "spared": 0, "repaired": 0, "copied": 0}
 
     def told(self, key: int, payload: bytes, arrived: bool) -> None:
         """The link's report: `payload` (channel `key`) arrived, or its packet was lost. On
@@ -60,25 +70,37 @@ class Fates:
                 self.counts["arrived"] += 1
                 self._lost.pop(item, None)
                 self._repairable.pop(item, None)          # the peer has it: nothing to repair
+                self._awaiting.pop(item, None)
                 self.counts["spared"] += spared
                 _remember(self._arrived, item, not spared)
             return
         with self._lock:
             self.counts["lost"] += 1
+            now = self.clock.now()
             until = self._repairable.get(item)
-            repair = until is not None and self.clock.now() < until
-            if not repair:
-                _remember(self._lost, item, True)
-        if repair and self.offer_again(key, item[1], until):
+            repair = until is not None and now < until
+            waits = self._awaiting.get(item)
+        if repair:
+            if self.offer_again(key, item[1], until):
+                with self._lock:
+                    self.counts["repaired"] += 1
+            return
+        if waits is not None:
+            deadline, alive, answer, published = waits
+            waits = now < deadline and alive() and (deadline, answer, published)
+        if waits and self.copy_again(key, item[1], *waits):
             with self._lock:
-                self.counts["repaired"] += 1
+                self.counts["copied"] += 1
+            return
+        with self._lock:
+            _remember(self._lost, item, True)
 
     def forget(self, key: int, payload: bytes) -> None:
         """`payload` is offered anew (a new goal or result may repeat an old one's bytes on a
         reused handle): what was told of earlier ones is not about it."""
         with self._lock:
             item = (key, bytes(payload))
-            for table in (self._arrived, self._lost, self._repairable):
+            for table in (self._arrived, self._lost, self._repairable, self._awaiting):
                 table.pop(item, None)
 
     def arrived(self, key: int, payload: bytes) -> bool:
@@ -96,6 +118,19 @@ class Fates:
             self._repairable.move_to_end(item)
             while len(self._repairable) > KEPT:
                 self._repairable.popitem(last=False)
+
+    def awaiting(self, key: int, payload: bytes, until: float, alive: Callable[[], bool],
+                 answer: bytes, published: float | None = None) -> None:
+        """A request, goal or result this side sent waits for its answer (whose payload starts
+        with `answer`) until `until` (its deadline), while `alive()` (read on the link's
+        thread): told lost, it is offered again at once (`copy_again`), its age item counted
+        from `published` (its call's start; None: now)."""
+        with self._lock:
+            item = (key, bytes(payload))
+            self._awaiting[item] = (until, alive, bytes(answer), published)
+            self._awaiting.move_to_end(item)
+            while len(self._awaiting) > KEPT:
+                self._awaiting.popitem(last=False)
 
     def answered_by(self, key: int, payload: bytes) -> None:
         """A later message answers for `payload` (a goal's result: the client side takes it

@@ -147,8 +147,10 @@ class StandIns:
             rtt = self.rtt.get(codec.id)
             if rtt is not None:
                 now = self.w.clock.now()
-                self.outgoing[(codec.id, pending.seq)] = Outgoing(payload, now, now + rtt.rto,
-                                                                  turn=self.w.turns())
+                key = (codec.id, pending.seq)
+                self.outgoing[key] = Outgoing(payload, now, now + rtt.rto, turn=self.w.turns())
+                self.w.fates.awaiting(codec.id, payload, pending.deadline,
+                                      lambda: key in self.outgoing, query(3, *key), now)
             result = await future
             if result is None:
                 return self._failed_reply(response)
@@ -196,7 +198,9 @@ class StandIns:
         now = self.w.clock.now()
         for (ident, seq), outgoing in list(self.outgoing.items()):
             rtt = self.rtt[ident]
-            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto):
+            pending = self.calls.get(ident, seq)
+            if not copy_due(self.w, ident, outgoing.payload, outgoing, now, rtt.rto,
+                            None if pending is None else pending.deadline):
                 continue
             rtt.backoff()
             outgoing.sends += 1
@@ -204,7 +208,6 @@ class StandIns:
             self.counters[ident].request_resends += 1
             # same seq: served once there; its age item is the call's (wire-format 15.6)
             if self.w.send(ident, outgoing.payload, published=outgoing.first_sent):
-                pending = self.calls.get(ident, seq)
                 self.w.expect(query(3, ident, seq), ident, outgoing.payload,
                               echo=pending is not None and self.w.urgent(pending.deadline))
         self._ask(now)

@@ -77,7 +77,8 @@ class Wiring:
         self.loops = LoopGuard(self.node, self.log)
         self.fates = Fates(self.clock, lambda key, payload: self.withdraw(key, payload),
                            lambda key, payload, until: self.offer_once(
-                               key, payload, again=self.urgent(until, answer=True)))
+                               key, payload, again=self.urgent(until, answer=True)),
+                           self.copy_awaiting)
 
     def offer_once(self, key: int, payload: bytes, again: bool = False) -> bool:
         """Offer a command message unless an equal one still waits in the link (it would
@@ -86,6 +87,22 @@ class Wiring:
         if again:
             self.repeat(key, payload)
         return self.waiting(key, payload) or self.send(key, payload)
+
+    def copy_awaiting(self, key: int, payload: bytes, deadline: float, answer: bytes,
+                      published: float | None = None) -> bool:
+        """Under turns, a request, goal or result awaiting its answer (`answer`: the head it
+        starts with) told lost: offered again at once, on the link's thread, so it is in the
+        link before the own turn that follows the report builds its first packet (copies.py);
+        its age item counts from `published` (its call's start, as every copy's), its answer
+        takes it back, and it gets a copy in its turn when urgent. False on a timer (no
+        turns): `copy_due` sends it."""
+        if self.turns() is None or self.waiting(key, payload):
+            return False
+        if not (self.send(key, payload) if published is None
+                else self.send(key, payload, published=published)):
+            return False
+        self.expect(answer, key, payload, echo=self.urgent(deadline))
+        return True
 
     def urgent(self, deadline: float, answer: bool = False) -> bool:
         """Whether a command sent again now has too few rounds of the MAC (`turn_gap`: a round
