@@ -83,6 +83,16 @@ def test_under_turns_with_nothing_told_the_copy_waits_a_round_for_the_next_repor
     assert copy_due(w, 20, b"req", leg, 4.0, rto=3.0, deadline=20.0)
 
 
+def test_under_turns_a_result_with_nothing_told_waits_two_rounds_for_the_peers_news():
+    state, w = link(turns=7)
+    leg = Leg(turn=7)
+    for turns in (8, 9):                              # the report lost, and none since
+        state.turns = turns
+        assert not copy_due(w, 9, b"result", leg, 1.0, rto=3.0)
+    state.turns = 10
+    assert copy_due(w, 9, b"result", leg, 1.0, rto=3.0)
+
+
 def test_under_turns_an_urgent_command_with_nothing_told_is_copied_at_once():
     state, w = link(turns=7)
     leg = Leg(turn=7)

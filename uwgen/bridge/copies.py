@@ -12,7 +12,8 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   peer's first, with the answer), the message arrived four times in five, and the peer's
   next report tells again (its bitmap reaches back to its last report known to have
   arrived), so the copy waits one more round: it is due once the next own turn has ended
-  too. A message told arrived before (its answer keeps being lost, or the peer's judge
+  too. A result, with no near deadline, waits two (`NEWS_ROUNDS`): the client side reports
+  it again on its news, every second round, when no command of the server side asks sooner. A message told arrived before (its answer keeps being lost, or the peer's judge
   refused it) is copied every round but the one its arrival spared. A command already
   urgent (`Wiring.urgent`, its `deadline`) does not wait: its copy is offered as soon as its
   own turn has ended, waits in the link through the peer's turn and leaves first thing in
@@ -35,6 +36,13 @@ from typing import TYPE_CHECKING, Callable, Protocol
 
 if TYPE_CHECKING:
     from uwgen.bridge.wiring import Wiring
+
+
+# Rounds a message with no near deadline (a result: `result_timeout`, many rounds) waits,
+# when nothing was told, for what the peer's reports say: when the report that named it was
+# lost and no command of ours asks for another, the peer reports its news every second round
+# (`ack_interval`, docs/wire-format.md section 15.2).
+NEWS_ROUNDS = 2
 
 
 class Leg(Protocol):
@@ -66,7 +74,8 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
     if w.fates.spare(key, payload):
         leg.turn = turns                     # told arrived: no copy this round
         return False
-    if turns == leg.turn + 1 and not w.fates.arrived(key, payload) \
+    rounds = 1 if deadline is not None else NEWS_ROUNDS
+    if turns <= leg.turn + rounds and not w.fates.arrived(key, payload) \
             and not (deadline is not None and w.urgent(deadline)):
         return False                         # nothing told yet: the peer's next report will
     leg.turn = turns                         # the copy waits from now for the next own turn
