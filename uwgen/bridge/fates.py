@@ -87,11 +87,11 @@ class Fates:
             return
         if waits is not None:
             deadline, alive, answer, published = waits
-            waits = now < deadline and alive() and (deadline, answer, published)
-        if waits and self.copy_again(key, item[1], *waits):
-            with self._lock:
-                self.counts["copied"] += 1
-            return
+            if now < deadline and alive() and self.copy_again(key, item[1], deadline, answer,
+                                                               published):
+                with self._lock:
+                    self.counts["copied"] += 1
+                return
         with self._lock:
             _remember(self._lost, item, True)
 

@@ -96,10 +96,8 @@ class Wiring:
         its age item counts from `published` (its call's start, as every copy's), its answer
         takes it back, and it gets a copy in its turn when urgent. False on a timer (no
         turns): `copy_due` sends it."""
-        if self.turns() is None or self.waiting(key, payload):
-            return False
-        if not (self.send(key, payload) if published is None
-                else self.send(key, payload, published=published)):
+        if self.turns() is None or self.waiting(key, payload) \
+                or not self.send(key, payload, published=published):
             return False
         self.expect(answer, key, payload, echo=self.urgent(deadline))
         return True
