@@ -118,3 +118,17 @@ def test_with_a_guard_covering_a_packet_both_sides_speak_in_the_first_frame(lost
             assert heard[side] is not None and heard[side] < start + 3 * frame, (start, side, heard)
         if lost is None:
             assert max(heard.values()) < start + 2 * frame, (start, heard)
+
+
+@pytest.mark.parametrize("side", ["surface", "vehicle"])
+def test_with_a_guard_covering_a_packet_a_side_that_restarts_writes_at_once_without_a_collision(side):
+    # its blind packet, started anywhere in its ON window, ends before the other's slot:
+    # the other side's timed packets are never met, and the side finds its slot within two frames
+    frame = BENCH.frame
+    for k in range(4):
+        when = 30.0 + k * frame / 4
+        counters, delivered, macs = run({"surface": 0.0, "vehicle": 0.0}, when + 4 * frame,
+                                        config=BENCH, restart=(side, when))
+        assert collisions(counters) == 0, when
+        assert macs[side].stats()["blind_writes"] <= 1, when      # none when it heard first
+        assert any(when < t < when + 2 * frame for t in delivered[side]), when
