@@ -135,7 +135,8 @@ class Reliability:
         self.on_fate: Callable[[int, bytes, bool], None] | None = None
         self.report_bytes = 0                         # A parts written (with their length byte)
         self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
-        self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
+        self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval,
+                              eager=TIMED_REPORTS if clock_exchange and self.max_ages else 0)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
         self._rx: tuple[int, bytes, int | None] | None = None
