@@ -27,7 +27,9 @@ The link is the demo's: 64 B every 0.2 s, 4800 bit/s, 1000 m (about 0.67 s each 
 
 `--trace FILE` writes a JSON line per command payload offered, taken back and arriving, per
 refusal of the receiving judge and per packet taken for writing (its number, its size, its
-messages' heads and each message as the bridge offered it: air time, first or copy);
+messages' heads and each message as the bridge offered it: air time, first or copy), and
+the emulator's account of the channel (each packet it sent, each loss and its cause, as
+`"ev": "emu"` lines: a collision beside the packets the bridges wrote);
 `benchmarks/trace_commands.py FILE` prints, for each failed call or goal, what became of
 its messages (each leg's copies, the packets that carried them, what arrived, refusals).
 
@@ -40,6 +42,7 @@ import argparse
 import gc
 import itertools
 import json
+import logging
 import os
 import random
 import sys
@@ -269,6 +272,23 @@ def trace(side: str, bridge: BridgeNode) -> None:
     bridge.wiring.withdraw = withdrawing
 
 
+class ChannelTrace(logging.Handler):
+    """The emulator's own account of the channel (each packet sent, each loss and its cause,
+    at its DEBUG level) as trace lines, `"ev": "emu"`: a collision's time beside the packets
+    the bridges wrote."""
+
+    def emit(self, record: logging.LogRecord) -> None:     # Handler.handle holds its lock
+        TRACE.write(json.dumps({"t": round(time.monotonic(), 3), "ev": "emu",
+                                "msg": record.getMessage()}) + "\n")
+
+
+def trace_channel() -> None:
+    emulator = logging.getLogger("uwgen.emulator.core")
+    emulator.setLevel(logging.DEBUG)
+    emulator.propagate = False                 # its lines go to the trace, not the console
+    emulator.addHandler(ChannelTrace(logging.DEBUG))
+
+
 def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
         mac: str = "none") -> dict:
     scen = scenario(per, seed, mac)
@@ -415,11 +435,13 @@ def main() -> int:
     ap.add_argument("--breakdown", action="store_true",
                     help="after each row, the retry+ack bytes by what they are (share of bytes written)")
     ap.add_argument("--trace", help="write a JSON line per command payload, refusal and "
-                                    "packet here (benchmarks/trace_commands.py reads it)")
+                                    "packet here, and the emulator's packets and losses "
+                                    "(benchmarks/trace_commands.py reads it)")
     args = ap.parse_args()
     global TRACE
     if args.trace:
         TRACE = open(args.trace, "w", buffering=1)
+        trace_channel()
     macs = args.mac.split(",")
     unknown = [m for m in macs if m not in MACS]
     if unknown:

@@ -195,6 +195,46 @@ def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal
 
 
 @pytest.fixture(scope="module")
+def patient_long_fib_codec(tmp_path_factory):
+    """/fib with a 4 s accept_timeout and a 12 s result_timeout: a goal outlives a restart
+    and the 2 s its copy may wait for the local server."""
+    root = tmp_path_factory.mktemp("longacts")
+    (root / "pkg" / "msg").mkdir(parents=True)
+    (root / "pkg" / "msg" / "Unused.msg").write_text("int8 x\n")
+    (root / "uwgen.yaml").write_text(MANIFEST.replace("accept_timeout: 0.5", "accept_timeout: 4")
+                                     .replace("result_timeout: 3", "result_timeout: 12"))
+    return generate(tmp_path_factory.mktemp("gen"), "uwgen_longacts", folders=[root],
+                    manifest=root / "uwgen.yaml").ACTIONS[9]
+
+
+def test_a_goal_copy_held_past_its_budget_with_no_server_seen_is_not_answered_rejected(
+        patient_long_fib_codec, monkeypatch):
+    """The server-side bridge is killed while its goal runs, and the new one sees neither the
+    local server nor its goal list while the goal's copy waits out its budget (2 s): the
+    server may be one not discovered yet, running the goal, so the copy is dropped unanswered,
+    not answered "rejected". Once the server and its list are seen, the running goal is
+    adopted and the caller gets its real result; the goal ran once."""
+    with killed_mid_goal(patient_long_fib_codec, delay=5.0) as (restart, links, results, goal_handle):
+        release = hold_list(monkeypatch)
+        again = restart()
+        client, seen = again.action_servers.served[9][1], threading.Event()
+        ready = client.server_is_ready
+        client.server_is_ready = lambda: seen.is_set() and ready()
+        copy = links.links["surface"].offered(9)[0]
+        links.links["vehicle"].inject(copy)                       # the goal's copy
+        wait_for(lambda: counted(again)["no_server"] == 1, what="the copy's budget over")
+        rejected = patient_long_fib_codec.encode_answer(patient_long_fib_codec.decode_request(copy)[0], 0)
+        assert rejected not in links.links["vehicle"].offered(9)
+        seen.set()
+        release(again)
+        wait_for(lambda: counted(again)["orphans_adopted"] == 1, what="the running goal adopted")
+        future = goal_handle.get_result_async()
+        wait_for(future.done, timeout=15.0, what="the goal's result")
+        assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+        assert results == [5] and rejected not in links.links["vehicle"].offered(9)
+
+
+@pytest.fixture(scope="module")
 def slow_fib_codec(tmp_path_factory):
     """/fib with a 20 s accept_timeout (a copy is a repeat for 30 s after its goal came, far
     longer than a restart takes here) and a 30 s result_timeout."""

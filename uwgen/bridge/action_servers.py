@@ -362,6 +362,17 @@ class ActionServers(GoalAdoption):
                 del goals[handle]
                 if entry.sent is None:
                     counters.no_server += 1
+                    if not self.watches[ident].heard_or_grace(now):
+                        # The goal list is not known: this may be the copy of a goal a
+                        # previous start left running on a server not seen yet (orphans.py),
+                        # and "rejected" would then lie. Not run, not answered: the client
+                        # side asks, and is answered once the list is known.
+                        say(f"anounlisted{ident}", f"{codec.name}: goal {handle} not run: no "
+                                                   f"local action server appeared within "
+                                                   f"{codec.accept_timeout / 2:g} s; the client "
+                                                   "side is answered once the server's goal "
+                                                   "list is known")
+                        continue
                     say(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no local "
                                              f"action server appeared within "
                                              f"{codec.accept_timeout / 2:g} s")
