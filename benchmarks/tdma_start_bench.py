@@ -11,8 +11,9 @@ commands_bench's link and TDMA (frame 3 s, guard 0.8 s, 1000 m, 64 B every 0.2 s
 covers a packet and the range) with no random loss: the emulator loses exactly the named
 side's first packet. Both bridges start together; the call leaves `--at` seconds later (3 s,
 as commands_bench's first call) and fails after the service's 12 s timeout. Per case it
-prints each repeat's seconds from the start to the answer (or `failed`), and the first
-packet each side heard from the other. Uses ROS_DOMAIN_ID and the next one.
+prints each repeat's seconds from the start to the answer (or `failed`), and when each side
+first heard the other. The repeats start the bridges at phases spread over DESERT's frame.
+Uses ROS_DOMAIN_ID and the next one.
 """
 from __future__ import annotations
 
@@ -32,6 +33,7 @@ from commands_bench import Side, build_package   # the same manifest and ROS sid
 from commands_sim import scenario
 
 TIMEOUT = 12.0      # the bench manifest's /echo timeout
+FRAME = 3.0         # commands_sim's TDMA frame: the repeats start the bridges across it
 
 
 def lose_first(emu: Emulator, source: str | None) -> dict[str, float]:
@@ -57,14 +59,16 @@ def lose_first(emu: Emulator, source: str | None) -> dict[str, float]:
     return first
 
 
-def trial(package, lost: str | None, at: float, listen: bool, seed: int) -> tuple[float | None, dict]:
-    scen = scenario(0.0, seed, "tdma")
+def trial(package, lost: str | None, at: float, listen: bool, phase: float) -> tuple[float | None, dict]:
+    """One start, the bridges `phase` s after DESERT's (the emulator's) frame began."""
+    scen = scenario(0.0, 1, "tdma")
     emu = Emulator(scen)
     first = lose_first(emu, lost)
     safe = slot_timing.blind_safe
     if listen:
         slot_timing.blind_safe = lambda config, link: False
     emu.start()
+    time.sleep(phase)
     sides = {}
     try:
         sides = {name: Side(name) for name in ("surface", "vehicle")}
@@ -72,7 +76,7 @@ def trial(package, lost: str | None, at: float, listen: bool, seed: int) -> tupl
         for name, side in sides.items():
             plan = BridgePlan.from_package(package, name)
             side.executor.add_node(BridgeNode(plan, plan.options(port=emu.port(name), status_period=0),
-                                              context=side.context, rng=random.Random(seed)))
+                                              context=side.context, rng=random.Random(1)))
 
         def serve(req, resp):
             resp.int32_value = req.int32_value * 3
@@ -99,7 +103,8 @@ def trial(package, lost: str | None, at: float, listen: bool, seed: int) -> tupl
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--at", type=float, default=3.0, help="s after the start the call leaves")
-    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="starts per case, the bridges at phases spread over the frame")
     args = ap.parse_args()
     package = build_package("tdma")
     print(f"| first packet lost | mode | answered (s after start; call at {args.at:g} s, "
@@ -107,7 +112,8 @@ def main() -> int:
     print("|---|---|---|---|")
     for lost in (None, "surface", "vehicle"):
         for listen in (True, False):
-            got = [trial(package, lost, args.at, listen, seed) for seed in range(1, args.repeats + 1)]
+            got = [trial(package, lost, args.at, listen, k * FRAME / args.repeats)
+                   for k in range(args.repeats)]
             cells = ", ".join("failed" if a is None else f"{a:.1f}" for a, _ in got)
             heard = ", ".join("/".join(f"{h.get(s, float('nan')):.1f}" for s in ("vehicle", "surface"))
                               for _, h in got)
