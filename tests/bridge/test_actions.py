@@ -141,18 +141,21 @@ def test_a_goal_that_comes_before_the_server_is_discovered_waits_for_it(pair):
 
 
 def test_a_goal_with_no_server_is_rejected_after_waiting(pair):
-    """Held for the local server, then rejected. A copy that comes after the rejection left
-    (a loaded machine's answer can trail the client side's copy timer) is a new goal on the
-    handle and waits too: every goal held is rejected, none sent."""
+    """Held for the local server, then rejected, once the server's goal list counts as known
+    (orphans.STATUS_GRACE after start: a server not seen yet could be running the goal it
+    copies). A copy that comes after the rejection left (a loaded machine's answer can trail
+    the client side's copy timer) is a new goal on the handle and waits too: every goal held
+    is rejected, none sent."""
     surface, vehicle, bridges, links = pair
     client = ActionClient(surface.node("op"), Fibonacci, "/fib")
     assert client.wait_for_server(timeout_sec=5.0)
     assert not send_goal(client).accepted
     served = bridges["vehicle"].action_servers
-    wait_for(lambda: not served.goals[9] and counted(bridges["vehicle"])["no_server"] >= 1,
-             what="no_server counted, nothing waiting")
+    wait_for(lambda: not served.goals[9] and not served._unlisted
+             and counted(bridges["vehicle"])["answers"] >= 1, timeout=20.0,
+             what="the goal rejected by the server side, nothing waiting")
     status = counted(bridges["vehicle"])
-    assert status["waited"] == status["no_server"] and status["answers"] >= 1
+    assert status["waited"] == status["no_server"] >= 1
 
 
 def drop_replies(link, count: int) -> list:

@@ -117,15 +117,21 @@ def test_a_goal_that_finished_while_the_server_side_bridge_was_down_reports_its_
     assert counted(bridges["surface"])["goals_lost_there"] == 0
 
 
+def fib_codec_with(tmp_path_factory, name: str, accept: float, result: float = 3):
+    """/fib of test_actions' manifest with another accept_timeout and result_timeout."""
+    root = tmp_path_factory.mktemp(name)
+    (root / "pkg" / "msg").mkdir(parents=True)
+    (root / "pkg" / "msg" / "Unused.msg").write_text("int8 x\n")
+    manifest = MANIFEST.replace("accept_timeout: 0.5", f"accept_timeout: {accept:g}")
+    (root / "uwgen.yaml").write_text(manifest.replace("result_timeout: 3", f"result_timeout: {result:g}"))
+    return generate(tmp_path_factory.mktemp("gen"), f"uwgen_{name}", folders=[root],
+                    manifest=root / "uwgen.yaml").ACTIONS[9]
+
+
 @pytest.fixture(scope="module")
 def patient_fib_codec(tmp_path_factory):
     """/fib with a 4 s accept_timeout: a goal may wait 2 s for the local server's list."""
-    root = tmp_path_factory.mktemp("patientacts")
-    (root / "pkg" / "msg").mkdir(parents=True)
-    (root / "pkg" / "msg" / "Unused.msg").write_text("int8 x\n")
-    (root / "uwgen.yaml").write_text(MANIFEST.replace("accept_timeout: 0.5", "accept_timeout: 4"))
-    return generate(tmp_path_factory.mktemp("gen"), "uwgen_patientacts", folders=[root],
-                    manifest=root / "uwgen.yaml").ACTIONS[9]
+    return fib_codec_with(tmp_path_factory, "patientacts", accept=4)
 
 
 def hold_list(monkeypatch):
@@ -198,13 +204,7 @@ def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal
 def patient_long_fib_codec(tmp_path_factory):
     """/fib with a 4 s accept_timeout and a 12 s result_timeout: a goal outlives a restart
     and the 2 s its copy may wait for the local server."""
-    root = tmp_path_factory.mktemp("longacts")
-    (root / "pkg" / "msg").mkdir(parents=True)
-    (root / "pkg" / "msg" / "Unused.msg").write_text("int8 x\n")
-    (root / "uwgen.yaml").write_text(MANIFEST.replace("accept_timeout: 0.5", "accept_timeout: 4")
-                                     .replace("result_timeout: 3", "result_timeout: 12"))
-    return generate(tmp_path_factory.mktemp("gen"), "uwgen_longacts", folders=[root],
-                    manifest=root / "uwgen.yaml").ACTIONS[9]
+    return fib_codec_with(tmp_path_factory, "longacts", accept=4, result=12)
 
 
 def test_a_goal_copy_held_past_its_budget_with_no_server_seen_is_not_answered_rejected(
@@ -238,13 +238,7 @@ def test_a_goal_copy_held_past_its_budget_with_no_server_seen_is_not_answered_re
 def slow_fib_codec(tmp_path_factory):
     """/fib with a 20 s accept_timeout (a copy is a repeat for 30 s after its goal came, far
     longer than a restart takes here) and a 30 s result_timeout."""
-    root = tmp_path_factory.mktemp("slowacts")
-    (root / "pkg" / "msg").mkdir(parents=True)
-    (root / "pkg" / "msg" / "Unused.msg").write_text("int8 x\n")
-    (root / "uwgen.yaml").write_text(MANIFEST.replace("accept_timeout: 0.5", "accept_timeout: 20")
-                                     .replace("result_timeout: 3", "result_timeout: 30"))
-    return generate(tmp_path_factory.mktemp("gen"), "uwgen_slowacts", folders=[root],
-                    manifest=root / "uwgen.yaml").ACTIONS[9]
+    return fib_codec_with(tmp_path_factory, "slowacts", accept=20, result=30)
 
 
 @pytest.fixture

@@ -54,6 +54,9 @@ class ActionServers(GoalAdoption):
         self.watches: dict[int, OrphanWatch] = {}          # id -> its status topic reader
         self._rng = random.SystemRandom()
         self._deferred: set[tuple[int, int]] = set()       # result requests answered later
+        # goals whose wait for a local server ended before its goal list was known: answered
+        # once it is (id, handle) -> (payload, arrived); never sent to the server
+        self._unlisted: dict[tuple[int, int], tuple[bytes, float]] = {}
         for codec in codecs:
             counters[codec.id] = ActionCounters()
             cls = wiring.ros_class(codec, "action")
@@ -351,6 +354,10 @@ class ActionServers(GoalAdoption):
                 if handle not in self.goals[ident]:
                     self.counters[ident].result_queries -= 1   # counted when it came
                     self._result_status(ident, handle, False)
+        for (ident, handle), (payload, arrived) in list(self._unlisted.items()):
+            if self.watches[ident].heard_or_grace(now):
+                del self._unlisted[(ident, handle)]
+                self._answer_unlisted(ident, handle, payload, arrived)
         for ident, goals in self.goals.items():
             codec, client = self.served[ident]
             counters = self.counters[ident]
@@ -365,13 +372,8 @@ class ActionServers(GoalAdoption):
                     if not self.watches[ident].heard_or_grace(now):
                         # The goal list is not known: this may be the copy of a goal a
                         # previous start left running on a server not seen yet (orphans.py),
-                        # and "rejected" would then lie. Not run, not answered: the client
-                        # side asks, and is answered once the list is known.
-                        say(f"anounlisted{ident}", f"{codec.name}: goal {handle} not run: no "
-                                                   f"local action server appeared within "
-                                                   f"{codec.accept_timeout / 2:g} s; the client "
-                                                   "side is answered once the server's goal "
-                                                   "list is known")
+                        # and "rejected" would then lie. Not run; answered once it is known.
+                        self._unlisted[(ident, handle)] = (entry.payload, entry.arrived)
                         continue
                     say(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no local "
                                              f"action server appeared within "

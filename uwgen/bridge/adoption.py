@@ -2,7 +2,8 @@
 goal list shows (uwgen.bridge.orphans says when and why; docs/wire-format.md section 13,
 "Restarts"): a running goal of a predecessor is adopted, or cancelled when its handle carries
 a newer goal; a goal that finished while no bridge watched it hands its kept result to the
-client side when asked, or when its copy comes. The half of
+client side when asked, or when its copy comes; a goal held for a local server that did not
+appear before the list was known is answered from the list once it is. The half of
 `uwgen.bridge.action_servers.ActionServers` that takes goals over; the rest of that class
 sets up what these read.
 """
@@ -13,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 from rclpy.task import Future
 
 from uwgen.bridge.action_results import REPEAT_WINDOW, Served
-from uwgen.runtime.wire.table import ACCEPTED
+from uwgen.runtime.wire.table import ACCEPTED, REJECTED
 
 if TYPE_CHECKING:
     from uwgen.bridge.counters import ActionCounters
@@ -95,3 +96,18 @@ class GoalAdoption:
         self._answer(ident, handle, ACCEPTED,
                      again=self.w.answer_urgent(self.w.began(payload, came - age), accept))
         return True
+
+    def _answer_unlisted(self, ident: int, handle: int, payload: bytes, arrived: float) -> None:
+        """A goal whose wait for a local server ended before the server's goal list was known,
+        now that it is: the running goal it copies was adopted (its result answers), or the
+        finished one it copies answers; else no server ran it: rejected."""
+        if handle in self.goals[ident]:
+            return                        # adopted from the list, or a newer goal came
+        if self._copy_of_finished(ident, handle, payload, arrived):
+            self.counters[ident].duplicate_goals += 1
+            return
+        codec = self.served[ident][0]
+        self.w.throttle.report(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no "
+                                                    f"local action server appeared within "
+                                                    f"{codec.accept_timeout / 2:g} s")
+        self._answer(ident, handle, REJECTED)

@@ -91,7 +91,7 @@ class ActionCounters:
     waited: int = 0           # goals that came before the local server was discovered, or
                               # before its goal list was known (orphans.py), and waited
     no_server: int = 0        # no local action server within accept_timeout / 2: rejected
-                              # (dropped unanswered while the goal list is unknown)
+                              # (once the goal list is known, if it does not show it)
     server_timeouts: int = 0  # the local server did not answer or finish in time
     server_gone: int = 0      # goals aborted because the local server disappeared
     server_errors: int = 0    # the local goal, cancel or result call failed
