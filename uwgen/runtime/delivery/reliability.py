@@ -113,8 +113,7 @@ class Reliability:
         self.engine = ReliableLink(sender, RttEstimator(first, period + turn_gap, 60.0, period),
                                    ack_delay=self.ack_delay)
         self._timed_reports = 0                       # packets with A and T since a peer's start
-        self._last_timed_report = -float("inf")
-        self._want_time = False
+        self._last_timed_report, self._want_time = -float("inf"), False
         self._probes, self._next_probe = 0, -float("inf")   # clock probes sent, the next one
         self.clock_exchange = clock_exchange          # probe and answer at start (the bridge's)
         self.counters = Counters(COUNTERS)
