@@ -14,6 +14,9 @@ from uwgen.runtime.delivery.clock_offset import ClockOffsets, sample
 from uwgen.runtime.delivery.freshness import stamp
 from uwgen.runtime.delivery.staleness import Staleness
 
+from uwgen.runtime.wire import envelope
+from uwgen.runtime.wire.framing import ShortFrameDecoder
+
 from runtime.test_reliability_link import BEST_EFFORT, duplex, numbers
 
 COMMAND = LinkPolicy(queue="fifo", depth=8)
@@ -186,6 +189,43 @@ def test_the_probes_at_start_measure_both_clocks_before_any_command_and_then_sto
     quiet, _ = duplex(max_ages={7: 30.0, 9: MAX_AGE})          # without: no packet at all
     quiet.run(20.0)
     assert quiet.links["a"].stats()["packets"]["packets_sent"] == 0
+
+
+def exchange_with_traffic(drop: tuple[int, ...] = ()):
+    """a probes; b sends a best-effort topic every 0.5 s (its clock 4 s ahead), with its
+    writes `drop` lost. Returns (sim, reliabilities, b's packets as (when written, envelope))."""
+    sim, rel = duplex(max_ages={7: 30.0, 9: MAX_AGE}, offsets={"b": 4.0}, clock_exchange=True)
+    b = sim.links["b"]
+    b.add_channel(4, BEST_EFFORT)
+    for i in range(40):
+        sim.at(0.2 + i * 0.5, lambda i=i: b.offer(4, bytes((0, 4, i))))
+    sent = []
+    take = b.connection.outbox.take
+
+    def spy(now, pull, fit=None):
+        batch = take(now, pull, fit)
+        sent.extend((now, envelope.decode(f)) for f in ShortFrameDecoder().feed(batch))
+        return batch
+    b.connection.outbox.take = spy
+    sim.drop("b", *drop)
+    return sim, rel, sent
+
+
+def test_at_start_every_packet_reports_with_t_so_lost_reports_delay_the_exchange_by_a_packet():
+    # b's first packets after hearing a each carry a report of a's packets and T (the clock
+    # exchange, wire-format 15.5): with its first two such packets lost, a measures b's
+    # clock from the next one, not from a report due an ack interval later (a TDMA frame
+    # or more while a refuses b's answers `unmeasured`)
+    sim, rel, sent = exchange_with_traffic()
+    sim.run(12.0)
+    reports = [i for i, (_, e) in enumerate(sent) if e.ack is not None and e.time is not None]
+    assert reports[:4] == list(range(reports[0], reports[0] + 4))        # back to back
+    lost = tuple(reports[:2])
+    sim, rel, sent = exchange_with_traffic(drop=lost)
+    sim.run(12.0)
+    after = sent[lost[-1] + 1][0]                   # b's next write after those lost
+    assert rel["a"].first_offset_at[2] < after + 1.0
+    assert abs(rel["a"].offsets.of(2).offset - 4.0) <= rel["a"].offsets.of(2).error
 
 
 def test_a_stepped_clock_is_measured_anew_not_averaged_with_its_past():

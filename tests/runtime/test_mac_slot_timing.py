@@ -88,14 +88,30 @@ def settled(mac: TdmaMac, at: float) -> float:
 
 
 def test_a_side_that_has_heard_nothing_listens_before_it_writes():
-    # the first slot's side listens LISTEN_FRAMES frames, the others MEMORY_FRAMES: a side
-    # that starts late or restarts hears the others' timed packets before it writes
+    # the guard (0.25 s) is shorter than a packet and the range (0.31 s): a packet written
+    # blind may run into the next slot. The first slot's side listens LISTEN_FRAMES frames,
+    # the others MEMORY_FRAMES: a side that starts late or restarts hears the others' timed
+    # packets before it writes
     surface = TdmaMac(TWO, "surface", LINK, senders=SENDERS)
     vehicle = TdmaMac(TWO, "vehicle", LINK, senders=SENDERS)
     assert surface.next_write_at(3.0) == pytest.approx(3.0 + LISTEN_FRAMES * TWO.frame)
     assert vehicle.next_write_at(3.0) == pytest.approx(3.0 + MEMORY_FRAMES * TWO.frame)
     hear(vehicle, 1, arrival(4.0, 0.0, place=0.2))           # the surface's: now it knows a phase
     assert vehicle.next_write_at(4.6) < 3.0 + MEMORY_FRAMES * TWO.frame
+
+
+def test_a_guard_covering_a_packet_and_the_range_lets_every_side_write_at_once():
+    # guard 0.35 s >= 0.113 s of air + 0.2 s over 300 m: a packet DESERT starts anywhere in
+    # ON ends before the next slot, so a side with no phase need not listen, whichever its
+    # slot; still one packet per blind gap, the spacing the settling rule counts on
+    wide = MacConfig(mode="tdma", frame=1.0, guard=0.35, slots=("surface", "vehicle"),
+                     max_packet_per_slot=1000, range=300)
+    assert send_window(wide, LINK, "vehicle") == pytest.approx(0.5 - 0.35)
+    for side in wide.slots:
+        mac = TdmaMac(wide, side, LINK, senders=SENDERS)
+        assert mac.next_write_at(3.0) == -math.inf, side
+        mac.wrote(3.0, 64)
+        assert mac.next_write_at(3.3) == pytest.approx(3.0 + BLIND_FRAMES * wide.frame), side
 
 
 def test_with_no_phase_known_one_packet_goes_per_blind_gap():

@@ -6,7 +6,12 @@ the peer is known to have received has named yet), how far back
 each report's bitmap reaches (to the largest number named by a report the peer is known to
 have received: once a packet carrying a report is acknowledged, the numbers it named need
 not be named again, as QUIC stops repeating acknowledged ranges), and when a packet must
-leave with only the A part. It keeps its own state and reads the engine
+leave with only the A part. At start, on a link whose sides measure each other's clocks
+(wire-format 15.5, the exchange at start), each peer's first `eager` reports (per epoch: again
+after a restart) ride every packet leaving, news or not: the peer measures our clock from the
+first of them it receives, so one lost delays it by a packet, not by the next report's wait
+(`ack_interval`, or the peer's next probe and its answer: a TDMA frame each) while the
+commands it gets from us are refused `unmeasured`. It keeps its own state and reads the engine
 (`uwgen.runtime.delivery.reliable.ReliableLink`); the caller holds the lock and passes `now`.
 """
 from __future__ import annotations
@@ -19,12 +24,16 @@ from uwgen.runtime.delivery.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink
 BITMAP_ROOM = 2          # bitmap bytes a report may always carry: packets leave room for one
                          # report of 17 numbers (the A part's length, R0-R2, 2 bytes: 6 bytes);
 A_ROOM = 1 + 3 + BITMAP_ROOM   # more when the packet being built has room left (`room`)
+EPOCHS_KEPT = 64         # peer epochs whose eager reports are counted (the latest kept)
 IDLE_REPEATS = 3         # reports sent alone about numbers not confirmed, after the last news
 
 
 class AckPolicy:
-    def __init__(self, engine: ReliableLink, *, ack_delay: float, ack_interval: float):
+    def __init__(self, engine: ReliableLink, *, ack_delay: float, ack_interval: float,
+                 eager: int = 0):
         self.engine, self.ack_delay, self.ack_interval = engine, ack_delay, ack_interval
+        self.eager = eager                      # reports per peer epoch on every packet (doc)
+        self._eager_sent: dict[tuple[int, bytes], int] = {}
         self._confirmed: dict[tuple[int, bytes], int] = {}   # (peer, epoch) -> largest named
         self._reports: list[tuple[int, bytes, int]] = []      # in the packet being built
         self._last_report: dict[int, float] = {}
@@ -58,7 +67,7 @@ class AckPolicy:
             # to have arrived (then the peer's ledger has them)
             unsettled = peer in self._news or low is None or low < r.largest
             news = unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval
-            if not (waited or news or self.final):
+            if not (waited or news or self._eager(peer, epoch) or self.final):
                 continue
             if low is None:
                 low = min(r.got, default=r.largest)
@@ -67,6 +76,9 @@ class AckPolicy:
             report = self.engine.ack_for(peer, now, nbytes=nbytes)
             if report is not None and 1 + len(out) + len(report) <= room:
                 out += report
+                self._eager_sent[(peer, epoch)] = self._eager_sent.pop((peer, epoch), 0) + 1
+                while len(self._eager_sent) > EPOCHS_KEPT:       # the most recent peer starts
+                    del self._eager_sent[next(iter(self._eager_sent))]
                 self._reports.append((peer, epoch, r.largest))
                 self._last_report[peer] = now
                 if self._news.pop(peer, None) is not None:
@@ -86,18 +98,25 @@ class AckPolicy:
             r = self.engine._current(peer)
             if r is None or r.largest is None:
                 continue
-            if r.eliciting_since is not None or r.gap:
+            epoch = epochs.get(peer, b"")
+            if r.eliciting_since is not None or r.gap or self._eager(peer, epoch):
                 return True
-            low = self._confirmed.get((peer, epochs.get(peer, b"")))
+            low = self._confirmed.get((peer, epoch))
             unsettled = peer in self._news or low is None or low < r.largest
             if unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval:
                 return True
         return False
 
+    def _eager(self, peer: int, epoch: bytes) -> bool:
+        """The peer's epoch has had fewer than `eager` reports: one rides every packet."""
+        return self._eager_sent.get((peer, epoch), 0) < self.eager
+
     def rename_epoch(self, peer: int, old: bytes, new: bytes) -> None:
         """The peer's stand-in epoch `old` is `new` (learnt from K): the same start."""
         if (peer, old) in self._confirmed:
             self._confirmed[(peer, new)] = self._confirmed.pop((peer, old))
+        if (peer, old) in self._eager_sent:
+            self._eager_sent[(peer, new)] = self._eager_sent.pop((peer, old))
 
     def carried(self) -> list[Sent]:
         """The reports of the packet just built, as pseudo-messages for the engine's `sent`."""

@@ -113,8 +113,7 @@ class Reliability:
         self.engine = ReliableLink(sender, RttEstimator(first, period + turn_gap, 60.0, period),
                                    ack_delay=self.ack_delay)
         self._timed_reports = 0                       # packets with A and T since a peer's start
-        self._last_timed_report = -float("inf")
-        self._want_time = False
+        self._last_timed_report, self._want_time = -float("inf"), False
         self._probes, self._next_probe = 0, -float("inf")   # clock probes sent, the next one
         self.clock_exchange = clock_exchange          # probe and answer at start (the bridge's)
         self.counters = Counters(COUNTERS)
@@ -135,7 +134,8 @@ class Reliability:
         self.on_fate: Callable[[int, bytes, bool], None] | None = None
         self.report_bytes = 0                         # A parts written (with their length byte)
         self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
-        self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval)
+        self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval,
+                              eager=TIMED_REPORTS if clock_exchange and self.max_ages else 0)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
         self._rx: tuple[int, bytes, int | None] | None = None

@@ -16,8 +16,9 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   DESERT's MAC just before its ON window opens (uwgen.runtime.link.slot_timing): a message
   then waits in DESERT about one period, not up to a frame (until the phase is settled:
   before the slot opens even if the phase is late). With no phase (nothing heard
-  in `MEMORY_FRAMES` frames) it listens, then writes one packet every few frames: DESERT
-  may start it late in the window, and the guard need not cover a packet and the range.
+  in `MEMORY_FRAMES` frames) it writes one packet every few frames, at once when the guard
+  covers a packet and the range (`blind_safe`), else after listening: DESERT may start it
+  late in the window, and such a guard is what keeps it out of the next slot.
 - `TurnMac` (mode `turns`): the leader grants the turn to one side at a time (C item 2, to
   whom and how many packets); that side writes after hearing the grant, at most that many
   packets, the last carrying C item 3 (end of turn), all inside a window from the grant;

@@ -44,15 +44,21 @@ started at its window's opening, settling or settled, and its estimate is exact)
 `memory`.
 
 No phase known (start, restart, or nothing heard for `memory`): DESERT may start a packet
-written now anywhere in the ON window, late enough to run into the next slot when the guard
-is shorter than a packet's air time and the range's delay, and lose it or the next side's
-first packet. So the side listens first, `LISTEN_FRAMES` frames if its slot is the frame's
-first, `MEMORY_FRAMES` otherwise (a side that starts late or restarts hears the others'
-timed packets and never writes blind; at a common start the first slot's side speaks
-first while the others, silent until they hear, leave the slot it may run into empty),
+written now anywhere in the ON window. When the guard covers a packet's air time and the
+range's delay (`blind_safe`), a packet started anywhere in ON reaches every side before the
+next slot begins, so a packet written blind can meet no other side's: the side writes at
+once, whichever its slot (at a common start every side's first packet leaves in the first
+frame, and one of them lost still leaves the others to teach the phase and carry T for the
+clock exchange, docs/wire-format.md section 15.5). When the guard is shorter, a packet
+started late in ON runs into the next slot and loses itself or the next side's first
+packet. So the side listens first, `LISTEN_FRAMES` frames if its slot is the frame's first,
+`MEMORY_FRAMES` otherwise (a side that starts late or restarts hears the others' timed
+packets and never writes blind; at a common start the first slot's side speaks first while
+the others, silent until they hear, leave the slot it may run into empty). Either way it
 then writes one packet per `BLIND_FRAMES` frames: time for the others to hear it and for
 their timed packets to come back, so another one goes blind only when all of those were
-lost (it may then run into a slot the others use).
+lost (when not `blind_safe`, it may then run into a slot the others use); the settling rule
+above counts on that spacing.
 """
 from __future__ import annotations
 
@@ -145,7 +151,10 @@ class SlotTimer:
         settle_begin = max(self.open_at - self.frame + on,
                            settle_end - (capacity - 1) * interval - lead)
         self.settling = (settle_begin, settle_end) if settle_end > settle_begin else None
-        self.listen = self.frame * (LISTEN_FRAMES if self.open_at == 0 else MEMORY_FRAMES)
+        # no phase: listen first only when a packet started late in ON may run into the next
+        # slot (module doc)
+        self.listen = (0.0 if blind_safe(config, link) else
+                       self.frame * (LISTEN_FRAMES if self.open_at == 0 else MEMORY_FRAMES))
         self.blind_gap = BLIND_FRAMES * self.frame
         self._writes: deque[float] = deque()
         self._knew = False                      # a phase was known at the last call
@@ -199,6 +208,13 @@ def send_window(config: MacConfig, link: LinkConfig, side: str | None = None) ->
     slot = config.slot if side is None else config.slot_length(side)
     air = air_time(link.max_read_length, config.bitrate)
     return max(0.0, min(slot - config.guard, slot - air - config.delay))
+
+
+def blind_safe(config: MacConfig, link: LinkConfig) -> bool:
+    """Whether a packet DESERT starts anywhere in a slot's ON window reaches every side
+    before the next slot begins (the guard covers a full packet's air time and the range's
+    delay): written with no phase known, it can meet no other side's packet."""
+    return config.guard >= air_time(link.max_read_length, config.bitrate) + config.delay
 
 
 def tdma_capacity(config: MacConfig, link: LinkConfig, side: str | None = None) -> int:
