@@ -158,6 +158,43 @@ def test_a_goal_with_no_server_is_rejected_after_waiting(pair):
     assert status["waited"] == status["no_server"] >= 1
 
 
+def test_a_goal_finished_after_its_stand_in_was_withdrawn_keeps_the_bridge_running(pair):
+    """A goal runs while another bridge's client of the action appears in this ROS graph:
+    the stand-in action server is withdrawn (loops.py) and its goal's result cannot reach
+    the caller any more. The bridge goes on: once the other bridge is gone the stand-in
+    returns and the next goal gets its result."""
+    surface, vehicle, bridges, links = pair
+    results: list = []
+    release = []
+    fib_server(vehicle.node("real"), results, until=lambda: release or len(results) > 1)
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    first = send_goal(client, 5)
+    assert first.accepted
+    intruder = surface.node("uwgen_bridge_intruder")
+    intruding = ActionClient(intruder, Fibonacci, "/fib")
+    sb = bridges["surface"]
+    wait_for(lambda: 9 not in sb.action_standins.servers, what="the stand-in withdrawn")
+    release.append(True)
+    wait_for(lambda: counted(bridges["vehicle"])["results_sent"] >= 1, what="the result sent")
+    time.sleep(1.0)                              # the result reaches the surface bridge
+    assert surface._thread.is_alive()
+    surface.nodes.remove(intruder)
+    surface.executor.remove_node(intruder)
+    intruding.destroy()
+    intruder.destroy_node()
+    wait_for(lambda: 9 in sb.action_standins.servers, timeout=10.0, what="the stand-in back")
+    assert client.wait_for_server(timeout_sec=5.0)
+    second = send_goal(client, 6)
+    assert second.accepted
+    result = second.get_result_async()
+    wait_for(result.done, timeout=10.0, what="the next goal's result")
+    assert result.result().status == GoalStatus.STATUS_SUCCEEDED and results == [5, 6]
+    assert surface._thread.is_alive()
+
+
 def drop_replies(link, count: int) -> list:
     """Make `link` lose its next `count` responses (kind 3); returns what it dropped."""
     dropped, offer = [], link.offer

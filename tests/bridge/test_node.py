@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import threading
 import time
 
 import pytest
@@ -354,6 +355,44 @@ def test_bridges_sharing_one_graph_run_a_call_once():
         time.sleep(0.5)
         assert served == [5] and vb.service_counters[ECHO.id].requests == 0
         assert links.links["surface"].offered(ECHO.id) == []     # nothing went over the link
+
+
+def test_a_call_answered_after_its_stand_in_was_withdrawn_keeps_the_bridge_running():
+    """A call waits for its response over the link while another bridge's client of the
+    service appears in this ROS graph: the stand-in is withdrawn (loops.py). The response
+    that comes then cannot reach its caller; it is counted and dropped, and the bridge goes
+    on: once the other bridge is gone the stand-in returns and the next call is answered."""
+    package = fake_package([], [ECHO])
+    links = LinkPair()
+    release = threading.Event()
+    with ros_sides("surface", "vehicle") as (surface, vehicle):
+        bridges = start_bridges((surface, vehicle), package, links)
+        sb = bridges["surface"]
+
+        def held(req, resp):                   # the first call waits for `release`
+            release.wait(10.0 if req.int32_value == 1 else 0.0)
+            resp.int32_value = req.int32_value * 2
+            return resp
+        vehicle.node("real").create_service(BasicTypes, "/echo", held)
+        client = surface.node("caller").create_client(BasicTypes, "/echo")
+        assert client.wait_for_service(timeout_sec=5.0)
+        first = client.call_async(BasicTypes.Request(int32_value=1))
+        wait_for(lambda: links.links["surface"].offered(ECHO.id), what="the request sent")
+        intruder = surface.node("uwgen_bridge_intruder")
+        intruder.create_client(BasicTypes, "/echo")
+        wait_for(lambda: ECHO.id not in sb.standins.services, what="the stand-in withdrawn")
+        release.set()
+        wait_for(lambda: sb.service_counters[ECHO.id].answer_withdrawn == 1,
+                 what="the response counted, not delivered")
+        surface.nodes.remove(intruder)
+        surface.executor.remove_node(intruder)
+        intruder.destroy_node()
+        wait_for(lambda: ECHO.id in sb.standins.services, timeout=10.0, what="the stand-in back")
+        assert client.wait_for_service(timeout_sec=5.0)
+        second = client.call_async(BasicTypes.Request(int32_value=4))
+        wait_for(second.done, what="the next call answered")
+        assert second.result().int32_value == 8 and not first.done()
+        assert surface._thread.is_alive()
 
 
 def test_status_is_published_as_json(pair):

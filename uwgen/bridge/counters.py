@@ -46,6 +46,8 @@ class ServiceCounters:
     duplicate_requests: int = 0  # a request whose seq is already being served (dropped)
     loop_guard: int = 0       # calls (stand-in) or requests (server side) not bridged: another
                               # uwgen bridge in this ROS graph handles the service (loops.py)
+    answer_withdrawn: int = 0  # responses that came after the stand-in was withdrawn (loops.py):
+                               # their caller cannot be reached (dropped)
     waited: int = 0           # requests that came before the real server was discovered
                               # and waited for it (served once it appeared, or no_server)
     no_server: int = 0        # no real server appeared within the call's timeout (dropped)
@@ -129,7 +131,7 @@ DROP_FIELDS = {
     "topic": ("encode_errors", "refused", "decode_errors", "publish_errors"),
     "service": ("encode_errors", "refused", "timeouts", "decode_errors", "duplicate_requests",
                 "no_server", "server_timeouts", "server_errors", "reply_refused",
-                "late", "duplicate", "unknown", "loop_guard"),
+                "late", "duplicate", "unknown", "loop_guard", "answer_withdrawn"),
     "action": ("refused", "accept_timeouts", "result_timeouts", "cancel_timeouts", "unknown",
                "decode_errors", "duplicate_goals", "no_server", "server_timeouts", "server_gone",
                "server_errors", "encode_errors", "reply_refused", "loop_guard", "results_unacked",

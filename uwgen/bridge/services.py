@@ -24,6 +24,7 @@ import random
 from dataclasses import asdict, dataclass
 from typing import Any, Callable
 
+from rclpy.exceptions import InvalidHandle
 from rclpy.task import Future
 
 from uwgen.bridge.calls import RMW_DESERT_SEQ_RANGE, CallTable, CallTableFull
@@ -89,8 +90,14 @@ class StandIns:
     def _offer(self, codec: Any, cls: Any) -> None:
         srv = self.w.node.create_service(cls, codec.name, self._standin(codec),
                                          callback_group=self.w.service_group)
-        allow_no_response(srv)
+        allow_no_response(srv, lambda: self._withdrawn_reply(codec))
         self.services[codec.id] = srv
+
+    def _withdrawn_reply(self, codec: Any) -> None:
+        self.counters[codec.id].answer_withdrawn += 1
+        self.w.throttle.report(f"swithdrawn{codec.id}", f"{codec.name}: a response came after the "
+                                                        "stand-in was withdrawn (another bridge in "
+                                                        "this ROS graph): not delivered")
 
     def _loop(self, codec: Any, cls: Any, blocked: bool) -> None:
         """Withdraw the stand-in while another bridge here serves it (loops.py), and back."""
@@ -266,16 +273,23 @@ def service_status(standins: StandIns, servers: Servers, channels: dict[int, dic
     return services
 
 
-def allow_no_response(srv: Any) -> None:
-    """Let a service callback return None to mean: send no response for this request.
+def allow_no_response(srv: Any, gone: Callable[[], None]) -> None:
+    """Let a service callback return None to mean: send no response for this request, and
+    let a response come after the service was destroyed (a stand-in withdrawn by the loop
+    guard while its call waited for the link): it cannot reach its caller, so `gone()` is
+    told (a counted drop) and it goes nowhere.
 
     rclpy's executor always calls `srv.send_response(result, header)` after the callback;
-    with None it would raise TypeError and stop the executor. An instance attribute shadows
-    the method for this one service object only.
+    with None it would raise TypeError, and on a destroyed service InvalidHandle, and stop
+    the executor. An instance attribute shadows the method for this one service object only.
     """
     original = srv.send_response
 
     def send_response(response: Any, header: Any) -> None:
-        if response is not None:
+        if response is None:
+            return
+        try:
             original(response, header)
+        except InvalidHandle:
+            gone()
     srv.send_response = send_response
