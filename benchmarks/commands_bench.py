@@ -49,6 +49,7 @@ import sys
 import tempfile
 import threading
 import time
+import traceback
 from collections import Counter
 from pathlib import Path
 
@@ -124,8 +125,9 @@ class Side:
     def _spin(self):
         try:
             self.executor.spin()
-        except Exception:
-            pass
+        except Exception:              # a bridge's callback failed: the run's figures are void
+            if self.context.ok():
+                traceback.print_exc()
 
     def close(self):
         for node in list(self.executor.get_nodes()):

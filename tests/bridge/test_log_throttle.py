@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import logging
+import threading
 
 from geometry_msgs.msg import Twist
 from test_msgs.srv import BasicTypes
@@ -112,3 +113,43 @@ def test_warnings_and_errors_through_one_rclpy_logger_never_raise():
     clock.advance(10.0)
     t.tick()                                    # both summaries, through the same logger
     assert t.totals == {"lost_answer": 2, "bad_bytes": 2}
+
+
+class RaisingExecutor:
+    """An executor whose callbacks raise `fails` times, then stop the bridge."""
+
+    def __init__(self, fails: int, stop):
+        self.fails, self.stop, self.spins = fails, stop, 0
+
+    def spin_once(self, timeout_sec=None):
+        self.spins += 1
+        if self.spins <= self.fails:
+            raise RuntimeError(f"callback bug {self.spins}")
+        self.stop.set()
+
+
+def test_a_callback_that_raises_is_counted_and_the_bridge_spins_on():
+    from uwgen.bridge.main import spin
+    stop, failed = threading.Event(), []
+    executor = RaisingExecutor(3, stop)
+    spin(executor, stop, ok=lambda: True, failed=lambda exc: failed.append(str(exc)))
+    assert failed == ["callback bug 1", "callback bug 2", "callback bug 3"] and executor.spins == 4
+
+
+def test_a_failed_callback_is_logged_once_with_its_traceback_and_counted_in_status():
+    from uwgen.bridge.main import callback_failed
+    links = LinkPair()
+    with ros_sides("vehicle") as (vehicle,):
+        bridge = start_bridge(vehicle, fake_package([CMD], [SLOW]), links.factory)
+        lines: list[str] = []
+        bridge.wiring.throttle._emit = lines.append
+        errors: list[str] = []
+        bridge.wiring.log = type("Log", (), {"error": lambda self, text: errors.append(text)})()
+        for _ in range(3):
+            try:
+                raise KeyError("boom")
+            except KeyError as exc:
+                callback_failed(bridge, exc)
+        assert bridge.status()["bridge"]["callback_errors"] == 3
+    assert len(errors) == 1 and "Traceback" in errors[0] and "KeyError: 'boom'" in errors[0]
+    assert bridge.wiring.throttle.totals == {"callback:KeyError": 3}

@@ -125,6 +125,7 @@ class BridgeCounters:
     bad_kind: int = 0          # a kind that does not fit the id (topic id with kind 2, ...)
     inbox_overflow: int = 0    # payloads dropped because the executor fell behind
     overheard: int = 0         # payloads for another fleet vehicle's entry: heard, not ours (no drop)
+    callback_errors: int = 0   # callbacks that raised (a bug; logged with its traceback)
 
 
 DROP_FIELDS = {

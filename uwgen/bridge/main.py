@@ -13,9 +13,10 @@ import logging
 import signal
 import sys
 import threading
+import traceback
 from pathlib import Path
 from types import ModuleType
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from uwgen.argtypes import number, whole
 from uwgen.bridge.plan import TIMEOUT_REPLIES, BridgePlan, PlanError, import_package
@@ -166,8 +167,7 @@ def _run(package: ModuleType, side: str, plan: BridgePlan, options, ros_args, li
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         try:
-            while not stop.is_set() and rclpy.ok():
-                executor.spin_once(timeout_sec=0.2)
+            spin(executor, stop, rclpy.ok, lambda exc: callback_failed(node, exc))
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         finally:
@@ -185,6 +185,32 @@ def _run(package: ModuleType, side: str, plan: BridgePlan, options, ros_args, li
         if rclpy.ok():
             rclpy.shutdown()
     return 0
+
+
+def spin(executor: Any, stop: threading.Event, ok: Callable[[], bool],
+         failed: Callable[[BaseException], None]) -> None:
+    """Spin until `stop` is set or ROS shuts down (`ok` false). A callback that raises is a
+    bug (every expected failure is counted where it happens): it is told to `failed`
+    (`callback_failed`) and spinning goes on, so the vehicle is not left unbridged."""
+    from rclpy.executors import ExternalShutdownException
+    while not stop.is_set() and ok():
+        try:
+            executor.spin_once(timeout_sec=0.2)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            raise
+        except Exception as exc:
+            failed(exc)
+
+
+def callback_failed(node: Any, exc: BaseException) -> None:
+    """A callback of the bridge `node` raised: the first of each kind is logged with its
+    traceback, all are counted (`callback_errors` in ~/status) and summarised."""
+    node.counters.callback_errors += 1
+    key = f"callback:{type(exc).__name__}"
+    if key not in node.wiring.throttle.totals:
+        node.wiring.log.error("a callback failed; the bridge goes on (please report this): "
+                              + "".join(traceback.format_exception(exc)).rstrip())
+    node.wiring.throttle.report(key, f"a callback failed: {type(exc).__name__}: {exc}")
 
 
 def _rebuild(package: ModuleType) -> str | None:
