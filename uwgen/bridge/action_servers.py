@@ -254,6 +254,9 @@ class ActionServers(GoalAdoption):
 
     def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
         """Answer a goal that came again; True when it was one (then it is not run)."""
+        unlisted = self._unlisted.get((ident, handle))
+        if unlisted is not None and unlisted[0] == payload:
+            return True                  # held past its budget: answered once the list is known
         entry = self.goals[ident].get(handle)
         if entry is not None:
             if entry.goal_handle is not None and entry.payload == payload:
