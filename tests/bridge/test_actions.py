@@ -112,10 +112,7 @@ def test_a_goal_whose_answers_are_lost_past_accept_timeout_is_accepted_not_rejec
     results: list = []
     fib_server(vehicle.node("real"), results, delay=1.5)
     dropped = drop_replies(links.links["vehicle"], 3)
-    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
-    assert client.wait_for_server(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
-             what="real server visible")
+    client = op_client(surface, bridges)
     goal_handle = send_goal(client, 5)
     assert goal_handle.accepted and len(dropped) == 3
     future = goal_handle.get_result_async()
@@ -167,10 +164,7 @@ def test_a_goal_finished_after_its_stand_in_was_withdrawn_keeps_the_bridge_runni
     results: list = []
     release = []
     fib_server(vehicle.node("real"), results, until=lambda: release or len(results) > 1)
-    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
-    assert client.wait_for_server(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
-             what="real server visible")
+    client = op_client(surface, bridges)
     first = send_goal(client, 5)
     assert first.accepted
     intruder = surface.node("uwgen_bridge_intruder")
@@ -193,6 +187,16 @@ def test_a_goal_finished_after_its_stand_in_was_withdrawn_keeps_the_bridge_runni
     wait_for(result.done, timeout=10.0, what="the next goal's result")
     assert result.result().status == GoalStatus.STATUS_SUCCEEDED and results == [5, 6]
     assert surface._thread.is_alive()
+
+
+def op_client(surface, bridges) -> ActionClient:
+    """The caller's /fib client on the surface, once it sees the stand-in and the vehicle's
+    bridge sees the real server."""
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
+             what="real server visible")
+    return client
 
 
 def drop_replies(link, count: int) -> list:
@@ -327,10 +331,7 @@ def test_an_accepted_goal_without_result_asks_for_it(pair):
     surface, vehicle, bridges, links = pair
     results: list = []
     fib_server(vehicle.node("real"), results, delay=1.5)      # 3 accept_timeouts
-    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
-    assert client.wait_for_server(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
-             what="real server visible")
+    client = op_client(surface, bridges)
     goal_handle = send_goal(client, 5)
     future = goal_handle.get_result_async()
     wait_for(future.done, what="the result")
@@ -358,10 +359,7 @@ def test_a_goal_sent_again_runs_once(pair, lost, running):
     fib_server(vehicle.node("real"), results,
                until=(lambda: served.goal_requests >= 2) if running else None)
     dropped = drop_replies(links.links["vehicle"], lost)
-    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
-    assert client.wait_for_server(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
-             what="real server visible")
+    client = op_client(surface, bridges)
     goal_handle = send_goal(client, 5)
     assert goal_handle.accepted
     future = goal_handle.get_result_async()
@@ -414,10 +412,7 @@ def test_a_goal_delivered_twice_runs_once(pair):
     results: list = []
     fib_server(vehicle.node("real"), results)
     links.links["surface"].duplicate = True
-    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
-    assert client.wait_for_server(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
-             what="real server visible")
+    client = op_client(surface, bridges)
     goal_handle = send_goal(client, 4)
     assert goal_handle.accepted
     future = goal_handle.get_result_async()

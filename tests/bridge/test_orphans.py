@@ -10,7 +10,6 @@ from contextlib import contextmanager
 
 import pytest
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
 from test_msgs.action import Fibonacci
 
 from uwgen.bridge.action_results import REPEAT_WINDOW
@@ -19,7 +18,8 @@ from uwgen.codegen import generate
 
 from .fakes import LinkPair, fake_package, wait_for
 from .harness import ros_sides, start_bridge
-from .test_actions import MANIFEST, counted, fib_codec, fib_server, pair, send_goal  # noqa: F401
+from .test_actions import (MANIFEST, counted, fib_codec, fib_server, op_client, pair,  # noqa: F401
+                           send_goal)
 
 
 def test_a_goal_uuid_names_its_action_and_handle_and_nothing_else_is_ours():
@@ -53,10 +53,7 @@ def goal_then_kill(surface, vehicle, bridges, delay: float):
     bridge is killed: (the goals the real server ran, the caller's goal handle)."""
     results: list = []
     fib_server(vehicle.node("real"), results, delay=delay)
-    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
-    assert client.wait_for_server(timeout_sec=5.0)
-    wait_for(lambda: bridges["vehicle"].action_servers.served[9][1].server_is_ready(),
-             what="real server visible")
+    client = op_client(surface, bridges)
     goal_handle = send_goal(client, 5)
     assert goal_handle.accepted
     kill(vehicle, bridges["vehicle"])
