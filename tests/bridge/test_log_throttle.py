@@ -136,6 +136,18 @@ def test_a_callback_that_raises_is_counted_and_the_bridge_spins_on():
     assert failed == ["callback bug 1", "callback bug 2", "callback bug 3"] and executor.spins == 4
 
 
+def test_a_spin_that_fails_because_ros_shut_down_is_no_callback_bug():
+    from uwgen.bridge.main import spin
+    stop, failed, up = threading.Event(), [], [True]
+
+    class ShuttingDown:
+        def spin_once(self, timeout_sec=None):
+            up[0] = False                     # the context went down during the spin
+            raise RuntimeError("context is not valid")
+    spin(ShuttingDown(), stop, ok=lambda: up[0], failed=failed.append)
+    assert failed == []
+
+
 def test_a_failed_callback_is_logged_once_with_its_traceback_and_counted_in_status():
     from uwgen.bridge.main import callback_failed
     links = LinkPair()

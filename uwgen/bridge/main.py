@@ -199,6 +199,8 @@ def spin(executor: Any, stop: threading.Event, ok: Callable[[], bool],
         except (KeyboardInterrupt, ExternalShutdownException):
             raise
         except Exception as exc:
+            if not ok():
+                break                # ROS shut down during the spin: not a callback's bug
             failed(exc)
 
 
