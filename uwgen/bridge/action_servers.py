@@ -90,13 +90,14 @@ class ActionServers(GoalAdoption):
         self.w.say_once(f"aref{ident}{what}", f"{self.served[ident][0].name}: {what} refused by the link")
         return False
 
-    def _answer(self, ident: int, handle: int, code: int, again: bool = False) -> None:
+    def _answer(self, ident: int, handle: int, code: int) -> None:
         codec = self.served[ident][0]
         answer = codec.encode_answer(handle, code)
         began = self._began(ident, handle)
-        # a goal that came late (its first copies lost): its answer is urgent from the first
+        # a goal that came late (its first copies lost), or whose answer was lost and asked
+        # for again, with too few rounds left: its answer gets its copy in its turn
         if self._offer(ident, answer, "answer",
-                       again=again or self.w.answer_urgent(began, codec.accept_timeout)):
+                       again=self.w.answer_urgent(began, codec.accept_timeout)):
             self.counters[ident].answers += 1
             # a lost answer goes again at once, within the goal's time (fates.py)
             self.w.fates.repairable(ident, answer, self.w.callers_deadline(began, codec.accept_timeout))
@@ -261,9 +262,7 @@ class ActionServers(GoalAdoption):
         if entry is not None:
             if entry.goal_handle is not None and entry.payload == payload:
                 self.counters[ident].repeated_replies += 1
-                accept = self.served[ident][0].accept_timeout   # the first answer was lost
-                self._answer(ident, handle, ACCEPTED,
-                             again=self.w.answer_urgent(self._began(ident, handle), accept))
+                self._answer(ident, handle, ACCEPTED)          # the first answer was lost
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
@@ -378,10 +377,7 @@ class ActionServers(GoalAdoption):
                         # and "rejected" would then lie. Not run; answered once it is known.
                         self._unlisted[(ident, handle)] = (entry.payload, entry.arrived)
                         continue
-                    say(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no local "
-                                             f"action server appeared within "
-                                             f"{codec.accept_timeout / 2:g} s")
-                    self._answer(ident, handle, REJECTED)
+                    self._reject_unserved(ident, handle)
                     continue
                 counters.server_timeouts += 1
                 if entry.goal_handle is None:
@@ -394,6 +390,14 @@ class ActionServers(GoalAdoption):
                     entry.goal_handle.cancel_goal_async()
                     self._result(ident, handle, ABORTED, codec.ros_class().Result(), entry)
             self._check_server(ident, now)
+
+    def _reject_unserved(self, ident: int, handle: int) -> None:
+        """Goal `handle` waited for a local server that did not appear: rejected, said."""
+        codec = self.served[ident][0]
+        self.w.throttle.report(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no "
+                                                    f"local action server appeared within "
+                                                    f"{codec.accept_timeout / 2:g} s")
+        self._answer(ident, handle, REJECTED)
 
     def _check_server(self, ident: int, now: float) -> None:
         """Abort the goals of a local server that has disappeared (for SERVER_GONE_GRACE)."""

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 from rclpy.task import Future
 
 from uwgen.bridge.action_results import REPEAT_WINDOW, Served
-from uwgen.runtime.wire.table import ACCEPTED, REJECTED
+from uwgen.runtime.wire.table import ACCEPTED
 
 if TYPE_CHECKING:
     from uwgen.bridge.counters import ActionCounters
@@ -26,7 +26,8 @@ class GoalAdoption:
     """Goals taken over from the local server's list. `ActionServers` sets up what these
     read (the wiring, per action id its (codec, ActionClient), goals by handle, counters and
     goal-list reader, and the UUIDs this start sent) and gives `_answer` (a goal answer to
-    the client side) and `_finished` (a goal's result from the local server)."""
+    the client side), `_reject_unserved` (a goal no local server took: rejected) and
+    `_finished` (a goal's result from the local server)."""
 
     w: Wiring
     served: dict[int, tuple[Any, Any]]
@@ -64,9 +65,10 @@ class GoalAdoption:
         now = self.w.clock.now()
         sent: Future = Future()
         sent.set_result(goal_handle)
+        arrived = now if arrived is None else arrived
         self.goals[ident][handle] = Served(sent, now + codec.result_timeout, payload=payload,
-                                           arrived=now if arrived is None else arrived,
-                                           goal_handle=goal_handle)
+                                           arrived=arrived, goal_handle=goal_handle,
+                                           began=self.w.began(payload, arrived))
         if done:
             self.counters[ident].orphans_finished += 1
             self.w.log.warning(f"{codec.name}: goal {handle} finished on the local server while "
@@ -92,9 +94,7 @@ class GoalAdoption:
             return False
         uuid, info, age = found
         self._adopt(ident, handle, uuid, info, done=True, payload=payload, arrived=came - age)
-        accept = self.served[ident][0].accept_timeout         # its answer was lost
-        self._answer(ident, handle, ACCEPTED,
-                     again=self.w.answer_urgent(self.w.began(payload, came - age), accept))
+        self._answer(ident, handle, ACCEPTED)                 # its answer was lost
         return True
 
     def _answer_unlisted(self, ident: int, handle: int, payload: bytes, arrived: float) -> None:
@@ -106,8 +106,4 @@ class GoalAdoption:
         if self._copy_of_finished(ident, handle, payload, arrived):
             self.counters[ident].duplicate_goals += 1
             return
-        codec = self.served[ident][0]
-        self.w.throttle.report(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no "
-                                                    f"local action server appeared within "
-                                                    f"{codec.accept_timeout / 2:g} s")
-        self._answer(ident, handle, REJECTED)
+        self._reject_unserved(ident, handle)

@@ -175,11 +175,9 @@ class Servers:
         began = self.handled.when(ident, seq)
         if began is None:
             began = self.w.began(b"", self.w.clock.now())
-        if self.w.answer_urgent(began, codec.timeout):
-            # the request came late (its first copies were lost): the response is the call's
-            # last leg with too few rounds left to repair it, and gets its copy in its turn
-            self.w.repeat(ident, payload)
-        if self.w.send(ident, payload):
+        # the request came late (its first copies were lost): the response is the call's last
+        # leg with too few rounds left to repair it, and gets its copy in its turn
+        if self.w.offer_once(ident, payload, again=self.w.answer_urgent(began, codec.timeout)):
             counters.replies += 1
             # a lost response goes again at once, within the call's time (fates.py)
             self.w.fates.repairable(ident, payload, self.w.callers_deadline(began, codec.timeout))

@@ -76,9 +76,10 @@ class AckPolicy:
             report = self.engine.ack_for(peer, now, nbytes=nbytes)
             if report is not None and 1 + len(out) + len(report) <= room:
                 out += report
-                self._eager_sent[(peer, epoch)] = self._eager_sent.pop((peer, epoch), 0) + 1
-                while len(self._eager_sent) > EPOCHS_KEPT:       # the most recent peer starts
-                    del self._eager_sent[next(iter(self._eager_sent))]
+                if self._eager(peer, epoch):                      # counted until done
+                    self._eager_sent[(peer, epoch)] = self._eager_sent.pop((peer, epoch), 0) + 1
+                    while len(self._eager_sent) > EPOCHS_KEPT:   # the most recent peer starts
+                        del self._eager_sent[next(iter(self._eager_sent))]
                 self._reports.append((peer, epoch, r.largest))
                 self._last_report[peer] = now
                 if self._news.pop(peer, None) is not None:
