@@ -80,7 +80,7 @@ def mac_warnings(manifest: Manifest) -> list[str]:
     longest = max(links.values(), key=lambda link: link.max_read_length)
     if mac.mode == "tdma":
         from uwgen.runtime.link.mac import tdma_capacity
-        from uwgen.runtime.link.slot_timing import BLIND_FRAMES
+        from uwgen.runtime.link.slot_timing import BLIND_FRAMES, blind_safe, overrun
         shortest = min(mac.slots, key=mac.slot_length)
         for name in (s for s in mac.slots if mac.weight(s) > mac.weight(shortest)):
             link = manifest.sides[name].link
@@ -89,10 +89,10 @@ def mac_warnings(manifest: Manifest) -> list[str]:
                            f"no more than a weight-{mac.weight(shortest)} one: max_packet_per_slot "
                            f"{mac.max_packet_per_slot}, queue_size {mac.queue_size} or the period "
                            "caps it; raise them")
-        overrun = air_time(longest.max_read_length, mac.bitrate) + mac.delay
-        if mac.guard < overrun:
+        if not blind_safe(mac, longest):
             out.append(f"mac tdma: guard {mac.guard:g} s is shorter than a {longest.max_read_length}-byte "
-                       f"packet's air time plus the {mac.range:g} m range ({overrun:.3f} s): a packet "
+                       f"packet's air time plus the {mac.range:g} m range "
+                       f"({overrun(mac, longest):.3f} s): a packet "
                        "DESERT starts at the end of a slot's ON window runs into the next slot, so "
                        "a side writes only what starts early enough, and until it has heard the "
                        f"frame's phase it listens, then writes a packet every {BLIND_FRAMES} frames")

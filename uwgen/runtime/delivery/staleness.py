@@ -85,8 +85,8 @@ class Staleness:
             transit = apparent + offset.offset
             most = age + AGE_UNIT + max(transit + offset.error, 0.0)
             if abs(offset.offset) > self.tolerance:
-                return Verdict(CLOCK_OFFSET, most, transit, offset, age)
-            return Verdict(STALE if most > max_age else None, most, transit, offset, age)
+                return Verdict(CLOCK_OFFSET, most, transit, offset, item=age)
+            return Verdict(STALE if most > max_age else None, most, transit, offset, item=age)
         most = age + AGE_UNIT + max(apparent + self.tolerance, 0.0)
         if self.measured_only:
             return Verdict(UNMEASURED, most, apparent, item=age)

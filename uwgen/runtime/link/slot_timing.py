@@ -210,11 +210,17 @@ def send_window(config: MacConfig, link: LinkConfig, side: str | None = None) ->
     return max(0.0, min(slot - config.guard, slot - air - config.delay))
 
 
+def overrun(config: MacConfig, link: LinkConfig) -> float:
+    """How long past its start a full packet of `link` is still arriving somewhere: its air
+    time and the range's delay (a packet DESERT starts at the end of ON runs that far)."""
+    return air_time(link.max_read_length, config.bitrate) + config.delay
+
+
 def blind_safe(config: MacConfig, link: LinkConfig) -> bool:
     """Whether a packet DESERT starts anywhere in a slot's ON window reaches every side
-    before the next slot begins (the guard covers a full packet's air time and the range's
-    delay): written with no phase known, it can meet no other side's packet."""
-    return config.guard >= air_time(link.max_read_length, config.bitrate) + config.delay
+    before the next slot begins (the guard covers its `overrun`): written with no phase
+    known, it can meet no other side's packet."""
+    return config.guard >= overrun(config, link)
 
 
 def tdma_capacity(config: MacConfig, link: LinkConfig, side: str | None = None) -> int:
