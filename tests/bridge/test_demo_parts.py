@@ -209,6 +209,50 @@ def test_recorder_writes_lines_and_reader_skips_a_torn_tail(tmp_path):
     assert [r["k"] for r in read_records(tmp_path / "r.jsonl")] == [1, 2]
 
 
+def test_a_received_message_is_recorded_when_the_far_bridge_published_it_not_when_taken(tmp_path):
+    # The report's latency ends where `uwgen log`'s does (the far bridge's publication), so an
+    # application's executor that takes the message late does not lengthen it.
+    import time
+
+    from std_msgs.msg import String
+
+    from uwgen.demo.records import delivered_at
+
+    from .harness import ros_sides
+    rec = Recorder(tmp_path / "r.jsonl")
+    with ros_sides("app", same_domain=True) as (app,):
+        node = app.node("taker")
+        pub = node.create_publisher(String, "/said", 10)
+        taken = []
+        node.create_subscription(String, "/said", lambda msg, info: (
+            time.sleep(0.3), rec("said", at=delivered_at(info), data=msg.data), taken.append(time.time())), 10)
+        deadline = time.monotonic() + 10
+        while not taken and time.monotonic() < deadline:
+            published = time.time()
+            pub.publish(String(data="hi"))
+            time.sleep(0.5)
+        rec.close()
+    assert taken, "the subscription never took the message"
+    first = next(read_records(tmp_path / "r.jsonl"))
+    assert first["ev"] == "said" and first["data"] == "hi"
+    assert taken[0] - first["t"] >= 0.3                # taken 0.3 s later, recorded at its publication
+    assert abs(first["t"] - published) < 0.1
+
+
+def test_a_record_without_a_source_timestamp_takes_now(tmp_path):
+    import time
+    from uwgen.demo.records import delivered_at
+    assert delivered_at({}) is None and delivered_at(None) is None
+    assert delivered_at({"source_timestamp": 1_500_000_000}) == 1.5
+    rec = Recorder(tmp_path / "r.jsonl")
+    before = time.time()
+    rec("x", at=delivered_at({"source_timestamp": 0}))
+    rec("y", at=12.5)
+    rec.close()
+    x, y = read_records(tmp_path / "r.jsonl")
+    assert x["t"] >= before and y["t"] == 12.5
+
+
 def test_turn_to_gives_the_short_way_round():
     from uwgen.demo.vehicle import turn_to
     assert turn_to(1.5, 0.5) == pytest.approx(1.0)

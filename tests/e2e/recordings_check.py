@@ -18,9 +18,10 @@ ROW = re.compile(r"^(/\S+)\s+(\w+ → \w+)\s+(\d+)\s+(\d+)\s+(\d+)\s+(\d+)\s+(\d
                  r"\s+(\d+)\s+(-|\d+ ms)\s+(-|\d+ ms)$", re.M)
 
 
-# The recording's latency ends when the far bridge publishes, the report's when the far
-# application takes the message: on a quiet machine they agree within 1 ms (docs/demo.md),
-# in a loaded parallel run the application's executor adds a few.
+# Both latencies end when the far bridge publishes (the applications record a received
+# message at its source timestamp, docs/demo.md); they start at the publisher's source
+# timestamp (the recording) and at the application's record just after its publish call
+# (the report): within 1 ms, a few in a loaded parallel run.
 LATENCY_SLACK_MS = 5.0
 
 

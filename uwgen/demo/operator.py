@@ -22,8 +22,9 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
-from uwgen.demo.records import Recorder, f32
+from uwgen.demo.records import Recorder, delivered_at, f32
 from uwgen.demo.shutdown import init_ros, interrupt_on_signals
 
 RATE = 10.0                  # Hz of cmd_vel
@@ -201,23 +202,23 @@ def main(argv: list[str] | None = None) -> int:
     rotate = ActionClient(node, RotateAbsolute, f"{ns}/turtle1/rotate_absolute")
     seen = {"pose": 0, "battery": 0, "log": 0}
 
-    def on_pose(p: Pose) -> None:
+    def on_pose(p: Pose, info: Any) -> None:     # two parameters: rclpy passes MessageInfo
         seen["pose"] += 1
-        record("pose_rx", x=f32(p.x), y=f32(p.y), theta=f32(p.theta),
+        record("pose_rx", at=delivered_at(info), x=f32(p.x), y=f32(p.y), theta=f32(p.theta),
                v=f32(p.linear_velocity), w=f32(p.angular_velocity))
         pilot.observe(p.x, p.y, p.theta, time.monotonic())
         if seen["pose"] == 1:
             log.info(f"first pose from the vehicle: x={p.x:.2f} y={p.y:.2f}")
 
-    def on_battery(b: BatteryState) -> None:
+    def on_battery(b: BatteryState, info: Any) -> None:
         seen["battery"] += 1
-        record("battery_rx", stamp=b.header.stamp.sec + b.header.stamp.nanosec * 1e-9,
+        record("battery_rx", at=delivered_at(info), stamp=b.header.stamp.sec + b.header.stamp.nanosec * 1e-9,
                pct=b.percentage)
 
-    def on_log(s: String) -> None:
+    def on_log(s: String, info: Any) -> None:
         seen["log"] += 1
         seq = int(s.data[1:s.data.index("]")]) if s.data.startswith("[") and "]" in s.data else -1
-        record("log_rx", seq=seq, size=len(s.data))
+        record("log_rx", at=delivered_at(info), seq=seq, size=len(s.data))
         log.info(f"vehicle says ({len(s.data)} B): {s.data[:100]}{'...' if len(s.data) > 100 else ''}")
 
     node.create_subscription(Pose, f"{ns}/turtle1/pose", on_pose, 10)

@@ -2,8 +2,12 @@
 
 Every demo process runs on the same machine, so `time.time()` stamps taken in different
 processes compare directly; the report matches what one side sent with what the other
-received to measure latency. Values that cross the link as float32 are recorded as
-float32 (`f32`), so a sent pose and a received pose compare exactly.
+received to measure latency. A message received from the link is recorded at the time
+the far bridge published it (`delivered_at`: the message's source timestamp, stamped by
+that bridge's rmw), not when the application's executor got round to it: the latency is
+the link's, the same as `uwgen log` reads from the bridges' recordings, however busy the
+machine. Values that cross the link as float32 are recorded as float32 (`f32`), so a sent
+pose and a received pose compare exactly.
 """
 from __future__ import annotations
 
@@ -19,6 +23,14 @@ def f32(x: float) -> float:
     return struct.unpack("<f", struct.pack("<f", float(x)))[0]
 
 
+def delivered_at(info: Any) -> float | None:
+    """When the bridge that delivered a received message published it (seconds since the
+    epoch), from rclpy's MessageInfo (a subscription callback with two parameters gets
+    it); None when the info carries no source timestamp (the record then takes now)."""
+    stamp = info.get("source_timestamp") if isinstance(info, dict) else None
+    return stamp / 1e9 if isinstance(stamp, int) and stamp > 0 else None
+
+
 class Recorder:
     """Append-only JSON-lines writer (thread-safe, flushed per line; None path: no-op)."""
 
@@ -30,10 +42,12 @@ class Recorder:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._fh = path.open("w", encoding="utf-8")
 
-    def __call__(self, ev: str, **fields: Any) -> None:
+    def __call__(self, ev: str, at: float | None = None, **fields: Any) -> None:
+        """Record event `ev` at time `at` (seconds since the epoch; now when None)."""
         if self._fh is None:
             return
-        line = json.dumps({"t": time.time(), "ev": ev, **fields}, separators=(",", ":"))
+        t = time.time() if at is None else at
+        line = json.dumps({"t": t, "ev": ev, **fields}, separators=(",", ":"))
         with self._lock:
             self._fh.write(line + "\n")
             self._fh.flush()

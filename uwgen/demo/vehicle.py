@@ -20,8 +20,9 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
-from uwgen.demo.records import Recorder, f32
+from uwgen.demo.records import Recorder, delivered_at, f32
 from uwgen.demo.shutdown import init_ros, spin_until_stopped
 
 CMD_TIMEOUT = 1.0        # s: a command this old means stop (turtlesim's rule)
@@ -106,10 +107,10 @@ def main(argv: list[str] | None = None) -> int:
         record("log", seq=seq, size=len(text))
         log.info(f"log #{seq}: {text[:80]}{'...' if len(text) > 80 else ''}")
 
-    def on_cmd(msg: Twist) -> None:
+    def on_cmd(msg: Twist, info: Any) -> None:   # two parameters: rclpy passes MessageInfo
         now = time.monotonic()
         sim.command(msg.linear.x, msg.angular.z, now)
-        record("cmd", k=int(msg.linear.z), lin=msg.linear.x, ang=msg.angular.z)
+        record("cmd", at=delivered_at(info), k=int(msg.linear.z), lin=msg.linear.x, ang=msg.angular.z)
 
     def on_teleport(req, resp):
         sim.teleport(req.x, req.y, req.theta)
