@@ -126,7 +126,11 @@ class Side:
         try:
             self.executor.spin()
         except Exception:              # a bridge's callback failed: the run's figures are void
-            if self.context.ok():
+            try:
+                alive = self.context.ok()
+            except Exception:          # the context was destroyed under the spin: shutdown
+                alive = False
+            if alive:
                 traceback.print_exc()
 
     def close(self):
