@@ -149,7 +149,8 @@ def turns_pair(mac: MacConfig = TURNS, cmd_every: float = 0.5):
         rel[side] = Reliability(SENDERS[side], period=0.2, reliable={MISSION: 30.0},
                                 max_ages={MISSION: 30.0}, wall=Wall(clock), name=side,
                                 max_read_length=64, other_overhead=macs[side].overhead,
-                                turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by)
+                                turn_gap=macs[side].turn_gap(), settled_by=macs[side].settled_by,
+                                unheard=macs[side].unheard)
         return rel[side].hooks()
     sim = DuplexSim(scen, ("surface", "vehicle"), hooks_for=hooks_for, wire_format=2, clock=clock,
                     step=0.025, link_kw_for=lambda side: {"mac": macs[side], "sender_id": SENDERS[side]})
@@ -255,3 +256,45 @@ def test_under_a_mac_news_of_best_effort_packets_is_reported_every_two_rounds_a_
     assert r.acks.due({SURFACE: EPOCH}, 0.1 + 2 * 2.9)
     r.engine.received(SURFACE, EPOCH, 3, 3.5, eliciting=False)    # 2 is missing
     assert r.acks.due({SURFACE: EPOCH}, 3.5)
+
+
+def test_under_turns_a_followers_turn_lost_whole_is_reported_at_once_and_its_message_goes_next_turn():
+    # The vehicle's turn carrying a reliable message is lost, its end with it: the surface,
+    # with no news, reports all the same on its next packet (the MAC took the turn back
+    # unheard), and that report settles the vehicle's turn as lost.
+    sim, rel, written = turns_pair()
+    sim.links["vehicle"].add_channel(MISSION, RELIABLE)
+    vehicle_sent = sim.links["vehicle"].hooks.sent
+    lost: dict[str, float] = {}
+
+    def lose_the_turn_carrying_it(number, picked, now):
+        if "at" not in lost and any(k == MISSION for k, _ in picked):
+            lost["at"] = now
+        if "at" in lost and now - lost["at"] < 0.6:        # the rest of that turn too
+            sim.drop("vehicle", sim.written["vehicle"])
+        return vehicle_sent(number, picked, now)
+    sim.links["vehicle"].hooks.sent = lose_the_turn_carrying_it
+    sim.at(10.0, lambda: sim.links["vehicle"].offer(MISSION, bytes((0, MISSION, 7)) + bytes(10)))
+    sim.run(40.0)
+    assert "at" in lost
+    surface = sim.links["surface"].mac
+    assert surface.counts["missed"] >= 1
+    engine = rel["vehicle"].engine
+    assert (engine.fast_resends, engine.timer_resends) == (1, 0)
+    copies = [t for t, _n, keys in written["vehicle"] if ("m", 7) in keys]
+    assert len(copies) == 2 and copies[1] - copies[0] < surface.cycle() + 0.5
+    assert [p[2] for _, p in sim.received["surface"] if p[1] == MISSION] == [7]
+
+
+def test_a_report_on_a_peer_whose_turn_went_unheard_is_due_once_news_or_not():
+    unheard = {"at": None}
+    r = Reliability(SURFACE, period=0.2, reliable={}, max_ages={}, turn_gap=2.9,
+                    unheard=lambda peer: unheard["at"] if peer == VEHICLE else None)
+    r.engine.received(VEHICLE, EPOCH, 0, 0.0, eliciting=False)
+    r.acks.heard(VEHICLE, True, 0.0)
+    assert r.acks.a_part({VEHICLE: EPOCH}, 0.1)                   # the first report
+    assert not r.acks.due({VEHICLE: EPOCH}, 3.0)                  # nothing new: none due
+    unheard["at"] = 3.0                                           # its next turn: unheard
+    assert r.acks.due({VEHICLE: EPOCH}, 3.1)
+    assert r.acks.a_part({VEHICLE: EPOCH}, 3.1)
+    assert not r.acks.due({VEHICLE: EPOCH}, 3.2)                  # once per unheard turn

@@ -42,7 +42,8 @@ def turns_pair(commands: frozenset[int], max_ages: dict[int, float],
         rel[side] = Reliability(SENDERS[side], period=0.2, reliable={}, max_ages=max_ages,
                                 wall=Wall(clock), name=side, max_read_length=64,
                                 other_overhead=macs[side].overhead, turn_gap=macs[side].turn_gap(),
-                                settled_by=macs[side].settled_by, commands=commands,
+                                settled_by=macs[side].settled_by, unheard=macs[side].unheard,
+                                commands=commands,
                                 own_span=macs[side].own_span())
         settle(rel[side])
         return rel[side].hooks()

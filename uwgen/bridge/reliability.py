@@ -70,12 +70,14 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
                     wall: Clock | Callable[[], float] = WALL_CLOCK, *,
                     other_overhead: int = 0, turn_gap: float = 0.0,
                     settled_by: Callable[[int, float], float | None] | None = None,
+                    unheard: Callable[[int], float | None] | None = None,
                     own_span: float = 0.0) -> Reliability | None:
     """The link's reliability of this side (None on wire format 1). `wall`: the wall clock
     T is stamped with and checked against (a Clock, or a function giving seconds);
     `other_overhead`: what the hooks joined with it (the per-packet seal, the MAC) add to a
-    packet; `turn_gap`: the MAC's longest wait for the peer's turn and `settled_by` what a
-    peer's answer covers of this side's packets, `own_span` how long its own turn or slot
+    packet; `turn_gap`: the MAC's longest wait for the peer's turn, `settled_by` what a
+    peer's answer covers of this side's packets and `unheard` when a peer's turn went unheard,
+    `own_span` how long its own turn or slot
     lasts (uwgen.runtime.link.mac): its services' and actions' messages get a copy in spare
     room within it (uwgen.runtime.delivery.echoes)."""
     if plan.wire_format != 2:
@@ -84,7 +86,7 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
     return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
                        max_read_length=link.max_read_length, other_overhead=other_overhead,
-                       turn_gap=turn_gap, settled_by=settled_by,
+                       turn_gap=turn_gap, settled_by=settled_by, unheard=unheard,
                        commands=command_keys(plan), own_span=own_span,
                        destinations=destinations(plan, plan.side_ids),
                        peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},

@@ -11,12 +11,18 @@ leave with only the A part. At start, on a link whose sides measure each other's
 after a restart) ride every packet leaving, news or not: the peer measures our clock from the
 first of them it receives, so one lost delays it by a packet, not by the next report's wait
 (`ack_interval`, or the peer's next probe and its answer: a TDMA frame each) while the
-commands it gets from us are refused `unmeasured`. It keeps its own state and reads the engine
+commands it gets from us are refused `unmeasured`. Under turns, the leader's first packet
+after it took a follower's turn back unheard (`unheard`: the turn's end, and maybe the
+packets before it, were lost) carries a report on that follower, news or not: the follower
+takes it as naming its turn's packets after the report's largest lost (the MAC's
+`settled_by`), and sends their answers and results again in its next turn, not a round
+later when news would report. It keeps its own state and reads the engine
 (`uwgen.runtime.delivery.reliable.ReliableLink`); the caller holds the lock and passes `now`.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from uwgen.runtime.delivery.receiving import RECEIVED_WINDOW
 from uwgen.runtime.delivery.reliable import MAX_BITMAP, REPORT_KEY, ReliableLink, Sent
@@ -30,8 +36,9 @@ IDLE_REPEATS = 3         # reports sent alone about numbers not confirmed, after
 
 class AckPolicy:
     def __init__(self, engine: ReliableLink, *, ack_delay: float, ack_interval: float,
-                 eager: int = 0):
+                 eager: int = 0, unheard: Callable[[int], float | None] | None = None):
         self.engine, self.ack_delay, self.ack_interval = engine, ack_delay, ack_interval
+        self.unheard = unheard or (lambda peer: None)   # the MAC's: a peer's turn went unheard
         self.eager = eager                      # reports per peer epoch on every packet (doc)
         self._eager_sent: dict[tuple[int, bytes], int] = {}
         self._confirmed: dict[tuple[int, bytes], int] = {}   # (peer, epoch) -> largest named
@@ -61,7 +68,7 @@ class AckPolicy:
             # the peer waits for an ack of a reliable message, or a gap may hide one: its
             # loss is reported on this packet, so the sender re-sends it in its next packet
             # (RFC 5681's immediate ack of a segment out of order), not after its timer
-            waited = r.eliciting_since is not None or r.gap
+            waited = r.eliciting_since is not None or r.gap or self._unheard(peer)
             # news, or numbers no report the peer received has named yet: those ride on
             # packets leaving anyway, every ack_interval, until a report naming them is known
             # to have arrived (then the peer's ledger has them)
@@ -100,13 +107,19 @@ class AckPolicy:
             if r is None or r.largest is None:
                 continue
             epoch = epochs.get(peer, b"")
-            if r.eliciting_since is not None or r.gap or self._eager(peer, epoch):
+            if r.eliciting_since is not None or r.gap or self._eager(peer, epoch) \
+                    or self._unheard(peer):
                 return True
             low = self._confirmed.get((peer, epoch))
             unsettled = peer in self._news or low is None or low < r.largest
             if unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval:
                 return True
         return False
+
+    def _unheard(self, peer: int) -> bool:
+        """The MAC gave up on the rest of the peer's turn since our last report on it."""
+        at = self.unheard(peer)
+        return at is not None and at > self._last_report.get(peer, -math.inf)
 
     def _eager(self, peer: int, epoch: bytes) -> bool:
         """The peer's epoch has had fewer than `eager` reports: one rides every packet."""

@@ -78,6 +78,7 @@ class Reliability:
                  clock_exchange: bool = False,
                  destinations: dict[int, frozenset[int]] | None = None,
                  settled_by: Callable[[int, float], float | None] | None = None,
+                 unheard: Callable[[int], float | None] | None = None,
                  copies: int = 3, commands: frozenset[int] = frozenset(), own_span: float = 0.0):
         self.sender, self.name, self.wall = sender, name, wall
         # the MAC's `settled_by(peer, now)`: until when this side's packets had all reached the
@@ -134,8 +135,11 @@ class Reliability:
         self.on_fate: Callable[[int, bytes, bool], None] | None = None
         self.report_bytes = 0                         # A parts written (with their length byte)
         self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
+        # the MAC's `unheard(peer)`: when it gave up waiting for the rest of the peer's turn
+        # (turns: the follower's last packets lost); a report on that peer is then due
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval,
-                              eager=TIMED_REPORTS if clock_exchange and self.max_ages else 0)
+                              eager=TIMED_REPORTS if clock_exchange and self.max_ages else 0,
+                              unheard=unheard)
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
         self._rx: tuple[int, bytes, int | None] | None = None

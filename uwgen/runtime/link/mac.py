@@ -32,7 +32,9 @@ turn: delivery's retransmission timer starts no lower than a round trip plus it.
   ended. Needs no change inside DESERT and no clock agreement: every timer starts from an
   event this side saw.
   `settled_by` tells delivery that a peer's answer was built after all of this side's packets
-  of the turn before it had arrived or been lost (a report there names their loss at once).
+  of the turn before it had arrived or been lost (a report there names their loss at once);
+  `unheard` that the leader took a follower's turn back unheard, so that its next packet
+  carries that report even with no news.
 """
 from __future__ import annotations
 
@@ -97,6 +99,13 @@ class Mac:
         """Until when this side's writes had all reached `sender` or been lost before the
         packet heard from it now was built (None: the MAC cannot say). Delivery takes a
         report in that packet as naming all of them (a packet it does not name was lost)."""
+        return None
+
+    def unheard(self, sender: int) -> float | None:
+        """When this side last gave up waiting for the rest of `sender`'s turn (None: never,
+        or the MAC has no turns): the turn's last packets were lost. Delivery then reports on
+        `sender` in its next packet, news or not: under `settled_by` that report names them
+        lost, and their messages go again a round sooner (docs/wire-format.md section 15.2)."""
         return None
 
     def stats(self) -> dict:
@@ -206,6 +215,7 @@ class TurnMac(Mac):
         self._waiting: tuple[int, int, float, float] | None = None   # (sender, n, at, deadline)
         self._missed: tuple[int, float, float] | None = None   # leader: (sender, deadline, span) of
                                           # the turn last taken back by the timer
+        self._unheard: dict[int, float] = {}   # leader: follower -> when its turn was last taken back
         self._earliest = -INF             # leader: no answer to its grant starts arriving before
         self._heard_in_wait = 0
         self._size: int | None = None     # bytes of the packet being opened (arrived)
@@ -243,6 +253,7 @@ class TurnMac(Mac):
             self.counts["missed"] += 1          # the grant or the end was lost: take it back
             who, _n, at, deadline = self._waiting
             self._missed = (who, deadline, deadline - at)
+            self._unheard[who] = now
             self._waiting = None
             self._own_turn()
         if not self.leading and self._holding and now > self._turn_until:
@@ -406,6 +417,13 @@ class TurnMac(Mac):
         if sender == self.leader_id and not self._holding:
             return self._last_end
         return None
+
+    def unheard(self, sender: int) -> float | None:
+        """The leader: when it last took `sender`'s turn back on its timer (its end was not
+        heard: the follower's last packets, an answer or a result among them, were lost; its
+        report in the leader's next packet settles them). A follower never waits for a turn:
+        the leader's lost packets show as a gap in the next ones it hears."""
+        return self._unheard.get(sender)
 
     def stats(self) -> dict:
         out = {"mode": self.mode, "leader": self.leading, **self.counts}
