@@ -317,6 +317,18 @@ def test_settled_by_says_until_when_a_peers_answer_covers_this_sides_packets():
     assert follower.settled_by(1, 2.0) == 0.9 and follower.settled_by(3, 2.0) is None
 
 
+def test_unheard_says_when_the_leader_last_took_a_followers_turn_back_on_its_timer():
+    lead, follower = pair(leader_packets=1)
+    assert Mac().unheard(2) is None
+    lead.carries = False
+    write(lead, 0.42)                                           # the grant, never answered
+    assert lead.unheard(2) is None
+    deadline = lead.next_write_at(0.5)
+    assert math.isfinite(deadline) and lead.next_write_at(deadline) == -math.inf
+    assert lead.counts["missed"] == 1 and lead.unheard(2) == deadline
+    assert lead.unheard(3) is None and follower.unheard(1) is None
+
+
 def test_a_weighted_tdma_slot_drains_more_packets_a_frame():
     # frame 3 s over 3 sides, the surface weighted 4 of 6: its slot is 2 s (ON 1.8 s), the
     # others 0.5 s (ON 0.3 s); 64-byte packets take 0.113 s, one per 0.2 s period
