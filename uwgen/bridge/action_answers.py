@@ -38,6 +38,7 @@ class GoalState:
     payload: bytes = b""                          # the goal as sent (sent again unchanged)
     sends: int = 1
     turn: int | None = None                       # own turns ended while it waited (copies.py)
+    held: bool = False                            # timer: its first copy waited once more (copies.py)
     next_send: float = float("inf")               # when to send it again while unanswered (none
                                                   # until it is first sent: the expiry timer
                                                   # may run while the goal is being encoded)

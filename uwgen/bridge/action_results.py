@@ -38,6 +38,7 @@ class Unacked:
     until: float                  # no copy after this: the client side may reuse the handle
     sends: int = 1
     turn: int | None = None       # own turns ended while it waited in the link (copies.py)
+    held: bool = False            # timer: its first copy waited once more (copies.py)
 
 
 @dataclass

@@ -24,6 +24,11 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
 - Other MACs (none, TDMA): the retransmission timer (`uwgen.runtime.delivery.reliable
   .command_rtt`); when it fires while the message still waits in the link, the copy is put
   off by one more timeout. A packet told lost (`uwgen.bridge.fates`) makes it due at once.
+  A result (no near deadline) whose timer fires the first time with nothing told waits one
+  more timeout (`held`), as under turns it waits a round more: the report that named it
+  was most often lost, and the peer's next report names it again (its bitmap reaches back
+  to its last report known to have arrived); a copy then went to a peer that had the
+  result 1 time in 10.
 - A copy that falls due after the peer's report told the message arrived is spared once
   (`Fates.spare`): its answer is on its way, or repaired by the side that has it.
 
@@ -48,6 +53,7 @@ NEWS_ROUNDS = 2
 class Leg(Protocol):
     next_send: float
     turn: int | None
+    held: bool
 
 
 def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: float,
@@ -57,10 +63,15 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
     `deadline`: its caller's (None: far off, as a result's)."""
     turns = w.turns()
     if turns is None:
-        if leg.next_send > now and not w.fates.lost(key, payload):
+        lost = w.fates.lost(key, payload)
+        if leg.next_send > now and not lost:
             return False
         if w.waiting(key, payload) or w.fates.spare(key, payload):
             leg.next_send = now + rto        # not left yet, or arrived: no copy behind it
+            return False
+        if deadline is None and not lost and not leg.held:
+            leg.held = True                  # nothing told: the report naming it was lost,
+            leg.next_send = now + rto        # and the peer's next one names it again
             return False
         return True
     if w.waiting(key, payload) or leg.turn is None:

@@ -50,6 +50,7 @@ class Outgoing:
     next_send: float
     sends: int = 1
     turn: int | None = None          # own turns ended while it waited in the link (copies.py)
+    held: bool = False               # timer: its first copy waited once more (copies.py)
 
 
 def service_rtt(codec: Any, period: float, round_trip: float | None = None,
