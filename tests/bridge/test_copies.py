@@ -24,6 +24,7 @@ TURNS = MacConfig(mode="turns", range=1000, leader="surface", packets=(("surface
 class Leg:
     next_send: float = 3.0
     turn: int | None = None
+    held: bool = False
 
 
 def link(turns=None):
@@ -39,19 +40,37 @@ def link(turns=None):
 def test_without_turns_a_copy_is_due_on_its_timer():
     _, w = link()
     leg = Leg(next_send=3.0)
-    assert not copy_due(w, 20, b"req", leg, 2.9, rto=3.0)
-    assert copy_due(w, 20, b"req", leg, 3.0, rto=3.0)
+    assert not copy_due(w, 20, b"req", leg, 2.9, rto=3.0, deadline=12.0)
+    assert copy_due(w, 20, b"req", leg, 3.0, rto=3.0, deadline=12.0)
+
+
+def test_without_turns_a_result_with_nothing_told_waits_one_more_timeout_once():
+    _, w = link()
+    leg = Leg(next_send=3.0)
+    assert not copy_due(w, 9, b"result", leg, 3.0, rto=3.0)          # its report was lost
+    assert leg.held and leg.next_send == 6.0
+    assert not copy_due(w, 9, b"result", leg, 5.9, rto=3.0)
+    assert copy_due(w, 9, b"result", leg, 6.0, rto=3.0)              # still nothing: the copy
+    leg.next_send = 12.0
+    assert copy_due(w, 9, b"result", leg, 12.0, rto=6.0)             # held once only
+
+
+def test_without_turns_a_result_told_lost_is_not_held():
+    _, w = link()
+    leg = Leg(next_send=3.0)
+    w.fates.told(9, b"result", False)
+    assert copy_due(w, 9, b"result", leg, 1.0, rto=3.0) and not leg.held
 
 
 def test_without_turns_a_copy_whose_message_still_waits_in_the_link_is_put_off_a_timeout():
     state, w = link()
     state.waiting.add((20, b"req"))
     leg = Leg(next_send=3.0)
-    assert not copy_due(w, 20, b"req", leg, 3.0, rto=2.5)
+    assert not copy_due(w, 20, b"req", leg, 3.0, rto=2.5, deadline=12.0)
     assert leg.next_send == 5.5
     state.waiting.clear()
-    assert not copy_due(w, 20, b"req", leg, 5.0, rto=2.5)
-    assert copy_due(w, 20, b"req", leg, 5.5, rto=2.5)
+    assert not copy_due(w, 20, b"req", leg, 5.0, rto=2.5, deadline=12.0)
+    assert copy_due(w, 20, b"req", leg, 5.5, rto=2.5, deadline=12.0)
 
 
 def test_under_turns_a_copy_told_lost_is_due_once_its_turn_has_ended_not_on_a_timer():

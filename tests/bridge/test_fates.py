@@ -21,6 +21,7 @@ ANSWER = RESPONSE[:3]
 class Leg:
     next_send: float = 3.0
     turn: int | None = None
+    held: bool = False
 
 
 def wired(turns=None):
