@@ -27,8 +27,8 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   A result (no near deadline) whose timer fires the first time with nothing told waits one
   more timeout (`held`), as under turns it waits a round more: the report that named it
   was most often lost, and the peer's next report names it again (its bitmap reaches back
-  to its last report known to have arrived); a copy then went to a peer that had the
-  result 1 time in 10.
+  to its last report known to have arrived). Sent at once instead, such copies went to a
+  peer that had the result for 10-14 results in 100 at 20 % loss under TDMA.
 - A copy that falls due after the peer's report told the message arrived is spared once
   (`Fates.spare`): its answer is on its way, or repaired by the side that has it.
 
