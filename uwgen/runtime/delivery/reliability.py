@@ -75,8 +75,7 @@ class Reliability:
                  name: str = "link", max_read_length: int = MAX_FRAME,
                  other_overhead: int = 0, peer_names: dict[int, str] | None = None,
                  epoch_source: Callable[[], bytes] | None = None, turn_gap: float = 0.0,
-                 clock_exchange: bool = False,
-                 destinations: dict[int, frozenset[int]] | None = None,
+                 clock_exchange: bool = False, destinations: dict[int, frozenset[int]] | None = None,
                  settled_by: Callable[[int, float], float | None] | None = None,
                  unheard: Callable[[int], float | None] | None = None,
                  copies: int = 3, commands: frozenset[int] = frozenset(), own_span: float = 0.0):
@@ -135,11 +134,9 @@ class Reliability:
         self.on_fate: Callable[[int, bytes, bool], None] | None = None
         self.report_bytes = 0                         # A parts written (with their length byte)
         self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
-        # the MAC's `unheard(peer)`: when it gave up waiting for the rest of the peer's turn
-        # (turns: the follower's last packets lost); a report on that peer is then due
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval,
                               eager=TIMED_REPORTS if clock_exchange and self.max_ages else 0,
-                              unheard=unheard)
+                              unheard=unheard)      # the MAC's: a peer's turn went unheard
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
         self._rx: tuple[int, bytes, int | None] | None = None
