@@ -2,6 +2,7 @@
 limits and garbage are counted, never crash and never leave a local goal hanging."""
 from __future__ import annotations
 
+import threading
 import time
 
 import pytest
@@ -290,7 +291,9 @@ def test_a_lost_goal_answer_is_repaired_while_the_goal_runs_not_once_its_result_
     surface, vehicle, bridges, links = pair
     vb = bridges["vehicle"]
     vb.wiring.callers_deadline = lambda came, timeout: came + 60.0   # a slow caller: time to repair
-    fib_server(vehicle.node("real"), [], delay=1.5)
+    running = threading.Event()                        # the goal runs until the repair is seen
+    running.set()
+    fib_server(vehicle.node("real"), [], until=lambda: not running.is_set())
     link = links.links["vehicle"]
     offered, offer = [], link.offer
 
@@ -308,6 +311,7 @@ def test_a_lost_goal_answer_is_repaired_while_the_goal_runs_not_once_its_result_
     answer = answers()[0]
     vb.wiring.fates.told(9, answer, False)             # its packet lost: the goal still runs
     assert len(answers()) == 2 and vb.wiring.fates.stats()["repaired"] == 1
+    running.clear()
     wait_for(sent.done, what="the goal accepted")
     future = sent.result().get_result_async()
     wait_for(future.done, what="the result")
