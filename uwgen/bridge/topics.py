@@ -22,6 +22,7 @@ from uwgen.bridge.dispatch import Dispatcher
 from uwgen.bridge.loops import BRIDGE_NODE_PREFIX
 from uwgen.bridge.polling import LatestPoller
 from uwgen.bridge.wiring import Wiring, qos_profile
+from uwgen.runtime.clock import source_time
 from uwgen.runtime.wire.codec import KIND_TOPIC
 
 DRAIN_BATCH = 256     # most messages one subscription callback takes in one go
@@ -36,19 +37,14 @@ def publication_time(info: Any, now: float, wall: float) -> float | None:
     `source_timestamp` (ns since the epoch, stamped by the publisher's rmw on this
     machine's system clock). None when there is none, or it is in the future or older
     than MAX_AGE_TRUSTED (a publisher on another clock): then the ttl runs from now."""
-    stamp = info.get("source_timestamp") if isinstance(info, dict) else None
-    if not isinstance(stamp, int) or stamp <= 0:
+    stamp = source_time(info)
+    if stamp is None:
         return None
-    age = wall - stamp / 1e9
+    age = wall - stamp
     if not 0.0 <= age <= MAX_AGE_TRUSTED:
         return None
     return now - age
 
-
-def source_time(info: Any) -> float | None:
-    """The publisher's source timestamp of a taken message, in seconds since the epoch."""
-    stamp = info.get("source_timestamp") if isinstance(info, dict) else None
-    return stamp / 1e9 if isinstance(stamp, int) and stamp > 0 else None
 
 
 def is_latest(codec: Any) -> bool:

@@ -18,17 +18,16 @@ import time
 from pathlib import Path
 from typing import IO, Any, Iterator
 
+from uwgen.runtime.clock import source_time
+
 
 def f32(x: float) -> float:
     return struct.unpack("<f", struct.pack("<f", float(x)))[0]
 
 
-def delivered_at(info: Any) -> float | None:
-    """When the bridge that delivered a received message published it (seconds since the
-    epoch), from rclpy's MessageInfo (a subscription callback with two parameters gets
-    it); None when the info carries no source timestamp (the record then takes now)."""
-    stamp = info.get("source_timestamp") if isinstance(info, dict) else None
-    return stamp / 1e9 if isinstance(stamp, int) and stamp > 0 else None
+# When the bridge that delivered a received message published it: its source timestamp
+# (None without one: the record then takes now)
+delivered_at = source_time
 
 
 class Recorder:

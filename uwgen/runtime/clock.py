@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 import time
-from typing import Protocol
+from typing import Any, Protocol
 
 
 class Clock(Protocol):
@@ -50,3 +50,11 @@ class ManualClock:
 
 SYSTEM_CLOCK = MonotonicClock()
 WALL_CLOCK = WallClock()
+
+
+def source_time(info: Any) -> float | None:
+    """The source timestamp of a message rclpy delivered (its MessageInfo, which a
+    subscription callback with two parameters gets: ns since the epoch, stamped by the
+    publisher's rmw), in seconds since the epoch; None when there is none."""
+    stamp = info.get("source_timestamp") if isinstance(info, dict) else None
+    return stamp / 1e9 if isinstance(stamp, int) and stamp > 0 else None

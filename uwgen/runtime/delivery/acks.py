@@ -65,15 +65,7 @@ class AckPolicy:
                 continue
             epoch = epochs.get(peer, b"")
             low = self._confirmed.get((peer, epoch))
-            # the peer waits for an ack of a reliable message, or a gap may hide one: its
-            # loss is reported on this packet, so the sender re-sends it in its next packet
-            # (RFC 5681's immediate ack of a segment out of order), not after its timer
-            waited = r.eliciting_since is not None or r.gap or self._unheard(peer)
-            # news, or numbers no report the peer received has named yet: those ride on
-            # packets leaving anyway, every ack_interval, until a report naming them is known
-            # to have arrived (then the peer's ledger has them)
-            unsettled = peer in self._news or low is None or low < r.largest
-            news = unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval
+            waited, news = self._wanted(peer, r, epoch, now)
             if not (waited or news or self._eager(peer, epoch) or self.final):
                 continue
             if low is None:
@@ -107,14 +99,23 @@ class AckPolicy:
             if r is None or r.largest is None:
                 continue
             epoch = epochs.get(peer, b"")
-            if r.eliciting_since is not None or r.gap or self._eager(peer, epoch) \
-                    or self._unheard(peer):
-                return True
-            low = self._confirmed.get((peer, epoch))
-            unsettled = peer in self._news or low is None or low < r.largest
-            if unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval:
+            if any(self._wanted(peer, r, epoch, now)) or self._eager(peer, epoch):
                 return True
         return False
+
+    def _wanted(self, peer: int, r, epoch: bytes, now: float) -> tuple[bool, bool]:
+        """Why a report on `peer` (its receipts `r`) goes on this packet: (waited, news).
+        Waited: the peer waits for an ack of a reliable message, or a gap may hide one (its
+        loss is reported now, so the sender re-sends it in its next packet: RFC 5681's
+        immediate ack of a segment out of order), or the MAC gave up on the rest of its turn.
+        News: packets with messages, or numbers no report the peer received has named yet,
+        every ack_interval, until a report naming them is known to have arrived (then the
+        peer's ledger has them)."""
+        waited = r.eliciting_since is not None or r.gap or self._unheard(peer)
+        low = self._confirmed.get((peer, epoch))
+        unsettled = peer in self._news or low is None or low < r.largest
+        news = unsettled and now - self._last_report.get(peer, -math.inf) >= self.ack_interval
+        return waited, news
 
     def _unheard(self, peer: int) -> bool:
         """The MAC gave up on the rest of the peer's turn since our last report on it."""

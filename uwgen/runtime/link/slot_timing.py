@@ -206,8 +206,7 @@ def send_window(config: MacConfig, link: LinkConfig, side: str | None = None) ->
     air time plus the range's delay leaves only slot - air - delay; 0 when not even that
     (the slot's first packet then runs over; `uwgen analyze` warns)."""
     slot = config.slot if side is None else config.slot_length(side)
-    air = air_time(link.max_read_length, config.bitrate)
-    return max(0.0, min(slot - config.guard, slot - air - config.delay))
+    return max(0.0, min(slot - config.guard, slot - overrun(config, link)))
 
 
 def overrun(config: MacConfig, link: LinkConfig) -> float:
