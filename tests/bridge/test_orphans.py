@@ -131,10 +131,10 @@ def patient_fib_codec(tmp_path_factory):
     return fib_codec_with(tmp_path_factory, "patientacts", accept=4)
 
 
-def hold_list(monkeypatch):
-    """From now on a bridge that starts hears its local server's goal list, and sees the
-    status publisher matched, only once `release(bridge)` is called (in the bridge's
-    executor, as a status message comes)."""
+def hold_list(monkeypatch, matched: bool = False):
+    """From now on a bridge that starts hears its local server's goal list, and (unless
+    `matched`) sees the status publisher matched, only once `release(bridge)` is called (in
+    the bridge's executor, as a status message comes)."""
     released, held = threading.Event(), []
     status, init = OrphanWatch._status, OrphanWatch.__init__
 
@@ -146,6 +146,8 @@ def hold_list(monkeypatch):
 
     def late_init(self, *args, **kw):
         init(self, *args, **kw)
+        if matched:
+            return
         count = self.sub.get_publisher_count
         self.sub.get_publisher_count = lambda: count() if released.is_set() else 0
 
@@ -161,6 +163,14 @@ def hold_list(monkeypatch):
     monkeypatch.setattr(OrphanWatch, "_status", late_status)
     monkeypatch.setattr(OrphanWatch, "__init__", late_init)
     return release
+
+
+def before_start(again) -> None:
+    """The link's judge tells `again` that every goal it takes may have begun before it
+    started (its age item reaches back past the start, as a copy's does): the fake link
+    carries no age items."""
+    started = again.action_servers.watches[9].started
+    again.wiring.earliest_at = lambda payload: started - 1.0
 
 
 def copy_held(again, links, results: list) -> None:
@@ -195,6 +205,48 @@ def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal
         assert results == [5]                                  # run once
         status_now = counted(again)
         assert (status_now["duplicate_goals"], status_now["orphans_cancelled"]) == (1, 0)
+
+
+def test_a_goal_copy_is_not_run_again_when_the_goal_list_comes_long_after_its_publisher_matched(
+        patient_long_fib_codec, monkeypatch):
+    """As above, but the status publisher is seen matched at once and the list comes 2.5 s
+    later, past the copy's budget (2 s), as on a loaded machine: the copy is neither sent on
+    a guess from the match nor answered; once the list comes the running goal is adopted, it
+    ran once and the caller gets its result."""
+    with killed_mid_goal(patient_long_fib_codec, delay=5.0) as (restart, links, results, goal_handle):
+        release = hold_list(monkeypatch, matched=True)
+        again = restart()
+        before_start(again)
+        copy_held(again, links, results)
+        assert again.action_servers.watches[9].sub.get_publisher_count() == 1
+        wait_for(lambda: counted(again)["no_server"] == 1, what="the copy's budget over")
+        time.sleep(0.5)
+        assert results == [5]
+        release(again)
+        wait_for(lambda: counted(again)["orphans_adopted"] == 1, what="the running goal adopted")
+        future = goal_handle.get_result_async()
+        wait_for(future.done, timeout=10.0, what="the goal's result")
+        assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+        assert results == [5]                                  # run once
+        codec = patient_long_fib_codec
+        rejected = codec.encode_answer(codec.decode_request(links.links["surface"].offered(9)[0])[0], 0)
+        assert rejected not in links.links["vehicle"].offered(9)
+
+
+def test_a_goal_that_began_after_a_restart_runs_without_waiting_for_the_goal_list(
+        patient_fib_codec, monkeypatch):
+    """A goal the caller sends after the server-side bridge started again cannot copy one
+    its predecessor took: it goes to the local server at once, list or no list."""
+    with killed_mid_goal(patient_fib_codec, delay=0.2) as (restart, links, results, goal_handle):
+        wait_for(lambda: results == [5], what="the first goal")
+        hold_list(monkeypatch)
+        again = restart()
+        again.wiring.earliest_at = lambda payload: again.wiring.clock.now()   # began just now
+        wait_for(lambda: again.action_servers.served[9][1].server_is_ready(),
+                 what="real server visible again")
+        links.links["vehicle"].inject(patient_fib_codec.encode_goal(6, Fibonacci.Goal(order=7)))
+        wait_for(lambda: results == [5, 7], timeout=1.5, what="the new goal run")
+        assert counted(again)["waited"] == 0
 
 
 @pytest.fixture(scope="module")

@@ -53,6 +53,8 @@ class Served:
     cancel_wanted: bool = False   # a cancel came before the local server answered
     goal: Any = None              # the goal message while it waits for the local server
     began: float | None = None    # when it began on the client side (Wiring.began)
+    # may it copy a goal a previous start took (orphans.py)? None: the link cannot tell
+    unsure: bool | None = None
 
 
 @dataclass(frozen=True)

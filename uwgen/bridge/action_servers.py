@@ -152,22 +152,37 @@ class ActionServers(GoalAdoption):
         if self.w.loops.blocked(codec.name):
             counters.loop_guard += 1      # our goal would reach another bridge's stand-in
             return
-        if self._repeat(ident, handle, payload):     # in flight, or finished just now
+        now = self.w.clock.now()
+        # may it copy a goal a previous start of this bridge took? (orphans.py)
+        unsure = self.w.may_predate(payload, now, self.watches[ident].started)
+        if self._repeat(ident, handle, payload, unsure is not False):     # in flight, or finished just now
             counters.duplicate_goals += 1
             return
         self.results[ident].forget(handle)        # a new goal on a handle used before
         self.watches[ident].forget(handle)
-        now = self.w.clock.now()
-        # A goal waits for the local server, and for its goal list (orphans.py: a copy of a
-        # goal a previous start left running is not run again), at most half its
-        # accept_timeout: the client side's clock started before the goal's trip, and the
-        # answer needs one too.
+        # A goal waits for the local server, and one that may copy a goal a previous start
+        # took for its goal list too (orphans.py: a copy of a goal left running is not run
+        # again), at most half its accept_timeout: the client side's clock started before
+        # the goal's trip, and the answer needs one too.
         entry = goals[handle] = Served(None, now + codec.accept_timeout / 2, payload=payload,
-                                       arrived=now, goal=goal, began=self.w.began(payload, now))
-        if client.server_is_ready() and self.watches[ident].listed(now):
+                                       arrived=now, goal=goal, began=self.w.began(payload, now),
+                                       unsure=unsure)
+        if self._may_send(ident, entry, now):
             self._send_goal(ident, handle, entry)
         else:
-            counters.waited += 1     # sent once the server and its list are known (_send_waiting)
+            counters.waited += 1     # sent once the server (and its list) are known (_send_waiting)
+
+    def _may_send(self, ident: int, entry: Served, now: float) -> bool:
+        """Whether a goal that came may go to the local server (orphans.py): it is ready, and
+        the goal began after this start, or may copy a goal a previous start took and the
+        server's goal list is known; on a link that cannot tell (no age item), the list is
+        known or taken as known (`OrphanWatch.listed`), or the goal's wait is over."""
+        if not self.served[ident][1].server_is_ready():
+            return False
+        watch = self.watches[ident]
+        if entry.unsure is None:
+            return watch.listed(now) or entry.deadline <= now
+        return not entry.unsure or watch.heard_or_grace(now)
 
     def _send_goal(self, ident: int, handle: int, entry: Served) -> None:
         from unique_identifier_msgs.msg import UUID
@@ -183,15 +198,14 @@ class ActionServers(GoalAdoption):
         entry.sent.add_done_callback(lambda f: self._answered(ident, handle, f))
 
     def _send_waiting(self, ident: int, now: float) -> None:
-        """Send the goals that waited for the local server, now that it is ready and its goal
-        list is known (or the goal's wait is over: sent rather than refused for a list that
-        is slow to come)."""
-        if not self.served[ident][1].server_is_ready():
-            return
-        listed = self.watches[ident].listed(now)
+        """Send the goals that waited for the local server, now that it is ready, and for
+        one that may copy a goal a previous start took, its goal list is known (orphans.py:
+        never on a guess; one whose wait ends before leaves it unlisted, answered once the
+        list is known, `expire`)."""
         for handle, entry in list(self.goals[ident].items()):
-            if entry.sent is None and (listed or entry.deadline <= now):
-                if not self._copy_of_finished(ident, handle, entry.payload, entry.arrived):
+            if entry.sent is None and self._may_send(ident, entry, now):
+                if not (entry.unsure is not False
+                        and self._copy_of_finished(ident, handle, entry.payload, entry.arrived)):
                     self._send_goal(ident, handle, entry)
 
     def _result_status(self, ident: int, handle: int, received: bool) -> None:
@@ -253,8 +267,9 @@ class ActionServers(GoalAdoption):
                 self.w.expect(codec.encode_result_status(handle, received=True), ident, payload,
                               echo=False)
 
-    def _repeat(self, ident: int, handle: int, payload: bytes) -> bool:
-        """Answer a goal that came again; True when it was one (then it is not run)."""
+    def _repeat(self, ident: int, handle: int, payload: bytes, unsure: bool) -> bool:
+        """Answer a goal that came again; True when it was one (then it is not run).
+        `unsure`: it may copy a goal a previous start took (orphans.py)."""
         unlisted = self._unlisted.get((ident, handle))
         if unlisted is not None and unlisted[0] == payload:
             return True                  # held past its budget: answered once the list is known
@@ -266,7 +281,7 @@ class ActionServers(GoalAdoption):
             return True                                    # else: the answer is still to come
         result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
         if result is None:
-            return self._copy_of_finished(ident, handle, payload, self.w.clock.now())
+            return unsure and self._copy_of_finished(ident, handle, payload, self.w.clock.now())
         self.counters[ident].repeated_replies += 1
         arrived = self.results[ident].recent[handle].arrived   # the answer and result were lost
         self._offer(ident, result, "result", again=self.w.answer_urgent(
@@ -371,7 +386,7 @@ class ActionServers(GoalAdoption):
                 del goals[handle]
                 if entry.sent is None:
                     counters.no_server += 1
-                    if not self.watches[ident].heard_or_grace(now):
+                    if entry.unsure is not False and not self.watches[ident].heard_or_grace(now):
                         # The goal list is not known: this may be the copy of a goal a
                         # previous start left running on a server not seen yet (orphans.py),
                         # and "rejected" would then lie. Not run; answered once it is known.
@@ -391,12 +406,16 @@ class ActionServers(GoalAdoption):
                     self._result(ident, handle, ABORTED, codec.ros_class().Result(), entry)
             self._check_server(ident, now)
 
-    def _reject_unserved(self, ident: int, handle: int) -> None:
-        """Goal `handle` waited for a local server that did not appear: rejected, said."""
+    def _reject_unserved(self, ident: int, handle: int, listless: bool = False) -> None:
+        """Goal `handle` waited for a local server that did not appear, or (`listless`) it
+        may copy a goal a previous start took and waited past its budget for the server's
+        goal list, which shows no such goal: rejected (it never ran), said."""
         codec = self.served[ident][0]
-        self.w.throttle.report(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: no "
-                                                    f"local action server appeared within "
-                                                    f"{codec.accept_timeout / 2:g} s")
+        budget = codec.accept_timeout / 2
+        why = (f"it may have copied a goal of a previous start of this bridge, and the local "
+               f"server's goal list, which shows none, was not known within {budget:g} s"
+               if listless else f"no local action server appeared within {budget:g} s")
+        self.w.throttle.report(f"anoserver{ident}", f"{codec.name}: goal {handle} rejected: {why}")
         self._answer(ident, handle, REJECTED)
 
     def _check_server(self, ident: int, now: float) -> None:

@@ -51,7 +51,7 @@ class GoalAdoption:
         goal_handle = ClientGoalHandle(client, UUID(uuid=list(uuid)), response)
         self.own_uuids.add(uuid)
         held = self.goals[ident].get(handle)
-        if held is not None and held.sent is None:
+        if held is not None and held.sent is None and held.unsure is not False:
             # held for the list (on_request): the copy of this goal, not a new one
             del self.goals[ident][handle]
             self.counters[ident].duplicate_goals += 1
@@ -106,4 +106,4 @@ class GoalAdoption:
         if self._copy_of_finished(ident, handle, payload, arrived):
             self.counters[ident].duplicate_goals += 1
             return
-        self._reject_unserved(ident, handle)
+        self._reject_unserved(ident, handle, listless=self.served[ident][1].server_is_ready())

@@ -62,6 +62,8 @@ class Wiring:
     # when a command that came began on its caller's side, from its age item (the link's
     # judge: runtime.delivery.judge.AgeJudge.began); None when the link cannot tell
     began_at: Callable[[bytes], float | None] = lambda payload: None
+    # and the earliest it can have begun, its age's bound (AgeJudge.earliest)
+    earliest_at: Callable[[bytes], float | None] = lambda payload: None
     # what the peer's reports told of our command messages (fates.py; made in __post_init__),
     # and whether the link has reports (wire format 2): they acknowledge a result's arrival
     fates: Fates = field(init=False)
@@ -138,6 +140,14 @@ class Wiring:
         if began is not None:
             return min(began, came)
         return came - (self.turn_gap + (self.round_trip or 0.0)) / 2
+
+    def may_predate(self, payload: bytes, came: float, instant: float) -> bool | None:
+        """Whether the call of a request or goal `payload`, come at `came`, may have begun
+        before `instant`: the most its age can be (the link's judge's bound: its age item,
+        the item's rounding, the packet's transit and the clock offset's error) reaches back
+        past it. None when the link cannot tell (no age item: wire format 1)."""
+        earliest = self.earliest_at(payload)
+        return None if earliest is None else earliest < instant
 
     @staticmethod
     def callers_deadline(began: float, timeout: float) -> float:
