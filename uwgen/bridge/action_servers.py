@@ -154,7 +154,7 @@ class ActionServers(GoalAdoption):
             return
         now = self.w.clock.now()
         # may it copy a goal a previous start of this bridge took? (orphans.py)
-        unsure = self.w.may_predate(payload, now, self.watches[ident].started)
+        unsure = self.w.may_predate(payload, self.watches[ident].started)
         if self._repeat(ident, handle, payload, unsure is not False):     # in flight, or finished just now
             counters.duplicate_goals += 1
             return

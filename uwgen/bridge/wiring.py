@@ -141,11 +141,12 @@ class Wiring:
             return min(began, came)
         return came - (self.turn_gap + (self.round_trip or 0.0)) / 2
 
-    def may_predate(self, payload: bytes, came: float, instant: float) -> bool | None:
-        """Whether the call of a request or goal `payload`, come at `came`, may have begun
-        before `instant`: the most its age can be (the link's judge's bound: its age item,
-        the item's rounding, the packet's transit and the clock offset's error) reaches back
-        past it. None when the link cannot tell (no age item: wire format 1)."""
+    def may_predate(self, payload: bytes, instant: float) -> bool | None:
+        """Whether the call of a request or goal `payload` that came may have begun before
+        `instant`: the most its age can be (the link's judge's bound: its age item, the
+        item's rounding, the packet's transit and the clock offset's error) reaches back
+        past it. None when the link cannot tell (no age item: wire format 1; or a payload
+        the judge no longer keeps)."""
         earliest = self.earliest_at(payload)
         return None if earliest is None else earliest < instant
 
