@@ -53,6 +53,7 @@ from uwgen.bridge.node import BridgeNode
 from uwgen.bridge.plan import BridgePlan, import_package
 from uwgen.emulator import BROADCAST, NodeSpec, Scenario, run_emulator
 from uwgen.emulator.from_manifest import with_mac
+from uwgen.runtime.link.channels import DROP_REASONS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from commands_bench import Side, fibonacci  # noqa: E402 - one ROS side and the Fibonacci reference, as there
@@ -257,11 +258,10 @@ def run(vehicles: int, args, base_domain: int) -> dict:
             elapsed = time.monotonic() - started
         finally:
             counters = emu.all_counters()
-            for name in ("surface", names[0]):
-                if name in bridges:
-                    link_stats[name] = bridges[name].link.stats()
-                    link_stats[name]["services"] = {
-                        k: getattr(c, "__dict__", c) for k, c in bridges[name].service_counters.items()}
+            for name in bridges:          # every side's: a vehicle behind the goal is shown
+                link_stats[name] = bridges[name].link.stats()
+                link_stats[name]["services"] = {
+                    k: getattr(c, "__dict__", c) for k, c in bridges[name].service_counters.items()}
             for side in sides.values():
                 side.close()
 
@@ -282,6 +282,28 @@ def run(vehicles: int, args, base_domain: int) -> dict:
                             for q in ("p50", "p95")),
         "time": elapsed, "mac": mac, "period": period, "links": link_stats, "emulator": counters,
     }
+
+
+def behind(vehicle: str, row: dict) -> str:
+    """One line on a vehicle whose telemetry fell behind the goal: its MAC timer's writes
+    (timed, blind: with no frame phase known), its link's packets and channel drops, and
+    what the emulator did with its packets."""
+    st, emu = row["links"].get(vehicle, {}), row["emulator"].get(vehicle, {})
+    mac = st.get("mac") or {}
+    packets = st.get("packets") or {}
+    channels = st.get("channels") or {}
+    drops = {key: lost for key, ch in channels.items()
+             if (lost := {k: ch[k] for k in DROP_REASONS if ch.get(k)})}
+    picked = ("packets_sent", "lost_per", "lost_collision", "lost_no_client", "dropped_queue_full",
+              "max_mac_queue", "transit_p95_ms", "transit_max_ms")
+    return (f"mac {json_brief(mac)}; packets sent {packets.get('packets_sent')}, messages "
+            f"{packets.get('messages_sent')}; channel drops {json_brief(drops)}; emulator "
+            f"{json_brief({k: emu.get(k) for k in picked})}")
+
+
+def json_brief(d: dict) -> str:
+    import json
+    return json.dumps(d, default=str, separators=(",", ":"))
 
 
 def main() -> int:
@@ -324,11 +346,21 @@ def main() -> int:
     print("  telemetry per vehicle: " + ", ".join(f"{v} {x:.2f}" for v, x in fleet["per_vehicle"].items()))
     met = (fleet["telemetry"] >= goal and fleet["calls"][0] >= 0.99 * fleet["calls"][1]
            and fleet["goals"][0] >= 0.99 * fleet["goals"][1])
+    slow = [v for v, x in fleet["per_vehicle"].items() if x < goal]
+    for v in slow:                    # what its MAC timer, its queues and the channel did
+        print(f"  {v} behind the goal ({fleet['per_vehicle'][v]:.2f}): " + behind(v, fleet))
+    if slow:                          # and what the surface refused (of all vehicles)
+        refused = (fleet["links"].get("surface", {}).get("reliability") or {})
+        print("  the surface refused: " + json_brief(
+            {k: refused.get(k) for k in ("stale", "clock_offset", "unexplained_delay", "unmeasured",
+                                         "untimed", "bad_heads")}))
     if args.verbose:
         import json
         for r in rows:
             print(f"-- {r['network']}: emulator nodes", json.dumps(r["emulator"]))
             for name, st in r["links"].items():
+                if name not in ("surface", "auv1"):
+                    continue
                 brief = {k: st.get(k) for k in ("mac", "packets", "reliability", "services")}
                 print(f"-- {r['network']}: link of {name}", json.dumps(brief, default=str)[:3000])
     print(f"goal (telemetry >= {goal:.3f}, calls and goals >= 0.99): {'met' if met else 'NOT met'}")
