@@ -228,7 +228,8 @@ def test_a_follower_that_answers_from_its_notice_is_never_talked_over():
     t = 0.0
     for _ in range(8):                               # quick turns: measured round trips short
         lead.carries = False
-        write(lead, t)
+        write(lead, t)                               # notice
+        write(lead, t + 0.21)                        # grant
         lead.heard(2, bytes([0x32]), t + 0.6)
         t += 0.6
     lead.carries = True
@@ -246,6 +247,37 @@ def test_a_follower_that_answers_from_its_notice_is_never_talked_over():
     last = start + REACT                             # its second packet, written as late as allowed
     assert follower.next_write_at(last) == -math.inf and write(follower, last) == bytes([0x32])
     assert lead.next_write_at(t + 0.5) >= timing.arriving_by(last)
+
+
+def test_a_leader_whose_grant_is_late_after_its_notice_does_not_write_it_over_the_follower():
+    """The leader's thread stalls after its notice: the follower that heard the notice starts
+    its turn from it before a grant written that late could end. The leader writes no
+    grant, counts it, and waits for the follower's turn as if the notice had granted it."""
+    lead, follower = pair()
+    lead.carries = False
+    notice = write(lead, 0.0)
+    assert notice == bytes([0x22, 0])
+    heard = lead.timing.one_way                      # the notice heard as late as it can be
+    follower.heard(1, notice, heard)
+    start = follower.next_write_at(heard)            # the follower's turn, from the notice
+    late = lead.interval + REACT + 0.5               # the stalled leader wakes up
+    assert late < start
+    assert lead.next_write_at(late) > late and not lead.must_send(late)   # no grant now
+    assert (lead.counts["late_grants"], lead.counts["grants_sent"]) == (1, 0)
+    follower.backlog = lambda now: False
+    end = write(follower, start)
+    assert end == bytes([0x32])
+    assert lead.next_write_at(start) >= lead.timing.arriving_by(start)   # its answer is awaited
+    lead.heard(2, end, start + 0.3)
+    assert lead.next_write_at(start + 0.3) == -math.inf and lead.counts["missed"] == 0
+
+
+def test_a_leader_grants_on_time_after_its_notice_with_a_thread_a_little_late():
+    lead, _ = pair()
+    lead.carries = False
+    write(lead, 0.0)
+    assert write(lead, lead.interval + REACT - 0.01) == bytes([0x22, 2])
+    assert lead.counts["late_grants"] == 0
 
 
 def test_a_late_follower_writes_only_inside_its_window_and_ends_its_turn_there():

@@ -48,7 +48,7 @@ from uwgen.runtime.link.mac_items import (TURN_END, TURN_GRANT, MacItem,  # noqa
                                           decode_items, encode_items)
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.slot_timing import FramePhase, SlotTimer, tdma_capacity
-from uwgen.runtime.link.turn_timing import RoundTrip, TurnTiming
+from uwgen.runtime.link.turn_timing import REACT, RoundTrip, TurnTiming
 from uwgen.runtime.wire import envelope as env
 
 INF = math.inf
@@ -224,7 +224,7 @@ class TurnMac(Mac):
         self._last_end: float | None = None   # follower: when it last wrote its turn's end
         self.counts = {k: 0 for k in ("turns", "grants_sent", "grants_heard", "ends_heard",
                                       "missed", "recovered", "dropped_turns", "not_mine",
-                                      "notices_heard", "turns_from_notice", "late_answers")}
+                                      "notices_heard", "turns_from_notice", "late_answers", "late_grants")}
 
     # -- when ----------------------------------------------------------------------------
 
@@ -256,6 +256,10 @@ class TurnMac(Mac):
             self._unheard[who] = now
             self._waiting = None
             self._own_turn()
+        noticed = self._noticed_at if self.leading and self._holding else None
+        if noticed is not None and now > noticed + self.interval + REACT:   # a stalled thread:
+            self.counts["late_grants"] += 1   # the grant would meet the notice's turn (rule 1)
+            self._granted_by(*self.followers[self._next % len(self.followers)], noticed, noticed)
         if not self.leading and self._holding and now > self._turn_until:
             self.counts["dropped_turns"] += 1   # too late to use it: the leader has moved on
             self._holding = False
@@ -311,15 +315,9 @@ class TurnMac(Mac):
         self._holding = False
         if closing.code == TURN_GRANT:
             self.counts["grants_sent"] += 1
-            self._next += 1
-            deadline = (self.timing.grant_deadline(now, closing.count, self._noticed_at)
-                        + self._late[closing.sender])
-            self._waiting = (closing.sender, closing.count, now, deadline)
             # the grant has to end before an answer to it can start (the range is the
             # farthest the sides are apart, not the nearest)
-            self._earliest = now + self.timing.packet_air(nbytes)
-            self._noticed_at = None
-            self._heard_in_wait = 0
+            self._granted_by(closing.sender, closing.count, now, now + self.timing.packet_air(nbytes))
         else:
             self.counts["turns"] += 1
             self._last_end = now
@@ -380,6 +378,12 @@ class TurnMac(Mac):
             return
         self.counts["late_answers"] += 1
         self._late[sender] = max(self._late[sender], start - deadline + LISTEN)
+
+    def _granted_by(self, sid: int, count: int, at: float, earliest: float) -> None:
+        """Wait for follower `sid`'s `count` packets, its turn given at `at` (grant or notice)."""
+        deadline = self.timing.grant_deadline(at, count, self._noticed_at) + self._late[sid]
+        self._holding, self._next, self._earliest = False, self._next + 1, earliest
+        self._waiting, self._noticed_at, self._heard_in_wait = (sid, count, at, deadline), None, 0
 
     def _take_turn(self, count: int, now: float) -> None:
         self._notice_at = INF
