@@ -170,7 +170,7 @@ def before_start(again) -> None:
     started (its age item reaches back past the start, as a copy's does): the fake link
     carries no age items."""
     started = again.action_servers.watches[9].started
-    again.wiring.earliest_at = lambda payload: started - 1.0
+    again.wiring.began_at = lambda payload: started - 1.0
 
 
 def copy_held(again, links, results: list) -> None:
@@ -241,7 +241,7 @@ def test_a_goal_that_began_after_a_restart_runs_without_waiting_for_the_goal_lis
         wait_for(lambda: results == [5], what="the first goal")
         hold_list(monkeypatch)
         again = restart()
-        again.wiring.earliest_at = lambda payload: again.wiring.clock.now()   # began just now
+        again.wiring.began_at = lambda payload: again.wiring.clock.now()   # began just now
         wait_for(lambda: again.action_servers.served[9][1].server_is_ready(),
                  what="real server visible again")
         links.links["vehicle"].inject(patient_fib_codec.encode_goal(6, Fibonacci.Goal(order=7)))

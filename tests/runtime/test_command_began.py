@@ -45,19 +45,6 @@ def test_a_command_taken_began_its_age_item_and_transit_before_it_came():
     assert j.began(bytes((2, CALL, 8, 1))) is None            # never taken
 
 
-def test_a_command_taken_began_at_the_earliest_its_ages_bound_before_it_came():
-    """The earliest it can have begun counts what the likely beginning leaves out: the age
-    item's whole rounding and the clock offset's error (0.3 s here), so a bridge asking
-    whether a goal may predate its start (uwgen.bridge.orphans) errs on the side of yes."""
-    j, wall = judge(offset=0.0)
-    request = bytes((2, CALL, 7, 1))
-    assert not j.refuses(CALL, 1, stamp(WALL - 1.4), 7.5)
-    j.taken(request, 500.0)
-    assert j.earliest(request) == pytest.approx(500.0 - 7.5 - AGE_UNIT - 1.4 - 0.3, abs=1 / 32)
-    assert j.earliest(request) < j.began(request)
-    assert j.earliest(bytes((2, CALL, 8, 1))) is None         # never taken
-
-
 def test_a_command_refused_tells_nothing_and_only_the_last_taken_are_kept():
     j, wall = judge(offset=0.0)
     late = bytes((2, CALL, 9, 1))

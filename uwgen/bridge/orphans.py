@@ -16,8 +16,9 @@ and `result_timeout` is supervised as for any goal), or **cancelled** when its h
 busy with a newer goal.
 
 A goal that came over the link and **may copy** a goal a predecessor took (`Served.unsure`:
-the most its age can be, from its age item with the clock offset's error, reaches back past
-this start: `Wiring.may_predate`) is not sent to the local server until the goal list is
+its age item says it began before this start, `Wiring.may_predate`; its likely beginning,
+the clock offset's error not counted: counted, that error made every goal sent just after a
+start look older than the start, and such goals went unanswered) is not sent to the local server until the goal list is
 **known** (`heard_or_grace`): heard, or `STATUS_GRACE` seconds after start (a server that
 never had a goal publishes none). It would otherwise run a second time beside the running
 goal it copies. No guess is taken from the status publisher's match for it: the

@@ -102,7 +102,7 @@ def wire_commands(w: Any, reliability: Reliability) -> None:
     reports tell them, the reports' word on a result's arrival, and when a command that came
     began on its caller's side (its age item: `Wiring.began`)."""
     w.repeat, reliability.on_fate, w.reports = reliability.repeat, w.fates.told, True
-    w.began_at, w.earliest_at = reliability.judge.began, reliability.judge.earliest
+    w.began_at = reliability.judge.began
 
 
 def link_ledger(link_stats: Any) -> dict[int, dict]:

@@ -62,8 +62,6 @@ class Wiring:
     # when a command that came began on its caller's side, from its age item (the link's
     # judge: runtime.delivery.judge.AgeJudge.began); None when the link cannot tell
     began_at: Callable[[bytes], float | None] = lambda payload: None
-    # and the earliest it can have begun, its age's bound (AgeJudge.earliest)
-    earliest_at: Callable[[bytes], float | None] = lambda payload: None
     # what the peer's reports told of our command messages (fates.py; made in __post_init__),
     # and whether the link has reports (wire format 2): they acknowledge a result's arrival
     fates: Fates = field(init=False)
@@ -142,13 +140,12 @@ class Wiring:
         return came - (self.turn_gap + (self.round_trip or 0.0)) / 2
 
     def may_predate(self, payload: bytes, instant: float) -> bool | None:
-        """Whether the call of a request or goal `payload` that came may have begun before
-        `instant`: the most its age can be (the link's judge's bound: its age item, the
-        item's rounding, the packet's transit and the clock offset's error) reaches back
-        past it. None when the link cannot tell (no age item: wire format 1; or a payload
-        the judge no longer keeps)."""
-        earliest = self.earliest_at(payload)
-        return None if earliest is None else earliest < instant
+        """Whether the call of a request or goal `payload` that came began before `instant`,
+        as its age item tells (`began_at`: its likely beginning; the offset's error is not
+        counted, or every goal sent just after a start would count). None when the link
+        cannot tell (no age item: wire format 1; or a payload the judge no longer keeps)."""
+        began = self.began_at(payload)
+        return None if began is None else began < instant
 
     @staticmethod
     def callers_deadline(began: float, timeout: float) -> float:

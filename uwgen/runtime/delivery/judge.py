@@ -36,9 +36,8 @@ class AgeJudge:
         self._offset_told: set[int] = set()
         self.first_offset_at: dict[int, float] = {}   # peer -> when its offset was first measured
         self.verdict: Verdict | None = None             # the last message's (`refuses`)
-        # a command taken (its bytes as the bridge gets them) -> (when it likely began, the
-        # earliest it can have begun) (`taken`)
-        self._began: OrderedDict[bytes, tuple[float, float]] = OrderedDict()
+        # a command taken (its bytes as the bridge gets them) -> when it began (`taken`)
+        self._began: OrderedDict[bytes, float] = OrderedDict()
 
     def who(self, peer: int) -> str:
         """`sender 1 (surface)`: the peer's sender id (W) and, when known, its side."""
@@ -124,13 +123,12 @@ class AgeJudge:
     def taken(self, payload: bytes, now: float) -> None:
         """The command `payload` (its bytes as the bridge gets them), judged last
         (`refuses`), was taken at `now` (the link's clock): it began its likely age before
-        (`Verdict.likely`), and at the earliest its bound (`Verdict.age`) before. A command's
-        copy carries its call's age (docs/wire-format.md section 15.6), so the serving side
-        times its caller's deadline on the copy that came, not on its arrival. The last
-        BEGUN are kept."""
+        (`Verdict.likely`). A command's copy carries its call's age (docs/wire-format.md
+        section 15.6), so the serving side times its caller's deadline on the copy that
+        came, not on its arrival. The last BEGUN are kept."""
         if self.verdict is None or self.verdict.refused is not None:
             return
-        self._began[bytes(payload)] = (now - self.verdict.likely, now - self.verdict.age)
+        self._began[bytes(payload)] = now - self.verdict.likely
         self._began.move_to_end(bytes(payload))
         while len(self._began) > BEGUN:
             self._began.popitem(last=False)
@@ -138,12 +136,4 @@ class AgeJudge:
     def began(self, payload: bytes) -> float | None:
         """When the command `payload` taken last began (`taken`), on the link's clock; None
         when it is not among the last BEGUN taken. Any thread (one dict lookup)."""
-        got = self._began.get(bytes(payload))
-        return None if got is None else got[0]
-
-    def earliest(self, payload: bytes) -> float | None:
-        """The earliest the command `payload` taken last can have begun: its age's bound
-        (age item, rounding, transit, the clock offset's error) before it was taken; None
-        when it is not among the last BEGUN taken."""
-        got = self._began.get(bytes(payload))
-        return None if got is None else got[1]
+        return self._began.get(bytes(payload))
