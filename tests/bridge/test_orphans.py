@@ -185,6 +185,17 @@ def copy_held(again, links, results: list) -> None:
     assert results == before and counted(again)["waited"] == 1
 
 
+def adopted_once(again, release, goal_handle, results: list) -> None:
+    """The held list comes: the running goal is adopted, the caller gets its result, and it
+    ran once."""
+    release(again)
+    wait_for(lambda: counted(again)["orphans_adopted"] == 1, what="the running goal adopted")
+    future = goal_handle.get_result_async()
+    wait_for(future.done, timeout=10.0, what="the goal's result")
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+    assert results == [5]                                  # run once
+
+
 def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal_list_is_not_run_again(
         patient_fib_codec, monkeypatch):
     """The server-side bridge is killed while its goal runs; the goal's copy reaches the new
@@ -197,12 +208,7 @@ def test_a_goal_copy_that_reaches_a_restarted_server_side_bridge_before_the_goal
         release = hold_list(monkeypatch)
         again = restart()
         copy_held(again, links, results)
-        release(again)
-        wait_for(lambda: counted(again)["orphans_adopted"] == 1, what="the running goal adopted")
-        future = goal_handle.get_result_async()
-        wait_for(future.done, timeout=10.0, what="the goal's result")
-        assert future.result().status == GoalStatus.STATUS_SUCCEEDED
-        assert results == [5]                                  # run once
+        adopted_once(again, release, goal_handle, results)
         status_now = counted(again)
         assert (status_now["duplicate_goals"], status_now["orphans_cancelled"]) == (1, 0)
 
@@ -222,12 +228,7 @@ def test_a_goal_copy_is_not_run_again_when_the_goal_list_comes_long_after_its_pu
         wait_for(lambda: counted(again)["no_server"] == 1, what="the copy's budget over")
         time.sleep(0.5)
         assert results == [5]
-        release(again)
-        wait_for(lambda: counted(again)["orphans_adopted"] == 1, what="the running goal adopted")
-        future = goal_handle.get_result_async()
-        wait_for(future.done, timeout=10.0, what="the goal's result")
-        assert future.result().status == GoalStatus.STATUS_SUCCEEDED
-        assert results == [5]                                  # run once
+        adopted_once(again, release, goal_handle, results)
         codec = patient_long_fib_codec
         rejected = codec.encode_answer(codec.decode_request(links.links["surface"].offered(9)[0])[0], 0)
         assert rejected not in links.links["vehicle"].offered(9)
