@@ -34,6 +34,7 @@ fleet at 10 % PER, telemetry >= 0.95 x (1 - PER), calls and goals >= 0.99.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import random
@@ -302,7 +303,6 @@ def behind(vehicle: str, row: dict) -> str:
 
 
 def json_brief(d: dict) -> str:
-    import json
     return json.dumps(d, default=str, separators=(",", ":"))
 
 
@@ -350,12 +350,11 @@ def main() -> int:
     for v in slow:                    # what its MAC timer, its queues and the channel did
         print(f"  {v} behind the goal ({fleet['per_vehicle'][v]:.2f}): " + behind(v, fleet))
     if slow:                          # and what the surface refused (of all vehicles)
-        refused = (fleet["links"].get("surface", {}).get("reliability") or {})
+        refused = fleet["links"].get("surface", {}).get("reliability") or {}
         print("  the surface refused: " + json_brief(
             {k: refused.get(k) for k in ("stale", "clock_offset", "unexplained_delay", "unmeasured",
                                          "untimed", "bad_heads")}))
     if args.verbose:
-        import json
         for r in rows:
             print(f"-- {r['network']}: emulator nodes", json.dumps(r["emulator"]))
             for name, st in r["links"].items():

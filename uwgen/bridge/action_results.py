@@ -53,8 +53,14 @@ class Served:
     cancel_wanted: bool = False   # a cancel came before the local server answered
     goal: Any = None              # the goal message while it waits for the local server
     began: float | None = None    # when it began on the client side (Wiring.began)
-    # may it copy a goal a previous start took (orphans.py)? None: the link cannot tell
+    # did it begin before this start (orphans.py)? None: the link cannot tell (no age item)
     unsure: bool | None = None
+
+    @property
+    def may_copy(self) -> bool:
+        """Whether it may copy a goal a previous start of the bridge took: unless it is
+        known to have begun after the start."""
+        return self.unsure is not False
 
 
 @dataclass(frozen=True)

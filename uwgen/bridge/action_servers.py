@@ -155,7 +155,7 @@ class ActionServers(GoalAdoption):
         now = self.w.clock.now()
         # may it copy a goal a previous start of this bridge took? (orphans.py)
         unsure = self.w.may_predate(payload, self.watches[ident].started)
-        if self._repeat(ident, handle, payload, unsure is not False):     # in flight, or finished just now
+        if self._repeat(ident, handle, payload, unsure is not False, now):   # in flight, or done
             counters.duplicate_goals += 1
             return
         self.results[ident].forget(handle)        # a new goal on a handle used before
@@ -182,7 +182,7 @@ class ActionServers(GoalAdoption):
         watch = self.watches[ident]
         if entry.unsure is None:
             return watch.listed(now) or entry.deadline <= now
-        return not entry.unsure or watch.heard_or_grace(now)
+        return not entry.may_copy or watch.heard_or_grace(now)
 
     def _send_goal(self, ident: int, handle: int, entry: Served) -> None:
         from unique_identifier_msgs.msg import UUID
@@ -204,7 +204,7 @@ class ActionServers(GoalAdoption):
         list is known, `expire`)."""
         for handle, entry in list(self.goals[ident].items()):
             if entry.sent is None and self._may_send(ident, entry, now):
-                if not (entry.unsure is not False
+                if not (entry.may_copy
                         and self._copy_of_finished(ident, handle, entry.payload, entry.arrived)):
                     self._send_goal(ident, handle, entry)
 
@@ -267,9 +267,9 @@ class ActionServers(GoalAdoption):
                 self.w.expect(codec.encode_result_status(handle, received=True), ident, payload,
                               echo=False)
 
-    def _repeat(self, ident: int, handle: int, payload: bytes, unsure: bool) -> bool:
-        """Answer a goal that came again; True when it was one (then it is not run).
-        `unsure`: it may copy a goal a previous start took (orphans.py)."""
+    def _repeat(self, ident: int, handle: int, payload: bytes, may_copy: bool, now: float) -> bool:
+        """Answer a goal that came again at `now`; True when it was one (then it is not run).
+        `may_copy`: it may copy a goal a previous start took (orphans.py)."""
         unlisted = self._unlisted.get((ident, handle))
         if unlisted is not None and unlisted[0] == payload:
             return True                  # held past its budget: answered once the list is known
@@ -279,9 +279,9 @@ class ActionServers(GoalAdoption):
                 self.counters[ident].repeated_replies += 1
                 self._answer(ident, handle, ACCEPTED)          # the first answer was lost
             return True                                    # else: the answer is still to come
-        result = self.results[ident].repeat_of(handle, payload, self.w.clock.now())
+        result = self.results[ident].repeat_of(handle, payload, now)
         if result is None:
-            return unsure and self._copy_of_finished(ident, handle, payload, self.w.clock.now())
+            return may_copy and self._copy_of_finished(ident, handle, payload, now)
         self.counters[ident].repeated_replies += 1
         arrived = self.results[ident].recent[handle].arrived   # the answer and result were lost
         self._offer(ident, result, "result", again=self.w.answer_urgent(
@@ -386,7 +386,7 @@ class ActionServers(GoalAdoption):
                 del goals[handle]
                 if entry.sent is None:
                     counters.no_server += 1
-                    if entry.unsure is not False and not self.watches[ident].heard_or_grace(now):
+                    if entry.may_copy and not self.watches[ident].heard_or_grace(now):
                         # The goal list is not known: this may be the copy of a goal a
                         # previous start left running on a server not seen yet (orphans.py),
                         # and "rejected" would then lie. Not run; answered once it is known.

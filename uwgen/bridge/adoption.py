@@ -51,7 +51,7 @@ class GoalAdoption:
         goal_handle = ClientGoalHandle(client, UUID(uuid=list(uuid)), response)
         self.own_uuids.add(uuid)
         held = self.goals[ident].get(handle)
-        if held is not None and held.sent is None and held.unsure is not False:
+        if held is not None and held.sent is None and held.may_copy:
             # held for the list (on_request): the copy of this goal, not a new one
             del self.goals[ident][handle]
             self.counters[ident].duplicate_goals += 1

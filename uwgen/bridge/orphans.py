@@ -15,29 +15,29 @@ made from its UUID, its result is asked for and pushed to the client side under 
 and `result_timeout` is supervised as for any goal), or **cancelled** when its handle is
 busy with a newer goal.
 
-A goal that came over the link and **may copy** a goal a predecessor took (`Served.unsure`:
-its age item says it began before this start, `Wiring.may_predate`; its likely beginning,
-the clock offset's error not counted: counted, that error made every goal sent just after a
-start look older than the start, and such goals went unanswered) is not sent to the local server until the goal list is
-**known** (`heard_or_grace`): heard, or `STATUS_GRACE` seconds after start (a server that
-never had a goal publishes none). It would otherwise run a second time beside the running
-goal it copies. No guess is taken from the status publisher's match for it: the
-subscription sees the publisher matched before the publisher has matched it and sent its
-transient local list, a gap a loaded machine can stretch past any fixed wait
-(`LIST_SETTLE`), and a copy sent on that guess runs twice. A goal
-that began after this start cannot copy a predecessor's and goes as soon as the local
-server is ready. A held goal that the list then shows running on its handle is the running
-goal's copy: the running goal is adopted and the copy dropped (counted `duplicate_goals`).
-A held goal whose wait (half its accept_timeout) ends before the list is known is neither
-sent nor answered until it is (`_answer_unlisted`): then the goal it copies answers, or it
-is rejected, the truth, as it never ran. On a link without age items (wire format 1) a
-goal's beginning is not known: every goal waits for the list, taken as known also once the
-status publisher has been matched `LIST_SETTLE` seconds with nothing heard (`listed`), and
-goes when its wait is over rather than be refused for a list slow to come (there a copy
-can still run twice when the list is late). The side
-tells the client side that it knows no such goal only once the list was heard or
-`STATUS_GRACE` is over (`heard_or_grace`): a caller told "lost" for a goal about to be
-adopted is lied to, so no guess from the match there.
+A goal that came over the link and **may copy** a goal a predecessor took (its age item
+says it began before this start, `Wiring.may_predate`, `Served.may_copy`: its likely
+beginning, the clock offset's error not counted, as at a start that error is most of a
+second and would make every goal sent just after the start look older than it) is not sent
+to the local server until the goal list is **known** (`heard_or_grace`): heard, or
+`STATUS_GRACE` seconds after start (a server that never had a goal publishes none). It
+would otherwise run a second time beside the running goal it copies. No guess is taken
+from the status publisher's match for it: the subscription sees the publisher matched
+before the publisher has matched it and sent its transient local list, a gap a loaded
+machine can stretch past any fixed wait (`LIST_SETTLE`), and a copy sent on that guess runs
+twice. A goal that began after this start cannot copy a predecessor's and goes as soon as
+the local server is ready. A held goal that the list then shows running on its handle is
+the running goal's copy: the running goal is adopted and the copy dropped (counted
+`duplicate_goals`). A held goal whose wait (half its accept_timeout) ends before the list
+is known is neither sent nor answered until it is (`_answer_unlisted`): then the goal it
+copies answers, or it is rejected, the truth, as it never ran. On a link without age items
+(wire format 1) a goal's beginning is not known: every goal waits for the list, taken as
+known also once the status publisher has been matched `LIST_SETTLE` seconds with nothing
+heard (`listed`), and goes when its wait is over rather than be refused for a list slow to
+come (there a copy can still run twice when the list is late). The side tells the client
+side that it knows no such goal only once the list was heard or `STATUS_GRACE` is over
+(`heard_or_grace`): a caller told "lost" for a goal about to be adopted is lied to, so no
+guess from the match there.
 
 A goal of ours that **finished** while no bridge watched it (succeeded, aborted or cancelled
 while the server side was down) is listed too, for as long as the local server keeps its
@@ -79,7 +79,7 @@ from typing import Any
 MARK = b"uwg"
 STATUS_GRACE = 10.0         # seconds after start before the list counts as known unheard
                             # (discovery of the local server can take seconds on a loaded machine)
-LIST_SETTLE = 0.5           # wire format 1: seconds a matched status publisher may take to deliver its list
+LIST_SETTLE = 0.5           # wire format 1: s a matched status publisher may take to deliver its list
 ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
 FINISHED = (4, 5, 6)        # GoalStatus SUCCEEDED, CANCELED, ABORTED
 
@@ -143,9 +143,9 @@ class OrphanWatch:
         return self.heard or now - self.started >= STATUS_GRACE
 
     def listed(self, now: float) -> bool:
-        """On a link without age items, whether the local server's goal list is taken as known
-        (see the module's docstring): heard, or its publisher matched `LIST_SETTLE` seconds ago with nothing to say, or the grace
-        is over. Asked on every expiry tick, so the match is timed from when it happened."""
+        """On a link without age items, whether the local server's goal list is taken as
+        known (see the module's docstring): heard, or its publisher matched `LIST_SETTLE`
+        seconds ago with nothing to say, or the grace is over. Asked on every expiry tick, so the match is timed from when it happened."""
         if self.heard or now - self.started >= STATUS_GRACE:
             return True
         if self.sub.get_publisher_count() == 0:
