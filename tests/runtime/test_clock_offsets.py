@@ -54,7 +54,40 @@ def test_a_held_report_loses_the_clock_filter_to_a_prompt_one():
     held = offsets.reported(5, 2, 0, stamp(wall + 1.5), wall + 45.0)   # its report held 43 s
     assert held.offset == prompt.offset and abs(prompt.offset) < 0.2
     assert offsets.reported(5, 3, 0, stamp(wall), wall) is None        # a packet never built
-    assert offsets.reported(5, 1, 15, stamp(wall), wall + 2) is None  # a saturated hold
+    # a saturated hold (3.75 s or more) in a round trip of 2 s: no such exchange
+    assert offsets.reported(5, 1, 15, stamp(wall), wall + 2) is None
+
+
+@pytest.mark.parametrize("true_hold", [3.75, 4.0, 4.6, 6.9])
+@pytest.mark.parametrize("there, back", [(0.2, 0.2), (0.0, 0.6), (0.6, 0.0)])
+def test_a_peer_that_always_holds_past_the_scale_is_measured_within_its_error(true_hold, there,
+                                                                              back):
+    # a vehicle in a far TDMA slot reports each surface packet about 4 s after hearing it:
+    # R1 saturates (15), yet the exchange bounds its offset (2.5 s ahead here)
+    offsets, wall, ahead = ClockOffsets(), 1_700_000_000.0, 2.5
+    offsets.built(1, wall)
+    t3 = wall + there + true_hold + ahead
+    got = offsets.reported(5, 1, 15, stamp(t3), wall + there + true_hold + back)
+    assert got is not None and abs(got.offset - ahead) <= got.error
+    assert got.error <= (there + back + true_hold - 3.75) / 2 + 0.2
+
+
+def test_a_saturated_report_naming_an_old_packet_again_gives_no_sample():
+    offsets, wall = ClockOffsets(), 1_700_000_000.0
+    offsets.built(1, wall)
+    # received 0.3 s after it left, reported 9 s later: the range is 5.5 s wide
+    assert offsets.reported(5, 1, 15, stamp(wall + 9.3), wall + 9.6) is None
+    assert offsets.of(5) is None
+
+
+def test_an_exact_sample_wins_the_filter_over_a_saturated_one():
+    offsets, wall = ClockOffsets(), 1_700_000_000.0
+    offsets.built(1, wall)
+    offsets.built(2, wall + 1)
+    loose = offsets.reported(5, 1, 15, stamp(wall + 0.3 + 5.0), wall + 5.6)   # held 5 s
+    exact = offsets.reported(5, 2, 2, stamp(wall + 1.3 + 0.6), wall + 2.2)    # held 0.6 s
+    assert loose.delay > exact.delay and exact.error < loose.error
+    assert offsets.of(5).delay == exact.delay
 
 
 @pytest.mark.parametrize("sealed", [False, True], ids=["unsealed", "sealed"])

@@ -15,10 +15,20 @@ NTP's four timestamps, from what the link carries anyway:
 
 whatever the two transits are (each is >= 0): the only assumption is that a packet does not
 arrive before it left. The hold is sent in whole quarter seconds, rounded down (taken at the
-middle of its quarter, +-1/8 s), T in 1/32 s rounded down (+-1/32 s at each end); a report
-whose hold saturated (15 quarters: 3.75 s or more) gives no sample. As NTP's clock filter does,
-the sample of the least delay among the peer's last `KEEP` wins: a packet held back by the
-channel, a queue or an attacker only makes its own sample worse, never the estimate.
+middle of its quarter, +-1/8 s), T in 1/32 s rounded down (+-1/32 s at each end). As NTP's
+clock filter does, the sample of the least delay among the peer's last `KEEP` wins: a packet
+held back by the channel, a queue or an attacker only makes its own sample worse, never the
+estimate.
+
+A saturated hold (15 quarters: 3.75 s or more) still bounds the exchange from one side: the
+peer received n at least 3.75 s before t3, so t2 <= t3 - 3.75, and the offset lies within
+[t3 - t4, t3 - 3.75 - t1] whatever the transits. The sample is that range: the formulas above
+with hold = 3.75 s, its delay counting the hold beyond 3.75 s as transit, so any exact sample
+of less delay wins the filter. It is what measures a peer that always holds our packets that
+long (a TDMA slot far from ours: under a frame of 6 s the last of eight vehicles reports the
+surface's packets about 4 s after hearing them). A saturated report whose range is wider than
+`SATURATED_REACH` (a report naming an old packet again, not an exchange) or empty (the round
+trip was shorter than the hold it claims) gives no sample.
 
 A single late packet never moves the estimate: every sample needs a packet of this side that
 the peer received and reported, and a held packet makes a sample with a large delay that loses
@@ -32,7 +42,8 @@ from dataclasses import dataclass
 from uwgen.runtime.delivery.freshness import TICKS_PER_SECOND, sent_at
 
 HOLD_UNIT = 0.25            # seconds per unit of a report's ack delay (wire-format 15.2, R1)
-HOLD_SATURATED = 15         # units: "15 or more": no sample
+HOLD_SATURATED = 15         # units: "15 or more": held at least 3.75 s (module doc)
+SATURATED_REACH = HOLD_SATURATED * HOLD_UNIT   # the widest delay a saturated sample may have
 KEEP = 8                    # samples per peer the filter chooses from (NTP's clock filter)
 REMEMBER = 512              # our packets whose build time is kept (a report names recent ones)
 QUANTUM = HOLD_UNIT / 2 + 2 / TICKS_PER_SECOND   # the rounding of the hold and of two Ts
@@ -81,15 +92,18 @@ class ClockOffsets:
                  wall: float) -> Offset | None:
         """The peer reported our packet `number` (full), held `hold_units` quarter seconds, in
         a packet stamped `time24` that arrived at `wall`. Returns the new estimate, or None
-        when the report gives no sample (no T, a saturated hold, a packet we no longer know)."""
+        when the report gives no sample (no T, a packet we no longer know, a saturated hold
+        whose range is empty or wider than `SATURATED_REACH`)."""
         t1 = self._built.get(number)
-        if time24 is None or t1 is None or not 0 <= hold_units < HOLD_SATURATED:
+        if time24 is None or t1 is None or hold_units < 0:
             return None
-        hold = (hold_units + 0.5) * HOLD_UNIT
-        t3 = sent_at(time24, wall)
-        offset, delay, error = sample(t1, hold, t3, wall)
         if wall < t1:
             return None                      # our own clock stepped back: not an exchange
+        saturated = hold_units >= HOLD_SATURATED
+        hold = HOLD_SATURATED * HOLD_UNIT if saturated else (hold_units + 0.5) * HOLD_UNIT
+        if saturated and not 0 <= wall - t1 - hold <= SATURATED_REACH:
+            return None                      # an empty range, or one too wide to tell
+        offset, delay, error = sample(t1, hold, sent_at(time24, wall), wall)
         kept = self._samples.setdefault(peer, deque(maxlen=self.keep))
         now = self.of(peer)
         if now is not None and abs(offset - now.offset) > error + now.error:
