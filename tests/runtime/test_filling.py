@@ -75,8 +75,9 @@ def packets(channels: dict[int, tuple[LinkPolicy, int]], count: int) -> list[env
     packer = Packer(s, sender=1, max_read_length=64, counters=Counters(PACKET_COUNTERS))
     out = []
     for _ in range(count):
+        queued = {key: st["queued"] for key, st in s.stats().items()}
         for key, (_, size) in channels.items():
-            while s.stats()[key]["queued"] < 10:
+            for _ in range(10 - queued[key]):
                 s.offer(key, payload(key, size) if key < 24 else bytes((0, 0x18, key)) + bytes(size - 3))
         out.append(envelope.decode(packer.next_packet(0.0)))
     return out
@@ -120,8 +121,9 @@ def saturated_counts(top: LinkPolicy, top_size: int, seconds: float = 240.0) -> 
     for step in range(int(seconds / 0.2)):
         now = step * 0.2
         clock.set(now)
+        queued = {key: st["queued"] for key, st in s.stats().items()}
         for key in range(1, 51):
-            while s.stats()[key]["queued"] < 5:
+            for _ in range(5 - queued[key]):
                 body = bytes(top_size - 2) if key == 1 else bytes(4)
                 s.offer(key, (bytes((0, key)) if key < 24 else bytes((0, 0x18, key))) + body)
         for m in envelope.decode(packer.next_packet(now)).messages:

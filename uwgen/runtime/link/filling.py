@@ -70,12 +70,16 @@ def cut_point(messages: Sequence[Message], message: Message, limit: int, room: i
     return first
 
 
-def added(messages: Sequence[Message], payload: bytes) -> int:
+def added(messages: Sequence[Message], payload: bytes, base: int | None = None) -> int:
     """The bytes a wire format 1 `payload` adds to a packet holding `messages`, as encoded: its
     header, body and the length byte the message before it gains, or its body alone when it
-    joins a run (what the scheduler compares with the room left)."""
+    joins a run (what the scheduler compares with the room left). `base`: the length of
+    `messages` encoded, when the caller knows it (a packet's fill measures every ready
+    channel's next message against the same messages)."""
     try:
         m = from_v1(payload)
     except EnvelopeError:
         return len(payload) + 1
-    return len(encode_messages([*messages, m])) - len(encode_messages(messages))
+    if base is None:
+        base = len(encode_messages(messages))
+    return len(encode_messages([*messages, m])) - base

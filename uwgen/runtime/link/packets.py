@@ -150,7 +150,8 @@ class Packer:
                 log_count(log, logging.ERROR, self.counters.inc("cut_dropped"), "[%s] the rest "
                           "of a cut message (%d bytes) does not fit the next packet (its parts "
                           "took the room): the message is lost", self.name, len(first.body))
-        budget = room - len(env.encode_messages(messages)) - 1 if messages else room
+        encoded = len(env.encode_messages(messages))     # the messages' bytes so far
+        budget = room - encoded - 1 if messages else room
         # Messages the peer lost (reliable entries) go first, then the scheduler's.
         # A message that brings a part (T) fits only with that part: the scheduler counts
         # `extra(key)` into each channel's next size; a re-sent one is offered the room less
@@ -165,9 +166,9 @@ class Packer:
         sources.append(lambda room: self.scheduler.next_payload(
             now, room if messages else None, fill=True, packet=self.number,
             extra=extra if roomy is not None else None,
-            measure=lambda payload: added(messages, payload)))
+            measure=lambda payload: added(messages, payload, encoded)))
         def fill(source) -> None:
-            nonlocal budget, charged
+            nonlocal budget, charged, encoded
             while budget > 1:
                 got = source(budget)
                 if got is None:
@@ -187,7 +188,8 @@ class Packer:
                         charged += more
                 # what the messages take as encoded (a message joining a run costs its body
                 # alone), counted as `message_measure` counts: each with a length byte
-                budget = room - charged - len(env.encode_messages(messages)) - 1
+                encoded = len(env.encode_messages(messages))
+                budget = room - charged - encoded - 1
 
         for source in sources:
             fill(source)
