@@ -88,9 +88,8 @@ def run(cmd: list[str], extra_env: dict[str, str] | None = None) -> int:
 
 def test_workers(extra: list[str]) -> list[str]:
     """pytest-xdist options: two workers per core (at least 3, at most 4: many tests wait on
-    sockets, ROS and the emulator, not on the CPU; on 2 cores 2 workers used about 40 % of
-    the CPU, and 4 workers ran the suite in 296 s where 3 took 356 s, with the same CPU
-    time), unless the caller chose (`-n ...`, `-p no:xdist`)."""
+    sockets, ROS and the emulator, not on the CPU, so on 2 cores fewer than 4 workers leave
+    it idle for a good part of the run), unless the caller chose (`-n ...`, `-p no:xdist`)."""
     if any(a == "-n" or a.startswith(("-n", "--numprocesses", "--dist")) or a == "no:xdist"
            for a in extra):
         return []
