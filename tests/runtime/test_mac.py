@@ -325,6 +325,23 @@ def test_a_follower_that_heard_the_notice_but_lost_the_grant_takes_its_turn_afte
     assert follower.next_write_at(start + 0.3) == math.inf
 
 
+def test_a_grant_heard_after_its_notices_turn_was_taken_starts_no_second_turn():
+    # the leader's DESERT sent the grant late: the follower had taken its turn from the
+    # notice and ended it, and the leader took the turn back on that end; a second turn
+    # from the late grant collided with the leader's next packet
+    _, follower = pair()
+    follower.backlog = lambda now: False
+    follower.heard(1, bytes([0x22, 0]), 1.0)
+    start = follower.next_write_at(1.1)
+    assert follower.next_write_at(start) == -math.inf
+    assert write(follower, start) == bytes([0x32])              # nothing to send: the end
+    follower.heard(1, bytes([0x22, 2]), start + 0.05)           # the late grant
+    assert follower.next_write_at(start + 0.1) == math.inf and follower.counts["late_grants"] == 1
+    follower.heard(1, b"", start + 1.0)                          # the leader's turn
+    follower.heard(1, bytes([0x22, 2]), start + 1.2)             # the next round's grant
+    assert follower.next_write_at(start + 1.2) == -math.inf and follower.counts["grants_heard"] == 1
+
+
 def test_a_grant_after_its_notice_starts_the_turn_at_once_and_others_notices_are_ignored():
     _, follower = pair()
     follower.heard(1, bytes([0x22, 0]), 1.0)

@@ -221,6 +221,7 @@ class TurnMac(Mac):
         self._size: int | None = None     # bytes of the packet being opened (arrived)
         self._turn_until = INF            # follower: no packet of its turn is written after it
         self._notice_at = INF             # follower: its turn starts then if the grant is lost
+        self._by_notice = False           # follower: took that turn; the grant is answered
         self._last_end: float | None = None   # follower: when it last wrote its turn's end
         self.counts = {k: 0 for k in ("turns", "grants_sent", "grants_heard", "ends_heard",
                                       "missed", "recovered", "dropped_turns", "not_mine",
@@ -267,7 +268,7 @@ class TurnMac(Mac):
             # the notice was heard and the grant it announced lost: the turn is ours all the
             # same, for the manifest's count, once the leader's last packet has ended
             self.counts["turns_from_notice"] += 1
-            self._take_turn(self.my_packets, self._notice_at)
+            self._take_turn(self.my_packets, self._notice_at, by_notice=True)
 
     def _own_turn(self) -> None:
         self._holding, self._granted, self._sent = True, self.my_packets, 0
@@ -315,8 +316,7 @@ class TurnMac(Mac):
         self._holding = False
         if closing.code == TURN_GRANT:
             self.counts["grants_sent"] += 1
-            # the grant has to end before an answer to it can start (the range is the
-            # farthest the sides are apart, not the nearest)
+            # the grant ends before an answer to it can start (the range: the farthest apart)
             self._granted_by(closing.sender, closing.count, now, now + self.timing.packet_air(nbytes))
         else:
             self.counts["turns"] += 1
@@ -349,8 +349,14 @@ class TurnMac(Mac):
             return
         if sender != self.leader_id:
             return
+        # the grant after a notice whose turn this side took (the leader's DESERT sent it
+        # late) is answered: a second turn would meet the leader's, taken back at our end
+        answered, self._by_notice = self._by_notice, False
         for item in items:
             if item.code != TURN_GRANT:
+                continue
+            if answered and item.sender == self.me and item.count:
+                self.counts["late_grants"] += 1   # a follower's: heard after its notice's turn
                 continue
             if item.count == 0:                 # a notice: the grant comes on the next packet
                 if item.sender == self.me and not self._holding:
@@ -385,8 +391,8 @@ class TurnMac(Mac):
         self._holding, self._next, self._earliest = False, self._next + 1, earliest
         self._waiting, self._noticed_at, self._heard_in_wait = (sid, count, at, deadline), None, 0
 
-    def _take_turn(self, count: int, now: float) -> None:
-        self._notice_at = INF
+    def _take_turn(self, count: int, now: float, by_notice: bool = False) -> None:
+        self._notice_at, self._by_notice = INF, by_notice
         self._holding, self._granted, self._sent = True, count, 0
         # its packets are written inside the window the leader's bound counts on: a turn not
         # used by then is gone (a side that comes back late never talks over the next turn)
@@ -397,10 +403,8 @@ class TurnMac(Mac):
     def cycle(self) -> float:
         """Seconds of one round of turns: the leader's and every follower's (measured turn
         round trips on the leader, the first guess on a follower)."""
-        total = self.config.turn_packets(self.config.leader) * self.interval
-        for sid, n in self.followers:
-            total += n * self.interval + self.rtt[sid].srtt
-        return total
+        return (self.config.turn_packets(self.config.leader) * self.interval
+                + sum(n * self.interval + self.rtt[sid].srtt for sid, n in self.followers))
 
     def turn_gap(self) -> float:
         return self.cycle()
@@ -415,18 +419,14 @@ class TurnMac(Mac):
         follower: the leader writes again only after its end (or the leader's timer: after a
         round trip), so everything it wrote until the end."""
         if self.leading:
-            if self._waiting is not None and sender == self._waiting[0]:
-                return self._waiting[2]
-            return None
-        if sender == self.leader_id and not self._holding:
-            return self._last_end
-        return None
+            waiting = self._waiting
+            return waiting[2] if waiting is not None and sender == waiting[0] else None
+        return self._last_end if sender == self.leader_id and not self._holding else None
 
     def unheard(self, sender: int) -> float | None:
-        """The leader: when it last took `sender`'s turn back on its timer (its end was not
-        heard: the follower's last packets, an answer or a result among them, were lost; its
-        report in the leader's next packet settles them). A follower never waits for a turn:
-        the leader's lost packets show as a gap in the next ones it hears."""
+        """The leader: when it last took `sender`'s turn back on its timer (its end unheard:
+        its last packets, an answer or a result among them, were lost; the leader's next report
+        settles them). A follower never waits: the leader's lost packets show as a gap."""
         return self._unheard.get(sender)
 
     def stats(self) -> dict:
