@@ -58,9 +58,13 @@ class Served:
 
     @property
     def may_copy(self) -> bool:
-        """Whether it may copy a goal a previous start of the bridge took: unless it is
-        known to have begun after the start."""
-        return self.unsure is not False
+        return could_copy(self.unsure)
+
+
+def could_copy(unsure: bool | None) -> bool:
+    """Whether a goal may copy a goal a previous start of the bridge took, by `Served.unsure`:
+    unless it is known to have begun after the start."""
+    return unsure is not False
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from typing import Any
 from rclpy.action import ActionClient
 from rclpy.task import Future
 
-from uwgen.bridge.action_results import ResultBook, Served
+from uwgen.bridge.action_results import ResultBook, Served, could_copy
 from uwgen.bridge.adoption import GoalAdoption
 from uwgen.bridge.copies import copy_due
 from uwgen.bridge.counters import ActionCounters
@@ -155,7 +155,7 @@ class ActionServers(GoalAdoption):
         now = self.w.clock.now()
         # may it copy a goal a previous start of this bridge took? (orphans.py)
         unsure = self.w.may_predate(payload, self.watches[ident].started)
-        if self._repeat(ident, handle, payload, unsure is not False, now):   # in flight, or done
+        if self._repeat(ident, handle, payload, could_copy(unsure), now):   # in flight, or done
             counters.duplicate_goals += 1
             return
         self.results[ident].forget(handle)        # a new goal on a handle used before

@@ -79,7 +79,8 @@ from typing import Any
 MARK = b"uwg"
 STATUS_GRACE = 10.0         # seconds after start before the list counts as known unheard
                             # (discovery of the local server can take seconds on a loaded machine)
-LIST_SETTLE = 0.5           # wire format 1: s a matched status publisher may take to deliver its list
+LIST_SETTLE = 0.5           # wire format 1: seconds a matched status publisher may take to
+                            # deliver its list
 ACTIVE = (1, 2, 3)          # GoalStatus ACCEPTED, EXECUTING, CANCELING
 FINISHED = (4, 5, 6)        # GoalStatus SUCCEEDED, CANCELED, ABORTED
 
@@ -145,7 +146,8 @@ class OrphanWatch:
     def listed(self, now: float) -> bool:
         """On a link without age items, whether the local server's goal list is taken as
         known (see the module's docstring): heard, or its publisher matched `LIST_SETTLE`
-        seconds ago with nothing to say, or the grace is over. Asked on every expiry tick, so the match is timed from when it happened."""
+        seconds ago with nothing to say, or the grace is over. Asked on every expiry tick,
+        so the match is timed from when it happened."""
         if self.heard or now - self.started >= STATUS_GRACE:
             return True
         if self.sub.get_publisher_count() == 0:
