@@ -1,7 +1,7 @@
 """Checks of a demo run's recordings (tests/e2e/test_demo_cli.py runs the demo once for
 these and its other checks): one MCAP recording per side, the standard reader opens them, their ROS
 messages decode to what the vehicle published, and `uwgen log` on them prints the demo
-report's rows (same counts, latencies within 1 ms on a quiet machine, LATENCY_SLACK_MS here)."""
+report's rows (same counts; latencies as LATENCY_BELOW_MS and LATENCY_ABOVE_MS explain)."""
 from __future__ import annotations
 
 import json
@@ -19,10 +19,13 @@ ROW = re.compile(r"^(/\S+)\s+(\w+ → \w+)\s+(\d+)\s+(\d+)\s+(\d+)\s+(\d+)\s+(\d
 
 
 # Both latencies end when the far bridge publishes (the applications record a received
-# message at its source timestamp, docs/demo.md); they start at the publisher's source
-# timestamp (the recording) and at the application's record just after its publish call
-# (the report): within 1 ms, a few in a loaded parallel run.
-LATENCY_SLACK_MS = 5.0
+# message at its source timestamp, docs/demo.md). They start at the publisher's source
+# timestamp, stamped inside its publish call (the recording), and at the application's record
+# just after that call returns (the report). So the recording's latency is never shorter (but
+# for the cells' rounding to 1 ms), and longer by the publish call's tail: under 1 ms on a
+# quiet machine, 8 ms seen at the median of a CI run on 2 loaded cores.
+LATENCY_BELOW_MS = 1.0
+LATENCY_ABOVE_MS = 50.0
 
 
 def uwgen(*args, timeout=60):
@@ -81,4 +84,5 @@ def check_recordings(tmp_path: Path, stdout: str) -> None:
         got = log_rows[topic]
         assert got[:8] == demo_row[:8], (topic, demo_row, got)        # every count
         for a, b in zip(demo_row[8:], got[8:]):                        # p50 and p95
-            assert (a == b == "-") or abs(ms(a) - ms(b)) <= LATENCY_SLACK_MS, (topic, demo_row, got)
+            assert (a == b == "-") or (
+                -LATENCY_BELOW_MS <= ms(b) - ms(a) <= LATENCY_ABOVE_MS), (topic, demo_row, got)
