@@ -87,16 +87,15 @@ def run(cmd: list[str], extra_env: dict[str, str] | None = None) -> int:
 
 
 def test_workers(extra: list[str]) -> list[str]:
-    """pytest-xdist options: one worker per core and one more (at least 3, at most 4: most
-    tests wait on sockets, ROS and the emulator, not on the CPU; 4 on 2 cores timed out a
-    process test on a fresh clone, where type support is first built), unless the caller
-    chose (`-n ...`, `-p no:xdist`)."""
+    """pytest-xdist options: two workers per core (at least 3, at most 4: many tests wait on
+    sockets, ROS and the emulator, not on the CPU, so on 2 cores fewer than 4 workers leave
+    it idle for a good part of the run), unless the caller chose (`-n ...`, `-p no:xdist`)."""
     if any(a == "-n" or a.startswith(("-n", "--numprocesses", "--dist")) or a == "no:xdist"
            for a in extra):
         return []
     # worksteal: a worker that runs out takes tests queued for another, so the run does not
     # end with one worker alone on its backlog while the others idle
-    return ["-n", str(max(3, min((os.cpu_count() or 2) + 1, 4))), "--dist", "worksteal"]
+    return ["-n", str(max(3, min(2 * (os.cpu_count() or 2), 4))), "--dist", "worksteal"]
 
 
 def cmd_test(extra: list[str]) -> int:
