@@ -80,6 +80,11 @@ set(CMAKE_INSTALL_RPATH "$ORIGIN;$ORIGIN/../../..;{venv_lib}")
 find_package(ament_cmake REQUIRED)
 find_package(rosidl_default_generators REQUIRED)
 {find_deps}
+# rclpy needs the C side only: the C structs, their type supports (Fast DDS, introspection, the
+# dispatch between them) and the Python extension. The C++ generators, registered by
+# rosidl_default_generators and by the packages found above, would build as much again.
+list(FILTER AMENT_EXTENSIONS_rosidl_generate_idl_interfaces EXCLUDE REGEX
+  "^rosidl_(generator_cpp|typesupport_cpp|typesupport_fastrtps_cpp|typesupport_introspection_cpp):")
 rosidl_generate_interfaces(${{PROJECT_NAME}}
 {files}
 {dep_line})
@@ -376,7 +381,7 @@ def _build(folder: Path, package: str, files: list[Path], work: Path, quiet: boo
     env["PYTHONPATH"] = os.pathsep.join([str(tools), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     env["PATH"] = os.pathsep.join([str(venv / "bin"), env.get("PATH", "")])
     build.mkdir(parents=True)
-    log.info("building rclpy type support of %s with rosidl into %s (about 2 min on 2 "
+    log.info("building rclpy type support of %s with rosidl into %s (under a minute on 2 "
              "cores, once per version of its files)", package, work)
     steps = [
         ("configure (cmake)", ["cmake", str(src), f"-DCMAKE_PREFIX_PATH={';'.join(prefixes)}",

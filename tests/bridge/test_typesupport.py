@@ -105,6 +105,10 @@ def test_ros_interfaces_builds_a_package_using_another_with_an_action_and_runs_a
                          timeout=380)
     assert res.returncode == 0, res.stdout + res.stderr
     assert res.stdout.strip().splitlines()[-1] == "12.5 ok 1.5"
+    # what rclpy needs and no more: no C++ type support (it took as long again to build)
+    libs = {p.name for p in typesupport.interfaces_cache().glob("ts_*-*/install/lib/*.so")}
+    assert "libts_report_msgs__rosidl_typesupport_fastrtps_c.so" in libs, libs
+    assert not [name for name in libs if "_cpp" in name], libs
 
 
 def test_prune_keeps_only_the_build_of_the_current_files(tmp_path, monkeypatch):
