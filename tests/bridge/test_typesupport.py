@@ -81,7 +81,7 @@ def test_a_package_using_another_of_yours_is_keyed_by_both(tmp_path):
     assert build_digest(root / "ts_report_msgs") != before
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=70)
 @pytest.mark.timeout(400)
 def test_ros_interfaces_builds_a_package_using_another_with_an_action_and_runs_a_program(tmp_path):
     # one build serves both: a package using another's type, in a message and in an action

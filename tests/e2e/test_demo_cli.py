@@ -48,7 +48,7 @@ def test_read_only_checkout_writes_to_the_cache(monkeypatch, tmp_path):
         assert key.path == tmp_path / "demo" / "keys" / "demo.key" and key.created
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=60)
 @pytest.mark.timeout(300)
 def test_demo_runs_against_a_running_desert_quietly_and_its_recordings_reproduce_the_report(tmp_path):
     # One demo run (about a minute) serves two checks: what it prints and what it recorded.

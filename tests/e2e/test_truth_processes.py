@@ -16,9 +16,10 @@ from ros_domains import next_domain
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from truth_processes import Network, delay_cell, kill_cell  # noqa: E402
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(400)]
+pytestmark = [pytest.mark.timeout(400)]
 
 
+@pytest.mark.slow(seconds=55)
 def test_real_bridges_never_run_a_held_command_late_and_tell_the_caller_what_ran(tmp_path):
     with Network(tmp_path, sealed=False, domains=(next_domain(), next_domain())) as net:
         net.ready()
@@ -37,6 +38,7 @@ def test_real_bridges_never_run_a_held_command_late_and_tell_the_caller_what_ran
         assert cell.late() == 0 and cell.double() == 0 and cell.matches(), (cell, tail)
 
 
+@pytest.mark.slow(seconds=13)
 def test_a_server_side_bridge_killed_mid_goal_and_started_at_once_leaves_nothing_unwatched(tmp_path):
     with Network(tmp_path, sealed=True, domains=(next_domain(), next_domain()),
                  goal_seconds=6.0) as net:

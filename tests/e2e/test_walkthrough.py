@@ -50,7 +50,7 @@ def test_the_page_has_every_step_marked():
     assert PAGE.read_text().count("```sh") == len(kinds)
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=50)
 @pytest.mark.timeout(600)
 def test_walkthrough_own_message_crosses_the_emulated_link(tmp_path):
     ports = [str(p) for p in free_ports(2)]
