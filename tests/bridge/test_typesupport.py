@@ -1,5 +1,6 @@
 """uwgen.typesupport: where builds of your own interfaces live and how bridges find them."""
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -81,21 +82,28 @@ def test_a_package_using_another_of_yours_is_keyed_by_both(tmp_path):
     assert build_digest(root / "ts_report_msgs") != before
 
 
-@pytest.mark.slow(seconds=70)
+@pytest.mark.slow(seconds=45)
 @pytest.mark.timeout(400)
 def test_ros_interfaces_builds_a_package_using_another_with_an_action_and_runs_a_program(tmp_path):
-    # one build serves both: a package using another's type, in a message and in an action
-    root = two_packages(tmp_path / "interfaces")
+    # a package using another's type, in a message and in an action. The other is a copy of
+    # the demo's turtlesim: the same files, so the same build key, and the run's turtlesim
+    # build (tests/conftest.py starts it) serves this test too; the test waits for it under
+    # the cache's lock, or makes it when run alone
+    root = tmp_path / "interfaces"
+    shutil.copytree(ROOT / "msg_samples" / "turtlesim", root / "turtlesim")
+    assert build_digest(root / "turtlesim") == build_digest(ROOT / "msg_samples" / "turtlesim")
+    (root / "ts_report_msgs" / "msg").mkdir(parents=True)
+    (root / "ts_report_msgs" / "msg" / "Report.msg").write_text("turtlesim/Pose pose\nstring note\n")
     (root / "ts_report_msgs" / "action").mkdir()
     (root / "ts_report_msgs" / "action" / "Dive.action").write_text(
-        "ts_base_msgs/Depth target\n---\nfloat32 reached\n---\nfloat32 remaining\n")
-    code = ("import rclpy, ts_report_msgs.msg as r, ts_report_msgs.action as a, ts_base_msgs.msg as b\n"
+        "turtlesim/Pose target\n---\nfloat32 reached\n---\nfloat32 remaining\n")
+    code = ("import rclpy, ts_report_msgs.msg as r, ts_report_msgs.action as a, turtlesim.msg as t\n"
             "from rclpy.serialization import serialize_message, deserialize_message\n"
-            "m = r.Report(depth=b.Depth(metres=12.5), note='ok')\n"
+            "m = r.Report(pose=t.Pose(x=12.5), note='ok')\n"
             "back = deserialize_message(serialize_message(m), r.Report)\n"
-            "g = a.Dive.Goal(target=b.Depth(metres=1.5))\n"
+            "g = a.Dive.Goal(target=t.Pose(x=1.5))\n"
             "goal = deserialize_message(serialize_message(g), a.Dive.Goal)\n"
-            "print(back.depth.metres, back.note, goal.target.metres)")
+            "print(back.pose.x, back.note, goal.target.x)")
     env = {k: v for k, v in os.environ.items()
            if k not in ("LD_LIBRARY_PATH", "AMENT_PREFIX_PATH", "_ROS_WHEELS_BOOTSTRAP_COMPLETE")}
     env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
@@ -106,8 +114,11 @@ def test_ros_interfaces_builds_a_package_using_another_with_an_action_and_runs_a
     assert res.returncode == 0, res.stdout + res.stderr
     assert res.stdout.strip().splitlines()[-1] == "12.5 ok 1.5"
     # what rclpy needs and no more: no C++ type support (it took as long again to build)
-    libs = {p.name for p in typesupport.interfaces_cache().glob("ts_*-*/install/lib/*.so")}
-    assert "libts_report_msgs__rosidl_typesupport_fastrtps_c.so" in libs, libs
+    cache = typesupport.interfaces_cache()
+    libs = {p.name for pattern in ("ts_report_msgs-*", "turtlesim-*")
+            for p in cache.glob(f"{pattern}/install/lib/*.so")}
+    assert {"libts_report_msgs__rosidl_typesupport_fastrtps_c.so",
+            "libturtlesim__rosidl_typesupport_fastrtps_c.so"} <= libs, libs
     assert not [name for name in libs if "_cpp" in name], libs
 
 
