@@ -36,9 +36,12 @@ if _OWN_RUN_DIR:
 RUN_DIR = Path(os.environ[RUN_DIR_ENV])
 os.environ["UWGEN_CACHE"] = str(RUN_DIR / "cache")
 os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = str(RUN_DIR / "hypothesis")
-# Bytecode of the checkout's modules, here and in every child process (run.py sets it too).
+# Bytecode of the checkout's modules, here and in every child process (run.py sets it too),
+# written there even where PYTHONDONTWRITEBYTECODE keeps checkouts clean: it is outside them.
 os.environ.setdefault("PYTHONPYCACHEPREFIX", str(RUN_DIR / "pycache"))
 sys.pycache_prefix = os.environ["PYTHONPYCACHEPREFIX"]
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+sys.dont_write_bytecode = False
 
 from hypothesis import HealthCheck, settings  # noqa: E402  (after its storage folder is set)
 from hypothesis.database import DirectoryBasedExampleDatabase  # noqa: E402

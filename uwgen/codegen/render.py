@@ -7,6 +7,7 @@ The templates only lay out what the plan (uwgen.codegen.package_plan) holds.
 """
 from __future__ import annotations
 
+import importlib.util
 import json
 import shutil
 from dataclasses import replace
@@ -127,6 +128,14 @@ def stale_files(files: dict[str, str], out_dir: Path) -> list[str]:
     return out
 
 
+def forget_bytecode(path: Path) -> None:
+    """Remove the cached bytecode of module `path` (beside it, or under PYTHONPYCACHEPREFIX):
+    Python takes it for the source while the source's size and mtime in whole seconds match,
+    so a module rebuilt within a second of its last import, at the same size (a port 4001
+    written 4002), would run its old code."""
+    Path(importlib.util.cache_from_source(str(path))).unlink(missing_ok=True)
+
+
 def write_package(files: dict[str, str], out_dir: Path) -> list[str]:
     """Write the package; remove generated modules that are no longer produced.
     Returns the relative paths that changed."""
@@ -137,6 +146,7 @@ def write_package(files: dict[str, str], out_dir: Path) -> list[str]:
         if not path.is_file() or path.read_text(encoding="utf-8") != text:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(text, encoding="utf-8")
+            forget_bytecode(path)
             changed.append(rel)
     for path in sorted(out_dir.rglob("*.py")):
         rel = path.relative_to(out_dir).as_posix()
