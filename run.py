@@ -89,7 +89,8 @@ def run(cmd: list[str], extra_env: dict[str, str | None] | None = None) -> int:
     """Run `cmd` in the checkout with ros_env() and `extra_env` (None: the variable unset)."""
     log("$ " + " ".join(cmd))
     env = {**ros_env(), **(extra_env or {})}
-    return subprocess.run(cmd, cwd=ROOT, env={k: v for k, v in env.items() if v is not None}).returncode
+    env = {k: v for k, v in env.items() if v is not None}
+    return subprocess.run(cmd, cwd=ROOT, env=env).returncode
 
 
 def test_workers(extra: list[str]) -> list[str]:

@@ -101,8 +101,9 @@ def pytest_collection_modifyitems(config, items):
         share = pending // (workers - i)
         pending -= share
         head = slow[i::workers]
-        ordered += head + rest[:share - len(head)]
-        del rest[:share - len(head)]
+        fill = max(0, share - len(head))
+        ordered += head + rest[:fill]
+        del rest[:fill]
     items[:] = ordered + rest
 
 

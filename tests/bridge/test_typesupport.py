@@ -92,12 +92,14 @@ def test_ros_interfaces_builds_a_package_using_another_with_an_action_and_runs_a
     root = tmp_path / "interfaces"
     shutil.copytree(ROOT / "msg_samples" / "turtlesim", root / "turtlesim")
     assert build_digest(root / "turtlesim") == build_digest(ROOT / "msg_samples" / "turtlesim")
-    (root / "ts_report_msgs" / "msg").mkdir(parents=True)
-    (root / "ts_report_msgs" / "msg" / "Report.msg").write_text("turtlesim/Pose pose\nstring note\n")
-    (root / "ts_report_msgs" / "action").mkdir()
-    (root / "ts_report_msgs" / "action" / "Dive.action").write_text(
+    report = root / "ts_report_msgs"
+    (report / "msg").mkdir(parents=True)
+    (report / "msg" / "Report.msg").write_text("turtlesim/Pose pose\nstring note\n")
+    (report / "action").mkdir()
+    (report / "action" / "Dive.action").write_text(
         "turtlesim/Pose target\n---\nfloat32 reached\n---\nfloat32 remaining\n")
-    code = ("import rclpy, ts_report_msgs.msg as r, ts_report_msgs.action as a, turtlesim.msg as t\n"
+    code = ("import rclpy, turtlesim.msg as t\n"
+            "import ts_report_msgs.msg as r, ts_report_msgs.action as a\n"
             "from rclpy.serialization import serialize_message, deserialize_message\n"
             "m = r.Report(pose=t.Pose(x=12.5), note='ok')\n"
             "back = deserialize_message(serialize_message(m), r.Report)\n"
