@@ -84,8 +84,9 @@ def _prebuild():
                         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
-# Tests marked slow run for up to a minute, mostly waiting. Collected where they fall, a
-# worker met one last and ran it alone while the others had finished (47 s of a 328 s run).
+# Tests marked slow run for up to a minute, mostly waiting. Left where they are collected,
+# one may come last and run alone while the other workers have finished (47 s of a 328 s
+# run on 2 cores).
 # pytest-xdist's worksteal first hands worker i the next len(pending) // (workers - i) tests
 # of the collection; each slow test goes to the head of one such share, longest first
 # (`seconds` in its mark), so they start with the run. Stealing balances the rest.
