@@ -85,12 +85,9 @@ def ros_env() -> dict[str, str]:
     return env
 
 
-def run(cmd: list[str], extra_env: dict[str, str | None] | None = None) -> int:
-    """Run `cmd` in the checkout with ros_env() and `extra_env` (None: the variable unset)."""
+def run(cmd: list[str], extra_env: dict[str, str] | None = None) -> int:
     log("$ " + " ".join(cmd))
-    env = {**ros_env(), **(extra_env or {})}
-    env = {k: v for k, v in env.items() if v is not None}
-    return subprocess.run(cmd, cwd=ROOT, env=env).returncode
+    return subprocess.run(cmd, cwd=ROOT, env={**ros_env(), **(extra_env or {})}).returncode
 
 
 def test_workers(extra: list[str]) -> list[str]:
@@ -107,15 +104,11 @@ def test_workers(extra: list[str]) -> list[str]:
 
 def cmd_test(extra: list[str]) -> int:
     # Everything the run writes goes to one temporary folder, removed at its end: uwgen's
-    # cache, Hypothesis's and pytest's, the bytecode (tests/conftest.py), never the checkout
-    # or ~/.cache/uwgen.
+    # cache, Hypothesis's and pytest's, the bytecode (tests/conftest.py, which writes it there
+    # even where PYTHONDONTWRITEBYTECODE is set), never the checkout or ~/.cache/uwgen.
     with tempfile.TemporaryDirectory(prefix="uwgen-test-") as run_dir:
-        # Bytecode is written there even where PYTHONDONTWRITEBYTECODE is set (a checkout kept
-        # clean): without it every process the tests start compiled every module it imported,
-        # and every worker rewrote every test module's asserts.
         extra_env = {"UWGEN_TEST_RUN_DIR": run_dir, "UWGEN_CACHE": str(Path(run_dir) / "cache"),
-                     "PYTHONPYCACHEPREFIX": str(Path(run_dir) / "pycache"),
-                     "PYTHONDONTWRITEBYTECODE": None}
+                     "PYTHONPYCACHEPREFIX": str(Path(run_dir) / "pycache")}
         rc = run([str(VENV / "bin" / "uwgen"), "build", "--check"], extra_env)
         if rc != 0:
             log("generated/ is stale: run `.venv/bin/uwgen build` and commit the result")

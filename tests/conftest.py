@@ -38,6 +38,8 @@ os.environ["UWGEN_CACHE"] = str(RUN_DIR / "cache")
 os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = str(RUN_DIR / "hypothesis")
 # Bytecode of the checkout's modules, here and in every child process (run.py sets it too),
 # written there even where PYTHONDONTWRITEBYTECODE keeps checkouts clean: it is outside them.
+# Without it every process the tests start compiled every module it imported, and every
+# worker (started after this file ran, with its environment) rewrote every test module.
 os.environ.setdefault("PYTHONPYCACHEPREFIX", str(RUN_DIR / "pycache"))
 sys.pycache_prefix = os.environ["PYTHONPYCACHEPREFIX"]
 os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
@@ -94,9 +96,10 @@ def pytest_collection_modifyitems(config, items):
     workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0"))
     if workers < 2:
         return
-    slow = sorted((it for it in items if it.get_closest_marker("slow")),
-                  key=lambda it: -it.get_closest_marker("slow").kwargs.get("seconds", 30))
-    rest = [it for it in items if not it.get_closest_marker("slow")]
+    marks = [(it, it.get_closest_marker("slow")) for it in items]
+    slow = [it for it, mark in sorted((m for m in marks if m[1]),
+                                      key=lambda m: -m[1].kwargs.get("seconds", 30))]
+    rest = [it for it, mark in marks if not mark]
     ordered, pending = [], len(items)
     for i in range(workers):
         share = pending // (workers - i)
