@@ -197,8 +197,10 @@ def test_duplicate_response_is_dropped_and_counted(pair):
     links.links["vehicle"].duplicate = True
     future = client.call_async(BasicTypes.Request(int32_value=5))
     sb = bridges["surface"]
-    wait_for(lambda: sb.status()["services"]["/echo"]["calls"].get("duplicate") == 1,
-             what="duplicate counted")
+    # the bridge counts the second copy on the link's thread; the caller's executor may not
+    # have taken the first one's response yet
+    wait_for(lambda: sb.status()["services"]["/echo"]["calls"].get("duplicate") == 1
+             and future.done(), what="duplicate counted and the call answered")
     assert future.result().int32_value == 10
     assert sb.service_counters[ECHO.id].responses == 1
 
