@@ -1,15 +1,16 @@
 #!/usr/bin/env python3
 """TDMA start benchmark (docs/emulator.md, "How a TDMA bridge times its writes"; wire-format.md
 section 15.5, the exchange at start): how long after both bridges start a service call is
-answered, with none of the first packets lost, with the surface's first packet lost and with
-the vehicle's, against the same build made to listen before its first blind write (the rule
-for a guard shorter than a packet and the range), same run.
+answered, with none of the first packets lost, with the surface's first packet lost, with
+the vehicle's and with both, against the same build made to listen before its first blind
+write (the rule for a guard shorter than a packet and the range) and, with both lost, made
+to space its blind writes four frames apart (`slot_timing.blind_frames`), same run.
 
     .venv/bin/python benchmarks/tdma_start_bench.py [--at 3] [--repeats 2]
 
 commands_bench's link and TDMA (frame 3 s, guard 0.8 s, 1000 m, 64 B every 0.2 s: the guard
 covers a packet and the range) with no random loss: the emulator loses exactly the named
-side's first packet. Both bridges start together; the call leaves `--at` seconds later (3 s,
+sides' first packets. Both bridges start together; the call leaves `--at` seconds later (3 s,
 as commands_bench's first call) and fails after the service's 12 s timeout. Per case it
 prints each repeat's seconds from the start to the answer (or `failed`), and when each side
 first heard the other. The repeats start the bridges at phases spread over DESERT's frame.
@@ -36,16 +37,16 @@ TIMEOUT = 12.0      # the bench manifest's /echo timeout
 FRAME = 3.0         # commands_sim's TDMA frame: the repeats start the bridges across it
 
 
-def lose_first(emu: Emulator, source: str | None) -> dict[str, float]:
-    """The emulator loses `source`'s first packet (counted `lost_per`); returns {receiver:
-    when it first got a packet, in the emulator's time}, filled as packets arrive."""
-    core, first, lost = emu._core, {}, []
+def lose_first(emu: Emulator, sources: tuple[str, ...]) -> dict[str, float]:
+    """The emulator loses each of `sources`' first packet (counted `lost_per`); returns
+    {receiver: when it first got a packet, in the emulator's time}, filled as packets arrive."""
+    core, first, lost = emu._core, {}, set()
     rx_end = core._rx_end
 
     def rx(arr, t):
         pkt, r = arr.packet, core._nodes[arr.receiver]
-        if pkt.source == source and pkt.dest == r.name and not lost:
-            lost.append(pkt.uid)
+        if pkt.source in sources and pkt.dest == r.name and pkt.source not in lost:
+            lost.add(pkt.source)
             r.rx.remove(arr)
             if r.locked is arr:
                 r.locked = None
@@ -59,14 +60,17 @@ def lose_first(emu: Emulator, source: str | None) -> dict[str, float]:
     return first
 
 
-def trial(package, lost: str | None, at: float, listen: bool, phase: float) -> tuple[float | None, dict]:
-    """One start, the bridges `phase` s after DESERT's (the emulator's) frame began."""
+def trial(package, lost: tuple[str, ...], at: float, mode: str, phase: float) -> tuple[float | None, dict]:
+    """One start, the bridges `phase` s after DESERT's (the emulator's) frame began; `mode`:
+    "this build", "listen" or "four" (the references)."""
     scen = scenario(0.0, 1, "tdma")
     emu = Emulator(scen)
     first = lose_first(emu, lost)
-    safe = slot_timing.blind_safe
-    if listen:
+    safe, spacing = slot_timing.blind_safe, slot_timing.blind_frames
+    if mode == "listen":
         slot_timing.blind_safe = lambda config, link: False
+    if mode == "four":
+        slot_timing.blind_frames = lambda config, link: 4
     emu.start()
     time.sleep(phase)
     sides = {}
@@ -94,7 +98,7 @@ def trial(package, lost: str | None, at: float, listen: bool, phase: float) -> t
         # the emulator's time runs on the loop's clock (time.monotonic) from emu._t0
         return answered, {k: v + emu._t0 - t0 for k, v in first.items()}
     finally:
-        slot_timing.blind_safe = safe
+        slot_timing.blind_safe, slot_timing.blind_frames = safe, spacing
         for side in sides.values():
             side.close()
         emu.stop()
@@ -110,14 +114,16 @@ def main() -> int:
     print(f"| first packet lost | mode | answered (s after start; call at {args.at:g} s, "
           f"{TIMEOUT:g} s timeout) | first packet heard by vehicle / surface (s) |")
     print("|---|---|---|---|")
-    for lost in (None, "surface", "vehicle"):
-        for listen in (True, False):
-            got = [trial(package, lost, args.at, listen, k * FRAME / args.repeats)
+    names = {"listen": "reference (listens first)", "four": "reference (blind writes 4 frames apart)",
+             "this build": "this build"}
+    for lost in ((), ("surface",), ("vehicle",), ("surface", "vehicle")):
+        for mode in ("listen", "four", "this build") if len(lost) == 2 else ("listen", "this build"):
+            got = [trial(package, lost, args.at, mode, k * FRAME / args.repeats)
                    for k in range(args.repeats)]
             cells = ", ".join("failed" if a is None else f"{a:.1f}" for a, _ in got)
             heard = ", ".join("/".join(f"{h.get(s, float('nan')):.1f}" for s in ("vehicle", "surface"))
                               for _, h in got)
-            print(f"| {lost or 'none'} | {'reference (listens first)' if listen else 'this build'} | "
+            print(f"| {' and '.join(lost) or 'none'} | {names[mode]} | "
                   f"{cells} | {heard} |", flush=True)
     return 0
 

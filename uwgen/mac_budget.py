@@ -80,7 +80,7 @@ def mac_warnings(manifest: Manifest) -> list[str]:
     longest = max(links.values(), key=lambda link: link.max_read_length)
     if mac.mode == "tdma":
         from uwgen.runtime.link.mac import tdma_capacity
-        from uwgen.runtime.link.slot_timing import BLIND_FRAMES, blind_safe, overrun
+        from uwgen.runtime.link.slot_timing import blind_frames, blind_safe, overrun
         shortest = min(mac.slots, key=mac.slot_length)
         for name in (s for s in mac.slots if mac.weight(s) > mac.weight(shortest)):
             link = manifest.sides[name].link
@@ -95,7 +95,8 @@ def mac_warnings(manifest: Manifest) -> list[str]:
                        f"({overrun(mac, longest):.3f} s): a packet "
                        "DESERT starts at the end of a slot's ON window runs into the next slot, so "
                        "a side writes only what starts early enough, and until it has heard the "
-                       f"frame's phase it listens, then writes a packet every {BLIND_FRAMES} frames")
+                       f"frame's phase it listens, then writes a packet every "
+                       f"{blind_frames(mac, longest)} frames")
     rt = round_trip(mac, longest.period, longest.max_read_length, list(manifest.sides))
     deadlines = [(f"service {s.name}", "timeout", s.timeout) for s in manifest.services]
     deadlines += [(f"action {a.name}", "accept_timeout", a.accept_timeout)

@@ -10,12 +10,16 @@ import pytest
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.mac import TdmaMac, mac_for
 from uwgen.runtime.link.slot_timing import (BLIND_FRAMES, LEAD, LISTEN_FRAMES, MEMORY_FRAMES, FramePhase,
+                                            UNSAFE_BLIND_FRAMES, blind_frames, pair_gap,
                                             send_window)
 
 LINK = LinkConfig(max_read_length=64, period=0.2)
 # frame 1 s, 2 slots of 0.5 s, guard 0.25: surface ON [0, 0.25), vehicle ON [0.5, 0.75)
 TWO = MacConfig(mode="tdma", frame=1.0, guard=0.25, slots=("surface", "vehicle"),
                 max_packet_per_slot=1000, range=300)
+# the same with guard 0.35 s: it covers a packet's air time and the range (blind_safe)
+WIDE = MacConfig(mode="tdma", frame=1.0, guard=0.35, slots=("surface", "vehicle"),
+                 max_packet_per_slot=1000, range=300)
 SENDERS = {"surface": 1, "vehicle": 2}
 AIR = (64 + 4) * 8 / 4800          # a full packet's air time
 DELAY = 300 / 1500                 # propagation over the range
@@ -33,14 +37,14 @@ def hear(mac: TdmaMac, sender: int, at: float, nbytes: int = 64) -> None:
 
 
 def test_the_frame_phase_is_learned_from_a_packet_heard():
-    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5}, LINK)
     assert phase.start(0.0) is None
     phase.heard(2, 40, arrival(7.3, 0.5, nbytes=40))        # frames start at 7.3 + k
     assert phase.start(9.0) == pytest.approx(0.3)
 
 
 def test_the_earliest_packet_of_a_slot_sets_the_phase_not_a_late_one():
-    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5}, LINK)
     phase.heard(2, 64, arrival(10.3, 0.5, place=0.2))        # late in the window
     phase.heard(2, 64, arrival(11.3, 0.5, place=0.0))        # first in the window
     phase.heard(2, 64, arrival(12.3, 0.5, place=0.1))
@@ -49,14 +53,14 @@ def test_the_earliest_packet_of_a_slot_sets_the_phase_not_a_late_one():
 
 def test_the_phase_wraps_around_the_frame():
     # frames start at 0.95 (mod 1): marks land at 0.95 and at 0.05 (0.1 s into the window)
-    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5}, LINK)
     phase.heard(2, 64, arrival(3.95, 0.5, place=0.1))
     phase.heard(2, 64, arrival(4.95, 0.5))
     assert phase.start(6.0) == pytest.approx(0.95)
 
 
 def test_a_peer_nearer_than_the_range_makes_the_phase_early_never_late():
-    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
+    phase = FramePhase(TWO, {1: 0.0, 2: 0.5}, LINK)
     phase.heard(2, 64, arrival(5.3, 0.5, delay=30 / 1500))   # 30 m away, range 300 m
     assert phase.start(6.0) == pytest.approx(0.3 - (300 - 30) / 1500)
 
@@ -64,7 +68,7 @@ def test_a_peer_nearer_than_the_range_makes_the_phase_early_never_late():
 def test_the_phase_is_taken_from_every_sides_slot():
     three = MacConfig(mode="tdma", frame=3.0, guard=0.2, slots=("surface", "auv1", "auv2"),
                       weights=(("surface", 2),), range=300)
-    phase = FramePhase(three, {1: 0.0, 2: 1.5, 3: 2.25})
+    phase = FramePhase(three, {1: 0.0, 2: 1.5, 3: 2.25}, LINK)
     phase.heard(3, 64, arrival(20.4, 2.25))                  # auv1 silent: auv2 is enough
     assert phase.start(21.0) == pytest.approx(20.4 % 3.0)
     phase.heard(1, 64, arrival(23.4, 0.0, place=0.5))        # the surface's, later in its slot
@@ -104,14 +108,12 @@ def test_a_guard_covering_a_packet_and_the_range_lets_every_side_write_at_once()
     # guard 0.35 s >= 0.113 s of air + 0.2 s over 300 m: a packet DESERT starts anywhere in
     # ON ends before the next slot, so a side with no phase need not listen, whichever its
     # slot; still one packet per blind gap, the spacing the settling rule counts on
-    wide = MacConfig(mode="tdma", frame=1.0, guard=0.35, slots=("surface", "vehicle"),
-                     max_packet_per_slot=1000, range=300)
-    assert send_window(wide, LINK, "vehicle") == pytest.approx(0.5 - 0.35)
-    for side in wide.slots:
-        mac = TdmaMac(wide, side, LINK, senders=SENDERS)
+    assert send_window(WIDE, LINK, "vehicle") == pytest.approx(0.5 - 0.35)
+    for side in WIDE.slots:
+        mac = TdmaMac(WIDE, side, LINK, senders=SENDERS)
         assert mac.next_write_at(3.0) == -math.inf, side
         mac.wrote(3.0, 64)
-        assert mac.next_write_at(3.3) == pytest.approx(3.0 + BLIND_FRAMES * wide.frame), side
+        assert mac.next_write_at(3.3) == pytest.approx(3.0 + blind_frames(WIDE, LINK) * WIDE.frame), side
 
 
 def test_with_no_phase_known_one_packet_goes_per_blind_gap():
@@ -121,7 +123,7 @@ def test_with_no_phase_known_one_packet_goes_per_blind_gap():
     t = mac.next_write_at(0.0)
     assert mac.next_write_at(t) == -math.inf
     mac.wrote(t, 64)
-    assert mac.next_write_at(t + 0.21) == pytest.approx(t + BLIND_FRAMES * TWO.frame)
+    assert mac.next_write_at(t + 0.21) == pytest.approx(t + blind_frames(TWO, LINK) * TWO.frame)
     assert mac.stats()["blind_writes"] == 1 and mac.stats()["timed_writes"] == 0
 
 
@@ -149,17 +151,41 @@ def test_a_phase_not_settled_has_writes_reach_the_mac_before_the_slot_even_if_it
     assert mac.next_write_at(12.2) == pytest.approx(begin)
 
 
-def test_packets_of_one_sender_as_far_apart_as_blind_writes_do_not_settle_the_phase():
-    phase = FramePhase(TWO, {1: 0.0, 2: 0.5})
-    phase.heard(2, 64, arrival(10.0, 0.5, place=0.2))
+def test_packets_of_one_sender_as_close_as_blind_writes_come_do_not_settle_the_phase():
+    # guard 0.35 s covers a packet and the range: blind writes go three frames apart. The
+    # first reached DESERT's MAC (a period after its write, 9.7) after the vehicle's ON window
+    # [9.5, 9.65) closed and started at the next opening; the second, written as ON opened,
+    # started at once and is shorter: they arrive two frames, less the air times' difference,
+    # apart (closer than two frames, the gap the settling rule took before)
+    phase = FramePhase(WIDE, {1: 0.0, 2: 0.5}, LINK)
+    assert blind_frames(WIDE, LINK) == BLIND_FRAMES == 3
+    phase.heard(2, 64, arrival(10.0, 0.5))                   # written at 9.5
     assert not phase.settled(11.0)
-    phase.heard(2, 64, arrival(10.0 + BLIND_FRAMES - 1, 0.5))
-    assert not phase.settled(10.0 + BLIND_FRAMES)
-    phase.heard(1, 64, arrival(10.0 + BLIND_FRAMES, 0.0))    # another sender's: no pair
-    assert not phase.settled(10.0 + BLIND_FRAMES + 0.5)
-    phase.heard(2, 64, arrival(10.0 + BLIND_FRAMES, 0.5))
-    assert phase.settled(10.0 + BLIND_FRAMES + 0.9)
-    assert not phase.settled(10.0 + BLIND_FRAMES + MEMORY_FRAMES + 1.0)   # forgotten
+    phase.heard(2, 1, arrival(12.0, 0.5, nbytes=1))          # written at 12.5
+    assert not phase.settled(12.9)
+    phase.heard(1, 64, arrival(13.0, 0.0))                   # another sender's: no pair
+    assert not phase.settled(13.5)
+    phase.heard(2, 64, arrival(13.0, 0.5))                   # a frame after a timed one
+    assert phase.settled(13.9)
+    assert not phase.settled(13.9 + MEMORY_FRAMES)           # forgotten
+
+
+def test_blind_writes_go_four_frames_apart_where_they_may_run_into_the_next_slot():
+    # guard 0.25 s < 0.31 s of air and range: each blind write risks a side that has begun
+    # to answer the one before, and the answer may take over three frames
+    assert blind_frames(TWO, LINK) == UNSAFE_BLIND_FRAMES == 4
+    assert pair_gap(TWO, LINK) == pytest.approx(3 * TWO.frame - 0.2 - AIR - LEAD)
+
+
+def test_blind_writes_go_further_apart_when_a_frame_is_not_much_longer_than_a_period():
+    # 3 frames of 0.4 s would bring two blind packets as close as timed ones a frame apart:
+    # the settling rule could not tell them apart
+    short = MacConfig(mode="tdma", frame=0.4, guard=0.15, slots=("surface", "vehicle"),
+                      max_packet_per_slot=1000, range=10)
+    assert pair_gap(short, LINK, 3) <= short.frame + AIR
+    assert blind_frames(short, LINK) == 4
+    assert pair_gap(short, LINK) > short.frame + AIR
+    assert pair_gap(WIDE, LINK) == pytest.approx(2 * WIDE.frame - 0.2 - AIR - LEAD)
 
 
 def test_writes_land_before_the_on_window_opens():
@@ -208,7 +234,7 @@ def test_a_peer_silent_for_long_lets_tdma_write_without_a_phase():
     assert mac.next_write_at(silent) == -math.inf            # phase forgotten, listened enough
     mac.wrote(silent, 64)
     assert mac.stats()["blind_writes"] == 1
-    assert mac.next_write_at(silent + 0.3) == pytest.approx(silent + BLIND_FRAMES * TWO.frame)
+    assert mac.next_write_at(silent + 0.3) == pytest.approx(silent + blind_frames(TWO, LINK) * TWO.frame)
 
 
 def test_a_packet_from_a_sender_without_a_slot_teaches_nothing():

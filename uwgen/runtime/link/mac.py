@@ -146,7 +146,7 @@ class TdmaMac(Mac):
         self.capacity = tdma_capacity(config, link, side)
         self.max_bytes = link.max_read_length
         ids = {s: i for s, i in (senders or {}).items() if s in config.slots}
-        self.phase = FramePhase(config, {i: config.slot_start(s) for s, i in ids.items()})
+        self.phase = FramePhase(config, {i: config.slot_start(s) for s, i in ids.items()}, link)
         others = [i for s, i in ids.items() if s != side]
         self._anonymous = others[0] if anonymous and len(others) == 1 else None
         self.timer = SlotTimer(config, side, link, self.capacity, link.period * (1.0 + margin))

@@ -38,10 +38,23 @@ much earlier: every packet then reaches the MAC before the slot opens, whatever 
 and starts at the opening, so the other sides hear the exact phase. The windows begin as
 late as the slot's packets allow, and after this slot's window before closed (a packet
 reaching the MAC earlier would go in that one, maybe late in it). The phase is settled
-once two packets of one sender were heard less than `BLIND_FRAMES - 2` frames apart (a
-side with no phase writes one per `BLIND_FRAMES` frames, so one of them was timed: it
-started at its window's opening, settling or settled, and its estimate is exact), within
-`memory`.
+once two packets of one sender were heard less than `pair_gap` apart, within `memory`: one
+of them was timed (it started at its window's opening, settling or settled, and its estimate
+is exact). A side with no phase writes one packet per `blind_frames` frames, B; DESERT starts
+each from at once to a period plus a frame less its ON window after its write, and their air
+times differ by less than a full packet's, so two blind packets arrive at least
+
+    pair_gap = (B - 1) * frame - period - air - LEAD
+
+apart (`LEAD` for the writing thread's lateness). Timed packets may come one a frame, so
+the gap must exceed a frame and a packet's air time: B is the least from its floor that
+makes it (the floor whenever the frame is longer than a period, two packets' air time and
+`LEAD`). The floor is `BLIND_FRAMES` (3) where a blind packet cannot meet another side's
+(`blind_safe`), `UNSAFE_BLIND_FRAMES` (4) where it may run into the next slot: there each one
+risks the packet of a side that has just begun to answer the one before, and the answer
+may take more than three frames (the blind packet starts up to a period and a frame after
+its write, the answer up to a frame and a period after it was heard, each then crosses the
+range).
 
 No phase known (start, restart, or nothing heard for `memory`): DESERT may start a packet
 written now anywhere in the ON window. When the guard covers a packet's air time and the
@@ -55,7 +68,7 @@ packet. So the side listens first, `LISTEN_FRAMES` frames if its slot is the fra
 `MEMORY_FRAMES` otherwise (a side that starts late or restarts hears the others' timed
 packets and never writes blind; at a common start the first slot's side speaks first while
 the others, silent until they hear, leave the slot it may run into empty). Either way it
-then writes one packet per `BLIND_FRAMES` frames: time for the others to hear it and for
+then writes one packet per `blind_frames` frames: time for the others to hear it and for
 their timed packets to come back, so another one goes blind only when all of those were
 lost (when not `blind_safe`, it may then run into a slot the others use); the settling rule
 above counts on that spacing.
@@ -70,16 +83,36 @@ from uwgen.manifest.model import LinkConfig, MacConfig
 
 LEAD = 0.05           # s: writes reach DESERT's MAC this long before they must (clock and thread jitter)
 MEMORY_FRAMES = 10    # frames after which a heard packet no longer counts
-BLIND_FRAMES = 4      # frames between two writes made while no phase is known
+BLIND_FRAMES = 3      # the fewest frames between two writes made while no phase is known
+UNSAFE_BLIND_FRAMES = 4   # ... when such a write may run into the next slot (not blind_safe)
 LISTEN_FRAMES = 2     # frames the side of the first slot listens before it writes without a phase
 KEEP = 64             # the most recent packets the phase is taken from
+
+
+def blind_frames(config: MacConfig, link: LinkConfig) -> int:
+    """Frames between two writes made while no phase is known: the fewest from
+    `BLIND_FRAMES` (`UNSAFE_BLIND_FRAMES` when not `blind_safe`) whose `pair_gap` exceeds a
+    frame and a packet's air time (module doc)."""
+    frames = BLIND_FRAMES if blind_safe(config, link) else UNSAFE_BLIND_FRAMES
+    timed = config.frame + air_time(link.max_read_length, config.bitrate)   # timed ones' least gap
+    while pair_gap(config, link, frames) <= timed:
+        frames += 1
+    return frames
+
+
+def pair_gap(config: MacConfig, link: LinkConfig, frames: int | None = None) -> float:
+    """Two packets of one sender heard less than this apart: one of them was timed (module
+    doc: blind packets, written `frames` frames apart, arrive no closer)."""
+    frames = blind_frames(config, link) if frames is None else frames
+    return ((frames - 1) * config.frame - link.period
+            - air_time(link.max_read_length, config.bitrate) - LEAD)
 
 
 class FramePhase:
     """The start of DESERT's TDMA frame in the link's clock, from packets heard (module doc).
     `slot_starts`: sender id -> seconds from the frame's start to its slot's start."""
 
-    def __init__(self, config: MacConfig, slot_starts: dict[int, float],
+    def __init__(self, config: MacConfig, slot_starts: dict[int, float], link: LinkConfig,
                  memory: float | None = None):
         self.frame = config.frame
         self.bitrate = config.bitrate
@@ -88,9 +121,8 @@ class FramePhase:
         self.memory = memory if memory is not None else MEMORY_FRAMES * config.frame
         self._heard: deque[tuple[float, float]] = deque(maxlen=KEEP)   # (when heard, estimate)
         self.ignored = 0                            # packets from a sender without a slot
-        # two packets of one sender heard this close: one was timed (a side with no phase
-        # writes one per BLIND_FRAMES frames, each starting up to a frame after its write)
-        self.pair_gap = (BLIND_FRAMES - 2) * config.frame
+        # two packets of one sender heard this close: one was timed (blind ones are further apart)
+        self.pair_gap = pair_gap(config, link)
         self._last: dict[int, float] = {}           # sender -> when its last packet was heard
         self._timed_at = -math.inf                  # when a packet known timed was heard
 
@@ -155,7 +187,7 @@ class SlotTimer:
         # slot (module doc)
         self.listen = (0.0 if blind_safe(config, link) else
                        self.frame * (LISTEN_FRAMES if self.open_at == 0 else MEMORY_FRAMES))
-        self.blind_gap = BLIND_FRAMES * self.frame
+        self.blind_gap = blind_frames(config, link) * self.frame
         self._writes: deque[float] = deque()
         self._knew = False                      # a phase was known at the last call
         self._blind_since: float | None = None  # when this side last had no phase
