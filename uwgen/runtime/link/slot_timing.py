@@ -54,7 +54,11 @@ makes it (the floor whenever the frame is longer than a period, two packets' air
 risks the packet of a side that has just begun to answer the one before, and the answer
 may take more than three frames (the blind packet starts up to a period and a frame after
 its write, the answer up to a frame and a period after it was heard, each then crosses the
-range).
+range). The period and packet size are this side's: the sides' DESERT nodes share them. A
+peer whose node ticks slower could have two blind packets taken as a pair, and this side's
+writes then placed up to an ON window late: where the guard covers a packet that only delays
+them, where it does not they could run into the next slot, so there the gap is at most
+`B - 2` frames (a frame and more to spare for the slower tick).
 
 No phase known (start, restart, or nothing heard for `memory`): DESERT may start a packet
 written now anywhere in the ON window. When the guard covers a packet's air time and the
@@ -104,8 +108,8 @@ def pair_gap(config: MacConfig, link: LinkConfig, frames: int | None = None) -> 
     """Two packets of one sender heard less than this apart: one of them was timed (module
     doc: blind packets, written `frames` frames apart, arrive no closer)."""
     frames = blind_frames(config, link) if frames is None else frames
-    return ((frames - 1) * config.frame - link.period
-            - air_time(link.max_read_length, config.bitrate) - LEAD)
+    gap = (frames - 1) * config.frame - link.period - air_time(link.max_read_length, config.bitrate) - LEAD
+    return gap if blind_safe(config, link) else min(gap, (frames - 2) * config.frame)
 
 
 class FramePhase:
