@@ -366,6 +366,23 @@ def test_settled_by_says_until_when_a_peers_answer_covers_this_sides_packets():
     assert follower.settled_by(1, 2.0) == 0.9 and follower.settled_by(3, 2.0) is None
 
 
+def test_settled_by_covers_a_turns_last_packet_built_after_the_connection_read_its_clock():
+    # the connection reads its clock, then builds the packet (delivery keeps it by its build
+    # time, a little later), then writes it and tells the MAC with its first reading: the
+    # packet carrying the grant or the end is one of the turn's, whatever lies between
+    lead, follower = pair(leader_packets=1)
+    lead.carries = False
+    assert lead.next_write_at(0.42) <= 0.42
+    lead.parts(0.4231)                                          # the grant, built
+    lead.wrote(0.42, 20)
+    assert lead.settled_by(2, 1.1) == 0.4231
+    follower.backlog = lambda now: False
+    follower.heard(1, bytes([0x22, 2]), 0.9)
+    follower.parts(0.9047)                                      # the end, built
+    follower.wrote(0.9, 20)
+    assert follower.settled_by(1, 2.0) == 0.9047
+
+
 def test_unheard_says_when_the_leader_last_took_a_followers_turn_back_on_its_timer():
     lead, follower = pair(leader_packets=1)
     assert Mac().unheard(2) is None

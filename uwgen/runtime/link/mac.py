@@ -210,6 +210,7 @@ class TurnMac(Mac):
         self._granted = self.my_packets if self.leading else 0
         self._sent = 0
         self._closing: MacItem | None = None    # the item the packet being built ends with
+        self._built = -INF                # when the packet being built was (its number's time)
         self._noticing = False            # leader: the packet being built gives notice
         self._noticed_at: float | None = None   # leader: when the notice of the next grant left
         self._waiting: tuple[int, int, float, float] | None = None   # (sender, n, at, deadline)
@@ -279,6 +280,7 @@ class TurnMac(Mac):
         if not self._holding:
             return b""
         self._sent += 1
+        self._built = now
         # The leader keeps its turn while its packets carry messages (a command stream
         # offered at the link's pace fills it); a follower while more is queued and its
         # window leaves room for another packet.
@@ -314,13 +316,17 @@ class TurnMac(Mac):
             self._noticed_at = now if noticing else None
             return
         self._holding = False
+        # `now` is the connection's, read before it built the packet; delivery keeps each
+        # packet by when it was built (`parts`' now, a little later): the turn's packets were
+        # all built by then, and `settled_by` must count this last one among them
+        built = max(now, self._built)
         if closing.code == TURN_GRANT:
             self.counts["grants_sent"] += 1
             # the grant ends before an answer to it can start (the range: the farthest apart)
-            self._granted_by(closing.sender, closing.count, now, now + self.timing.packet_air(nbytes))
+            self._granted_by(closing.sender, closing.count, built, now + self.timing.packet_air(nbytes))
         else:
             self.counts["turns"] += 1
-            self._last_end = now
+            self._last_end = built
 
     def arrived(self, nbytes: int | None, now: float) -> None:
         self._size = nbytes
