@@ -4,13 +4,25 @@ happened to its messages between its round's start and the next round: every off
 or copy), every packet carrying one, every arrival and every refusal at the receiving judge,
 in seconds from the round's start. With --all it prints every round.
 
+Then, under the turns MAC, how each side's whole turns lost were repaired: a turn is a run of
+one side's packets with none of the other side's written between; lost whole, every packet
+of it was lost on the channel (the emulator's account). Counted are the lost turns that
+carried an answer, a result, a request or a goal whose peer then reported (a packet with an
+A part that arrived before the side's next turn): how many of them had their commands
+again in the side's very next turn (wire-format.md section 15.6: the report settles the
+turn, `settled_by`, and each side repairs its own leg at once) and how many waited longer.
+
     python benchmarks/trace_commands.py TRACE.jsonl [--all]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
+from collections import deque
+
+COMMANDS = ("09", "14")    # commands_bench's /fib and /echo ids, as hex
 
 
 def main() -> int:
@@ -45,7 +57,52 @@ def main() -> int:
                 print(f"  {t:6.2f} {r['side'][:3]} REFUSED key {r['key']} age {r['age']}")
             elif ev == "failed":
                 print(f"  {t:6.2f} FAILED {r['what']}")
+    for side, (lost, again) in lost_turns(rows).items():
+        print(f"{side}: {lost} whole turns lost with a command and reported on; "
+              f"{again} had it again in the next own turn, {lost - again} later")
     return 0
+
+
+def lost_turns(rows: list[dict]) -> dict[str, tuple[int, int]]:
+    """Per side: (whole turns lost that carried a command and that the peer reported on,
+    those whose next own turn carried a command of it again) (module doc)."""
+    packets, pending, by_emu = [], {"surface": deque(), "vehicle": deque()}, {}
+    for r in rows:
+        if r.get("ev") == "packet" and r.get("side") in pending:
+            p = {"t": r["t"], "side": r["side"], "ack": r["ack"], "lost": False,
+                 "cmds": [b for b in r.get("bare", []) if b[:2] in ("02", "03") and b[2:4] in COMMANDS]}
+            pending[r["side"]].append(p)
+            packets.append(p)
+        elif r.get("ev") == "emu":
+            sent = re.match(r"[\d.]+ (\w+): sends packet (\d+)", r["msg"])
+            if sent and pending.get(sent.group(1)):
+                by_emu[int(sent.group(2))] = pending[sent.group(1)].popleft()
+            lost = re.match(r"[\d.]+ \w+: packet (\d+) from \w+ lost", r["msg"])
+            if lost and int(lost.group(1)) in by_emu:
+                by_emu[int(lost.group(1))]["lost"] = True
+    turns: list[list[dict]] = []
+    for p in packets:
+        if turns and turns[-1][0]["side"] == p["side"]:
+            turns[-1].append(p)
+        else:
+            turns.append([p])
+    out = {}
+    for side in ("surface", "vehicle"):
+        lost = again = 0
+        for k, turn in enumerate(turns):
+            cmds = {b for p in turn for b in p["cmds"]}
+            if turn[0]["side"] != side or not cmds or not all(p["lost"] for p in turn):
+                continue
+            mine = [j for j in range(k + 1, len(turns)) if turns[j][0]["side"] == side]
+            if not mine:
+                continue
+            between = [p for t in turns[k + 1:mine[0]] for p in t]
+            if not any(p["ack"] and not p["lost"] for p in between):
+                continue                      # the peer heard nothing, or its report was lost
+            lost += 1
+            again += any(b in cmds for p in turns[mine[0]] for b in p["cmds"])
+        out[side] = (lost, again)
+    return out
 
 
 if __name__ == "__main__":
