@@ -210,7 +210,7 @@ class TurnMac(Mac):
         self._granted = self.my_packets if self.leading else 0
         self._sent = 0
         self._closing: MacItem | None = None    # the item the packet being built ends with
-        self._built = -INF                # when the packet being built was (its number's time)
+        self._built = -INF                # when the last packet was built (delivery keeps it by that)
         self._noticing = False            # leader: the packet being built gives notice
         self._noticed_at: float | None = None   # leader: when the notice of the next grant left
         self._waiting: tuple[int, int, float, float] | None = None   # (sender, n, at, deadline)
