@@ -201,21 +201,18 @@ class TurnMac(Mac):
         self.timing = TurnTiming(config, link, margin)
         self.air, self.period, self.interval = self.timing.air, link.period, self.timing.interval
         self.followers = [(senders[s], config.turn_packets(s)) for s in senders if s != config.leader]
-        # A turn's round trip besides its packets, until measured: the grant's and the end's
-        # trips across the range, DESERT's period tick and its MAC's listen on both sides.
+        # a turn's round trip besides its packets until measured: two trips, ticks and listens
         self.rtt = {sid: RoundTrip(2 * self.timing.one_way) for sid, _ in self.followers}
         self._late = {sid: 0.0 for sid, _ in self.followers}   # learned: answers later than the bound
         self._next = 0                    # index of the follower granted next
         self._holding = self.leading      # leader: its own turn; follower: a turn granted
-        self._granted = self.my_packets if self.leading else 0
-        self._sent = 0
+        self._granted, self._sent = (self.my_packets if self.leading else 0), 0
         self._closing: MacItem | None = None    # the item the packet being built ends with
-        self._built = -INF                # when the last packet was built (delivery keeps it by that)
+        self._built = -INF                # the last packet's build time, as delivery dates it
         self._noticing = False            # leader: the packet being built gives notice
         self._noticed_at: float | None = None   # leader: when the notice of the next grant left
         self._waiting: tuple[int, int, float, float] | None = None   # (sender, n, at, deadline)
-        self._missed: tuple[int, float, float] | None = None   # leader: (sender, deadline, span) of
-                                          # the turn last taken back by the timer
+        self._missed: tuple[int, float, float] | None = None   # leader: (who, deadline, span), last missed
         self._unheard: dict[int, float] = {}   # leader: follower -> when its turn was last taken back
         self._earliest = -INF             # leader: no answer to its grant starts arriving before
         self._heard_in_wait = 0
@@ -316,10 +313,7 @@ class TurnMac(Mac):
             self._noticed_at = now if noticing else None
             return
         self._holding = False
-        # `now` is the connection's, read before it built the packet; delivery keeps each
-        # packet by when it was built (`parts`' now, a little later): the turn's packets were
-        # all built by then, and `settled_by` must count this last one among them
-        built = max(now, self._built)
+        built = max(now, self._built)     # `now` came before the build: delivery dates by the build
         if closing.code == TURN_GRANT:
             self.counts["grants_sent"] += 1
             # the grant ends before an answer to it can start (the range: the farthest apart)
