@@ -320,6 +320,33 @@ def test_a_lost_goal_answer_is_repaired_while_the_goal_runs_not_once_its_result_
     assert len(answers()) == before and vb.wiring.fates.stats()["repaired"] == 1
 
 
+def test_a_result_in_its_goals_last_rounds_goes_with_its_copy_in_turn_as_the_answer_would(pair, fib_codec):
+    """The result says accepted too: until the answer is told arrived it stands in for it,
+    on the goal's accept deadline (fates.py `stands_in`), so a goal whose answer is in its
+    last rounds has its result copied in its turn (echoes) from the first; one with rounds
+    left sends its result alone."""
+    surface, vehicle, bridges, links = pair
+    vb = bridges["vehicle"]
+    vb.wiring.turn_gap = 3.0                             # a MAC's round of turns
+    left = [4.0]                                         # the goal's accept deadline, from now
+    vb.wiring.callers_deadline = lambda began, timeout: vb.wiring.clock.now() + left[0]
+    repeated, repeat = [], vb.wiring.repeat
+    vb.wiring.repeat = lambda key, payload: repeated.append(bytes(payload)) or repeat(key, payload)
+
+    def results():
+        return [p for p in repeated if fib_codec.decode_response(p)[1] == GoalStatus.STATUS_SUCCEEDED]
+    fib_server(vehicle.node("real"), [])
+    client = ActionClient(surface.node("op"), Fibonacci, "/fib")
+    assert client.wait_for_server(timeout_sec=5.0)
+    for seconds, copied in ((4.0, 1), (60.0, 1)):        # under 2 rounds left; 20 rounds
+        left[0] = seconds
+        goal = send_goal(client, order=5)
+        future = goal.get_result_async()
+        wait_for(future.done, what="the result")
+        assert future.result().status == GoalStatus.STATUS_SUCCEEDED
+        assert len(results()) == copied
+
+
 def test_a_client_side_asks_for_a_result_the_server_side_does_not_know(pair):
     surface, vehicle, bridges, links = pair
     links.links["vehicle"].mute = True                 # the real result never comes back

@@ -34,7 +34,7 @@ def link(turns=None):
     fates = Fates(ManualClock(), withdraw=lambda k, p: False, offer_again=lambda k, p, until: True)
     return state, SimpleNamespace(waiting=lambda k, p: (k, p) in state.waiting,
                                   turns=lambda: state.turns, fates=fates,
-                                  urgent=lambda deadline: deadline - state.now < 7.0)
+                                  urgent=lambda deadline, answer=False: deadline - state.now < 7.0)
 
 
 def test_without_turns_a_copy_is_due_on_its_timer():

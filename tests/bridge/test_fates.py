@@ -309,3 +309,56 @@ def test_a_copy_not_taken_on_the_link_thread_is_left_to_the_timer():
     fates.awaiting(CALL, REQUEST, 12.0, lambda: True, ANSWER)
     fates.told(CALL, REQUEST, False)
     assert fates.lost(CALL, REQUEST) and fates.stats()["copied"] == 0
+
+
+GOAL_ANSWER = bytes((3, CALL, 9, 1))                 # a goal's answer: accepted
+RESULT = bytes((3, CALL, 9, 4, 0, 1))                # its result, which says accepted too
+
+
+def test_a_result_stands_in_for_its_goals_answer_until_the_answer_is_told_arrived():
+    clock = ManualClock(100.0)
+    fates = Fates(clock, lambda k, p: False, lambda k, p, until: True)
+    fates.answered_by(CALL, GOAL_ANSWER, RESULT, 106.0)
+    assert fates.stands_in(CALL, RESULT) == 106.0
+    fates.told(CALL, GOAL_ANSWER, True)              # the answer arrived after all
+    assert fates.stands_in(CALL, RESULT) is None
+    other = Fates(clock, lambda k, p: False, lambda k, p, until: True)
+    other.answered_by(CALL, GOAL_ANSWER, RESULT, 106.0)
+    clock.advance(6.0)                               # the answer's deadline passed
+    assert other.stands_in(CALL, RESULT) is None
+    other.answered_by(CALL, GOAL_ANSWER, RESULT)     # no deadline given: it need not
+    assert other.stands_in(CALL, RESULT) is None
+
+
+def _result_told_lost(answers_until: float, answer_arrived: bool = False) -> list:
+    """A served goal's result, awaiting its acknowledgement for 2 accept timeouts, told
+    lost under turns: what gets a copy in its turn (`repeat`)."""
+    w, sent = _wiring()
+    repeated = []
+    w.repeat = lambda key, payload: repeated.append((key, payload))
+    w.turns = lambda: 3
+    if answer_arrived:
+        w.fates.told(CALL, GOAL_ANSWER, True)
+    w.fates.answered_by(CALL, GOAL_ANSWER, RESULT, answers_until)
+    w.fates.awaiting(CALL, RESULT, 124.0, lambda: True, RESULT[:3])
+    w.fates.told(CALL, RESULT, False)
+    assert sent == [(CALL, RESULT)]                  # offered again at once either way
+    return repeated
+
+
+def test_a_lost_result_standing_in_for_its_goals_answer_is_copied_in_turn_in_the_answers_last_rounds():
+    from uwgen.bridge.wiring import ANSWER_URGENT_ROUNDS
+    # turn_gap 3 s: the answer's last ANSWER_URGENT_ROUNDS rounds are urgent
+    assert _result_told_lost(100.0 + ANSWER_URGENT_ROUNDS * 3.0 - 0.5) == [(CALL, RESULT)]
+    assert _result_told_lost(100.0 + ANSWER_URGENT_ROUNDS * 3.0 + 0.5) == []   # rounds left
+    # the answer arrived: the result is only a result, 24 s from its own deadline
+    assert _result_told_lost(100.0 + ANSWER_URGENT_ROUNDS * 3.0 - 0.5, answer_arrived=True) == []
+
+
+def test_a_result_standing_in_for_its_goals_answer_waits_one_round_for_its_fate_not_two():
+    state, w, clock = wired(turns=3)
+    w.urgent = lambda deadline, answer=False: False  # rounds left: no hurry either way
+    alone, standing = Leg(turn=3), Leg(turn=3)
+    state.turns = 5                                  # the turn that carried it, and one more
+    assert not copy_due(w, CALL, RESULT, alone, 10.0, rto=3.0)             # NEWS_ROUNDS
+    assert copy_due(w, CALL, RESULT, standing, 10.0, rto=3.0, deadline=20.0, answer=True)

@@ -104,7 +104,9 @@ class ActionServers(GoalAdoption):
 
     def _began(self, ident: int, handle: int) -> float:
         """When the goal on `handle` began on the client side (Wiring.began)."""
-        entry = self.goals[ident].get(handle)
+        return self._began_of(self.goals[ident].get(handle))
+
+    def _began_of(self, entry: Served | None) -> float:
         if entry is not None and entry.began is not None:
             return entry.began
         return self.w.began(b"", entry.arrived if entry is not None else self.w.clock.now())
@@ -119,10 +121,15 @@ class ActionServers(GoalAdoption):
                                                    f"be encoded ({exc}); reported aborted")
             payload = codec.encode_result(handle, ABORTED, codec.ros_class().Result())
         self.w.fates.forget(ident, payload)       # its bytes may repeat an old result's
-        if self._offer(ident, payload, "result"):
+        # the result is the goal's answer too: a lost answer is not repaired, and until the
+        # answer is told arrived the result stands in for it, on its deadline (fates.py)
+        answer = codec.encode_answer(handle, ACCEPTED)
+        answers_until = None if self.w.fates.arrived(ident, answer) else \
+            self.w.callers_deadline(self._began_of(entry), codec.accept_timeout)
+        if self._offer(ident, payload, "result", again=answers_until is not None
+                       and self.w.urgent(answers_until, answer=True)):
             self.counters[ident].results_sent += 1
-            # the result is the goal's answer too: a lost answer is not repaired (fates.py)
-            self.w.fates.answered_by(ident, codec.encode_answer(handle, ACCEPTED))
+            self.w.fates.answered_by(ident, answer, payload, answers_until)
         book = self.results[ident]
         book.sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(), self.w.turns())
         unacked = book.unacked[handle]
@@ -255,7 +262,10 @@ class ActionServers(GoalAdoption):
             if self.w.fates.arrived(ident, unacked.payload):     # told by the link (fates.py)
                 book.acknowledged(handle, now)
                 counters.results_told_arrived += 1
-        for payload in book.due(now, lambda u: copy_due(self.w, ident, u.payload, u, now, book.rtt.rto)):
+        fates = self.w.fates
+        for payload in book.due(now, lambda u: copy_due(
+                self.w, ident, u.payload, u, now, book.rtt.rto,
+                deadline=fates.stands_in(ident, u.payload), answer=True)):
             if payload is None:
                 counters.results_unacked += 1
                 continue
@@ -263,9 +273,10 @@ class ActionServers(GoalAdoption):
             if self._offer(ident, payload, "result"):     # its acknowledgement takes it back
                 codec = self.served[ident][0]
                 handle = codec.decode_response(payload, ros=False)[0]
-                # no copy in its turn: a result has result_timeout, many rounds (echoes.py)
+                # a copy in its turn only when urgent as its goal's answer: a result alone
+                # has result_timeout, many rounds (echoes.py)
                 self.w.expect(codec.encode_result_status(handle, received=True), ident, payload,
-                              echo=False)
+                              echo=self.w.urgent_copy(ident, payload, None))
 
     def _repeat(self, ident: int, handle: int, payload: bytes, may_copy: bool, now: float) -> bool:
         """Answer a goal that came again at `now`; True when it was one (then it is not run).

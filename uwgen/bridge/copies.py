@@ -12,7 +12,8 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   peer's first, with the answer), the message arrived four times in five, and the peer's
   next report tells again (its bitmap reaches back to its last report known to have
   arrived), so the copy waits one more round: it is due once the next own turn has ended
-  too. A result, with no near deadline, waits two (`NEWS_ROUNDS`): the client side reports
+  too. A result, with no near deadline, waits two (`NEWS_ROUNDS`); one standing in for its
+  goal's answer (`Fates.stands_in`) has the answer's deadline, and waits one: the client side reports
   it again on its news, every second round, when no command of the server side asks sooner. A message told arrived before (its answer keeps being lost, or the peer's judge
   refused it) is copied every round but the one its arrival spared. A command already
   urgent (`Wiring.urgent`, its `deadline`) does not wait: its copy is offered as soon as its
@@ -57,10 +58,11 @@ class Leg(Protocol):
 
 
 def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: float,
-             deadline: float | None = None) -> bool:
+             deadline: float | None = None, answer: bool = False) -> bool:
     """True when the copy of `payload` (channel `key`) is to be offered now (module doc);
     `rto`: the timer's next wait, used when it fires while the message still waits;
-    `deadline`: its caller's (None: far off, as a result's)."""
+    `deadline`: its caller's (None: far off, as a result's; a result standing in for its
+    goal's answer has the answer's), `answer`: the call's last leg (`Wiring.urgent`)."""
     turns = w.turns()
     if turns is None:
         lost = w.fates.lost(key, payload)
@@ -87,7 +89,7 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
         return False
     rounds = 1 if deadline is not None else NEWS_ROUNDS
     if turns <= leg.turn + rounds and not w.fates.arrived(key, payload) \
-            and not (deadline is not None and w.urgent(deadline)):
+            and not (deadline is not None and w.urgent(deadline, answer=answer)):
         return False                         # nothing told yet: the peer's next report will
     leg.turn = turns                         # the copy waits from now for the next own turn
     return True

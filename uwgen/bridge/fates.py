@@ -19,7 +19,9 @@ segments let a sender retransmit exactly what is missing:
 - **lost**: an answer (a service's response, a goal's answer) is offered again by the side
   that has it (`repairable`, until its caller's deadline), at once: the caller need not send
   its request again for it (`repaired`); not a goal's answer once its result was offered
-  (`answered_by`: the result says accepted, and goes again itself). A request, goal or
+  (`answered_by`: the result says accepted, and goes again itself; until the answer is
+  told arrived, the result's copies are timed on the answer's deadline, `stands_in`, as the
+  answer's own repair was: it is the goal's last leg). A request, goal or
   result still waiting for its answer (`awaiting`) is offered again at once too, on the
   link's thread (`copied`), so that under turns it is in the link before the own turn that
   follows the report builds its first packet; when that copy is not taken (no turns: the
@@ -58,6 +60,9 @@ class Fates:
         # its answer's head, when its call began)
         self._awaiting: OrderedDict[tuple[int, bytes],
                                     tuple[float, Callable[[], bool], bytes, float | None]] = OrderedDict()
+        # a result standing in for its goal's answer (`answered_by`) -> (that answer, its
+        # caller's deadline)
+        self._standing: OrderedDict[tuple[int, bytes], tuple[bytes, float]] = OrderedDict()
         self.counts = {"arrived": 0, "lost": 0, "spared": 0, "repaired": 0, "copied": 0}
 
     def told(self, key: int, payload: bytes, arrived: bool) -> None:
@@ -71,6 +76,7 @@ class Fates:
                 self._lost.pop(item, None)
                 self._repairable.pop(item, None)          # the peer has it: nothing to repair
                 self._awaiting.pop(item, None)
+                self._standing.pop(item, None)
                 self.counts["spared"] += spared
                 _remember(self._arrived, item, not spared)
             return
@@ -100,7 +106,8 @@ class Fates:
         reused handle): what was told of earlier ones is not about it."""
         with self._lock:
             item = (key, bytes(payload))
-            for table in (self._arrived, self._lost, self._repairable, self._awaiting):
+            for table in (self._arrived, self._lost, self._repairable, self._awaiting,
+                          self._standing):
                 table.pop(item, None)
 
     def arrived(self, key: int, payload: bytes) -> bool:
@@ -132,11 +139,27 @@ class Fates:
             while len(self._awaiting) > KEPT:
                 self._awaiting.popitem(last=False)
 
-    def answered_by(self, key: int, payload: bytes) -> None:
-        """A later message answers for `payload` (a goal's result: the client side takes it
-        as the goal's acceptance, section 13): told lost now, it is not offered again."""
+    def answered_by(self, key: int, payload: bytes, by: bytes = b"",
+                    until: float | None = None) -> None:
+        """A later message `by` answers for `payload` (a goal's result: the client side takes
+        it as the goal's acceptance, section 13): told lost now, `payload` is not offered
+        again. Until `payload` is told arrived, `by` stands in for it up to `until`, the
+        caller's deadline for it (`stands_in`; None: it need not)."""
         with self._lock:
             self._repairable.pop((key, bytes(payload)), None)
+            if until is not None:
+                _remember(self._standing, (key, bytes(by)), (bytes(payload), until))
+
+    def stands_in(self, key: int, payload: bytes) -> float | None:
+        """The deadline of the answer `payload` stands in for (`answered_by`), while that
+        answer is not told arrived and its deadline is ahead; else None. Its copies are
+        timed on it: a result that is also its goal's acceptance is as urgent as the answer
+        was (`uwgen.bridge.wiring.Wiring.urgent`)."""
+        with self._lock:
+            got = self._standing.get((key, bytes(payload)))
+            if got is None or (key, got[0]) in self._arrived or self.clock.now() >= got[1]:
+                return None
+            return got[1]
 
     def spare(self, key: int, payload: bytes) -> bool:
         """True, once per arrival told, when a copy of `payload` falls due: the peer has it."""

@@ -94,13 +94,21 @@ class Wiring:
         starts with) told lost: offered again at once, on the link's thread, so it is in the
         link before the own turn that follows the report builds its first packet (copies.py);
         its age item counts from `published` (its call's start, as every copy's), its answer
-        takes it back, and it gets a copy in its turn when urgent. False on a timer (no
+        takes it back, and it gets a copy in its turn when urgent (`urgent_copy`). False on a timer (no
         turns): `copy_due` sends it."""
         if self.turns() is None or self.waiting(key, payload) \
                 or not self.send(key, payload, published=published):
             return False
-        self.expect(answer, key, payload, echo=self.urgent(deadline))
+        self.expect(answer, key, payload, echo=self.urgent_copy(key, payload, deadline))
         return True
+
+    def urgent_copy(self, key: int, payload: bytes, deadline: float | None) -> bool:
+        """Whether a copy of a message awaiting its answer is urgent (`urgent`): on its own
+        `deadline` (None: far off, a result's), or, for a result standing in for its goal's
+        answer (fates.py `stands_in`), on that answer's deadline, as the answer's repair."""
+        answers = self.fates.stands_in(key, payload)
+        return ((deadline is not None and self.urgent(deadline))
+                or (answers is not None and self.urgent(answers, answer=True)))
 
     def urgent(self, deadline: float, answer: bool = False) -> bool:
         """Whether a command sent again now has too few rounds of the MAC (`turn_gap`: a round
