@@ -316,3 +316,38 @@ def test_wake_ups_are_coalesced_until_the_thread_takes_them():
     finally:
         conn.stop()
 
+
+
+def test_a_packet_ready_after_its_turn_is_over_is_not_written_but_counted(server, caplog):
+    """The MAC says the packet just built came too late for its turn (a stalled thread:
+    mac_base.Mac.late): the connection drops it, tells the MAC, counts and logs it, and
+    writes the next one."""
+    from uwgen.runtime.link.mac_base import Mac
+
+    class Stalled(Mac):
+        def __init__(self):
+            super().__init__()
+            self.asked, self.dropped, self.written = 0, 0, 0
+
+        def late(self, now):
+            self.asked += 1
+            return self.asked == 1                    # the first packet only
+
+        def abandoned(self):
+            self.dropped += 1
+
+        def wrote(self, now, nbytes):
+            self.written += 1
+    mac = Stalled()
+    conn = make(server.port, source=Source(count=3), mac=mac, one_frame=True)   # a packet a write
+    with caplog.at_level(logging.WARNING, logger="uwgen.link"):
+        conn.start()
+        try:
+            assert wait_until(lambda: len(serials(server.received)) == 2)
+            time.sleep(0.1)
+            assert serials(server.received) == [2, 3]
+            assert (mac.dropped, mac.written) == (1, 2)
+            assert conn.stats()["frames_dropped"]["late"] == 1
+        finally:
+            conn.stop()
+    assert any("was not written" in r.getMessage() for r in caplog.records)

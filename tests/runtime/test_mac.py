@@ -280,6 +280,39 @@ def test_a_leader_grants_on_time_after_its_notice_with_a_thread_a_little_late():
     assert lead.counts["late_grants"] == 0
 
 
+def test_a_grant_ready_only_after_the_followers_turn_from_its_notice_began_is_not_written():
+    """The leader's thread stalls between building its grant and writing it (the connection
+    asks `late` with its clock read again): written then, the grant would meet the turn the
+    follower took from the notice. It is dropped (`abandoned`), and the leader waits for
+    that turn as if the notice had granted it."""
+    lead, _ = pair()
+    lead.carries = False
+    write(lead, 0.0)                                    # the notice
+    on_time = lead.interval
+    assert lead.next_write_at(on_time) <= on_time
+    assert lead.parts(on_time) == bytes([0x22, 2])      # the grant, built on time
+    assert not lead.late(on_time + 0.05)
+    stalled = lead.interval + REACT + 0.5
+    assert lead.late(stalled)
+    lead.abandoned()
+    assert (lead.counts["late_grants"], lead.counts["grants_sent"]) == (1, 0)
+    assert lead.next_write_at(stalled) > stalled       # the follower's turn is awaited
+    lead.heard(2, bytes([0x32]), stalled + 0.5)
+    assert lead.next_write_at(stalled + 0.5) == -math.inf and lead.counts["missed"] == 0
+
+
+def test_a_follower_packet_ready_after_its_window_is_not_written_and_a_timely_one_is():
+    _, follower = pair()
+    follower.backlog = lambda now: False
+    follower.heard(1, bytes([0x22, 2]), 0.0)
+    assert follower.parts(0.0) == bytes([0x32])         # its end, built at once
+    assert not follower.late(0.05)
+    assert follower.late(follower.timing.window(0.0, 2) + 0.01)
+    follower.abandoned()
+    assert follower.counts["dropped_turns"] == 1 and follower.counts["turns"] == 0
+    assert not Mac().late(5.0)                           # mode none: DESERT's MAC decides
+
+
 def test_a_late_follower_writes_only_inside_its_window_and_ends_its_turn_there():
     _, follower = pair()
     follower.backlog = lambda now: True

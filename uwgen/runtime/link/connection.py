@@ -31,7 +31,7 @@ from collections.abc import Callable
 from uwgen.manifest.model import LinkConfig
 from uwgen.runtime.clock import SYSTEM_CLOCK, Clock
 from uwgen.runtime.wire.framing import LONG, FrameError, Framing
-from uwgen.runtime.link.mac import Mac
+from uwgen.runtime.link.mac_base import Mac
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN, MIN_FRAME, Outbox, Pacer
 from uwgen.runtime.link.probation import Event, Probation, reconnect_cap
 from uwgen.runtime.stats import Counters, log_count
@@ -74,6 +74,7 @@ CONNECTION_COUNTERS = (
     "frames_received", "bytes_received",
     "unframeable",        # payloads the source gave that cannot be framed (dropped)
     "callback_errors",    # on_frame raised (the frame is lost; the link goes on)
+    "late_packets",       # built for a turn that was over when they were ready (not written)
 )
 
 
@@ -194,6 +195,7 @@ class DesertConnection:
                 "abandoned": o.frames_abandoned,       # cut by a disconnect (sending side)
                 "unframeable": c["unframeable"],
                 "callback_errors": c["callback_errors"],
+                "late": c["late_packets"],             # ready after their turn (sending side)
                 "bad_length": d.bad_length,            # rejected starts (receiving side)
                 "bad_terminator": d.bad_terminator,
                 "stalled": d.stalled,
@@ -242,6 +244,15 @@ class DesertConnection:
         now = self.clock.now()
         batch = (self.outbox.take(now, self._pull, self._fit)
                  if self.proof.proven and self.mac.next_write_at(now) <= now else b"")
+        if batch and self.mac.late(self.clock.now()):
+            # the thread stalled while it built a grant or an end past its moment: written
+            # now it would meet the next turn (mac_base.Mac.late); taken as lost instead
+            self.outbox.abandon(counted=False)
+            self.mac.abandoned()
+            log_count(log, logging.WARNING, self.counters.inc("late_packets"), "[%s] a packet "
+                      "built for this side's turn was not written: its turn was over when it "
+                      "was ready (a stalled thread); its messages go as for a lost packet", self.name)
+            batch, self._maybe_more = b"", True
         if batch:
             try:
                 sock.sendall(batch, socket.MSG_NOSIGNAL)

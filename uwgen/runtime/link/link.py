@@ -43,7 +43,7 @@ from uwgen.runtime.wire.fragment import MAX_COUNT, Fragmenter, fragment_payload_
 from uwgen.runtime.wire.reassembly import Reassembler
 from uwgen.runtime.wire.framing import LONG, MAX_FRAME, MAX_PAYLOAD, SHORT
 from uwgen.runtime.wire.framing import OVERHEAD as FRAME_OVERHEAD
-from uwgen.runtime.link.mac import Mac
+from uwgen.runtime.link.mac_base import Mac
 from uwgen.runtime.link.hooks import PacketHooks, join_hooks
 from uwgen.runtime.link.packets import (PACKET_COUNTERS, Packer, Unpacker, envelope_check, envelope_room,
                                         message_measure)

@@ -242,13 +242,14 @@ class Outbox:
         self.stats.writes += 1
         self._clear_batch()
 
-    def abandon(self) -> int:
-        """The connection failed: drop the pending batch and the cut frame; return frames dropped.
+    def abandon(self, counted: bool = True) -> int:
+        """The connection failed: drop the pending batch and the cut frame; return frames dropped
+        (`counted` as abandoned; False: the connection counts them, a batch that came late).
 
         A whole frame held back for the next write is kept: none of its bytes went out.
         """
         lost = self._batch_frames + (1 if self._rest else 0)
-        self.stats.frames_abandoned += lost
+        self.stats.frames_abandoned += lost if counted else 0
         self._rest = self._echo = b""
         self._clear_batch()
         return lost

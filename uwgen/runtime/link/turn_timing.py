@@ -80,3 +80,15 @@ class RoundTrip:
     def sample(self, rtt: float) -> None:
         self.srtt = rtt if self.samples == 0 else 0.875 * self.srtt + 0.125 * rtt
         self.samples += 1
+
+
+def late_by(missed: tuple[int, float, float] | None, sender: int, start: float) -> float | None:
+    """The leader: how much later than the bound the leader took its turn back at a packet of
+    `sender` started arriving at `start`, when it answers that turn (`missed`: the last turn
+    taken back, (follower, bound, the turn's span); within a span of the bound: the
+    manifest's range or bitrate is not the real one); else None."""
+    if missed is None or sender != missed[0]:
+        return None
+    _who, deadline, span = missed
+    return start - deadline if deadline < start < deadline + span else None
+
