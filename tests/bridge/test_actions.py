@@ -324,7 +324,7 @@ def test_a_result_in_its_goals_last_rounds_goes_with_its_copy_in_turn_as_the_ans
     """The result says accepted too: until the answer is told arrived it stands in for it,
     on the goal's accept deadline (fates.py `stands_in`), so a goal whose answer is in its
     last rounds has its result copied in its turn (echoes) from the first; one with rounds
-    left sends its result alone."""
+    left, or past its accept deadline, sends its result alone."""
     surface, vehicle, bridges, links = pair
     vb = bridges["vehicle"]
     vb.wiring.turn_gap = 3.0                             # a MAC's round of turns
@@ -338,7 +338,8 @@ def test_a_result_in_its_goals_last_rounds_goes_with_its_copy_in_turn_as_the_ans
     fib_server(vehicle.node("real"), [])
     client = ActionClient(surface.node("op"), Fibonacci, "/fib")
     assert client.wait_for_server(timeout_sec=5.0)
-    for seconds, copied in ((4.0, 1), (60.0, 1)):        # under 2 rounds left; 20 rounds
+    # under 2 rounds left; 20 rounds; past (a goal that ran longer than accept_timeout)
+    for seconds, copied in ((4.0, 1), (60.0, 1), (-1.0, 1)):
         left[0] = seconds
         goal = send_goal(client, order=5)
         future = goal.get_result_async()

@@ -123,13 +123,10 @@ class ActionServers(GoalAdoption):
         self.w.fates.forget(ident, payload)       # its bytes may repeat an old result's
         # the result is the goal's answer too: a lost answer is not repaired, and until the
         # answer is told arrived the result stands in for it, on its deadline (fates.py)
-        answer = codec.encode_answer(handle, ACCEPTED)
-        answers_until = None if self.w.fates.arrived(ident, answer) else \
-            self.w.callers_deadline(self._began_of(entry), codec.accept_timeout)
-        if self._offer(ident, payload, "result", again=answers_until is not None
-                       and self.w.urgent(answers_until, answer=True)):
+        self.w.fates.answered_by(ident, codec.encode_answer(handle, ACCEPTED), payload,
+                                 self.w.callers_deadline(self._began_of(entry), codec.accept_timeout))
+        if self._offer(ident, payload, "result", again=self.w.urgent_copy(ident, payload, None)):
             self.counters[ident].results_sent += 1
-            self.w.fates.answered_by(ident, answer, payload, answers_until)
         book = self.results[ident]
         book.sent(handle, entry.payload, payload, entry.arrived, self.w.clock.now(), self.w.turns())
         unacked = book.unacked[handle]

@@ -12,9 +12,10 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   peer's first, with the answer), the message arrived four times in five, and the peer's
   next report tells again (its bitmap reaches back to its last report known to have
   arrived), so the copy waits one more round: it is due once the next own turn has ended
-  too. A result, with no near deadline, waits two (`NEWS_ROUNDS`); one standing in for its
-  goal's answer (`Fates.stands_in`) has the answer's deadline, and waits one: the client side reports
-  it again on its news, every second round, when no command of the server side asks sooner. A message told arrived before (its answer keeps being lost, or the peer's judge
+  too. A result, with no near deadline, waits two (`NEWS_ROUNDS`): the client side reports
+  it again on its news, every second round, when no command of the server side asks sooner;
+  one that stands in for its goal's answer (`Fates.stands_in`) has the answer's deadline,
+  and waits one. A message told arrived before (its answer keeps being lost, or the peer's judge
   refused it) is copied every round but the one its arrival spared. A command already
   urgent (`Wiring.urgent`, its `deadline`) does not wait: its copy is offered as soon as its
   own turn has ended, waits in the link through the peer's turn and leaves first thing in

@@ -139,8 +139,7 @@ class Fates:
             while len(self._awaiting) > KEPT:
                 self._awaiting.popitem(last=False)
 
-    def answered_by(self, key: int, payload: bytes, by: bytes = b"",
-                    until: float | None = None) -> None:
+    def answered_by(self, key: int, payload: bytes, by: bytes, until: float | None = None) -> None:
         """A later message `by` answers for `payload` (a goal's result: the client side takes
         it as the goal's acceptance, section 13): told lost now, `payload` is not offered
         again. Until `payload` is told arrived, `by` stands in for it up to `until`, the

@@ -94,8 +94,8 @@ class Wiring:
         starts with) told lost: offered again at once, on the link's thread, so it is in the
         link before the own turn that follows the report builds its first packet (copies.py);
         its age item counts from `published` (its call's start, as every copy's), its answer
-        takes it back, and it gets a copy in its turn when urgent (`urgent_copy`). False on a timer (no
-        turns): `copy_due` sends it."""
+        takes it back, and it gets a copy in its turn when urgent (`urgent_copy`). False on a
+        timer (no turns): `copy_due` sends it."""
         if self.turns() is None or self.waiting(key, payload) \
                 or not self.send(key, payload, published=published):
             return False

@@ -83,9 +83,9 @@ class RoundTrip:
 
 
 def late_by(missed: tuple[int, float, float] | None, sender: int, start: float) -> float | None:
-    """The leader: how much later than the bound the leader took its turn back at a packet of
-    `sender` started arriving at `start`, when it answers that turn (`missed`: the last turn
-    taken back, (follower, bound, the turn's span); within a span of the bound: the
+    """The leader: by how much a packet of `sender` that started arriving at `start` came
+    after the bound at which the leader took that follower's last turn back (`missed`:
+    follower, bound, the turn's span), when it came within a span of it: a late answer (the
     manifest's range or bitrate is not the real one); else None."""
     if missed is None or sender != missed[0]:
         return None
