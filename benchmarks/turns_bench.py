@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Turns benchmark (docs/wire-format.md section 16, uwgen.runtime.link.mac.TurnMac): what a
+"""Turns benchmark (docs/wire-format.md section 16, uwgen.runtime.link.turn_mac.TurnMac): what a
 lost packet costs a round of turns, on simulated time.
 
     .venv/bin/python benchmarks/turns_bench.py [--per 0.2] [--seeds 3,5,7] [--before main]

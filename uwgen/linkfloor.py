@@ -32,7 +32,7 @@ from uwgen.security.packet_seal import max_overhead
 def min_read_length(wire_format: int, tag_bytes: int | None, mac_bytes: int = 0) -> int:
     """The least bytes per packet a link of `wire_format` can send a message with;
     `tag_bytes`: the seal's tag length when the link is secured, else None; `mac_bytes`: what
-    the MAC's C items add (mode turns: uwgen.runtime.link.mac.TurnMac.overhead)."""
+    the MAC's C items add (mode turns: uwgen.runtime.link.turn_mac.TurnMac.overhead)."""
     if wire_format != 2:
         return 1
     seal = max_overhead(tag_bytes) if tag_bytes is not None else 0

@@ -98,7 +98,7 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
 
 def own_turns(mac) -> Callable[[], int | None]:
     """How many own turns have ended on this side under the turns MAC (the leader's grants
-    sent, a follower's ends sent; `uwgen.runtime.link.mac.TurnMac.counts`): the rounds a
+    sent, a follower's ends sent; `uwgen.runtime.link.turn_mac.TurnMac.counts`): the rounds a
     copy is timed on. None under any other MAC (the timer)."""
     if getattr(mac, "mode", "none") != "turns":
         return lambda: None

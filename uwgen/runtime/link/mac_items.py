@@ -1,6 +1,6 @@
 """The turn MAC's C items (docs/wire-format.md section 16): `2S NN` grants sender S the turn
 for NN packets (`2S 00`: notice that the leader's next packet grants it), `3S` ends S's turn.
-Pure bytes; `uwgen.runtime.link.mac.TurnMac` writes and reads them."""
+Pure bytes; `uwgen.runtime.link.turn_mac.TurnMac` writes and reads them."""
 from __future__ import annotations
 
 from dataclasses import dataclass
