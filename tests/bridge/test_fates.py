@@ -330,13 +330,18 @@ def test_a_result_stands_in_for_its_goals_answer_until_the_answer_is_told_arrive
     assert other.stands_in(CALL, RESULT) is None
 
 
-def _result_told_lost(answers_until: float, answer_arrived: bool = False) -> list:
+def _result_told_lost(answers_until: float, answer_arrived: bool = False,
+                      waiting: bool = False) -> list:
     """A served goal's result, awaiting its acknowledgement for 2 accept timeouts, told
-    lost under turns: what gets a copy in its turn (`repeat`)."""
+    lost under turns: what gets a copy in its turn (`repeat`). `waiting`: its copy due by
+    the round already waits in the link."""
     w, sent = _wiring()
     repeated = []
     w.repeat = lambda key, payload: repeated.append((key, payload))
     w.turns = lambda: 3
+    if waiting:
+        w.waiting = lambda key, payload: True
+        sent.append((CALL, RESULT))                  # offered before the report came
     if answer_arrived:
         w.fates.told(CALL, GOAL_ANSWER, True)
     w.fates.answered_by(CALL, GOAL_ANSWER, RESULT, answers_until)
@@ -353,6 +358,14 @@ def test_a_lost_result_standing_in_for_its_goals_answer_is_copied_in_turn_in_the
     assert _result_told_lost(100.0 + ANSWER_URGENT_ROUNDS * 3.0 + 0.5) == []   # rounds left
     # the answer arrived: the result is only a result, 24 s from its own deadline
     assert _result_told_lost(100.0 + ANSWER_URGENT_ROUNDS * 3.0 - 0.5, answer_arrived=True) == []
+
+
+def test_a_copy_already_waiting_in_the_link_when_told_lost_gets_its_copy_in_turn_when_urgent():
+    from uwgen.bridge.wiring import ANSWER_URGENT_ROUNDS
+    # its copy due by the round went into the link before the report told it lost: that copy
+    # is the repair (not sent twice), and in the answer's last rounds it gets its echo
+    assert _result_told_lost(100.0 + ANSWER_URGENT_ROUNDS * 3.0 - 0.5, waiting=True) == [(CALL, RESULT)]
+    assert _result_told_lost(100.0 + ANSWER_URGENT_ROUNDS * 3.0 + 0.5, waiting=True) == []
 
 
 def test_a_result_standing_in_for_its_goals_answer_waits_one_round_for_its_fate_not_two():

@@ -94,11 +94,14 @@ class Wiring:
         starts with) told lost: offered again at once, on the link's thread, so it is in the
         link before the own turn that follows the report builds its first packet (copies.py);
         its age item counts from `published` (its call's start, as every copy's), its answer
-        takes it back, and it gets a copy in its turn when urgent (`urgent_copy`). False on a
-        timer (no turns): `copy_due` sends it."""
-        if self.turns() is None or self.waiting(key, payload) \
-                or not self.send(key, payload, published=published):
+        takes it back, and it gets a copy in its turn when urgent (`urgent_copy`), also when an
+        equal copy already waits in the link. False on a timer (no turns): `copy_due` sends it."""
+        if self.turns() is None:
             return False
+        if not self.waiting(key, payload) and not self.send(key, payload, published=published):
+            return False
+        # a copy already waiting (due by the round before the report came) is the repair: it
+        # too gets its copy in its turn when urgent now
         self.expect(answer, key, payload, echo=self.urgent_copy(key, payload, deadline))
         return True
 
