@@ -24,6 +24,9 @@ Modes: `retries` is this build; `reference` is the same build with the commands'
 still sent again while unanswered, as wire format 1 always did).
 
 The link is the demo's: 64 B every 0.2 s, 4800 bit/s, 1000 m (about 0.67 s each way).
+The two sides use ROS_DOMAIN_ID and the next one: two benchmarks side by side need domains
+two apart. A run whose bridges find another bridge in their ROS graph (the calls would go
+round it, not over the link) stops with an error instead of counting them.
 
 `--trace FILE` writes a JSON line per command payload offered, taken back and arriving, per
 refusal of the receiving judge and per packet taken for writing (its number, its size, its
@@ -342,6 +345,11 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             client.wait_for_service(timeout_sec=10.0)
             action.wait_for_server(timeout_sec=10.0)
             time.sleep(3.0)                   # links up, graphs discovered (as the demo waits)
+            shared = {n: dict(b.wiring.loops.hazards) for n, b in bridges.items() if b.wiring.loops.hazards}
+            if shared:                        # calls would be served without the link
+                raise SystemExit(f"commands_bench: another uwgen bridge is in this run's ROS graph "
+                                 f"({shared}): give each benchmark its own ROS_DOMAIN_ID, two apart "
+                                 "(a run uses it and the next)")
             started = time.monotonic()
             ok_calls = ok_goals = 0
             for i in range(max(calls, goals)):
