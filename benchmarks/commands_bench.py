@@ -347,6 +347,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             time.sleep(3.0)                   # links up, graphs discovered (as the demo waits)
             shared = {n: dict(b.wiring.loops.hazards) for n, b in bridges.items() if b.wiring.loops.hazards}
             if shared:                        # calls would be served without the link
+                stop.set()
                 raise SystemExit(f"commands_bench: another uwgen bridge is in this run's ROS graph "
                                  f"({shared}): give each benchmark its own ROS_DOMAIN_ID, two apart "
                                  "(a run uses it and the next)")
