@@ -12,8 +12,9 @@ A part that arrived before the side's next turn): how many of them had their com
 again in the side's very next turn (wire-format.md section 15.6: the report settles the
 turn, `settled_by`, and each side repairs its own leg at once) and how many waited longer.
 
-Last, per kind of command message, the copies the bridges offered and how many of them were
-offered after the message had already arrived at the peer (no loss asked for them).
+Last, per kind of command message, the copies the bridges offered and did not take back
+before they left, and how many of them were offered after the message had already arrived
+at the peer (no loss asked for them).
 
     python benchmarks/trace_commands.py TRACE.jsonl [--all]
 """
@@ -63,7 +64,7 @@ def main() -> int:
     for side, (lost, again) in lost_turns(rows).items():
         print(f"{side}: {lost} whole turns lost with a command and reported on; "
               f"{again} had it again in the next own turn, {lost - again} later")
-    print("copies offered by the bridges after the peer already had the message: "
+    print("copies the bridges offered (not taken back) after the peer already had the message: "
           + ", ".join(f"{kind} {late}/{n}" for kind, (n, late) in sorted(late_copies(rows).items())))
     return 0
 
@@ -76,24 +77,28 @@ REUSED = 100.0    # s: an equal payload offered this much later is a new message
 def late_copies(rows: list[dict]) -> dict[str, tuple[int, int]]:
     """Per kind of command message: (copies the bridges offered, those offered after the
     message had already arrived at the peer): a copy no loss asked for (the report that said
-    it arrived, or its answer, was lost). A message's copies are its offers after the first;
-    an equal payload offered REUSED s after the one before is a new message."""
-    arrivals: dict[tuple[str, str], list[float]] = {}
-    offers: dict[tuple[str, str], list[float]] = {}
+    it arrived, or its answer, was lost). A message's copies are its offers after the first,
+    less those taken back before they left; an equal payload offered REUSED s after the one
+    before is a new message."""
+    events: dict[str, dict[tuple[str, str], list[float]]] = {"in": {}, "offer": {}, "withdrawn": {}}
     for r in rows:
-        if r.get("ev") in ("in", "offer"):
-            (arrivals if r["ev"] == "in" else offers).setdefault((r["side"], r["p"]), []).append(r["t"])
+        if r.get("ev") in events:
+            events[r["ev"]].setdefault((r["side"], r["p"]), []).append(r["t"])
     out: dict[str, tuple[int, int]] = {}
-    for (side, payload), times in offers.items():
+    for (side, payload), times in events["offer"].items():
         kind = KINDS.get((payload[:2], payload[2:4]))
         if kind is None:
             continue
-        peer = arrivals.get(("vehicle" if side == "surface" else "surface", payload), [])
+        peer = events["in"].get(("vehicle" if side == "surface" else "surface", payload), [])
+        back = events["withdrawn"].get((side, payload), [])
         first = times[0]
-        for t in times[1:]:
+        for k, t in enumerate(times[1:], 1):
             if t - first > REUSED:
                 first = t
                 continue
+            after = times[k + 1] if k + 1 < len(times) else float("inf")
+            if any(t <= w < after for w in back):
+                continue                      # taken back before it left: no air time
             n, late = out.get(kind, (0, 0))
             out[kind] = (n + 1, late + any(first <= a < t for a in peer))
     return out
