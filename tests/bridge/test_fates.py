@@ -368,10 +368,15 @@ def test_a_copy_already_waiting_in_the_link_when_told_lost_gets_its_copy_in_turn
     assert _result_told_lost(100.0 + ANSWER_URGENT_ROUNDS * 3.0 + 0.5, waiting=True) == []
 
 
-def test_a_result_standing_in_for_its_goals_answer_waits_one_round_for_its_fate_not_two():
+def test_a_result_standing_in_for_its_goals_answer_waits_for_its_news_report_unless_urgent():
     state, w, clock = wired(turns=3)
-    w.urgent = lambda deadline, answer=False: False  # rounds left: no hurry either way
-    alone, standing = Leg(turn=3), Leg(turn=3)
+    urgent = [False]
+    w.urgent = lambda deadline, answer=False: urgent[0] and answer
+    standing, late = Leg(turn=3), Leg(turn=3)
     state.turns = 5                                  # the turn that carried it, and one more
-    assert not copy_due(w, CALL, RESULT, alone, 10.0, rto=3.0)             # NEWS_ROUNDS
-    assert copy_due(w, CALL, RESULT, standing, 10.0, rto=3.0, deadline=20.0, answer=True)
+    assert not copy_due(w, CALL, RESULT, standing, 10.0, rto=3.0, deadline=20.0, answer=True)
+    urgent[0] = True                                 # the answer's last rounds: no waiting
+    assert copy_due(w, CALL, RESULT, late, 10.0, rto=3.0, deadline=20.0, answer=True)
+    urgent[0] = False
+    state.turns = 6                                  # NEWS_ROUNDS ended: nothing told still
+    assert copy_due(w, CALL, RESULT, standing, 11.0, rto=3.0, deadline=20.0, answer=True)

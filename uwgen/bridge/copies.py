@@ -14,8 +14,10 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   arrived), so the copy waits one more round: it is due once the next own turn has ended
   too. A result, with no near deadline, waits two (`NEWS_ROUNDS`): the client side reports
   it again on its news, every second round, when no command of the server side asks sooner;
-  one that stands in for its goal's answer (`Fates.stands_in`) has the answer's deadline,
-  and waits one. A message told arrived before (its answer keeps being lost, or the peer's judge
+  one that stands in for its goal's answer (`Fates.stands_in`) has the answer's deadline:
+  it waits as long, unless urgent on it (a serving side's message is the call's last leg:
+  one sent blind after one round went to a client side that had it one time in four). A
+  message told arrived before (its answer keeps being lost, or the peer's judge
   refused it) is copied every round but the one its arrival spared. A command already
   urgent (`Wiring.urgent`, its `deadline`) does not wait: its copy is offered as soon as its
   own turn has ended, waits in the link through the peer's turn and leaves first thing in
@@ -66,7 +68,8 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
     """True when the copy of `payload` (channel `key`) is to be offered now (module doc);
     `rto`: the timer's next wait, used when it fires while the message still waits;
     `deadline`: its caller's (None: far off, as a result's; a result standing in for its
-    goal's answer has the answer's), `answer`: the call's last leg (`Wiring.urgent`)."""
+    goal's answer has the answer's), `answer`: the call's last leg (`Wiring.urgent`; under
+    turns it waits NEWS_ROUNDS for a report, as a result alone does, unless urgent)."""
     turns = w.turns()
     if turns is None:
         lost = w.fates.lost(key, payload)
@@ -76,7 +79,7 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
             leg.next_send = now + rto        # not left yet, or arrived: no copy behind it
             return False
         if not lost and not leg.held and (
-                deadline is None or (w.turn_gap > 0 and not w.urgent(deadline))):
+                deadline is None or (w.turn_gap > 0 and not w.urgent(deadline, answer=answer))):
             leg.held = True                  # nothing told: the report naming it was lost,
             leg.next_send = now + rto        # and the peer's next one names it again
             return False
@@ -92,7 +95,7 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
     if w.fates.spare(key, payload):
         leg.turn = turns                     # told arrived: no copy this round
         return False
-    rounds = 1 if deadline is not None else NEWS_ROUNDS
+    rounds = 1 if deadline is not None and not answer else NEWS_ROUNDS
     if turns <= leg.turn + rounds and not w.fates.arrived(key, payload) \
             and not (deadline is not None and w.urgent(deadline, answer=answer)):
         return False                         # nothing told yet: the peer's next report will
