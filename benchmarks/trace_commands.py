@@ -110,14 +110,19 @@ def lost_turns(rows: list[dict]) -> dict[str, tuple[int, int]]:
     packets, pending, by_emu = [], {"surface": deque(), "vehicle": deque()}, {}
     for r in rows:
         if r.get("ev") == "packet" and r.get("side") in pending:
-            p = {"t": r["t"], "side": r["side"], "ack": r["ack"], "lost": False,
+            p = {"t": r["t"], "side": r["side"], "ack": r["ack"], "lost": False, "n": r["n"],
                  "cmds": [b for b in r.get("bare", []) if b[:2] in ("02", "03") and b[2:4] in COMMANDS]}
             pending[r["side"]].append(p)
             packets.append(p)
         elif r.get("ev") == "emu":
-            sent = re.match(r"[\d.]+ (\w+): sends packet (\d+)", r["msg"])
-            if sent and pending.get(sent.group(1)):
-                by_emu[int(sent.group(2))] = pending[sent.group(1)].popleft()
+            sent = re.match(r"[\d.]+ (\w+): sends packet (\d+) \((\d+) B\)", r["msg"])
+            queue = pending.get(sent.group(1)) if sent else None
+            # the emulator's packet is the oldest built one of its size (a frame byte more):
+            # one built but not written (the connection's late drop) is skipped, and lost
+            while queue and queue[0]["n"] + 1 != int(sent.group(3)):
+                queue.popleft()["lost"] = True
+            if queue:
+                by_emu[int(sent.group(2))] = queue.popleft()
             lost = re.match(r"[\d.]+ \w+: packet (\d+) from \w+ lost", r["msg"])
             if lost and int(lost.group(1)) in by_emu:
                 by_emu[int(lost.group(1))]["lost"] = True
