@@ -55,19 +55,16 @@ def test_without_turns_a_result_with_nothing_told_waits_one_more_timeout_once():
     assert copy_due(w, 9, b"result", leg, 12.0, rto=6.0)             # held once only
 
 
-def test_under_tdma_a_request_with_nothing_told_waits_one_more_timeout_until_it_is_urgent():
+def test_on_a_timer_a_request_with_nothing_told_is_not_held_a_standing_in_result_is_until_urgent():
     state, w = link()
-    w.turn_gap = 3.0                                  # a TDMA frame: its peer reports each frame
+    w.turn_gap = 3.0                                  # a TDMA frame
     leg = Leg(next_send=3.0)
-    assert not copy_due(w, 20, b"req", leg, 3.0, rto=3.0, deadline=12.0)   # its report was lost
-    assert leg.held and leg.next_send == 6.0
-    assert copy_due(w, 20, b"req", leg, 6.0, rto=3.0, deadline=12.0)      # still nothing
-    urgent = Leg(next_send=3.0)
-    state.now = 6.0                                   # 6 s left: urgent, no waiting
-    assert copy_due(w, 20, b"req", urgent, 6.0, rto=3.0, deadline=12.0) and not urgent.held
-    told = Leg(next_send=3.0)
-    w.fates.told(20, b"req2", False)                  # told lost: at once
-    assert copy_due(w, 20, b"req2", told, 1.0, rto=3.0, deadline=30.0) and not told.held
+    assert copy_due(w, 20, b"req", leg, 3.0, rto=3.0, deadline=12.0) and not leg.held
+    standing = Leg(next_send=3.0)                     # 9 s left on its goal's answer: held
+    assert not copy_due(w, 9, b"result", standing, 3.0, rto=3.0, deadline=12.0, answer=True)
+    late = Leg(next_send=3.0)
+    state.now = 6.0                                   # 6 s left: urgent, not held
+    assert copy_due(w, 9, b"result", late, 6.0, rto=3.0, deadline=12.0, answer=True)
 
 
 def test_without_turns_a_result_told_lost_is_not_held():
