@@ -69,7 +69,7 @@ def main() -> int:
     return 0
 
 
-KINDS = {("02", "14"): "request", ("03", "14"): "response", ("02", "09"): "goal",
+KINDS = {("02", "14"): "request", ("03", "14"): "response", ("02", "09"): "goal or result request",
          ("03", "09"): "goal answer or result"}
 REUSED = 100.0    # s: an equal payload offered this much later is a new message (a reused handle)
 

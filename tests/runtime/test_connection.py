@@ -317,7 +317,6 @@ def test_wake_ups_are_coalesced_until_the_thread_takes_them():
         conn.stop()
 
 
-
 def test_a_packet_ready_after_its_turn_is_over_is_not_written_but_counted(server, caplog):
     """The MAC says the packet just built came too late for its turn (a stalled thread:
     mac_base.Mac.late): the connection drops it, tells the MAC, counts and logs it, and

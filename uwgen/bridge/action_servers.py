@@ -93,7 +93,7 @@ class ActionServers(GoalAdoption):
     def _answer(self, ident: int, handle: int, code: int) -> None:
         codec = self.served[ident][0]
         answer = codec.encode_answer(handle, code)
-        began = self._began(ident, handle)
+        began = self._began(self.goals[ident].get(handle))
         # a goal that came late (its first copies lost), or whose answer was lost and asked
         # for again, with too few rounds left: its answer gets its copy in its turn
         if self._offer(ident, answer, "answer",
@@ -102,11 +102,8 @@ class ActionServers(GoalAdoption):
             # a lost answer goes again at once, within the goal's time (fates.py)
             self.w.fates.repairable(ident, answer, self.w.callers_deadline(began, codec.accept_timeout))
 
-    def _began(self, ident: int, handle: int) -> float:
-        """When the goal on `handle` began on the client side (Wiring.began)."""
-        return self._began_of(self.goals[ident].get(handle))
-
-    def _began_of(self, entry: Served | None) -> float:
+    def _began(self, entry: Served | None) -> float:
+        """When the goal of `entry` (None: not kept) began on the client side (Wiring.began)."""
         if entry is not None and entry.began is not None:
             return entry.began
         return self.w.began(b"", entry.arrived if entry is not None else self.w.clock.now())
@@ -124,7 +121,7 @@ class ActionServers(GoalAdoption):
         # the result is the goal's answer too: a lost answer is not repaired, and until the
         # answer is told arrived the result stands in for it, on its deadline (fates.py)
         self.w.fates.answered_by(ident, codec.encode_answer(handle, ACCEPTED), payload,
-                                 self.w.callers_deadline(self._began_of(entry), codec.accept_timeout))
+                                 self.w.callers_deadline(self._began(entry), codec.accept_timeout))
         if self._offer(ident, payload, "result", again=self.w.urgent_copy(ident, payload, None)):
             self.counters[ident].results_sent += 1
         book = self.results[ident]

@@ -33,9 +33,10 @@ result acknowledgement) is sent again, same bytes, until the answer comes or its
   was most often lost, and the peer's next report names it again (its bitmap reaches back
   to its last report known to have arrived). Sent at once instead, such copies went to a
   peer that had the result for 10-14 results in 100 at 20 % loss under TDMA (one standing in
-  for its goal's answer is held unless urgent on it). A request or goal is not held: its copy, sent when its answer was lost, went to a peer that had it
-  about one time in two under TDMA, but held, a request lost with the report that would
-  have told it waited a frame more, and two calls in 100 failed so (seed 113).
+  for its goal's answer is held unless urgent on it). A request or goal is not held: its
+  copy, sent when its answer was lost, went to a peer that had it about one time in two
+  under TDMA, but held, a request lost with the report that would have told it waited a
+  frame more, and two calls in 100 failed so (seed 113).
 - A copy that falls due after the peer's report told the message arrived is spared once
   (`Fates.spare`): its answer is on its way, or repaired by the side that has it.
 
@@ -79,7 +80,7 @@ def copy_due(w: Wiring, key: int, payload: bytes, leg: Leg, now: float, rto: flo
             leg.next_send = now + rto        # not left yet, or arrived: no copy behind it
             return False
         if not lost and not leg.held and (
-                deadline is None or (answer and not w.urgent(deadline, answer=True))):
+                deadline is None or (answer and not w.urgent(deadline, answer=answer))):
             leg.held = True                  # nothing told: the report naming it was lost,
             leg.next_send = now + rto        # and the peer's next one names it again
             return False

@@ -26,6 +26,7 @@ class Mac:
     mode = "none"
     overhead = 0                         # most bytes the MAC adds to a packet (C part included)
     burst = 0.0                          # s between write windows: rate limits hold over it
+    late_collides = False                # a packet written after its moment meets another turn
 
     def __init__(self):
         self.backlog: Callable[[float], bool] = lambda now: False   # set by the Link
@@ -55,12 +56,14 @@ class Mac:
     def late(self, now: float) -> bool:
         """Whether the packet just built may no longer be written at `now`: its moment passed
         while it was built (a stalled thread) and, under a MAC whose late write meets another
-        side's turn (turns: a grant or an end), it would collide. The connection then drops
-        it (`abandoned`): delivery takes it as lost, the peer's report names it."""
-        return self.mode == "turns" and self.next_write_at(now) > now
+        side's turn (`late_collides`: turns, a grant or an end), it would collide. The
+        connection then drops it (`abandoned`): delivery takes it as lost, the peer's report
+        names it."""
+        return self.late_collides and self.next_write_at(now) > now
 
     def abandoned(self) -> None:
-        """The packet built last was not written (`late`)."""
+        """The packet built last was not written (`late`): what it would have ended (a grant,
+        an end) is not (`late` already moved the turn on)."""
 
     def turn_gap(self) -> float:
         return 0.0

@@ -15,6 +15,7 @@ class TurnMac(Mac):
 
     mode = "turns"
     overhead = 3        # the C part's length byte and a grant (2 bytes) or an end (1 byte)
+    late_collides = True    # a grant or an end written late meets the next turn
 
     def __init__(self, config: MacConfig, side: str, senders: dict[str, int], link: LinkConfig,
                  margin: float = DEFAULT_MARGIN):
@@ -208,7 +209,6 @@ class TurnMac(Mac):
             self._late[sender] = max(self._late[sender], by + LISTEN)
 
     def abandoned(self) -> None:
-        # a grant or end not written: `late` moved the turn on (late_grants, dropped_turns)
         self._closing, self._noticing = None, False
 
     def _granted_by(self, sid: int, count: int, at: float, earliest: float) -> None:
