@@ -59,7 +59,7 @@ from pathlib import Path
 import rclpy
 from rclpy.action import ActionClient, ActionServer
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import String
 from test_msgs.action import Fibonacci
 from test_msgs.srv import BasicTypes
@@ -108,7 +108,12 @@ def fibonacci(n: int) -> list[int]:
 
 
 class Side:
-    """One ROS domain with its executor thread."""
+    """One ROS domain: the benchmark's node on an executor thread of its own, and each bridge
+    added on another, as deployed (`uwgen bridge` spins its node alone on a single-threaded
+    executor in its own process: uwgen.bridge.main). A MultiThreadedExecutor here would spin
+    hot while its pool runs a callback and hold the interpreter's lock for 0.1-0.4 s at a
+    time, stalling the link threads past their turn's bounds (wire-format.md section 16,
+    REACT): figures of the bench's own making."""
 
     # two domains of the caller's (ROS_DOMAIN_ID and the next), reused run after run: a run's
     # contexts are shut down before the next starts
@@ -119,15 +124,23 @@ class Side:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=next(Side.domains) if domain is None else domain,
                    signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
+        self.executors: list[SingleThreadedExecutor] = []
         self.node = rclpy.create_node(f"bench_{name}", context=self.context)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
+        self._spin_alone(self.node)
 
-    def _spin(self):
+    def add_bridge(self, bridge) -> None:
+        """Spin `bridge` on an executor and thread of its own (class doc)."""
+        self._spin_alone(bridge)
+
+    def _spin_alone(self, node) -> None:
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(node)
+        self.executors.append(executor)
+        threading.Thread(target=self._spin, args=(executor,), daemon=True).start()
+
+    def _spin(self, executor):
         try:
-            self.executor.spin()
+            executor.spin()
         except Exception:              # a bridge's callback failed: the run's figures are void
             try:
                 alive = self.context.ok()
@@ -137,14 +150,15 @@ class Side:
                 traceback.print_exc()
 
     def close(self):
-        for node in list(self.executor.get_nodes()):
-            self.executor.remove_node(node)
-            close = getattr(node, "close", None)
-            try:
-                close() if close else node.destroy_node()
-            except Exception:
-                pass
-        self.executor.shutdown(timeout_sec=1.0)
+        for executor in self.executors:
+            for node in list(executor.get_nodes()):
+                executor.remove_node(node)
+                close = getattr(node, "close", None)
+                try:
+                    close() if close else node.destroy_node()
+                except Exception:
+                    pass
+            executor.shutdown(timeout_sec=1.0)
         rclpy.shutdown(context=self.context)
         # the DDS participant goes only when the context is destroyed and nothing uses it
         # (action clients and servers hold their node until garbage collection): else the
@@ -310,7 +324,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
                 plan = BridgePlan.from_package(package, name)
                 node = BridgeNode(plan, plan.options(port=emu.port(name), status_period=0),
                                   context=side.context, rng=random.Random(seed))
-                side.executor.add_node(node)
+                side.add_bridge(node)
                 bridges[name] = node
                 overhead[name] = Overhead(node, retries)
                 if TRACE is not None:
