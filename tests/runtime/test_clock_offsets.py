@@ -261,6 +261,25 @@ def test_at_start_every_packet_reports_with_t_so_lost_reports_delay_the_exchange
     assert abs(rel["a"].offsets.of(2).offset - 4.0) <= rel["a"].offsets.of(2).error
 
 
+def test_reports_stay_eager_until_one_is_known_arrived_so_losing_the_first_four_costs_a_packet():
+    # all four of b's first reports lost: the next packet b writes still carries a report
+    # and T (none of b's is known to have reached a), so a measures b's clock from it, not
+    # from a report due an ack interval later while a refuses b's answers `unmeasured`;
+    # once a's reports name a packet of b's that carried one, reports go on news again
+    sim, rel, sent = exchange_with_traffic()
+    sim.run(12.0)
+    reports = [i for i, (_, e) in enumerate(sent) if e.ack is not None and e.time is not None]
+    lost = tuple(reports[:4])
+    sim, rel, sent = exchange_with_traffic(drop=lost)
+    sim.run(20.0)
+    after = sent[lost[-1] + 1][0]                   # b's next write after those lost
+    assert sent[lost[-1] + 1][1].ack is not None and sent[lost[-1] + 1][1].time is not None
+    assert rel["a"].first_offset_at[2] < after + 1.0
+    assert abs(rel["a"].offsets.of(2).offset - 4.0) <= rel["a"].offsets.of(2).error
+    late = [e for t, e in sent if t > 10.0]
+    assert late and sum(e.ack is not None for e in late) < len(late) / 2
+
+
 def test_a_stepped_clock_is_measured_anew_not_averaged_with_its_past():
     # samples agree on 0 s; then the peer's clock is stepped 20 s ahead: the first sample
     # whose range does not meet the estimate's replaces the kept ones at once

@@ -8,9 +8,10 @@ have received: once a packet carrying a report is acknowledged, the numbers it n
 not be named again, as QUIC stops repeating acknowledged ranges), and when a packet must
 leave with only the A part. At start, on a link whose sides measure each other's clocks
 (wire-format 15.5, the exchange at start), each peer's first `eager` reports (per epoch: again
-after a restart) ride every packet leaving, news or not: the peer measures our clock from the
-first of them it receives, so one lost delays it by a packet, not by the next report's wait
-(`ack_interval`, or the peer's next probe and its answer: a TDMA frame each) while the
+after a restart), and after them every report until one is known to have arrived (at most
+EAGER_MOST), ride every packet leaving, news or not: the peer measures our clock from the
+first of them it receives, so lost ones delay it by a packet each, not by the next report's
+wait (`ack_interval`, or the peer's next probe and its answer: a TDMA frame each) while the
 commands it gets from us are refused `unmeasured`. Under turns, the leader's first packet
 after it took a follower's turn back unheard (`unheard`: the turn's end, and maybe the
 packets before it, were lost) carries a report on that follower, news or not: the follower
@@ -31,6 +32,7 @@ BITMAP_ROOM = 2          # bitmap bytes a report may always carry: packets leave
                          # report of 17 numbers (the A part's length, R0-R2, 2 bytes: 6 bytes);
 A_ROOM = 1 + 3 + BITMAP_ROOM   # more when the packet being built has room left (`room`)
 EPOCHS_KEPT = 64         # peer epochs whose eager reports are counted (the latest kept)
+EAGER_MOST = 24          # reports per peer epoch on every packet while none is known arrived
 IDLE_REPEATS = 3         # reports sent alone about numbers not confirmed, after the last news
 
 
@@ -123,8 +125,17 @@ class AckPolicy:
         return at is not None and at > self._last_report.get(peer, -math.inf)
 
     def _eager(self, peer: int, epoch: bytes) -> bool:
-        """The peer's epoch has had fewer than `eager` reports: one rides every packet."""
-        return self._eager_sent.get((peer, epoch), 0) < self.eager
+        """A report on the peer's epoch rides every packet: its first `eager`, then while
+        none of ours is known to have arrived (the peer has no sample of our clock yet), at
+        most EAGER_MOST in all (a peer that never reports on our packets)."""
+        if not self.eager:
+            return False
+        sent = self._eager_sent.get((peer, epoch), 0)
+        return sent < self.eager or (peer, epoch) not in self._confirmed and sent < EAGER_MOST
+
+    def eager_any(self, epochs: dict[int, bytes]) -> bool:
+        """Some peer's report is eager (`_eager`): the packet being built carries T with it."""
+        return any(self._eager(peer, epochs.get(peer, b"")) for peer, _ in self.engine.receipts)
 
     def rename_epoch(self, peer: int, old: bytes, new: bytes) -> None:
         """The peer's stand-in epoch `old` is `new` (learnt from K): the same start."""

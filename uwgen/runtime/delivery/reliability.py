@@ -167,8 +167,7 @@ class Reliability:
         T with it), or K, T and an A part's share; T of a message with a max age: `part_room`."""
         with self._lock:
             ack = self.acks.due(self._epochs, now)
-            timed = ack and (self._timed_reports < TIMED_REPORTS
-                             or now - self._last_timed_report >= TIMED_REPORT_EVERY)
+            timed = ack and self._report_timed(now)
             if self.send_epoch is not None and self.send_epoch.due(now):   # as `carrying` asks
                 return env.SYNC_LEN + env.TIME_LEN + A_ROOM
             return (A_ROOM if ack else 0) + (env.TIME_LEN if timed else 0)
@@ -198,8 +197,7 @@ class Reliability:
         self.echoes.carrying(picked)
         # T also goes with the A part on the first packets and then now and then, so the
         # peer measures our clock's offset (clock_offset.py)
-        self._want_time = self._timed or (
-            self._timed_reports < TIMED_REPORTS or now - self._last_timed_report >= TIMED_REPORT_EVERY)
+        self._want_time = self._timed or self._report_timed(now)
         # what the messages take as the envelope encodes them (runs share a head)
         used = len(env.encode_messages([env.from_v1(p) for _, p in picked]))
         # K when due and the packet has room for it besides T and the A part's share (a
@@ -208,6 +206,13 @@ class Reliability:
                       and self._part_room - used - env.TIME_LEN - env.SYNC_LEN >= A_ROOM)
         self._room = (self._part_room - used - (env.TIME_LEN if self._want_time or self._sync else 0)
                       - (env.SYNC_LEN if self._sync else 0))
+
+    def _report_timed(self, now: float) -> bool:
+        """An A part on the packet being built carries T: the first TIMED_REPORTS after a
+        start, every eager one (a peer that has not measured our clock yet: acks.py), then
+        one every TIMED_REPORT_EVERY."""
+        return (self._timed_reports < TIMED_REPORTS or self.acks.eager_any(self._epochs)
+                or now - self._last_timed_report >= TIMED_REPORT_EVERY)
 
     def parts(self, now: float) -> dict:
         with self._lock:
