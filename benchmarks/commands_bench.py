@@ -110,10 +110,11 @@ def fibonacci(n: int) -> list[int]:
 class Side:
     """One ROS domain: the benchmark's node on an executor thread of its own, and each bridge
     added on another, as deployed (`uwgen bridge` spins its node alone on a single-threaded
-    executor in its own process: uwgen.bridge.main). A MultiThreadedExecutor here would spin
-    hot while its pool runs a callback and hold the interpreter's lock for 0.1-0.4 s at a
-    time, stalling the link threads past their turn's bounds (wire-format.md section 16,
-    REACT): figures of the bench's own making."""
+    executor in its own process: uwgen.bridge.main). A MultiThreadedExecutor here spins hot
+    while its pool runs a callback and starves the other threads of the interpreter's lock
+    (a thread sleeping 10 ms in this process woke up to 0.4 s late): the link threads then
+    missed their turns' bounds (wire-format.md section 16, REACT), figures of the bench's
+    own making."""
 
     # two domains of the caller's (ROS_DOMAIN_ID and the next), reused run after run: a run's
     # contexts are shut down before the next starts
