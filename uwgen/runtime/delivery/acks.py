@@ -32,6 +32,9 @@ BITMAP_ROOM = 2          # bitmap bytes a report may always carry: packets leave
                          # report of 17 numbers (the A part's length, R0-R2, 2 bytes: 6 bytes);
 A_ROOM = 1 + 3 + BITMAP_ROOM   # more when the packet being built has room left (`room`)
 EPOCHS_KEPT = 64         # peer epochs whose eager reports are counted (the latest kept)
+CLOCK_REPLIES = 2        # reports with T answered at a start (the clock exchange)
+TIMED_REPORTS = 4        # first packets with an A part that carry T (per peer epoch),
+TIMED_REPORT_EVERY = 30.0   # then one every this many seconds: the peer's clock offset
 EAGER_MOST = 24          # reports per peer epoch on every packet while none is known arrived
 IDLE_REPEATS = 3         # reports sent alone about numbers not confirmed, after the last news
 
@@ -197,3 +200,24 @@ class AckPolicy:
         times = [r.eliciting_since + self.ack_delay for r in self.engine.receipts.values()
                  if r.eliciting_since is not None]
         return times + [t + 2 * self.ack_interval for t in self._news.values()] + self._idle_times()
+
+
+class ReportTimes:
+    """When T rides with an A part (wire-format.md section 15.5; clock_offset.py): on the
+    first TIMED_REPORTS after a start or a peer's new epoch, on every eager report
+    (`AckPolicy._eager`: a peer with no sample of our clock yet), then one every
+    TIMED_REPORT_EVERY; while fewer than CLOCK_REPLIES have left, a peer's report with T is
+    answered at once (the clock exchange at start)."""
+
+    def __init__(self, acks: AckPolicy):
+        self.acks, self.sent, self.last = acks, 0, -math.inf
+
+    def due(self, epochs: dict[int, bytes], now: float) -> bool:
+        return (self.sent < TIMED_REPORTS or self.acks.eager_any(epochs)
+                or now - self.last >= TIMED_REPORT_EVERY)
+
+    def answering(self) -> bool:
+        return self.sent < CLOCK_REPLIES
+
+    def left(self, now: float) -> None:
+        self.sent, self.last = self.sent + 1, now

@@ -41,7 +41,7 @@ from uwgen.runtime.wire.framing import MAX_FRAME, MAX_PAYLOAD, SHORT_OVERHEAD
 from uwgen.runtime.delivery.freshness import MAX_AGE, TICKS_PER_SECOND, stamp
 from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.hooks import PacketHooks
-from uwgen.runtime.delivery.acks import A_ROOM, AckPolicy
+from uwgen.runtime.delivery.acks import A_ROOM, TIMED_REPORTS, AckPolicy, ReportTimes
 from uwgen.runtime.delivery.echoes import Echoes
 from uwgen.runtime.delivery.repairs import Repairs
 from uwgen.runtime.delivery.reliable import (REPORT_KEY, ReliableLink, RttEstimator, Sent,
@@ -61,9 +61,6 @@ TRANSFERS_KEPT = 64              # fragmented messages whose first packet time i
 # T, and an A part of one report (acks.A_ROOM): the most the hooks add to a packet.
 OVERHEAD = env.TIME_LEN + A_ROOM
 PROBES, PROBE_EVERY = 10, 1.0     # packets with T alone while no peer's offset is known
-CLOCK_REPLIES = 2                 # reports with T answered at a start (the clock exchange)
-TIMED_REPORTS = 4                 # first packets with an A part that carry T (per peer epoch),
-TIMED_REPORT_EVERY = 30.0         # then one every this many seconds: the peer's clock offset
 
 
 class Reliability:
@@ -112,8 +109,7 @@ class Reliability:
         first = max(2.0, 8 * period) + turn_gap
         self.engine = ReliableLink(sender, RttEstimator(first, period + turn_gap, 60.0, period),
                                    ack_delay=self.ack_delay)
-        self._timed_reports = 0                       # packets with A and T since a peer's start
-        self._last_timed_report, self._want_time = -float("inf"), False
+        self._want_time = False
         self._probes, self._next_probe = 0, -float("inf")   # clock probes sent, the next one
         self.clock_exchange = clock_exchange          # probe and answer at start (the bridge's)
         self.counters = Counters(COUNTERS)
@@ -137,6 +133,7 @@ class Reliability:
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval,
                               eager=TIMED_REPORTS if clock_exchange and self.max_ages else 0,
                               unheard=unheard)      # the MAC's: a peer's turn went unheard
+        self.report_times = ReportTimes(self.acks)    # when T rides with an A part
         self._peers = PeerEpochs()                    # each peer's epoch, as received
         self._epochs = self._peers.known
         self._rx: tuple[int, bytes, int | None] | None = None
@@ -167,7 +164,7 @@ class Reliability:
         T with it), or K, T and an A part's share; T of a message with a max age: `part_room`."""
         with self._lock:
             ack = self.acks.due(self._epochs, now)
-            timed = ack and self._report_timed(now)
+            timed = ack and self.report_times.due(self._epochs, now)
             if self.send_epoch is not None and self.send_epoch.due(now):   # as `carrying` asks
                 return env.SYNC_LEN + env.TIME_LEN + A_ROOM
             return (A_ROOM if ack else 0) + (env.TIME_LEN if timed else 0)
@@ -197,7 +194,7 @@ class Reliability:
         self.echoes.carrying(picked)
         # T also goes with the A part on the first packets and then now and then, so the
         # peer measures our clock's offset (clock_offset.py)
-        self._want_time = self._timed or self._report_timed(now)
+        self._want_time = self._timed or self.report_times.due(self._epochs, now)
         # what the messages take as the envelope encodes them (runs share a head)
         used = len(env.encode_messages([env.from_v1(p) for _, p in picked]))
         # K when due and the packet has room for it besides T and the A part's share (a
@@ -206,13 +203,6 @@ class Reliability:
                       and self._part_room - used - env.TIME_LEN - env.SYNC_LEN >= A_ROOM)
         self._room = (self._part_room - used - (env.TIME_LEN if self._want_time or self._sync else 0)
                       - (env.SYNC_LEN if self._sync else 0))
-
-    def _report_timed(self, now: float) -> bool:
-        """An A part on the packet being built carries T: the first TIMED_REPORTS after a
-        start, every eager one (a peer that has not measured our clock yet: acks.py), then
-        one every TIMED_REPORT_EVERY."""
-        return (self._timed_reports < TIMED_REPORTS or self.acks.eager_any(self._epochs)
-                or now - self._last_timed_report >= TIMED_REPORT_EVERY)
 
     def parts(self, now: float) -> dict:
         with self._lock:
@@ -231,8 +221,7 @@ class Reliability:
             if self._timed or self._sync or (ack and self._want_time) or probe:
                 out["time"] = stamp(self.wall.now())
                 if ack:
-                    self._timed_reports += 1
-                    self._last_timed_report = now
+                    self.report_times.left(now)
             return out
 
     def sent(self, number: int, picked: list[tuple[int, bytes]], now: float) -> None:
@@ -324,10 +313,10 @@ class Reliability:
                             for m in envelope.messages)
             # the clock exchange (clock_offset.py) completes at once: a packet with T from a
             # peer whose offset is not measured is reported without waiting, and a report
-            # with T is answered while we have sent fewer than CLOCK_REPLIES (a few per start)
+            # with T is answered while we have sent fewer than CLOCK_REPLIES (acks.ReportTimes)
             clock = self.clock_exchange and envelope.time is not None and (
                 self.offsets.of(peer) is None
-                or envelope.ack is not None and self._timed_reports < CLOCK_REPLIES)
+                or envelope.ack is not None and self.report_times.answering())
             if not self.engine.received(peer, epoch, envelope.number, now, eliciting or clock):
                 self.counters.inc("duplicate_packets")
                 return False
@@ -394,7 +383,7 @@ class Reliability:
                  "counted afresh; what it had not acknowledged of ours is counted unknown and "
                  "reliable messages are sent again", self.name, self.judge.who(peer))
         self.offsets.forget(peer)
-        self._timed_reports = 0
+        self.report_times.sent = 0
         if self.send_epoch is not None:
             self.send_epoch.peer_restarted()
         self.engine.peer_restarted()
