@@ -58,7 +58,7 @@ class Surface:
     def __init__(self, pkg, port: int):
         import rclpy
         from rclpy.context import Context
-        from rclpy.executors import MultiThreadedExecutor
+        from rclpy.executors import SingleThreadedExecutor
 
         from uwgen.bridge.node import BridgeNode
         from uwgen.bridge.plan import BridgePlan
@@ -70,7 +70,9 @@ class Surface:
         self.bridge = BridgeNode(plan, plan.options(port=port, status_period=0),
                                  context=self.context)
         self.node = rclpy.create_node("surface_test", context=self.context)
-        self.executor = MultiThreadedExecutor(num_threads=3, context=self.context)
+        # single-threaded, as `uwgen bridge` spins (a MultiThreadedExecutor spins hot while
+        # its pool runs a callback: docs/operators.md, "Diagnostics")
+        self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.bridge)
         self.executor.add_node(self.node)
         self.thread = threading.Thread(target=self._spin, daemon=True)
