@@ -127,13 +127,10 @@ class Side:
                    signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.executors: list[SingleThreadedExecutor] = []
         self.node = rclpy.create_node(f"bench_{name}", context=self.context)
-        self._spin_alone(self.node)
+        self.spin_alone(self.node)
 
-    def add_bridge(self, bridge) -> None:
-        """Spin `bridge` on an executor and thread of its own (class doc)."""
-        self._spin_alone(bridge)
-
-    def _spin_alone(self, node) -> None:
+    def spin_alone(self, node) -> None:
+        """Spin `node` (the bench's, or a bridge) on an executor and thread of its own."""
         executor = SingleThreadedExecutor(context=self.context)
         executor.add_node(node)
         self.executors.append(executor)
@@ -325,7 +322,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
                 plan = BridgePlan.from_package(package, name)
                 node = BridgeNode(plan, plan.options(port=emu.port(name), status_period=0),
                                   context=side.context, rng=random.Random(seed))
-                side.add_bridge(node)
+                side.spin_alone(node)
                 bridges[name] = node
                 overhead[name] = Overhead(node, retries)
                 if TRACE is not None:

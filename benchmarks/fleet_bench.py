@@ -178,7 +178,7 @@ def run(vehicles: int, args, base_domain: int) -> dict:
                 plan = BridgePlan.from_package(package, name)
                 bridge = BridgeNode(plan, plan.options(port=emu.port(name), status_period=0),
                                     context=side.context, rng=random.Random(args.seed + i))
-                side.add_bridge(bridge)
+                side.spin_alone(bridge)
                 bridges[name] = bridge
             surface = sides["surface"].node
             pubs, clients, actions = {}, {}, {}

@@ -221,3 +221,7 @@ class ReportTimes:
 
     def left(self, now: float) -> None:
         self.sent, self.last = self.sent + 1, now
+
+    def restarted(self) -> None:
+        """A peer's new epoch: the first TIMED_REPORTS carry T again."""
+        self.sent = 0

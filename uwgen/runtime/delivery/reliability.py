@@ -192,8 +192,8 @@ class Reliability:
     def carrying(self, picked: list[tuple[int, bytes]], now: float, fresh: bool = True) -> None:
         self._timed = any(wire_id(key) in self.max_ages for key, _ in picked)
         self.echoes.carrying(picked)
-        # T also goes with the A part on the first packets and then now and then, so the
-        # peer measures our clock's offset (clock_offset.py)
+        # T also goes with the A part at a start, while a report is eager, then now and
+        # then, so the peer measures our clock's offset (acks.ReportTimes)
         self._want_time = self._timed or self.report_times.due(self._epochs, now)
         # what the messages take as the envelope encodes them (runs share a head)
         used = len(env.encode_messages([env.from_v1(p) for _, p in picked]))
@@ -383,7 +383,7 @@ class Reliability:
                  "counted afresh; what it had not acknowledged of ours is counted unknown and "
                  "reliable messages are sent again", self.name, self.judge.who(peer))
         self.offsets.forget(peer)
-        self.report_times.sent = 0
+        self.report_times.restarted()
         if self.send_epoch is not None:
             self.send_epoch.peer_restarted()
         self.engine.peer_restarted()
