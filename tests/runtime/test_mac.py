@@ -54,15 +54,16 @@ def test_mode_none_always_allows():
 
 
 def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
-    lead, follower = pair()
+    lead, follower = pair(leader_packets=4)
     lead.carries = True                              # its packets carry messages
     lead.backlog = lambda now: True                  # and more waits after each
     assert write(lead, 0.0) == b""
-    assert write(lead, 0.21) == bytes([0x22, 0])     # the second: notice of the grant to come
-    grant = write(lead, 0.42)                        # the third packet carries the grant
+    assert write(lead, 0.21) == bytes([0x22, 0])     # the second and third: notices of the grant
+    assert write(lead, 0.42) == bytes([0x22, 0])
+    grant = write(lead, 0.63)                        # the fourth packet carries the grant
     assert grant == bytes([0x22, 2])
-    assert lead.next_write_at(0.5) > 0.5              # waiting for the vehicle's turn
-    assert follower.next_write_at(0.5) == math.inf    # nothing heard yet: silent
+    assert lead.next_write_at(0.7) > 0.7              # waiting for the vehicle's turn
+    assert follower.next_write_at(0.7) == math.inf    # nothing heard yet: silent
     follower.heard(1, grant, 0.7)
     follower.backlog = lambda now: False
     assert follower.must_send(0.7)                    # even with nothing to say: the end
@@ -72,25 +73,43 @@ def test_the_leader_grants_after_its_packets_and_waits_for_the_end():
     lead.heard(2, end, 1.1)
     assert lead.next_write_at(1.1) == -math.inf
     assert lead.counts["ends_heard"] == 1 and lead.counts["missed"] == 0
-    assert lead.rtt[2].samples == 1 and lead.rtt[2].srtt == pytest.approx(1.1 - 0.42)
+    assert lead.rtt[2].samples == 1 and lead.rtt[2].srtt == pytest.approx(1.1 - 0.63)
 
 
-def test_the_leader_gives_notice_on_its_first_packet_without_messages_and_grants_on_the_next():
-    lead, _ = pair()
+def test_the_leader_gives_two_notices_from_its_first_packet_without_messages_then_grants():
+    lead, _ = pair(leader_packets=5)
     lead.carries = True
     lead.backlog = lambda now: True
     assert write(lead, 0.0) == b""
-    lead.carries = False                             # nothing more: notice, then the grant
+    lead.carries = False                             # nothing more: two notices, then the grant
     assert write(lead, 0.21) == bytes([0x22, 0])
-    lead.carries = True                              # what came meanwhile rides in the grant's packet
-    assert write(lead, 0.42) == bytes([0x22, 2])
-    assert lead.next_write_at(0.5) > 0.5             # the turn is the follower's
+    lead.carries = True                              # what comes meanwhile rides in their packets
+    assert write(lead, 0.42) == bytes([0x22, 0])
+    assert write(lead, 0.63) == bytes([0x22, 2])
+    assert lead.next_write_at(0.7) > 0.7             # the turn is the follower's
 
 
-def test_an_idle_leader_still_gives_notice_before_its_grant():
+def test_an_idle_leader_still_gives_two_notices_before_its_grant():
     lead, _ = pair()
     lead.carries = False
-    assert [write(lead, t) for t in (0.0, 0.21)] == [bytes([0x22, 0]), bytes([0x22, 2])]
+    notice = bytes([0x22, 0])
+    assert [write(lead, t) for t in (0.0, 0.21, 0.42)] == [notice, notice, bytes([0x22, 2])]
+
+
+def test_a_leader_whose_queue_ran_empty_long_after_its_last_offer_gives_notice_on_that_packet():
+    """Sparse commands: the packet that takes the last waiting message carries the first
+    notice, so the turn spends no packet on waiting; a message offered within the last
+    interval (a stream at the link's pace) keeps the turn going instead."""
+    notice = bytes([0x22, 0])
+    lead, _ = pair(leader_packets=5)
+    lead.carries, lead.backlog = True, (lambda now: False)
+    lead.offered_at = 1.0 - 2 * lead.interval
+    assert [write(lead, t) for t in (1.0, 1.21, 1.42)] == [notice, notice, bytes([0x22, 2])]
+    stream, _ = pair(leader_packets=6)
+    stream.carries, stream.backlog = True, (lambda now: False)
+    for t in (1.0, 1.21, 1.42):
+        stream.offered_at = t - 0.1
+        assert write(stream, t) == b""
 
 
 def test_a_one_packet_leader_turn_is_its_grant_alone():
@@ -223,30 +242,34 @@ def test_the_first_turn_timer_is_the_manifests_worst_case_and_one_slow_turn_does
     assert lead.next_write_at(1.1) == pytest.approx(1.0 + worst)     # the same bound, not 3 x 1.0 s
 
 
-def test_a_follower_that_answers_from_its_notice_is_never_talked_over():
-    lead, follower = pair()
+@pytest.mark.parametrize("heard_notice", [0, 1])
+def test_a_follower_that_answers_from_a_notice_is_never_talked_over(heard_notice):
+    """Whichever notice it heard alone (the first or the last before the grant), the follower
+    starts after the grant's packet has ended and writes inside the leader's bound."""
+    lead, follower = pair(leader_packets=4)
     t = 0.0
     for _ in range(8):                               # quick turns: measured round trips short
         lead.carries = False
-        write(lead, t)                               # notice
-        write(lead, t + 0.21)                        # grant
-        lead.heard(2, bytes([0x32]), t + 0.6)
-        t += 0.6
+        for k in range(3):
+            write(lead, t + k * 0.21)                # two notices, the grant
+        lead.heard(2, bytes([0x32]), t + 0.8)
+        t += 0.8
     lead.carries = True
     lead.backlog = lambda now: True
     write(lead, t)
-    notice = write(lead, t + 0.21)
-    grant = write(lead, t + 0.42)                    # lost on its way
-    assert notice == bytes([0x22, 0]) and grant == bytes([0x22, 2])
+    notices = [write(lead, t + 0.21), write(lead, t + 0.42)]
+    grant = write(lead, t + 0.63)                    # lost on its way, as the other notice
+    assert notices == [bytes([0x22, 0])] * 2 and grant == bytes([0x22, 2])
     timing = follower.timing
-    heard = t + 0.21 + timing.one_way                # the notice heard as late as it can be
-    follower.heard(1, notice, heard)
+    heard = t + 0.21 * (1 + heard_notice) + timing.one_way   # heard as late as it can be
+    follower.heard(1, notices[heard_notice], heard)
     follower.backlog = lambda now: True
     start = follower.next_write_at(heard)
+    assert start >= t + 0.63 + timing.one_way        # the grant's packet has ended everywhere
     write(follower, start)
     last = start + REACT                             # its second packet, written as late as allowed
     assert follower.next_write_at(last) == -math.inf and write(follower, last) == bytes([0x32])
-    assert lead.next_write_at(t + 0.5) >= timing.arriving_by(last)
+    assert lead.next_write_at(t + 0.7) >= timing.arriving_by(last)
 
 
 def test_a_leader_whose_grant_is_late_after_its_notice_does_not_write_it_over_the_follower():
@@ -272,11 +295,13 @@ def test_a_leader_whose_grant_is_late_after_its_notice_does_not_write_it_over_th
     assert lead.next_write_at(start + 0.3) == -math.inf and lead.counts["missed"] == 0
 
 
-def test_a_leader_grants_on_time_after_its_notice_with_a_thread_a_little_late():
+def test_a_leader_grants_on_time_after_its_notices_with_a_thread_a_little_late():
     lead, _ = pair()
     lead.carries = False
     write(lead, 0.0)
-    assert write(lead, lead.interval + REACT - 0.01) == bytes([0x22, 2])
+    assert write(lead, lead.interval + REACT - 0.01) == bytes([0x22, 0])
+    # no later than two intervals and REACT after the first notice, whatever the second did
+    assert write(lead, 2 * lead.interval + REACT - 0.01) == bytes([0x22, 2])
     assert lead.counts["late_grants"] == 0
 
 
@@ -287,12 +312,13 @@ def test_a_grant_ready_only_after_the_followers_turn_from_its_notice_began_is_no
     that turn as if the notice had granted it."""
     lead, _ = pair()
     lead.carries = False
-    write(lead, 0.0)                                    # the notice
-    on_time = lead.interval
+    write(lead, 0.0)                                    # the notices
+    write(lead, lead.interval)
+    on_time = 2 * lead.interval
     assert lead.next_write_at(on_time) <= on_time
     assert lead.parts(on_time) == bytes([0x22, 2])      # the grant, built on time
     assert not lead.late(on_time + 0.05)
-    stalled = lead.interval + REACT + 0.5
+    stalled = 2 * lead.interval + REACT + 0.5
     assert lead.late(stalled)
     lead.abandoned()
     assert (lead.counts["late_grants"], lead.counts["grants_sent"]) == (1, 0)
@@ -336,21 +362,36 @@ def test_an_answer_later_than_the_bound_lengthens_the_next_bounds():
     assert lead.next_write_at(first + 0.1) > first + first + 0.3 - REACT
 
 
-def test_the_leader_gives_notice_of_its_grant_on_the_packet_before_it():
-    lead, _ = pair()
+def test_the_leader_gives_notice_of_its_grant_on_the_two_packets_before_it():
+    lead, _ = pair(leader_packets=4)
     lead.carries = True
     lead.backlog = lambda now: True                  # a full turn: the count ends it
-    items = [write(lead, t) for t in (0.0, 0.21, 0.42)]
-    assert items == [b"", bytes([0x22, 0]), bytes([0x22, 2])]
+    items = [write(lead, t) for t in (0.0, 0.21, 0.42, 0.63)]
+    assert items == [b"", bytes([0x22, 0]), bytes([0x22, 0]), bytes([0x22, 2])]
     assert decode_items(items[1]) == [MacItem(TURN_GRANT, 2, 0)]
-    assert [(i.code, i.sender) for i in control.items(items[1] + items[2])] == [(2, 2), (2, 2)]
+    assert [(i.code, i.sender) for i in control.items(items[2] + items[3])] == [(2, 2), (2, 2)]
+    short, _ = pair(leader_packets=2)                # room for one notice only
+    short.carries, short.backlog = True, (lambda now: True)
+    assert [write(short, t) for t in (0.0, 0.21)] == [bytes([0x22, 0]), bytes([0x22, 2])]
 
 
-def test_a_follower_that_heard_the_notice_but_lost_the_grant_takes_its_turn_after_it():
+@pytest.mark.parametrize("second", [1.05, 1.25])
+def test_a_follower_that_heard_both_notices_but_lost_the_grant_starts_when_either_allows(second):
+    """The grant leaves no later than two intervals after the first notice and one after the
+    second (and REACT): the follower starts by the earlier of the two bounds."""
+    _, follower = pair()
+    follower.heard(1, bytes([0x22, 0]), 1.0)
+    follower.heard(1, bytes([0x22, 0]), second)      # the last before the grant
+    after = 0.2 + follower.air + 0.05                # a tick, the grant's air, a listen
+    start = min(1.0 + 2 * follower.interval, second + follower.interval) + after
+    assert follower.next_write_at(second) == pytest.approx(start)
+
+
+def test_a_follower_that_heard_one_notice_but_lost_the_grant_takes_its_turn_two_intervals_after_it():
     _, follower = pair()
     follower.backlog = lambda now: True
-    follower.heard(1, bytes([0x22, 0]), 1.0)
-    start = 1.0 + follower.interval + 0.2 + follower.air + 0.05   # the grant's packet has ended
+    follower.heard(1, bytes([0x22, 0]), 1.0)         # the first or the last: taken for the first
+    start = 1.0 + 2 * follower.interval + 0.2 + follower.air + 0.05   # the grant's packet has ended
     assert follower.next_write_at(1.1) == pytest.approx(start)
     assert follower.next_write_at(start) == -math.inf and follower.counts["turns_from_notice"] == 1
     assert write(follower, start) == b""

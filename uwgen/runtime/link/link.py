@@ -129,7 +129,7 @@ class Link:
             if self.fragmenter else MAX_PAYLOAD,
             max_message_for=self.fragmenter.max_message_for if self.fragmenter else None,
             protect=guard.protect if guard is not None else None,
-            overhead=self._overhead_for(guard) if v2 else (guard.overhead if guard is not None else None),
+            overhead=_overhead_for(guard, self.hooks) if v2 else (guard.overhead if guard is not None else None),
             measure=message_measure if v2 else len,
             stamp=self.hooks.stamp if v2 else None, burst=self.mac.burst)
         self.packer: Packer | None = None
@@ -175,6 +175,7 @@ class Link:
                 return False
         ok = self.scheduler.offer(key, payload, published)
         if ok:
+            self.mac.offered_at = self.clock.now()     # a stream at the link's pace keeps a turn
             self.connection.wake()
         return ok
 
@@ -227,14 +228,6 @@ class Link:
         }
 
     # -- wiring --------------------------------------------------------------------------------
-
-    def _overhead_for(self, guard: Any) -> Callable[[int], int] | None:
-        """What protection and the reliability head (wire format 2 hooks) add to a message."""
-        protect = guard.overhead if guard is not None else None
-        head = self.hooks.head_room
-        if protect is None and head is None:
-            return None
-        return lambda key: (protect(key) if protect else 0) + (head(key) if head else 0)
 
     def _next_ready(self, now: float) -> float | None:
         """When the packer will next have something: a queued message, a cut message's tail
@@ -309,6 +302,15 @@ class Link:
     def _tick(self, now: float) -> None:
         if self.reassembler is not None:
             self.reassembler.expire(now)
+
+
+def _overhead_for(guard: Any, hooks: PacketHooks) -> Callable[[int], int] | None:
+    """What protection and the reliability head (wire format 2 hooks) add to a message."""
+    protect = guard.overhead if guard is not None else None
+    head = hooks.head_room
+    if protect is None and head is None:
+        return None
+    return lambda key: (protect(key) if protect else 0) + (head(key) if head else 0)
 
 
 def _wire_id(payload: bytes) -> int | None:

@@ -23,9 +23,8 @@ and `mac_for`, which builds a side's MAC from the manifest.
   manifest's physics, moved to the rest of the answer by each packet heard): the miss is
   counted and the next side is granted, so a lost grant or answer costs the wait for what
   could still come, and a side that starts late or restarts answers the next grant naming
-  it. The packet before a full turn's last gives notice of the grant (`2S 00`): a follower
-  that heard it and lost the grant takes its turn all the same once the grant's packet has
-  ended. Needs no change inside DESERT and no clock agreement: every timer starts from an
+  it. The two packets before the grant give notice of it (`2S 00`): a follower that heard
+  one and lost the grant takes its turn all the same once the grant's packet has ended. Needs no change inside DESERT and no clock agreement: every timer starts from an
   event this side saw.
   `settled_by` tells delivery that a peer's answer was built after all of this side's packets
   of the turn before it had arrived or been lost (a report there names their loss at once);

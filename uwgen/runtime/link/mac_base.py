@@ -31,6 +31,7 @@ class Mac:
     def __init__(self):
         self.backlog: Callable[[float], bool] = lambda now: False   # set by the Link
         self.carries = False             # the packet being built carries messages
+        self.offered_at = -INF           # when the link was last offered a message (set by the Link)
 
     def next_write_at(self, now: float) -> float:
         return -INF

@@ -13,8 +13,10 @@ Every bound is a worst case of its parts:
   `one_way`;
 - a side writes within REACT of the event that allows it (its connection thread's wake-up),
   then one packet per pacer interval;
-- a notice heard at h lets its follower start at h + interval + period + air + LISTEN (the
-  grant's packet has ended everywhere by then).
+- a notice heard at h, d packets before its grant, lets its follower start at
+  h + d x interval + period + air + LISTEN (the grant's packet has ended everywhere by then);
+  a follower that heard one notice only takes it for the first (d = NOTICES), and the
+  leader's bound counts on that.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 
 REACT = 0.1     # s: from the packet that gives a side its turn to its first write (thread wake-up, loaded host)
+NOTICES = 2     # notices before a grant, one a packet (section 16, rule 1)
 
 
 class TurnTiming:
@@ -36,10 +39,12 @@ class TurnTiming:
         self.delay = config.delay
         self.one_way = self.period + LISTEN + self.air + self.delay
 
-    def notice_start(self, heard_at: float) -> float:
-        """Follower: when a turn announced by a notice heard at `heard_at` starts if its grant
-        is lost (the grant's packet has ended everywhere by then)."""
-        return heard_at + self.interval + self.period + self.air + LISTEN
+    def notice_start(self, heard_at: float, distance: int = 1) -> float:
+        """Follower: when a turn announced by a notice heard at `heard_at`, `distance`
+        packets before its grant, starts if the grant is lost (the grant's packet has ended
+        everywhere by then: the leader writes no grant later than `distance` intervals and
+        REACT after the notice)."""
+        return heard_at + distance * self.interval + self.period + self.air + LISTEN
 
     def window(self, start: float, count: int) -> float:
         """Follower: the last moment it may write a packet of a `count`-packet turn that it
@@ -51,11 +56,12 @@ class TurnTiming:
         return written_by + self.period + LISTEN + self.delay
 
     def grant_deadline(self, granted_at: float, count: int, noticed_at: float | None = None) -> float:
-        """Leader: by when every packet of the turn it granted at `granted_at` (its notice
-        written at `noticed_at`, if any) has started arriving, if it hears none of them."""
+        """Leader: by when every packet of the turn it granted at `granted_at` (its last
+        notice written at `noticed_at`, if any) has started arriving, if it hears none of
+        them. A follower that heard that notice alone takes it for the first."""
         start = granted_at + self.one_way
         if noticed_at is not None:
-            start = max(start, self.notice_start(noticed_at + self.one_way))
+            start = max(start, self.notice_start(noticed_at + self.one_way, NOTICES))
         return self.arriving_by(self.window(start, count))
 
     def rest_deadline(self, heard_start: float, rest: int) -> float:
