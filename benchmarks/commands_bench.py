@@ -87,7 +87,8 @@ actions:
   - {name: /fib, id: 9, type: test_msgs/action/Fibonacci, server: vehicle, accept_timeout: 12,
      result_timeout: 30, max_goals: 2, feedback: false}
 """
-COMMAND_IDS = (9, 20)
+FIB_ID, ECHO_ID = 9, 20     # the manifest's /fib and /echo
+COMMAND_IDS = (FIB_ID, ECHO_ID)
 def build_package(mac: str = "none"):
     from uwgen.cli import main as uwgen_main
     root = Path(tempfile.mkdtemp(prefix="uwgen_cmdbench_"))
@@ -166,10 +167,11 @@ class Side:
         gc.collect()
 
 
-def result_status(payload: bytes) -> bool:
-    """A result's acknowledgement or request (an action's kind-2 message whose body opens
-    with 0x18)."""
-    return payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18
+def result_status(key: int, payload: bytes) -> bool:
+    """A result's acknowledgement or request: /fib's kind-2 message whose third item is
+    24 + handle (`18 xx`). A request of /echo whose seq is 24..255 opens the same way, and is
+    a request."""
+    return key == FIB_ID and payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18
 
 
 COPY_WINDOW = 60.0   # s: a payload offered again within this is a copy; later, a new message
@@ -199,7 +201,7 @@ class Overhead:
 
         def counted(key: int, payload: bytes, **kw) -> bool:
             if key in COMMAND_IDS:
-                status = result_status(payload)
+                status = result_status(key, payload)
                 if status and not retries:
                     return True                     # reference: no result status at all
                 now = time.monotonic()
@@ -219,7 +221,7 @@ class Overhead:
             taken = withdraw(key, payload)
             if taken and key in COMMAND_IDS and self.seen.get((key, payload), (0, False))[1]:
                 self.bytes -= len(payload) + OVERHEAD
-                self.kinds[kind(key, payload, result_status(payload))] -= len(payload) + OVERHEAD
+                self.kinds[kind(key, payload, result_status(key, payload))] -= len(payload) + OVERHEAD
             return taken
         bridge.wiring.withdraw = withdrawn
         if not retries:

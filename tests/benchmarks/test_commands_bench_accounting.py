@@ -1,0 +1,33 @@
+"""What benchmarks/commands_bench.py counts as a retry or an acknowledgement: its figures are
+the byte goal's evidence, so its classifier is tested on real codec output."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import commands_bench
+        yield commands_bench
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+
+
+def test_a_result_status_of_fib_is_counted_as_one(bench):
+    # wire-format 13's result status for handle 7, received and wanted (tests/codegen's bytes)
+    for payload in (bytes.fromhex("0209181f00"), bytes.fromhex("0209181f01")):
+        assert bench.result_status(bench.FIB_ID, payload)
+
+
+@pytest.mark.parametrize("seq", [24, 232, 255])
+def test_an_echo_request_whose_seq_opens_like_a_result_status_is_a_request(bench, seq):
+    # kind 2, id 20, seq 24..255 is CBOR `18 xx`: the third byte of a result status too
+    payload = bytes([2, bench.ECHO_ID, 0x18, seq, 0xF9, 0, 0])
+    assert payload[2] == 0x18 and not bench.result_status(bench.ECHO_ID, payload)
