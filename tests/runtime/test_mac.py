@@ -490,3 +490,36 @@ def test_a_packet_that_began_arriving_before_the_grant_ended_is_not_its_answer()
     lead.arrived(64, 0.15)
     lead.heard(2, bytes([0x32]), 0.15)               # began at 0.04: a packet of an older turn
     assert lead.counts["ends_heard"] == 0 and lead.next_write_at(0.2) > 0.2
+
+
+def _leader_packet(*kinds: int, control: bytes = b""):
+    from uwgen.runtime.wire.envelope import Envelope
+    from uwgen.runtime.wire.messages import Message
+    return Envelope(sender=1, number=7, control=control or None,
+                    messages=tuple(Message(kind=k, id=20, body=b"\x01") for k in kinds))
+
+
+def test_a_follower_granted_with_a_request_keeps_its_turn_for_the_answer_being_built():
+    """The request rode the grant's packet: the turn starts before the bridge has offered its
+    answer. The first packet does not end the turn; the second carries the answer and the end."""
+    _, follower = pair()
+    follower.backlog = lambda now: False
+    follower._received(_leader_packet(2, control=bytes([0x22, 2])), 1.0)   # request + grant
+    assert follower.next_write_at(1.0) == -math.inf
+    assert write(follower, 1.0) == b""                  # no answer yet: the turn goes on
+    follower.offered_at = 1.05                           # the bridge offers the answer
+    follower.backlog = lambda now: True
+    assert write(follower, 1.0 + follower.interval) == bytes([0x32])
+
+
+def test_a_follower_whose_answer_was_offered_or_not_asked_for_ends_on_its_first_packet():
+    _, answered = pair()
+    answered.backlog = lambda now: False
+    answered._received(_leader_packet(2), 0.5)          # a request, answered before the grant
+    answered.offered_at = 0.6
+    answered._received(_leader_packet(control=bytes([0x22, 2])), 1.0)
+    assert write(answered, 1.0) == bytes([0x32])
+    _, topics = pair()
+    topics.backlog = lambda now: False
+    topics._received(_leader_packet(0, control=bytes([0x22, 2])), 1.0)     # a topic message
+    assert write(topics, 1.0) == bytes([0x32])

@@ -8,6 +8,7 @@ from uwgen.runtime.link.mac_items import TURN_END, TURN_GRANT, MacItem, decode_i
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 from uwgen.runtime.link.turn_timing import NOTICES, REACT, TurnTiming
 from uwgen.runtime.link.turn_wait import TurnWait
+from uwgen.runtime.wire.codec import KIND_REQUEST
 
 
 class TurnMac(Mac):
@@ -42,6 +43,7 @@ class TurnMac(Mac):
         self._notice_at = INF             # follower: its turn starts then if the grant is lost
         self._by_notice = False           # follower: took that turn; the grant is answered
         self._last_end: float | None = None   # follower: when it last wrote its turn's end
+        self._asked_at: float | None = None   # follower: when the leader's last request (kind 2) came
         self.counts = {k: 0 for k in ("turns", "grants_sent", "grants_heard", "ends_heard",
                                       "missed", "recovered", "dropped_turns", "not_mine",
                                       "notices_heard", "turns_from_notice", "late_answers", "late_grants")}
@@ -96,8 +98,11 @@ class TurnMac(Mac):
         if self.leading:
             return self._leader_parts(now)
         # a follower keeps its turn while more is queued and its window leaves room for
-        # another packet
-        if self._sent < self._granted and self.backlog(now) and now + self.interval <= self._turn_until:
+        # another packet; its first packet does not end it while a request heard since its
+        # last turn has had no offer after it (rule 2: the answer is on its way)
+        answering = self._sent == 1 and self._asked_at is not None and self.offered_at < self._asked_at
+        if self._sent < self._granted and (self.backlog(now) or answering) \
+                and now + self.interval <= self._turn_until:
             return b""
         self._closing = MacItem(TURN_END, self.me)
         return encode_items([self._closing])
@@ -145,10 +150,16 @@ class TurnMac(Mac):
             self._granted_by(closing.sender, closing.count, built, now + self.timing.packet_air(nbytes))
         else:
             self.counts["turns"] += 1
-            self._last_end = built
+            self._last_end, self._asked_at = built, None
 
     def arrived(self, nbytes: int | None, now: float) -> None:
         self._size = nbytes
+
+    def _received(self, envelope, now: float) -> None:
+        if not self.leading and envelope.sender == self.leader_id \
+                and any(m.kind == KIND_REQUEST for m in envelope.messages):
+            self._asked_at = now
+        super()._received(envelope, now)
 
     def heard(self, sender: int, control: bytes, now: float) -> None:
         items = decode_items(control) if control else []
