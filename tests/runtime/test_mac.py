@@ -506,8 +506,9 @@ def test_a_follower_granted_with_a_request_keeps_its_turn_for_the_answer_being_b
     follower.backlog = lambda now: False
     follower._received(_leader_packet(2, control=bytes([0x22, 2])), 1.0)   # request + grant
     assert follower.next_write_at(1.0) == -math.inf
+    follower.offered(1.0, bytes.fromhex("000573"))      # a topic message meanwhile: not the answer
     assert write(follower, 1.0) == b""                  # no answer yet: the turn goes on
-    follower.offered_at = 1.05                           # the bridge offers the answer
+    follower.offered(1.05, bytes.fromhex("031419fb6f"))  # the bridge offers the answer
     follower.backlog = lambda now: True
     assert write(follower, 1.0 + follower.interval) == bytes([0x32])
 
@@ -516,7 +517,7 @@ def test_a_follower_whose_answer_was_offered_or_not_asked_for_ends_on_its_first_
     _, answered = pair()
     answered.backlog = lambda now: False
     answered._received(_leader_packet(2), 0.5)          # a request, answered before the grant
-    answered.offered_at = 0.6
+    answered.offered(0.6, bytes.fromhex("031419fb6f"))
     answered._received(_leader_packet(control=bytes([0x22, 2])), 1.0)
     assert write(answered, 1.0) == bytes([0x32])
     _, topics = pair()

@@ -175,7 +175,7 @@ class Link:
                 return False
         ok = self.scheduler.offer(key, payload, published)
         if ok:
-            self.mac.offered_at = self.clock.now()     # a stream at the link's pace keeps a turn
+            self.mac.offered(self.clock.now(), payload)
             self.connection.wake()
         return ok
 

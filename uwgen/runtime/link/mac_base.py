@@ -16,8 +16,10 @@ import math
 from collections.abc import Callable
 
 from uwgen.runtime.link.hooks import PacketHooks
+from uwgen.runtime.wire.codec import KIND_RESPONSE
 
 INF = math.inf
+ANSWER = bytes([KIND_RESPONSE])      # an offered payload's first byte: its kind (wire format 1)
 
 
 class Mac:
@@ -31,10 +33,18 @@ class Mac:
     def __init__(self):
         self.backlog: Callable[[float], bool] = lambda now: False   # set by the Link
         self.carries = False             # the packet being built carries messages
-        self.offered_at = -INF           # when the link was last offered a message (set by the Link)
+        self.offered_at = -INF           # when the link was last offered a message (`offered`)
+        self.answered_at = -INF          # ... an answer (a response, a goal's answer or result)
 
     def next_write_at(self, now: float) -> float:
         return -INF
+
+    def offered(self, now: float, payload: bytes) -> None:
+        """The link took `payload` to send (the Link tells every offer): a stream offered at
+        the link's pace keeps a turns leader's turn, an answer ends a follower's wait for it."""
+        self.offered_at = now
+        if payload[:1] == ANSWER:
+            self.answered_at = now
 
     def wrote(self, now: float, nbytes: int) -> None:
         pass

@@ -99,8 +99,8 @@ class TurnMac(Mac):
             return self._leader_parts(now)
         # a follower keeps its turn while more is queued and its window leaves room for
         # another packet; its first packet does not end it while a request heard since its
-        # last turn has had no offer after it (rule 2: the answer is on its way)
-        answering = self._sent == 1 and self._asked_at is not None and self.offered_at < self._asked_at
+        # last turn has had no answer offered after it (rule 2: the answer is on its way)
+        answering = self._sent == 1 and self._asked_at is not None and self.answered_at < self._asked_at
         if self._sent < self._granted and (self.backlog(now) or answering) \
                 and now + self.interval <= self._turn_until:
             return b""
