@@ -2,7 +2,7 @@
 the byte goal's evidence, so its classifier is tested on real codec output."""
 from __future__ import annotations
 
-import sys
+import importlib
 from pathlib import Path
 
 import pytest
@@ -12,12 +12,9 @@ BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 @pytest.fixture(scope="module")
 def bench():
-    sys.path.insert(0, str(BENCHMARKS))
-    try:
-        import commands_bench
-        yield commands_bench
-    finally:
-        sys.path.remove(str(BENCHMARKS))
+    with pytest.MonkeyPatch.context() as mp:      # it imports commands_sim beside it
+        mp.syspath_prepend(str(BENCHMARKS))
+        yield importlib.import_module("commands_bench")
 
 
 def test_a_result_status_of_fib_is_counted_as_one(bench):
