@@ -1,12 +1,13 @@
 """The turn MAC's C items (docs/wire-format.md section 16): `2S NN` grants sender S the turn
-for NN packets (`2S 00`: notice that the leader's next packet grants it), `3S` ends S's turn.
+for NN packets (`2S 00`: notice that one of the leader's next two packets grants it), `3S`
+ends S's turn.
 Pure bytes; `uwgen.runtime.link.turn_mac.TurnMac` writes and reads them."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255);
-                        # `2S 00`: notice that the leader's next packet grants S its turn
+                        # `2S 00`: notice that one of the leader's next two packets grants S its turn
 TURN_END = 3            # C item `3S`: sender S ends its turn
 
 
