@@ -35,7 +35,6 @@ class TurnMac(Mac):
         self._closing: MacItem | None = None    # the item the packet being built ends with
         self._built = -INF                # the last packet's build time, as delivery dates it
         self._grant_on: int | None = None   # leader: the packet of its turn that grants (notices before)
-        self._noticing = 0                # leader: the packet being built gives notice, this many before the grant
         self._noticed_at: float | None = None   # leader: when its last notice of the next grant left
         self._grant_by = INF              # leader: no grant is written after it (its notices' promise)
         self._size: int | None = None     # bytes of the packet being opened (arrived)
@@ -90,7 +89,7 @@ class TurnMac(Mac):
     # -- what each packet carries ---------------------------------------------------------
 
     def parts(self, now: float) -> bytes:
-        self._closing, self._noticing = None, 0
+        self._closing = None
         if not self._holding:
             return b""
         self._sent += 1
@@ -120,7 +119,6 @@ class TurnMac(Mac):
         if self._sent >= self._grant_on:
             self._closing = MacItem(TURN_GRANT, sid, n)
             return encode_items([self._closing])
-        self._noticing = self._grant_on - self._sent
         return encode_items([MacItem(TURN_GRANT, sid, 0)])
 
     def _ends_here(self, now: float) -> bool:
@@ -134,13 +132,13 @@ class TurnMac(Mac):
 
     def wrote(self, now: float, nbytes: int) -> None:
         closing, self._closing = self._closing, None
-        noticing, self._noticing = self._noticing, 0
         if closing is None:
-            if noticing:
-                # the grant leaves at most `noticing` intervals and REACT after this notice,
-                # or not at all (a follower that heard it starts from it then: rule 1)
+            if self._grant_on is not None and self._sent < self._grant_on:   # a notice:
+                # the grant leaves at most that many intervals and REACT after it, or not at
+                # all (a follower that heard it starts from it then: rule 1)
                 self._noticed_at = now
-                self._grant_by = min(self._grant_by, now + noticing * self.interval + REACT)
+                self._grant_by = min(self._grant_by,
+                                     now + (self._grant_on - self._sent) * self.interval + REACT)
             return
         self._holding = False
         built = max(now, self._built)     # `now` came before the build: delivery dates by the build
@@ -198,7 +196,7 @@ class TurnMac(Mac):
             self._take_turn(item.count, now)
 
     def abandoned(self) -> None:
-        self._closing, self._noticing = None, 0
+        self._closing = None
 
     def _granted_by(self, sid: int, count: int, at: float, earliest: float) -> None:
         """Wait for follower `sid`'s `count` packets, its turn given at `at` (grant or notice)."""
