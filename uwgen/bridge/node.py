@@ -90,7 +90,7 @@ class BridgeNode(WholeNode):
                                  log=self.get_logger(), main_group=main_group,
                                  service_group=ReentrantCallbackGroup(),
                                  round_trip=mac_round_trip(plan, link_cfg),
-                                 turn_gap=self.mac.turn_gap())
+                                 turn_gap=self.mac.turn_gap(), measured_round=self.mac.round)
         self._log = w.log
         w.recorder = recorder_for(plan, self.options, w.wall)   # None without --record
         self.counters = BridgeCounters()

@@ -52,6 +52,9 @@ class Wiring:
     recorder: Any = None           # uwgen.bridge.recorder.BridgeRecorder with --record
     round_trip: float | None = None  # what the MAC expects a request and its answer to take
     turn_gap: float = 0.0            # the MAC's longest wait for the peer's turn (runtime.link.mac)
+    # a round as the MAC measures it (Mac.round: under turns the spacing of own turns);
+    # None: `turn_gap`. Commands' urgency counts their rounds left in it (`urgent`)
+    measured_round: Callable[[], float] | None = None
     # the link's queue, set once the link exists (uwgen.bridge.copies): whether an equal
     # payload still waits in a channel, taking one back, and the own turns ended (None: no turns)
     waiting: Callable[[int, bytes], bool] = lambda key, payload: False
@@ -124,9 +127,13 @@ class Wiring:
         call's last leg and needs that much less, ANSWER_URGENT_ROUNDS (half a round of it
         kept as a margin for a turn lost on the way). Earlier repairs go alone: a call has
         rounds left for them, and a copy of every repair cost a third of the bytes written
-        (docs/wire-format.md section 15.6). Never without a MAC (no turn)."""
+        (docs/wire-format.md section 15.6). Never without a MAC (no turn). Rounds are the
+        MAC's measured ones (`measured_round`), not its bound `turn_gap`: under turns the
+        bound was 3.3 s where rounds took 2.5 s (commands_bench), and counted in it nearly
+        every command sent a second time was urgent."""
         rounds = ANSWER_URGENT_ROUNDS if answer else URGENT_ROUNDS
-        return deadline - self.clock.now() < rounds * self.turn_gap
+        gap = self.turn_gap if self.measured_round is None else self.measured_round()
+        return deadline - self.clock.now() < rounds * gap
 
     def answer_urgent(self, began: float, timeout: float) -> bool:
         """Whether the serving side's answer to a request or goal whose call began at `began`

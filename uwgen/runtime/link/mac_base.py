@@ -79,6 +79,14 @@ class Mac:
     def turn_gap(self) -> float:
         return 0.0
 
+    def round(self) -> float:
+        """A round as this side lives it, from one of its own turns or slots to the next:
+        what a repair that waits for the peer's report and then its own turn takes. Under
+        turns it is measured (turn_timing.Rounds; `turn_gap()`, a bound, until then); a
+        TDMA frame is fixed. The bridge counts a command's rounds left with it (its urgency:
+        uwgen.bridge.wiring)."""
+        return self.turn_gap()
+
     def own_span(self) -> float:
         """The longest this side's own turn or slot lasts (its packets follow one another
         within it): a command's copy in spare room goes no later (delivery's echoes). 0: no

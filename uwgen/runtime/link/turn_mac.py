@@ -6,7 +6,7 @@ from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.mac_base import INF, Mac
 from uwgen.runtime.link.mac_items import TURN_END, TURN_GRANT, MacItem, decode_items, encode_items
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
-from uwgen.runtime.link.turn_timing import NOTICES, REACT, TurnTiming
+from uwgen.runtime.link.turn_timing import NOTICES, REACT, Rounds, TurnTiming
 from uwgen.runtime.link.turn_wait import TurnWait
 from uwgen.runtime.wire.codec import KIND_REQUEST
 
@@ -48,6 +48,7 @@ class TurnMac(Mac):
                                       "notices_heard", "turns_from_notice", "late_answers", "late_grants")}
         self.wait = TurnWait(self.timing, [sid for sid, _ in self.followers], self.counts)
         self.rtt = self.wait.rtt          # the leader's measured turn round trips (a round's size)
+        self.rounds = Rounds()            # the spacing of this side's own turns, measured
 
     # -- when ----------------------------------------------------------------------------
 
@@ -94,6 +95,8 @@ class TurnMac(Mac):
             return b""
         self._sent += 1
         self._built = now
+        if self._sent == 1:
+            self.rounds.started(now)
         if self.leading:
             return self._leader_parts(now)
         # a follower keeps its turn while more is queued and its window leaves room for
@@ -221,6 +224,10 @@ class TurnMac(Mac):
 
     def turn_gap(self) -> float:
         return self.cycle()
+
+    def round(self) -> float:
+        measured = self.rounds.measured()
+        return self.cycle() if measured is None else measured
 
     def own_span(self) -> float:
         # its packets, one an interval, and on the leader one more (a margin)

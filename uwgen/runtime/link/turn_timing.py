@@ -20,12 +20,17 @@ Every bound is a worst case of its parts:
 """
 from __future__ import annotations
 
+from collections import deque
+from statistics import median
+
 from uwgen.manifest.mac import LISTEN, air_time
 from uwgen.manifest.model import LinkConfig, MacConfig
 from uwgen.runtime.link.pacing import DEFAULT_MARGIN
 
 REACT = 0.1     # s: from the packet that gives a side its turn to its first write (thread wake-up, loaded host)
 NOTICES = 2     # notices before a grant, one a packet (section 16, rule 1)
+ROUNDS_KEPT = 9     # own turns' spacings a measured round is the median of (Rounds)
+ROUNDS_NEEDED = 3   # ... before it stands for the first guess
 
 
 class TurnTiming:
@@ -86,6 +91,27 @@ class RoundTrip:
     def sample(self, rtt: float) -> None:
         self.srtt = rtt if self.samples == 0 else 0.875 * self.srtt + 0.125 * rtt
         self.samples += 1
+
+
+class Rounds:
+    """A round as one side lives it: the time from the start of one of its own turns to the
+    start of the next (its turn, the leader's and every other follower's, and the trips
+    between). The median of the last ROUNDS_KEPT spacings, so a turn lost now and then (a
+    spacing of two rounds) does not move it; None until ROUNDS_NEEDED were seen."""
+
+    def __init__(self):
+        self._last: float | None = None
+        self._spacings: deque[float] = deque(maxlen=ROUNDS_KEPT)
+
+    def started(self, now: float) -> None:
+        """An own turn's first packet is being built at `now`."""
+        if self._last is not None:
+            self._spacings.append(now - self._last)
+        self._last = now
+
+    def measured(self) -> float | None:
+        spacings = list(self._spacings)       # read on another thread (the bridge's)
+        return median(spacings) if len(spacings) >= ROUNDS_NEEDED else None
 
 
 def late_by(missed: tuple[int, float, float] | None, sender: int, start: float) -> float | None:
