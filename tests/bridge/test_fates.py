@@ -155,7 +155,7 @@ def test_without_fates_a_lost_answer_waits_for_a_copy_of_the_request():
 def test_a_command_sent_again_gets_its_copy_in_turn_only_in_its_last_rounds():
     from uwgen.bridge.wiring import URGENT_ROUNDS, Wiring
     clock = ManualClock(100.0)
-    w = SimpleNamespace(clock=clock, turn_gap=3.0, measured_round=None)
+    w = SimpleNamespace(clock=clock, turn_gap=3.0, measured_round=None, next_turn=lambda now: now)
     urgent = lambda deadline: Wiring.urgent(w, deadline)      # noqa: E731
     assert not urgent(100.0 + URGENT_ROUNDS * 3.0)           # rounds left for a repair alone
     assert urgent(100.0 + URGENT_ROUNDS * 3.0 - 0.1)
@@ -166,7 +166,8 @@ def test_a_command_sent_again_gets_its_copy_in_turn_only_in_its_last_rounds():
 def test_an_answer_given_again_gets_its_copy_in_turn_only_in_the_calls_last_round():
     from uwgen.bridge.wiring import ANSWER_URGENT_ROUNDS, URGENT_ROUNDS, Wiring
     clock = ManualClock(100.0)
-    w = SimpleNamespace(clock=clock, turn_gap=3.0, round_trip=1.0, measured_round=None)
+    w = SimpleNamespace(clock=clock, turn_gap=3.0, round_trip=1.0, measured_round=None,
+                        next_turn=lambda now: now)
     w.urgent = lambda deadline, answer=False: Wiring.urgent(w, deadline, answer)  # noqa: E731
     w.callers_deadline = Wiring.callers_deadline
     assert ANSWER_URGENT_ROUNDS < URGENT_ROUNDS              # the answer's own leg is the last

@@ -57,11 +57,29 @@ def test_a_tdma_round_is_its_frame():
     assert TdmaMac(tdma, "surface", LINK, senders=SENDERS).round() == 3.0
 
 
-def _urgent(left: float, measured: float | None, answer: bool = False) -> bool:
+def test_a_message_offered_between_own_turns_leaves_a_round_after_the_last_began():
+    turns = MacConfig(mode="turns", range=1000, leader="surface",
+                      packets=(("surface", 1), ("vehicle", 2)))
+    lead = TurnMac(turns, "surface", SENDERS, LINK)
+    lead.backlog = lambda now: False
+    assert lead.next_turn(0.0) == 0.0                # it holds its turn: now
+    for k in range(ROUNDS_NEEDED + 1):               # rounds of 1.9 s measured
+        lead.parts(1.9 * k)
+        lead.wrote(1.9 * k, 20)
+        if k < ROUNDS_NEEDED:
+            lead.heard(2, bytes([0x32]), 1.9 * k + 1.4)
+    last = 1.9 * ROUNDS_NEEDED                       # its last turn began then, and ended
+    assert lead.next_turn(last + 0.5) == pytest.approx(last + 1.9)
+    assert lead.next_turn(last + 2.5) == last + 2.5  # overdue (the follower's turn is long)
+
+
+def _urgent(left: float, measured: float | None, answer: bool = False,
+            leaves_in: float = 0.0) -> bool:
     from uwgen.bridge.wiring import Wiring
     clock = ManualClock(100.0)
     w = SimpleNamespace(clock=clock, turn_gap=3.3,
-                        measured_round=None if measured is None else (lambda: measured))
+                        measured_round=None if measured is None else (lambda: measured),
+                        next_turn=lambda now: now + leaves_in)
     return Wiring.urgent(w, 100.0 + left, answer)
 
 
@@ -73,3 +91,10 @@ def test_a_commands_rounds_left_are_counted_in_the_measured_round_not_the_bound(
     assert _urgent(URGENT_ROUNDS * 2.5 - 0.1, measured=2.5)
     assert not _urgent(ANSWER_URGENT_ROUNDS * 2.5 + 0.1, measured=2.5, answer=True)
     assert _urgent(ANSWER_URGENT_ROUNDS * 2.5 - 0.1, measured=2.5, answer=True)
+
+
+def test_a_commands_rounds_left_are_counted_from_when_it_can_leave():
+    from uwgen.bridge.wiring import URGENT_ROUNDS
+    left = URGENT_ROUNDS * 2.5 + 1.0                 # more rounds than urgent, counted from now
+    assert not _urgent(left, measured=2.5)
+    assert _urgent(left, measured=2.5, leaves_in=2.0)   # offered as its turn ended: a round on

@@ -89,8 +89,8 @@ class BridgeNode(WholeNode):
         self.wiring = w = Wiring(node=self, send=self._send, clock=clock, options=self.options,
                                  log=self.get_logger(), main_group=main_group,
                                  service_group=ReentrantCallbackGroup(),
-                                 round_trip=mac_round_trip(plan, link_cfg),
-                                 turn_gap=self.mac.turn_gap(), measured_round=self.mac.round)
+                                 round_trip=mac_round_trip(plan, link_cfg), turn_gap=self.mac.turn_gap(),
+                                 measured_round=self.mac.round, next_turn=self.mac.next_turn)
         self._log = w.log
         w.recorder = recorder_for(plan, self.options, w.wall)   # None without --record
         self.counters = BridgeCounters()

@@ -55,6 +55,8 @@ class Wiring:
     # a round as the MAC measures it (Mac.round: under turns the spacing of own turns);
     # None: `turn_gap`. Commands' urgency counts their rounds left in it (`urgent`)
     measured_round: Callable[[], float] | None = None
+    # when a message offered at a time can next leave (Mac.next_turn: its side's next turn)
+    next_turn: Callable[[float], float] = lambda now: now
     # the link's queue, set once the link exists (uwgen.bridge.copies): whether an equal
     # payload still waits in a channel, taking one back, and the own turns ended (None: no turns)
     waiting: Callable[[int, bytes], bool] = lambda key, payload: False
@@ -130,10 +132,12 @@ class Wiring:
         (docs/wire-format.md section 15.6). Never without a MAC (no turn). Rounds are the
         MAC's measured ones (`measured_round`), not its bound `turn_gap`: under turns the
         bound was 3.3 s where rounds took 2.5 s (commands_bench), and counted in it nearly
-        every command sent a second time was urgent."""
+        every command sent a second time was urgent. They are counted from when the message
+        can leave (`next_turn`): a copy offered as its own turn ends waits a round for the
+        next."""
         rounds = ANSWER_URGENT_ROUNDS if answer else URGENT_ROUNDS
         gap = self.turn_gap if self.measured_round is None else self.measured_round()
-        return deadline - self.clock.now() < rounds * gap
+        return deadline - self.next_turn(self.clock.now()) < rounds * gap
 
     def answer_urgent(self, began: float, timeout: float) -> bool:
         """Whether the serving side's answer to a request or goal whose call began at `began`

@@ -87,6 +87,12 @@ class Mac:
         uwgen.bridge.wiring)."""
         return self.turn_gap()
 
+    def next_turn(self, now: float) -> float:
+        """When a message offered at `now` can next leave: `now` while this side holds its
+        turn, or without turns; under turns the likely start of its next own turn (a round
+        after its last began). The bridge counts a command's rounds left from then."""
+        return now
+
     def own_span(self) -> float:
         """The longest this side's own turn or slot lasts (its packets follow one another
         within it): a command's copy in spare room goes no later (delivery's echoes). 0: no

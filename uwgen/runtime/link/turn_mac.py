@@ -229,6 +229,9 @@ class TurnMac(Mac):
         measured = self.rounds.measured()
         return self.cycle() if measured is None else measured
 
+    def next_turn(self, now: float) -> float:
+        return now if self._holding else self.rounds.next_start(now, self.round())
+
     def own_span(self) -> float:
         # its packets, one an interval, and on the leader one more (a margin)
         return (self.my_packets + self.leading) * self.interval

@@ -109,6 +109,11 @@ class Rounds:
             self._spacings.append(now - self._last)
         self._last = now
 
+    def next_start(self, now: float, length: float) -> float:
+        """When the next own turn is likely to start, rounds of `length`: a round after the
+        last one started, not before `now`."""
+        return now if self._last is None else max(now, self._last + length)
+
     def measured(self) -> float | None:
         spacings = list(self._spacings)       # read on another thread (the bridge's)
         return median(spacings) if len(spacings) >= ROUNDS_NEEDED else None
