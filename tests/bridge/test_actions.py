@@ -328,6 +328,7 @@ def test_a_result_in_its_goals_last_rounds_goes_with_its_copy_in_turn_as_the_ans
     surface, vehicle, bridges, links = pair
     vb = bridges["vehicle"]
     vb.wiring.turn_gap = 3.0                             # a MAC's round of turns
+    vb.wiring.measured_round = lambda: 3.0               # ... as measured
     left = [4.0]                                         # the goal's accept deadline, from now
     vb.wiring.callers_deadline = lambda began, timeout: vb.wiring.clock.now() + left[0]
     repeated, repeat = [], vb.wiring.repeat
