@@ -43,6 +43,7 @@ from uwgen.runtime.wire.heads import HeadError, Heads
 from uwgen.runtime.link.hooks import PacketHooks
 from uwgen.runtime.delivery.acks import A_ROOM, TIMED_REPORTS, AckPolicy, ReportTimes
 from uwgen.runtime.delivery.echoes import Echoes
+from uwgen.runtime.delivery.silence import Silence
 from uwgen.runtime.delivery.repairs import Repairs
 from uwgen.runtime.delivery.reliable import (REPORT_KEY, ReliableLink, RttEstimator, Sent,
                                              packet_peers, wire_id)
@@ -130,6 +131,7 @@ class Reliability:
         self.on_fate: Callable[[int, bytes, bool], None] | None = None
         self.report_bytes = 0                         # A parts written (with their length byte)
         self.repairs = Repairs(self.engine, self.echoes, self.heads, self.deadlines)
+        self.silence = Silence(self.engine)           # a peer's packet with no report (15.2)
         self.acks = AckPolicy(self.engine, ack_delay=self.ack_delay, ack_interval=self.ack_interval,
                               eager=TIMED_REPORTS if clock_exchange and self.max_ages else 0,
                               unheard=unheard)      # the MAC's: a peer's turn went unheard
@@ -239,6 +241,7 @@ class Reliability:
             messages += self.acks.carried()      # its reports: confirmed once it is acked
             self.engine.sent(number, messages, now,
                              packet_peers(messages, self.destinations, self._everyone))
+            self.silence.sent(number)
             self.offsets.built(number, self.wall.now())
             self.engine.forget(number - FORGET_AFTER)
             self._timed = False
@@ -325,7 +328,9 @@ class Reliability:
                 if r is not None and r.eliciting_since is not None:
                     r.eliciting_since = min(r.eliciting_since, now - self.ack_delay)
             self.acks.heard(peer, bool(envelope.messages), now)
-            if envelope.ack is not None:
+            if envelope.ack is None:
+                self.silence.heard(peer, epoch, envelope.number, self.settled_by(peer, now), now)
+            else:
                 self.judge.sample(peer, envelope, self.engine.largest_sent, now)
                 before = self.engine.bad_acks
                 self.engine.acked(envelope.ack, now, reporter=peer,
@@ -439,6 +444,7 @@ class Reliability:
                                     "timer_resends": self.engine.timer_resends,
                                     "copies": self.engine.spare.sent,
                                     "report_bytes": self.report_bytes,
+                                    "lost_by_silence": self.silence.inferred,
                                     **self.echoes.stats(),
                                     "clock_offsets": {p: o.as_dict() for p, o in
                                                       self.offsets.peers().items()}}}

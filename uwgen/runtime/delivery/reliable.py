@@ -275,9 +275,9 @@ class ReliableLink(Receiving):
         if settled_by is not None:
             for packet in list(self.outstanding.values()):
                 if packet.number > largest and packet.at <= settled_by and packet.awaits(reporter):
-                    self._overtaken(packet, now)
+                    self.overtaken(packet, now)
 
-    def _overtaken(self, packet: _Packet, now: float) -> None:
+    def overtaken(self, packet: _Packet, now: float) -> None:
         """A packet sent after the report's largest that the report would have named had it
         arrived: its reliable messages go again now. It stays outstanding, as after a timeout
         (a later report names its fate for the ledger; should it have arrived after all, the
