@@ -31,6 +31,8 @@ KEPT = 64     # our packets whose marks are kept (older ones have settled long b
 
 
 class Silence:
+    """What a peer's packets with no report say of ours (module doc)."""
+
     def __init__(self, engine: ReliableLink):
         self.engine = engine
         # our packet number -> (peer, epoch) -> the peer's largest number heard when it left
