@@ -504,7 +504,7 @@ def test_a_follower_granted_with_a_request_keeps_its_turn_for_the_answer_being_b
     answer. The first packet does not end the turn; the second carries the answer and the end."""
     _, follower = pair()
     follower.backlog = lambda now: False
-    follower.hooks().received(_leader_packet(2, control=bytes([0x22, 2])), 1.0)   # request + grant
+    follower.hooks().received(_leader_packet(2, control=bytes([0x22, 2])), 1.0)  # request + grant
     assert follower.next_write_at(1.0) == -math.inf
     follower.offered(1.0, bytes.fromhex("000573"))      # a topic message meanwhile: not the answer
     assert write(follower, 1.0) == b""                  # no answer yet: the turn goes on
@@ -516,11 +516,11 @@ def test_a_follower_granted_with_a_request_keeps_its_turn_for_the_answer_being_b
 def test_a_follower_whose_answer_was_offered_or_not_asked_for_ends_on_its_first_packet():
     _, answered = pair()
     answered.backlog = lambda now: False
-    answered.hooks().received(_leader_packet(2), 0.5)          # a request, answered before the grant
+    answered.hooks().received(_leader_packet(2), 0.5)   # a request, answered before the grant
     answered.offered(0.6, bytes.fromhex("031419fb6f"))
     answered.hooks().received(_leader_packet(control=bytes([0x22, 2])), 1.0)
     assert write(answered, 1.0) == bytes([0x32])
     _, topics = pair()
     topics.backlog = lambda now: False
-    topics.hooks().received(_leader_packet(0, control=bytes([0x22, 2])), 1.0)     # a topic message
+    topics.hooks().received(_leader_packet(0, control=bytes([0x22, 2])), 1.0)   # a topic message
     assert write(topics, 1.0) == bytes([0x32])

@@ -19,13 +19,9 @@ delivered once.
 from __future__ import annotations
 
 from collections import OrderedDict
-from typing import TYPE_CHECKING
 
-from uwgen.runtime.delivery.reliable import REPORT_KEY, ReliableLink
+from uwgen.runtime.delivery.reliable import REPORT_KEY, ReliableLink, Sent
 from uwgen.runtime.delivery.reports import unwrap
-
-if TYPE_CHECKING:
-    from uwgen.runtime.delivery.reliable import _Packet
 
 KEPT = 64     # our packets whose marks are kept (older ones have settled long before)
 
@@ -56,19 +52,18 @@ class Silence:
                 or unwrap(number, r.largest) != r.largest:
             return                            # a late packet of the peer's says less
         for packet in list(self.engine.outstanding.values()):
-            if packet.at > settled_by or packet.told or not packet.awaits(peer) \
-                    or not self._elicits(packet):
-                continue
             mark = self._marks.get(packet.number, {}).get((peer, epoch))
-            if mark is not None and mark < r.largest \
+            if mark is None or packet.at > settled_by or packet.told or not packet.awaits(peer):
+                continue
+            if mark < r.largest and self._elicits(packet.messages) \
                     and all(n in r.got for n in range(mark + 1, r.largest)):
                 del self._marks[packet.number]      # taken once
                 self.inferred += 1
                 self.engine.overtaken(packet, now)
 
-    def _elicits(self, packet: _Packet) -> bool:
-        """Whether the peer reports on `packet` on its next packet: it carries a whole
-        reliable message or command (a cut one's head alone elicits nothing)."""
+    def _elicits(self, messages: list[Sent]) -> bool:
+        """Whether the peer reports on a packet carrying `messages` on its next packet: a
+        whole reliable message or command among them (a cut one's head elicits nothing)."""
         return any(m.key != REPORT_KEY and m.tail is None
                    and (m.deadline is not None or m.key in self.engine.told.watched)
-                   for m in packet.messages)
+                   for m in messages)

@@ -7,8 +7,9 @@ Sans-IO: every call carries `now` (the link's clock). The connection writes when
 or `abandoned()` when the packet built came too `late` to be written; the Link tells it
 every message offered (`offered`). The packer asks `hooks()` for the C items of each packet
 (`control`), for an empty packet that must leave (`ack_only`: a grant or an end of turn)
-and tells it every admitted envelope (`received` -> `heard`). `turn_gap()` is the longest a reply waits for the peer's turn: delivery's
-retransmission timer starts no lower than a round trip plus it.
+and tells it every admitted envelope (`received` -> `heard`). `turn_gap()` is the longest a
+reply waits for the peer's turn: delivery's retransmission timer starts no lower than a
+round trip plus it.
 """
 from __future__ import annotations
 

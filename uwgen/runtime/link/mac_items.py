@@ -7,7 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 TURN_GRANT = 2          # C item `2S NN`: the turn goes to sender S for NN packets (1..255);
-                        # `2S 00`: notice that one of the leader's next two packets grants S its turn
+                        # `2S 00`: notice that one of the leader's next two packets
+                        # grants S its turn
 TURN_END = 3            # C item `3S`: sender S ends its turn
 
 
