@@ -17,7 +17,9 @@ erases that share of packets (PER / (1 - PER) of the commands' first copies: a l
 and the bytes of every report the two sides wrote (the A parts of wire-format 15.2: they
 acknowledge topics' packets and commands' alike, and tell each command's fate, 15.6).
 `--breakdown` also prints the retry and acknowledgement bytes by kind, each kind's own floor,
-and the fates the reports told (arrived, lost; copies spared, answers repaired).
+the fates the reports told (arrived, lost; copies spared, answers repaired), and each side's
+packets the channel erased, with the floor at those rates (a run's channel erases more or
+fewer than the nominal PER).
 
 Modes: `retries` is this build; `reference` is the same build with the commands' retries off
 (no request copies, no result copies, no result acknowledgements or requests; goals are
@@ -172,6 +174,28 @@ def result_status(key: int, payload: bytes) -> bool:
     24 + handle (`18 xx`). A request of /echo whose seq is 24..255 opens the same way, and is
     a request."""
     return key == FIB_ID and payload[0] == 2 and len(payload) > 3 and payload[2] == 0x18
+
+
+def channel_losses(counters: dict[str, dict[str, int]], sides=("surface", "vehicle")
+                   ) -> dict[str, tuple[int, int]]:
+    """Each side's packets the channel erased, as the emulator counts them: (lost to PER at
+    the peer, sent) per side of a two-side run. The floor is figured at the nominal PER; a
+    run's own channel erases more or fewer (at 20 %, one side's few hundred packets in a run
+    lost 18-24 %), and this says how many."""
+    first, second = sides
+    peer = {first: second, second: first}
+    return {side: (counters[peer[side]]["lost_per"], counters[side]["packets_sent"])
+            for side in sides}
+
+
+def floor_at(first: dict[str, int], losses: dict[str, tuple[int, int]]) -> int:
+    """The floor's bytes at each side's own erasure rate (`channel_losses`): q / (1 - q) of
+    the side's commands' first copies, summed."""
+    total = 0.0
+    for side, (lost, sent) in losses.items():
+        q = lost / sent if sent else 0.0
+        total += first.get(side, 0) * q / (1 - q) if q < 1 else 0.0
+    return round(total)
 
 
 COPY_WINDOW = 60.0   # s: a payload offered again within this is a copy; later, a new message
@@ -415,7 +439,10 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
                     if int(key) in COMMAND_IDS:            # framing counted per copy, as above
                         extra += n + OVERHEAD * copies[key]
                         kinds[f"in-turn copy ({name})"] += n + OVERHEAD * copies[key]
-            collisions = sum(c["lost_collision"] for c in emu.all_counters().values())
+            counters = emu.all_counters()
+            collisions = sum(c["lost_collision"] for c in counters.values())
+            losses = channel_losses(counters)
+            floor_seen = floor_at({name: o.first for name, o in overhead.items()}, losses)
             # every A part written (reports on topics' and commands' packets alike: 15.2)
             reports = sum(b.link.stats().get("reliability", {}).get("report_bytes", 0)
                           for b in bridges.values())
@@ -438,6 +465,7 @@ def run(package, per: float, seed: int, calls: int, goals: int, retries: bool,
             # packets: per / (1 - per) of the commands' bytes sent once (a lower bound: a
             # message cut across two packets is lost more often, and so are copies)
             "floor": first * per / (1 - per) / written if written and per < 1 else 0.0,
+            "losses": losses, "floor_seen": floor_seen / written if written else 0.0,
             "time": elapsed, "collisions": collisions,
             "reports": reports / written if written else 0.0, "fates": dict(fates),
             "kinds": {k: v / written if written else 0.0 for k, v in sorted(kinds.items())},
@@ -501,6 +529,10 @@ def main() -> int:
                     print("  retry+ack bytes: " + ", ".join(f"{k} {v:.1%}" for k, v in r["kinds"].items()))
                     print("  floor by kind: " + ", ".join(f"{k} {v:.1%}" for k, v in r["floors"].items()))
                     print("  command fates told: " + ", ".join(f"{k} {v}" for k, v in r["fates"].items()))
+                    print("  channel: " + ", ".join(
+                        f"{side}'s packets lost {lost / sent if sent else 0:.1%} ({lost} of {sent})"
+                        for side, (lost, sent) in r["losses"].items())
+                        + f"; floor at these rates {r['floor_seen']:.1%}")
     return 0
 
 
