@@ -188,14 +188,14 @@ def channel_losses(counters: dict[str, dict[str, int]], sides=("surface", "vehic
             for side in sides}
 
 
-def floor_at(first: dict[str, int], losses: dict[str, tuple[int, int]]) -> int:
+def floor_at(first: dict[str, int], losses: dict[str, tuple[int, int]]) -> float:
     """The floor's bytes at each side's own erasure rate (`channel_losses`): q / (1 - q) of
     the side's commands' first copies, summed."""
     total = 0.0
     for side, (lost, sent) in losses.items():
         q = lost / sent if sent else 0.0
         total += first.get(side, 0) * q / (1 - q) if q < 1 else 0.0
-    return round(total)
+    return total
 
 
 COPY_WINDOW = 60.0   # s: a payload offered again within this is a copy; later, a new message
