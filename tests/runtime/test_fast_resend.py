@@ -5,6 +5,8 @@ one that rides in a turn begun after the packet) hands its reliable messages bac
 Every time is explicit (the engine) or a ManualClock (the links)."""
 from __future__ import annotations
 
+import pytest
+
 from uwgen.emulator import NodeSpec, Scenario
 from uwgen.emulator.duplex import DuplexSim
 from uwgen.manifest.model import LinkConfig, LinkPolicy, MacConfig
@@ -40,6 +42,37 @@ def test_a_gap_makes_the_next_packet_carry_a_report_before_the_ack_interval():
     assert report.largest == 3 and 2 in report.numbers()[1]
     assert not acks.due({SURFACE: EPOCH}, 1.2)            # reported: nothing urgent any more
     assert not r.ack_only_due(SURFACE, 10.0)              # a gap never sends a packet alone
+
+
+@pytest.mark.parametrize("twice", [True, False])
+def test_a_leaders_report_telling_a_loss_rides_its_next_packet_once_more(twice):
+    s = engine(SURFACE)
+    acks = AckPolicy(s, ack_delay=2.0, ack_interval=6.0)   # the leader's reports on the vehicle
+    acks.twice = twice
+    s.received(VEHICLE, EPOCH, 0, 0.0, eliciting=False)
+    assert acks.a_part({VEHICLE: EPOCH}, 0.1)              # news, first report: no loss told
+    assert not acks.due({VEHICLE: EPOCH}, 0.2)             # ... so not said twice
+    s.received(VEHICLE, EPOCH, 2, 1.0, eliciting=False)    # 1 (say, its response) is missing
+    assert 1 in decode_reports(acks.a_part({VEHICLE: EPOCH}, 1.1))[0].numbers()[1]
+    assert acks.due({VEHICLE: EPOCH}, 1.3) is twice         # the turn's next packet
+    again = acks.a_part({VEHICLE: EPOCH}, 1.3)
+    assert bool(again) is twice
+    if twice:
+        assert 1 in decode_reports(again)[0].numbers()[1]
+    assert not acks.due({VEHICLE: EPOCH}, 1.5) and not acks.a_part({VEHICLE: EPOCH}, 1.5)
+
+
+def test_a_report_on_a_turn_taken_back_unheard_is_said_twice_by_the_leader():
+    unheard = {"at": None}
+    r = Reliability(SURFACE, period=0.2, reliable={}, max_ages={}, turn_gap=2.9,
+                    unheard=lambda peer: unheard["at"] if peer == VEHICLE else None)
+    r.acks.twice = True
+    r.engine.received(VEHICLE, EPOCH, 0, 0.0, eliciting=False)
+    r.acks.heard(VEHICLE, True, 0.0)
+    assert r.acks.a_part({VEHICLE: EPOCH}, 0.1)
+    unheard["at"] = 3.0                                    # its next turn: unheard
+    assert r.acks.a_part({VEHICLE: EPOCH}, 3.1) and r.acks.a_part({VEHICLE: EPOCH}, 3.3)
+    assert not r.acks.due({VEHICLE: EPOCH}, 3.5)           # twice, not more
 
 
 def test_a_lost_report_that_named_a_missing_packet_goes_again_on_the_next_packet():

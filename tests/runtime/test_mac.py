@@ -469,6 +469,17 @@ def test_unheard_says_when_the_leader_last_took_a_followers_turn_back_on_its_tim
     assert lead.unheard(3) is None and follower.unheard(1) is None
 
 
+def test_only_the_turns_leader_says_a_loss_report_twice():
+    # its notices and grant follow its first packet within the turn; a follower's turn is
+    # often one packet, and TDMA and no MAC have no turn (delivery's AckPolicy.twice)
+    lead, follower = pair()
+    assert lead.reports_twice() and not follower.reports_twice()
+    assert not Mac().reports_twice()
+    tdma = MacConfig(mode="tdma", frame=3.0, guard=0.2, slots=("surface", "vehicle"),
+                     max_packet_per_slot=1000, queue_size=100, range=100)
+    assert not TdmaMac(tdma, "surface", LINK).reports_twice()
+
+
 def test_a_weighted_tdma_slot_drains_more_packets_a_frame():
     # frame 3 s over 3 sides, the surface weighted 4 of 6: its slot is 2 s (ON 1.8 s), the
     # others 0.5 s (ON 0.3 s); 64-byte packets take 0.113 s, one per 0.2 s period

@@ -121,7 +121,7 @@ class BridgeNode(WholeNode):
         self.reliability = reliability_for(plan, link_cfg, w.wall, other_overhead=(
             seal_hooks.overhead if seal_hooks is not None else 0) + self.mac.overhead,
             turn_gap=self.mac.turn_gap(), settled_by=self.mac.settled_by,
-            unheard=self.mac.unheard, own_span=self.mac.own_span())
+            unheard=self.mac.unheard, own_span=self.mac.own_span(), twice=self.mac.reports_twice())
         reliability_hooks = self.reliability.hooks() if self.reliability is not None else None
         if self.reliability is not None and hasattr(self.guard, "use_offsets"):
             # the seal reads T with each peer's measured clock offset; reliability judges

@@ -71,7 +71,7 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
                     other_overhead: int = 0, turn_gap: float = 0.0,
                     settled_by: Callable[[int, float], float | None] | None = None,
                     unheard: Callable[[int], float | None] | None = None,
-                    own_span: float = 0.0) -> Reliability | None:
+                    own_span: float = 0.0, twice: bool = False) -> Reliability | None:
     """The link's reliability of this side (None on wire format 1). `wall`: the wall clock
     T is stamped with and checked against (a Clock, or a function giving seconds);
     `other_overhead`: what the hooks joined with it (the per-packet seal, the MAC) add to a
@@ -79,11 +79,12 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
     peer's answer covers of this side's packets and `unheard` when a peer's turn went unheard,
     `own_span` how long its own turn or slot
     lasts (uwgen.runtime.link.mac): its services' and actions' messages get a copy in spare
-    room within it (uwgen.runtime.delivery.echoes)."""
+    room within it (uwgen.runtime.delivery.echoes); `twice`: a report telling a loss rides
+    the next packet too (the MAC's `reports_twice`: under turns, the leader)."""
     if plan.wire_format != 2:
         return None
     clock = wall if hasattr(wall, "now") else _Wall(wall)
-    return Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
+    out = Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
                        max_ages=max_ages(plan), wall=clock, name=plan.side,
                        max_read_length=link.max_read_length, other_overhead=other_overhead,
                        turn_gap=turn_gap, settled_by=settled_by, unheard=unheard,
@@ -94,6 +95,8 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
                        epoch_source=new_epoch if plan.security is None else None,
                        # probes at start, so commands are judged with a measured offset
                        clock_exchange=True)
+    out.acks.twice = twice
+    return out
 
 
 def wire_commands(w: Any, reliability: Reliability) -> None:

@@ -17,7 +17,10 @@ after it took a follower's turn back unheard (`unheard`: the turn's end, and may
 packets before it, were lost) carries a report on that follower, news or not: the follower
 takes it as naming its turn's packets after the report's largest lost (the MAC's
 `settled_by`), and sends their answers and results again in its next turn, not a round
-later when news would report. It keeps its own state and reads the engine
+later when news would report. The leader (`twice`, the MAC's `reports_twice`) says a report
+that tells a loss (a gap, or a turn unheard) once more on its next packet, a notice or the
+grant that leaves anyway in the same turn: the follower's repair waits for it, and a lost
+report would cost it a round. It keeps its own state and reads the engine
 (`uwgen.runtime.delivery.reliable.ReliableLink`); the caller holds the lock and passes `now`.
 """
 from __future__ import annotations
@@ -52,6 +55,10 @@ class AckPolicy:
         self._news: dict[int, float] = {}       # peer -> first packet since our last report
         self._idle: dict[int, int] = {}         # peer -> reports sent alone since its news
         self.final = False                      # a last report on every peer is due (closing)
+        # under turns the leader (the MAC's `reports_twice`): a report that tells a loss rides
+        # its next packet too, so that it is lost only with both (module doc)
+        self.twice = False
+        self._again: set[int] = set()           # peers whose loss report goes once more
 
     def heard(self, peer: int, with_messages: bool, now: float) -> None:
         """A packet of `peer` arrived; an ack-only one asks for nothing (no ping-pong)."""
@@ -71,8 +78,10 @@ class AckPolicy:
             epoch = epochs.get(peer, b"")
             low = self._confirmed.get((peer, epoch))
             waited, news = self._wanted(peer, r, epoch, now)
-            if not (waited or news or self._eager(peer, epoch) or self.final):
+            again = peer in self._again
+            if not (waited or news or again or self._eager(peer, epoch) or self.final):
                 continue
+            loss = r.gap or self._unheard(peer)       # read before the report clears them
             if low is None:
                 low = min(r.got, default=r.largest)
             fits = max(0, min(MAX_BITMAP, room - 1 - len(out) - 3))
@@ -86,9 +95,13 @@ class AckPolicy:
                         del self._eager_sent[next(iter(self._eager_sent))]
                 self._reports.append((peer, epoch, r.largest))
                 self._last_report[peer] = now
+                if again:
+                    self._again.discard(peer)         # said twice: once more is enough
+                elif self.twice and loss:
+                    self._again.add(peer)
                 if self._news.pop(peer, None) is not None:
                     self._idle[peer] = 0
-                elif not waited and low is not None and low < r.largest:
+                elif not waited and not again and low is not None and low < r.largest:
                     # alone again about numbers not confirmed: bounded (nobody acks an
                     # ack-only packet, so its arrival is never confirmed)
                     self._idle[peer] = self._idle.get(peer, 0) + 1
@@ -104,7 +117,8 @@ class AckPolicy:
             if r is None or r.largest is None:
                 continue
             epoch = epochs.get(peer, b"")
-            if any(self._wanted(peer, r, epoch, now)) or self._eager(peer, epoch):
+            if any(self._wanted(peer, r, epoch, now)) or self._eager(peer, epoch) \
+                    or peer in self._again:
                 return True
         return False
 

@@ -29,7 +29,8 @@ and `mac_for`, which builds a side's MAC from the manifest.
   `settled_by` tells delivery that a peer's answer was built after all of this side's packets
   of the turn before it had arrived or been lost (a report there names their loss at once);
   `unheard` that the leader took a follower's turn back unheard, so that its next packet
-  carries that report even with no news.
+  carries that report even with no news; `reports_twice` that the leader says a report
+  telling a loss once more on its next packet (a notice or the grant, leaving anyway).
 """
 from __future__ import annotations
 

@@ -106,6 +106,11 @@ class Mac:
         report in that packet as naming all of them (a packet it does not name was lost)."""
         return None
 
+    def reports_twice(self) -> bool:
+        """Whether a report that tells a loss also rides this side's next packet (delivery's
+        `AckPolicy.twice`): only where that packet leaves anyway within the same turn."""
+        return False
+
     def unheard(self, sender: int) -> float | None:
         """When this side last gave up waiting for the rest of `sender`'s turn (None: never,
         or the MAC has no turns): the turn's last packets were lost. Delivery then reports on

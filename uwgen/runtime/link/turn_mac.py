@@ -245,6 +245,9 @@ class TurnMac(Mac):
             return self.wait.settled_by(sender)
         return self._last_end if sender == self.leader_id and not self._holding else None
 
+    def reports_twice(self) -> bool:
+        return self.leading          # its notices and grant follow its first packet (rule 1)
+
     def unheard(self, sender: int) -> float | None:
         """The leader: when it last took `sender`'s turn back on its timer (its end unheard:
         its last packets, an answer or a result among them, were lost; the leader's next report
