@@ -45,7 +45,7 @@ def test_a_gap_makes_the_next_packet_carry_a_report_before_the_ack_interval():
 
 
 @pytest.mark.parametrize("twice", [True, False])
-def test_a_leaders_report_telling_a_loss_rides_its_next_packet_once_more(twice):
+def test_a_report_telling_a_loss_rides_the_next_packet_once_more_when_said_twice(twice):
     s = engine(SURFACE)
     acks = AckPolicy(s, ack_delay=2.0, ack_interval=6.0)   # the leader's reports on the vehicle
     acks.twice = twice

@@ -85,16 +85,16 @@ def reliability_for(plan: BridgePlan, link: LinkConfig,
         return None
     clock = wall if hasattr(wall, "now") else _Wall(wall)
     out = Reliability(plan.sender_id, period=link.period, reliable=reliable_topics(plan),
-                       max_ages=max_ages(plan), wall=clock, name=plan.side,
-                       max_read_length=link.max_read_length, other_overhead=other_overhead,
-                       turn_gap=turn_gap, settled_by=settled_by, unheard=unheard,
-                       commands=command_keys(plan), own_span=own_span,
-                       destinations=destinations(plan, plan.side_ids),
-                       peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},
-                       # K on an unsealed link is this side's; a sealed link's is the seal's
-                       epoch_source=new_epoch if plan.security is None else None,
-                       # probes at start, so commands are judged with a measured offset
-                       clock_exchange=True)
+                      max_ages=max_ages(plan), wall=clock, name=plan.side,
+                      max_read_length=link.max_read_length, other_overhead=other_overhead,
+                      turn_gap=turn_gap, settled_by=settled_by, unheard=unheard,
+                      commands=command_keys(plan), own_span=own_span,
+                      destinations=destinations(plan, plan.side_ids),
+                      peer_names={i: s for s, i in plan.side_ids.items() if s != plan.side},
+                      # K on an unsealed link is this side's; a sealed link's is the seal's
+                      epoch_source=new_epoch if plan.security is None else None,
+                      # probes at start, so commands are judged with a measured offset
+                      clock_exchange=True)
     out.acks.twice = twice
     return out
 
