@@ -81,7 +81,8 @@ class AckPolicy:
             again = peer in self._again
             if not (waited or news or again or self._eager(peer, epoch) or self.final):
                 continue
-            loss = r.gap or self._unheard(peer)       # read before the report clears them
+            # a loss told (read before the report clears it): said once more on the next packet
+            loss = self.twice and not again and (r.gap or self._unheard(peer))
             if low is None:
                 low = min(r.got, default=r.largest)
             fits = max(0, min(MAX_BITMAP, room - 1 - len(out) - 3))
@@ -95,10 +96,10 @@ class AckPolicy:
                         del self._eager_sent[next(iter(self._eager_sent))]
                 self._reports.append((peer, epoch, r.largest))
                 self._last_report[peer] = now
-                if again:
-                    self._again.discard(peer)         # said twice: once more is enough
-                elif self.twice and loss:
+                if loss:
                     self._again.add(peer)
+                else:
+                    self._again.discard(peer)         # said twice: once more is enough
                 if self._news.pop(peer, None) is not None:
                     self._idle[peer] = 0
                 elif not waited and not again and low is not None and low < r.largest:
